@@ -1,0 +1,47 @@
+"""Mobility at the rest pose and the load-time checks that depend on it."""
+
+from __future__ import annotations
+
+from functools import partial
+
+import jax
+import numpy as np
+
+from ._constraints import passive_residual
+from ._errors import MechanismFileError
+from ._geometry import geometry, rest_state
+from ._model import Mechanism
+from ._singularity import sigma_min_pair
+
+RANK_TOL = 1e-9  # relative to the largest singular value
+SINGULAR_TOL = 1e-7  # absolute σ_min (homogenised) below which the rest pose is singular
+
+
+@partial(jax.jit, static_argnums=0)
+def _rest_analysis(mech: Mechanism):
+    geom = geometry(mech)
+    state = rest_state(mech)
+    passive = jax.jacfwd(lambda s: passive_residual(mech, geom, s))(state)
+    return passive, sigma_min_pair(mech, geom, state)
+
+
+def mobility(mech: Mechanism) -> int:
+    """Degrees of freedom at rest: ``|s| - rank(∂C_passive/∂s)`` (motors as passive joints)."""
+    passive, _ = _rest_analysis(mech)
+    values = np.linalg.svd(np.asarray(passive), compute_uv=False)
+    rank = int(np.sum(values > RANK_TOL * values[0]))
+    return mech.state_size - rank
+
+
+def check_mobility(mech: Mechanism) -> None:
+    """Motors and outputs must each number the mobility, and rest must not be singular."""
+    dof = mobility(mech)
+    if mech.num_motors != dof:
+        raise MechanismFileError(mech.source, "[[motors]]", f"the mechanism has mobility {dof} at the rest pose but {mech.num_motors} motor(s); they must be equal")
+    if mech.num_outputs != dof:
+        raise MechanismFileError(mech.source, "[[outputs]]", f"the mechanism has mobility {dof} at the rest pose but {mech.num_outputs} output(s); they must be equal")
+    sigma_fk, sigma_bk = np.asarray(_rest_analysis(mech)[1])
+    if sigma_fk < SINGULAR_TOL:
+        raise MechanismFileError(mech.source, "[[motors]]", f"the rest pose is a forward singularity (σ_min = {sigma_fk:.2e}): the motors do not determine the mechanism there")
+    if sigma_bk < SINGULAR_TOL:
+        raise MechanismFileError(mech.source, "[[outputs]]", f"the rest pose is a backward singularity (σ_min = {sigma_bk:.2e}): the outputs do not determine the mechanism there")
