@@ -18,17 +18,19 @@ SINGULAR_TOL = 1e-7  # absolute σ_min (homogenised) below which the rest pose i
 
 
 @partial(jax.jit, static_argnums=0)
-def _rest_analysis(mech: Mechanism):
+def _passive_jacobian(mech: Mechanism):
     geom = geometry(mech)
-    state = rest_state(mech)
-    passive = jax.jacfwd(lambda s: passive_residual(mech, geom, s))(state)
-    return passive, sigma_min_pair(mech, geom, state)
+    return jax.jacfwd(lambda s: passive_residual(mech, geom, s))(rest_state(mech))
+
+
+@partial(jax.jit, static_argnums=0)
+def _rest_sigmas(mech: Mechanism):
+    return sigma_min_pair(mech, geometry(mech), rest_state(mech))
 
 
 def mobility(mech: Mechanism) -> int:
     """Degrees of freedom at rest: ``|s| - rank(∂C_passive/∂s)`` (motors as passive joints)."""
-    passive, _ = _rest_analysis(mech)
-    values = np.linalg.svd(np.asarray(passive), compute_uv=False)
+    values = np.linalg.svd(np.asarray(_passive_jacobian(mech)), compute_uv=False)
     rank = int(np.sum(values > RANK_TOL * values[0]))
     return mech.state_size - rank
 
@@ -40,7 +42,7 @@ def check_mobility(mech: Mechanism) -> None:
         raise MechanismFileError(mech.source, "[[motors]]", f"the mechanism has mobility {dof} at the rest pose but {mech.num_motors} motor(s); they must be equal")
     if mech.num_outputs != dof:
         raise MechanismFileError(mech.source, "[[outputs]]", f"the mechanism has mobility {dof} at the rest pose but {mech.num_outputs} output(s); they must be equal")
-    sigma_fk, sigma_bk = np.asarray(_rest_analysis(mech)[1])
+    sigma_fk, sigma_bk = np.asarray(_rest_sigmas(mech))
     if sigma_fk < SINGULAR_TOL:
         raise MechanismFileError(mech.source, "[[motors]]", f"the rest pose is a forward singularity (σ_min = {sigma_fk:.2e}): the motors do not determine the mechanism there")
     if sigma_bk < SINGULAR_TOL:

@@ -1,0 +1,15 @@
+"""Shared fixtures. Mechanisms are loaded once per session (loading compiles a kernel)."""
+
+from pathlib import Path
+
+import pytest
+
+import linkopt
+
+ROOT = Path(__file__).resolve().parent.parent
+MECHANISMS = ROOT / "mechanisms"
+
+
+@pytest.fixture(scope="session")
+def five_bar() -> linkopt.Mechanism:
+    return linkopt.load(MECHANISMS / "five_bar.toml")

@@ -1,0 +1,91 @@
+"""σ_min of the FK/BK Jacobians near the five-bar's closed-form singular poses, and
+the exact derivative of f_sing."""
+
+import subprocess
+import sys
+import textwrap
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import linkopt
+from five_bar_closed_form import backward_singular_height, forward_singular_height
+
+GAPS = np.array([1.0, 1e-1, 1e-2, 1e-3])
+
+
+def sigmas_along(mech, heights, start_height):
+    """Solve BK along the symmetry axis from ``start_height`` to each height (continuation)."""
+    ys = np.concatenate([np.linspace(start_height, heights[0], 30), heights])
+    path = linkopt.solve_bk_path(mech, np.stack([np.zeros_like(ys), ys], -1))
+    assert np.all(path.converged)
+    return np.asarray(linkopt.singular_values(mech, path.state[30:]))
+
+
+def test_forward_sigma_vanishes_as_distal_links_align(five_bar):
+    sigmas = sigmas_along(five_bar, forward_singular_height() + GAPS, 70.0)
+    fk, bk = sigmas[:, 0], sigmas[:, 1]
+    assert np.all(np.diff(fk) < 0) and fk[-1] < 1e-2 * fk[0]
+    # σ_FK vanishes linearly in the tip's distance to the singular height
+    np.testing.assert_allclose(np.diff(np.log10(fk[1:])), -1.0, atol=0.05)
+    assert bk.min() > 0.1 * bk.max() and bk.min() > 0.02
+
+
+def test_backward_sigma_vanishes_as_crank_and_link_align(five_bar):
+    sigmas = sigmas_along(five_bar, backward_singular_height() - GAPS, 70.0)
+    fk, bk = sigmas[:, 0], sigmas[:, 1]
+    assert np.all(np.diff(bk) < 0) and bk[-1] < 0.05 * bk[0]
+    # at the stretched-out pose σ_BK vanishes like the square root of the distance
+    np.testing.assert_allclose(np.diff(np.log10(bk[1:])), -0.5, atol=0.05)
+    assert fk.min() > 0.1 * fk.max() and fk.min() > 0.02
+
+
+def test_f_sing_is_sum_of_inverse_sigmas(five_bar):
+    state = linkopt.solve_fk(five_bar, np.array([0.2, -0.1])).state
+    sigma = np.asarray(linkopt.singular_values(five_bar, state))
+    assert np.isclose(float(linkopt.f_sing(five_bar, state)), np.sum(1 / sigma), rtol=1e-12)
+    # against numpy's SVD of the stacked Jacobians (homogenised)
+    from linkopt._singularity import stacked_jacobians
+
+    jac = np.asarray(stacked_jacobians(five_bar, linkopt.geometry(five_bar), state))
+    reference = [np.linalg.svd(j, compute_uv=False)[-1] for j in jac]
+    np.testing.assert_allclose(sigma, reference, rtol=1e-10)
+
+
+def test_f_sing_gradient_through_fk_matches_finite_differences(five_bar):
+    def objective(motors, design):
+        state = linkopt.solve_fk(five_bar, motors, design=design).state
+        return linkopt.f_sing(five_bar, state, design=design)
+
+    motors = jnp.array([0.25, -0.15])
+    design = jnp.asarray(five_bar.design.p0)
+    grad_a, grad_p = jax.grad(objective, argnums=(0, 1))(motors, design)
+    h = 1e-6
+    fd_a = [(objective(motors + h * e, design) - objective(motors - h * e, design)) / (2 * h) for e in np.eye(2)]
+    fd_p = [(objective(motors, design + h * e) - objective(motors, design - h * e)) / (2 * h) for e in np.eye(3)]
+    np.testing.assert_allclose(grad_a, fd_a, rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(grad_p, fd_p, rtol=1e-5, atol=1e-7)
+
+
+def test_batched_svd_gradient_does_not_hang():
+    """Regression: vmap(grad(f_sing ∘ FK)) once deadlocked in LAPACK under jax 0.10."""
+    script = textwrap.dedent(
+        """
+        import jax, jax.numpy as jnp, numpy as np, linkopt
+        m = linkopt.load("mechanisms/five_bar.toml")
+        g = linkopt.geometry(m)
+        from linkopt._singularity import f_sing_value
+        def f(a):
+            s = linkopt.solve_fk(m, a).state
+            return f_sing_value(m, g, s)
+        grads = jax.jit(jax.vmap(jax.grad(f)))(jnp.asarray(np.linspace(-0.2, 0.2, 64).reshape(32, 2)))
+        assert np.all(np.isfinite(np.asarray(grads)))
+        print("ok")
+        """
+    )
+    from conftest import ROOT
+
+    done = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().endswith("ok")
