@@ -1,0 +1,148 @@
+"""Kinematics solve speed: linkopt's LM against scipy and optimistix on the same residual.
+
+Run: ``.venv/bin/python benchmarks/bench_kinematics.py [--quick]``
+
+Prints, for the five-bar and the Jansen leg: a single warm-started solve, solves per
+second in batches of 1, 1 000 and 100 000 configurations, compile time with a cold and
+a warm persistent cache (each in a fresh process), and the baselines as ratios.
+Targets (five-bar, 2 cores): <= 200 µs a single solve, >= 30 000 solves/s batched.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+MECHANISMS = {"five-bar": ROOT / "mechanisms/five_bar.toml", "jansen": ROOT / "mechanisms/jansen_1dof.toml"}
+TARGET_SINGLE_US = 200.0
+TARGET_RATE = 30_000.0
+
+
+def _timed(fn, repeats: int) -> float:
+    import jax
+
+    jax.block_until_ready(fn())
+    start = time.perf_counter()
+    for _ in range(repeats):
+        jax.block_until_ready(fn())
+    return (time.perf_counter() - start) / repeats
+
+
+def _motor_batch(mech, n: int, seed: int = 0):
+    import numpy as np
+
+    return np.random.default_rng(seed).uniform(-0.05, 0.05, size=(n, mech.num_motors)) * mech.motor_scale
+
+
+def bench_linkopt(mech, sizes) -> dict:
+    import numpy as np
+
+    import linkopt
+
+    single = _motor_batch(mech, 1)[0]
+    result = {"single_us": 1e6 * _timed(lambda: linkopt.solve_fk(mech, single).state, 300)}
+    for n in sizes:
+        batch = _motor_batch(mech, n)
+        seconds = _timed(lambda: linkopt.solve_fk(mech, batch).state, 3 if n >= 100_000 else 20)
+        converged = float(np.mean(np.asarray(linkopt.solve_fk(mech, batch).converged)))
+        result[f"rate_{n}"] = n / seconds
+        result[f"converged_{n}"] = converged
+    return result
+
+
+def bench_optimistix(mech, n: int) -> dict:
+    import jax
+    import jax.numpy as jnp
+    import optimistix as optx
+
+    import linkopt
+    from linkopt._constraints import fk_residual
+
+    geom = linkopt.geometry(mech)
+    start = linkopt.rest_state(mech)
+    solver = optx.LevenbergMarquardt(rtol=1e-12, atol=1e-12)
+
+    def solve(a):
+        fn = lambda s, args: fk_residual(mech, geom, args / mech.motor_scale, s)  # noqa: E731
+        return optx.least_squares(fn, solver, start, args=a, max_steps=100, throw=False).value
+
+    single = jax.jit(solve)
+    batched = jax.jit(jax.vmap(solve))
+    a1 = jnp.asarray(_motor_batch(mech, 1)[0])
+    batch = jnp.asarray(_motor_batch(mech, n))
+    return {"single_us": 1e6 * _timed(lambda: single(a1), 100), f"rate_{n}": n / _timed(lambda: batched(batch), 5)}
+
+
+def bench_scipy(mech) -> dict:
+    import jax
+    import numpy as np
+    from scipy.optimize import least_squares
+
+    import linkopt
+    from linkopt._constraints import fk_residual
+
+    geom = linkopt.geometry(mech)
+    a = _motor_batch(mech, 1)[0] / mech.motor_scale
+    residual = jax.jit(lambda s: fk_residual(mech, geom, a, s))
+    start = np.asarray(linkopt.rest_state(mech))
+    fn = lambda s: np.asarray(residual(s))  # noqa: E731
+    fn(start)
+    t0 = time.perf_counter()
+    for _ in range(5):
+        least_squares(fn, start, method="lm", xtol=1e-14, ftol=1e-14)
+    return {"single_us": 1e6 * (time.perf_counter() - t0) / 5}
+
+
+def compile_seconds(path: Path, cache: str) -> float:
+    """Wall time of load + first FK solve + first batched solve in a fresh process."""
+    code = (
+        "import time; t=time.perf_counter(); import numpy as np, linkopt;"
+        f"m=linkopt.load({str(path)!r}); linkopt.solve_fk(m, np.zeros(m.num_motors)).state.block_until_ready();"
+        "linkopt.solve_fk(m, np.zeros((1000, m.num_motors))).state.block_until_ready();"
+        "print(time.perf_counter()-t)"
+    )
+    env = dict(os.environ, LINKOPT_CACHE_DIR=cache)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="skip the 100 000 batch")
+    args = parser.parse_args()
+    sizes = [1, 1000] if args.quick else [1, 1000, 100_000]
+    import jax
+
+    import linkopt
+
+    print(f"jax {jax.__version__}, devices {jax.devices()}, {os.cpu_count()} CPU cores")
+    for name, path in MECHANISMS.items():
+        if not path.exists():
+            print(f"\n{name}: {path} missing, skipped")
+            continue
+        mech = linkopt.load(path)
+        with tempfile.TemporaryDirectory() as cache:
+            cold = compile_seconds(path, cache)
+            warm = compile_seconds(path, cache)
+        ours = bench_linkopt(mech, sizes)
+        optx = bench_optimistix(mech, 1000)
+        scipy_ = bench_scipy(mech)
+        print(f"\n{name}: |s| = {mech.state_size}")
+        print(f"  single warm-started solve     {ours['single_us']:10.1f} µs   (target <= {TARGET_SINGLE_US:.0f} µs)")
+        for n in sizes:
+            print(f"  batch {n:>7}                 {ours[f'rate_{n}']:10.0f} solves/s (converged {ours[f'converged_{n}']:.3f})")
+        print(f"  target batched rate           {TARGET_RATE:10.0f} solves/s")
+        print(f"  compile (load + 2 kernels)    cold {cold:.1f} s, warm cache {warm:.1f} s")
+        print(f"  optimistix LM single          {optx['single_us']:10.1f} µs   ratio {optx['single_us'] / ours['single_us']:.1f}x slower")
+        print(f"  optimistix LM batch 1000      {optx['rate_1000']:10.0f} solves/s ratio {ours['rate_1000'] / optx['rate_1000']:.1f}x slower")
+        print(f"  scipy least_squares(lm) FD    {scipy_['single_us']:10.1f} µs   ratio {scipy_['single_us'] / ours['single_us']:.0f}x slower")
+
+
+if __name__ == "__main__":
+    main()
