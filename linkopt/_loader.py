@@ -359,7 +359,22 @@ def _reflect(point: np.ndarray, symmetry) -> np.ndarray:
     return point - 2.0 * ((point - origin) @ normal) * normal
 
 
+def _joint_group(rd: _Reader, value, where: str, joint_index: dict[str, int], joints: list[dict], is_axis: bool, scale: float) -> list[int]:
+    """A joint name, or a list of joints that coincide at rest and move as one."""
+    names = value if isinstance(value, list) and value else [value]
+    group = [rd.lookup(joint_index, name, where, "joint") for name in names]
+    key = "axis" if is_axis else "anchor"
+    tolerance = MIRROR_TOL if is_axis else MIRROR_TOL * scale
+    for name, index in zip(names[1:], group[1:]):
+        if np.linalg.norm(joints[index][key] - joints[group[0]][key]) > tolerance:
+            raise rd.fail(where, f"joints moved together must share their {key} at rest; {name!r} differs from {names[0]!r}")
+    if len(set(group)) != len(group):
+        raise rd.fail(where, "a joint is listed twice")
+    return group
+
+
 def _read_design(rd: _Reader, data: dict, joints: list[dict], symmetry, scale: float) -> DesignSpace:
+    """Free parameters; each drives one coordinate of a joint (or of coincident joints)."""
     items = rd.entries(data, "parameters", required=False)
     rd.names(items, "parameters")
     joint_index = {j["name"]: k for k, j in enumerate(joints)}
@@ -369,25 +384,28 @@ def _read_design(rd: _Reader, data: dict, joints: list[dict], symmetry, scale: f
     for k, item in enumerate(items):
         where = f"parameters[{k}]"
         rd.table(item, "parameters", where, {"name", "joint", "coordinate", "min", "max", "mirror"}, {"name", "joint", "coordinate", "min", "max"})
-        joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
         coord = item["coordinate"]
         if coord not in COORDINATES:
             raise rd.fail(f"{where}.coordinate", f"expected one of {list(COORDINATES)}, got {coord!r}")
         is_axis = coord.startswith("axis_")
         c = "xyz".index(coord[-1])
-        if is_axis and joints[joint]["type"] not in AXIAL_JOINTS:
-            raise rd.fail(f"{where}.coordinate", f"joint {item['joint']!r} ({joints[joint]['type']}) has no movable axis")
+        group = _joint_group(rd, item["joint"], f"{where}.joint", joint_index, joints, is_axis, scale)
+        joint = group[0]
+        if is_axis and any(joints[g]["type"] not in AXIAL_JOINTS for g in group):
+            raise rd.fail(f"{where}.coordinate", f"{item['joint']!r}: only revolute, universal, prismatic and cylindrical joints have a movable axis")
         value = (joints[joint]["axis"] if is_axis else joints[joint]["anchor"])[c]
         low, high = rd.number(item, "min", where), rd.number(item, "max", where)
         if not low < high:
             raise rd.fail(f"{where}.min", f"bounds need min < max, got min={low} and max={high}")
         if not low <= value <= high:
-            raise rd.fail(f"{where}.min", f"the rest value {value:g} of {item['joint']}.{coord} lies outside [{low:g}, {high:g}]")
+            raise rd.fail(f"{where}.min", f"the rest value {value:g} of {joints[joint]['name']}.{coord} lies outside [{low:g}, {high:g}]")
         base = 3 * count if is_axis else 0
-        driven = [(base + 3 * joint + c, 1.0)]
+        driven = [(base + 3 * g + c, 1.0) for g in group]
         if "mirror" in item:
-            driven += _mirror_rows(rd, item, where, joint_index, joints, joint, c, is_axis, symmetry, scale)
-        for row, weight in driven:
+            mirrors = _joint_group(rd, item["mirror"], f"{where}.mirror", joint_index, joints, is_axis, scale)
+            for mirror in mirrors:
+                driven += _mirror_rows(rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, group)
+        for row, _ in driven:
             if row in owner:
                 raise rd.fail(where, f"drives a coordinate already driven by parameters[{owner[row]}]")
         for row, weight in driven:
@@ -399,25 +417,25 @@ def _read_design(rd: _Reader, data: dict, joints: list[dict], symmetry, scale: f
     return DesignSpace(tuple(i["name"] for i in items), np.array(p0, dtype=float), np.array(lower, dtype=float), np.array(upper, dtype=float), matrix)
 
 
-def _mirror_rows(rd, item, where, joint_index, joints, joint, c, is_axis, symmetry, scale):
+def _mirror_rows(rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, group):
     """Rows and weights through which a parameter moves its mirror-image joint."""
     if symmetry is None:
         raise rd.fail(f"{where}.mirror", "a mirror tie needs a [symmetry] table (normal and point)")
-    mirror = rd.lookup(joint_index, item["mirror"], f"{where}.mirror", "joint")
-    if mirror == joint:
+    if mirror in group:
         raise rd.fail(f"{where}.mirror", "a joint cannot mirror itself")
+    name, twin = joints[joint]["name"], joints[mirror]["name"]
     normal = symmetry[0]
     direction = np.eye(3)[c] - 2.0 * normal[c] * normal
     if is_axis:
         image = joints[joint]["axis"] - 2.0 * (joints[joint]["axis"] @ normal) * normal
         sign = 1.0 if image @ joints[mirror]["axis"] > 0 else -1.0
         if np.linalg.norm(sign * image - joints[mirror]["axis"]) > MIRROR_TOL:
-            raise rd.fail(f"{where}.mirror", f"axis of {item['mirror']!r} is not the mirror image of the axis of {item['joint']!r}")
+            raise rd.fail(f"{where}.mirror", f"axis of {twin!r} is not the mirror image of the axis of {name!r}")
         base, weights = 3 * len(joints), sign * direction
     else:
         image = _reflect(joints[joint]["anchor"], symmetry)
         if np.linalg.norm(image - joints[mirror]["anchor"]) > MIRROR_TOL * scale:
-            raise rd.fail(f"{where}.mirror", f"anchor of {item['mirror']!r} is not the mirror image of the anchor of {item['joint']!r}")
+            raise rd.fail(f"{where}.mirror", f"anchor of {twin!r} is not the mirror image of the anchor of {name!r}")
         base, weights = 0, direction
     return [(base + 3 * mirror + d, weights[d]) for d in range(3) if weights[d] != 0.0]
 

@@ -137,3 +137,35 @@ def test_negative_values_are_not_taken_for_options(capsys):
 def test_failed_solve_exits_one(capsys):
     assert cli.main(["bk", str(MECHANISMS / "five_bar.toml"), "--outputs", "0,200"]) == 1
     assert "BK solve failed" in capsys.readouterr().err
+
+
+JANSEN = (MECHANISMS / "jansen_1dof.toml").read_text()
+PIVOT_A = """
+[[parameters]]
+name = "pivot_a_x"
+joint = {joints}
+coordinate = "x"
+min = -45.0
+max = -30.0
+"""
+
+
+def test_parameter_moves_coincident_joints_together(tmp_path):
+    path = tmp_path / "jansen_pivot.toml"
+    path.write_text(JANSEN + PIVOT_A.format(joints='["A_triangle", "A_c"]'))
+    mech = linkopt.load(path)
+    design = np.array([-40.0])
+    joints = np.asarray(linkopt.joint_positions(mech, linkopt.rest_state(mech), design=design))
+    for name in ("A_triangle", "A_c"):
+        np.testing.assert_allclose(joints[mech.joint_names.index(name)][0], -40.0)
+    path_solution = linkopt.solve_fk_path(mech, np.linspace(0, 1.0, 11)[:, None], design=design)
+    assert np.all(path_solution.converged)
+    moved = np.asarray(linkopt.joint_positions(mech, path_solution.state[-1], design=design))
+    np.testing.assert_allclose(moved[mech.joint_names.index("A_triangle")], moved[mech.joint_names.index("A_c")], atol=1e-9)
+
+
+def test_parameter_on_non_coincident_joints_is_rejected(tmp_path):
+    path = tmp_path / "jansen_bad.toml"
+    path.write_text(JANSEN + PIVOT_A.format(joints='["A_triangle", "O"]'))
+    with pytest.raises(linkopt.MechanismFileError, match="parameters\\[0\\].joint: joints moved together must share their anchor"):
+        linkopt.load(path)
