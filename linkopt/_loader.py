@@ -22,11 +22,12 @@ from ._model import (
     JOINT_ROWS,
     MOTOR_JOINTS,
     DesignSpace,
+    EvaluationSettings,
     Mechanism,
     SolverSettings,
 )
 
-TOP_LEVEL = {"mechanism", "bodies", "joints", "motors", "points", "outputs", "symmetry", "parameters", "solver"}
+TOP_LEVEL = {"mechanism", "bodies", "joints", "motors", "points", "outputs", "symmetry", "parameters", "solver", "evaluation"}
 ORTHOGONAL_TOL = 1e-9
 MIRROR_TOL = 1e-9
 
@@ -165,6 +166,7 @@ def build(data: dict, source: str) -> Mechanism:
     symmetry = _read_symmetry(rd, data)
     design = _read_design(rd, data, joints, symmetry, scale)
     solver = _read_solver(rd, data)
+    evaluation = _read_evaluation(rd, data)
     mech = Mechanism(
         name=rd.string(head, "name", "[mechanism]"),
         source=source,
@@ -194,6 +196,7 @@ def build(data: dict, source: str) -> Mechanism:
         design=design,
         length_scale=scale,
         solver=solver,
+        evaluation=evaluation,
         symmetry=symmetry,
         raw=data,
     )
@@ -414,7 +417,8 @@ def _read_design(rd: _Reader, data: dict, joints: list[dict], symmetry, scale: f
         p0.append(value)
         lower.append(low)
         upper.append(high)
-    return DesignSpace(tuple(i["name"] for i in items), np.array(p0, dtype=float), np.array(lower, dtype=float), np.array(upper, dtype=float), matrix)
+    is_length = np.array([not str(i["coordinate"]).startswith("axis_") for i in items], dtype=bool)
+    return DesignSpace(tuple(i["name"] for i in items), np.array(p0, dtype=float), np.array(lower, dtype=float), np.array(upper, dtype=float), matrix, is_length)
 
 
 def _mirror_rows(rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, group):
@@ -451,3 +455,28 @@ def _read_solver(rd: _Reader, data: dict) -> SolverSettings:
     tolerance = rd.positive(table, "tolerance", "[solver]") if "tolerance" in table else defaults.tolerance
     damping = rd.positive(table, "initial_damping", "[solver]") if "initial_damping" in table else defaults.initial_damping
     return SolverSettings(max_iterations=iterations, tolerance=tolerance, initial_damping=damping)
+
+
+def _read_evaluation(rd: _Reader, data: dict) -> EvaluationSettings:
+    defaults = EvaluationSettings()
+    if "evaluation" not in data:
+        return defaults
+    fields = set(EvaluationSettings.__dataclass_fields__)
+    table = rd.table(data["evaluation"], "evaluation", "[evaluation]", fields, set())
+    values = {}
+    for key, value in table.items():
+        default = getattr(defaults, key)
+        where = f"[evaluation].{key}"
+        if isinstance(default, bool):
+            if not isinstance(value, bool):
+                raise rd.fail(where, f"expected true or false, got {value!r}")
+        elif isinstance(default, int):
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise rd.fail(where, f"expected a positive integer, got {value!r}")
+        else:
+            value = rd.positive(table, key, "[evaluation]")
+        values[key] = value
+    settings = EvaluationSettings(**values)
+    if settings.samples_per_dimension < 2:
+        raise rd.fail("[evaluation].samples_per_dimension", "expected at least 2 (the range's two ends)")
+    return settings

@@ -49,6 +49,28 @@ class SolverSettings:
 
 
 @dataclass(frozen=True)
+class EvaluationSettings:
+    """Design-evaluation settings (paper Sec. IV, App. A/B), from ``[evaluation]``.
+
+    ``alpha_factor``: α₋ as a multiple of f_sing at the initial design's rest pose (the
+    paper used 1.2-4). ``motion_weight``/``range_weight``: w₁, w₂ of eq. 5.
+    ``regularizer_weight``: weight of ½|p - p₀|² with lengths divided by the reference
+    length. ``max_step``: largest motor step (rad, or reference lengths for linear
+    motors) of one IK/adversarial iteration, so that one step cannot jump a singularity.
+    """
+
+    samples_per_dimension: int = 3
+    interior: bool = True
+    alpha_factor: float = 2.0
+    motion_weight: float = 1.0
+    range_weight: float = 1.0
+    regularizer_weight: float = 1e-2
+    max_step: float = 0.1
+    ik_iterations: int = 40
+    adversarial_iterations: int = 40
+
+
+@dataclass(frozen=True)
 class DesignSpace:
     """Free design parameters ``p`` (after ties) and their linear map onto the geometry.
 
@@ -63,6 +85,7 @@ class DesignSpace:
     lower: np.ndarray  # (n_p,)
     upper: np.ndarray  # (n_p,)
     matrix: np.ndarray  # (6 J, n_p)
+    is_length: np.ndarray  # (n_p,) bool: an anchor coordinate (file units), not an axis component
 
     @property
     def size(self) -> int:
@@ -106,6 +129,7 @@ class Mechanism:
     design: DesignSpace
     length_scale: float
     solver: SolverSettings = field(default_factory=SolverSettings)
+    evaluation: EvaluationSettings = field(default_factory=EvaluationSettings)
     symmetry: tuple[np.ndarray, np.ndarray] | None = None  # (normal, point)
     raw: dict = field(default_factory=dict)  # the parsed file, for writing designs back
 

@@ -1,0 +1,130 @@
+"""Design evaluation: IK and adversarial samples over the target range, and ``f_design``.
+
+``f_design`` (eq. 6) is the mean over targets ``t`` of
+``f_BK(b^t, s_IK^t) + f_sing^c(s_adv^t)``: its first part (*reach*) is zero iff every
+target was reached, its second (*singularity*) is zero iff no adversarial sample found
+``f_sing > α₋``. The regulariser ``w ½|p - p₀|²`` (lengths divided by the reference
+length) is reported separately; the optimiser minimises their sum.
+
+Targets: a grid of ``samples_per_dimension`` values per output spanning each range,
+keeping the points on the box's boundary and, with ``interior = true``, the interior
+ones too (3 per dimension, 2 outputs: 9 targets; 4 per dimension: 16; 3 per dimension,
+3 outputs: 27, as the paper's Table I). IK starts from the rest pose for every target.
+
+``α₋`` is ``alpha_factor`` times ``f_sing`` at the rest pose of the file's *initial*
+design, fixed for the whole optimisation so that a design cannot move its own threshold.
+"""
+
+from __future__ import annotations
+
+import itertools
+from functools import lru_cache, partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from ._constraints import output_residual, output_values
+from ._geometry import design_vector, geometry, rest_state
+from ._metrics import culled, thresholds
+from ._model import Mechanism
+from ._sampling import adversarial_objective, ik_objective, minimise
+from ._singularity import f_sing_value
+
+
+class Evaluation(NamedTuple):
+    """One design's evaluation; a batch of designs adds a leading axis. Homogenised."""
+
+    f_design: Float[Array, ""]
+    reach: Float[Array, ""]
+    singularity: Float[Array, ""]
+    regularizer: Float[Array, ""]
+    ik_motors: Float[Array, "T M"]
+    ik_states: Float[Array, "T S"]
+    ik_reach: Float[Array, " T"]  # f_BK(b^t, s_IK^t)
+    ik_f_sing: Float[Array, " T"]
+    adv_motors: Float[Array, "T M"]
+    adv_states: Float[Array, "T S"]
+    adv_f_sing: Float[Array, " T"]
+    adv_culled: Float[Array, " T"]
+
+    @property
+    def total(self):
+        return self.f_design + self.regularizer
+
+
+def targets(mech: Mechanism) -> np.ndarray:
+    """IK target points ``b^t`` in file units, shape ``(T, K)``."""
+    settings = mech.evaluation
+    axes = [np.linspace(lo, hi, settings.samples_per_dimension) for lo, hi in zip(mech.output_min, mech.output_max)]
+    grid = np.array(list(itertools.product(*axes)), dtype=float).reshape(-1, mech.num_outputs)
+    on_boundary = np.any(np.isclose(grid, mech.output_min) | np.isclose(grid, mech.output_max), axis=1)
+    return grid if settings.interior else grid[on_boundary]
+
+
+@lru_cache(maxsize=None)
+def alpha_minus(mech: Mechanism) -> float:
+    """``α₋ = alpha_factor · f_sing(rest pose of the initial design)``."""
+    value = jax.jit(lambda: f_sing_value(mech, geometry(mech), rest_state(mech)))()
+    return float(mech.evaluation.alpha_factor * value)
+
+
+def regularizer(mech: Mechanism, design) -> Float[Array, ""]:
+    """``w ½|p - p₀|²`` with lengths in reference lengths."""
+    scale = np.where(mech.design.is_length, mech.length_scale, 1.0)
+    offset = (design - mech.design.p0) / scale
+    return 0.5 * mech.evaluation.regularizer_weight * offset @ offset
+
+
+def _evaluate_one(mech: Mechanism, design, alpha) -> Evaluation:
+    geom = geometry(mech, design)
+    th = thresholds(alpha)
+    goals = jnp.asarray(targets(mech) / mech.output_scale)
+    low = jnp.asarray(mech.output_min / mech.output_scale)
+    high = jnp.asarray(mech.output_max / mech.output_scale)
+    rest = rest_state(mech)
+    zero = jnp.zeros(mech.num_motors)
+    settings = mech.evaluation
+
+    def ik(goal):
+        return minimise(mech, geom, ik_objective(mech, geom, goal, th), zero, rest, settings.ik_iterations, bfgs=False)
+
+    def adversarial(motors, state):
+        objective = adversarial_objective(mech, geom, motors, low, high, th)
+        return minimise(mech, geom, objective, motors, state, settings.adversarial_iterations, bfgs=True)
+
+    ik_samples = jax.vmap(ik)(goals)
+    adv_samples = jax.vmap(adversarial)(ik_samples.motors, ik_samples.state)
+    residuals = jax.vmap(lambda g, s: output_residual(mech, geom, g, s))(goals, ik_samples.state)
+    reach = 0.5 * jnp.sum(residuals**2, axis=1)
+    ik_sing = jax.vmap(lambda s: f_sing_value(mech, geom, s))(ik_samples.state)
+    adv_sing = jax.vmap(lambda s: f_sing_value(mech, geom, s))(adv_samples.state)
+    adv_culled = culled(adv_sing, th)
+    return Evaluation(
+        f_design=jnp.mean(reach + adv_culled),
+        reach=jnp.mean(reach),
+        singularity=jnp.mean(adv_culled),
+        regularizer=regularizer(mech, design),
+        ik_motors=ik_samples.motors,
+        ik_states=ik_samples.state,
+        ik_reach=reach,
+        ik_f_sing=ik_sing,
+        adv_motors=adv_samples.motors,
+        adv_states=adv_samples.state,
+        adv_f_sing=adv_sing,
+        adv_culled=adv_culled,
+    )
+
+
+@partial(jax.jit, static_argnums=0)
+def _evaluate(mech: Mechanism, designs, alpha) -> Evaluation:
+    if designs.ndim == 1:
+        return _evaluate_one(mech, designs, alpha)
+    return jax.vmap(lambda p: _evaluate_one(mech, p, alpha))(designs)
+
+
+def evaluate(mech: Mechanism, design=None) -> Evaluation:
+    """Evaluate a design ``(n_p,)`` or a batch of designs ``(N, n_p)`` (file units)."""
+    return _evaluate(mech, design_vector(mech, design), alpha_minus(mech))
