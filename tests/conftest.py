@@ -13,3 +13,10 @@ MECHANISMS = ROOT / "mechanisms"
 @pytest.fixture(scope="session")
 def five_bar() -> linkopt.Mechanism:
     return linkopt.load(MECHANISMS / "five_bar.toml")
+
+
+@pytest.fixture(scope="session")
+def five_bar_evaluation(five_bar):
+    from linkopt._evaluation import evaluate
+
+    return evaluate(five_bar)

@@ -1,0 +1,91 @@
+"""Design evaluation on the five-bar against its closed-form workspace and singularities."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import linkopt
+from conftest import MECHANISMS
+from five_bar_closed_form import B_L, B_R, L1, L2, cross, elbows, forward_singular_height, inverse
+from linkopt._evaluation import alpha_minus, evaluate, targets
+from linkopt._metrics import thresholds
+from linkopt._sampling import ik_objective, state_motor_jacobian
+
+
+def reachable_on_rest_branch(tips):
+    """Closed form: both dyads reach the tip, and the tip is in the rest working mode."""
+    tips = np.atleast_2d(tips)
+    within = (np.linalg.norm(tips - B_L, axis=1) <= L1 + L2) & (np.linalg.norm(tips - B_R, axis=1) <= L1 + L2)
+    with np.errstate(invalid="ignore"):
+        e_l, e_r = elbows(inverse(tips))
+    return within & (cross(e_r - e_l, tips - e_l) > 0)
+
+
+def test_closed_form_confirms_the_initial_defects(five_bar):
+    xs = np.linspace(five_bar.output_min[0], five_bar.output_max[0], 81)
+    ys = np.linspace(five_bar.output_min[1], five_bar.output_max[1], 66)
+    grid = np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2)
+    ok = reachable_on_rest_branch(grid)
+    assert 0.5 < ok.mean() < 0.95  # part of the box is out of reach on the rest branch
+    assert five_bar.output_min[1] < forward_singular_height() < five_bar.output_max[1]
+
+
+def test_ik_samples_reach_exactly_the_closed_form_reachable_targets(five_bar, five_bar_evaluation):
+    ev = five_bar_evaluation
+    expected = reachable_on_rest_branch(targets(five_bar))
+    reach = np.asarray(ev.ik_reach)
+    assert np.all(reach[expected] < 1e-12)
+    assert np.all(reach[~expected] > 1e-4)
+    assert float(ev.reach) > 1e-4
+
+
+def test_adversarial_samples_find_the_forward_singularity(five_bar, five_bar_evaluation):
+    ev = five_bar_evaluation
+    assert np.any(np.asarray(ev.adv_culled) > 0)
+    assert float(ev.singularity) > 0 and float(ev.f_design) == pytest.approx(float(ev.reach + ev.singularity))
+    # every sample keeps its loop closed
+    for states in (ev.ik_states, ev.adv_states):
+        motors = linkopt.motor_values(five_bar, states)
+        assert np.all(np.asarray(linkopt.solve_fk(five_bar, motors, start=states).iterations) <= 1)
+
+
+def test_ik_objective_gradient_matches_finite_differences(five_bar):
+    geom = linkopt.geometry(five_bar)
+    th = thresholds(alpha_minus(five_bar))
+    target = jnp.asarray(np.array([0.0, 15.0]) / five_bar.length_scale)
+    objective = ik_objective(five_bar, geom, target, th)
+    motors = jnp.array([0.405, -0.405])
+    state = linkopt.solve_fk(five_bar, motors).state
+    f = float(linkopt.f_sing(five_bar, state))
+    assert th.lower < f < th.upper  # the culled singularity term is active and not flat here
+    value, gradient, _ = objective(motors, state, state_motor_jacobian(five_bar, geom, motors, state))
+
+    def value_at(a):
+        s = linkopt.solve_fk(five_bar, a, start=state).state
+        return float(objective(a, s, state_motor_jacobian(five_bar, geom, a, s))[0])
+
+    h = 1e-6
+    fd = [(value_at(motors + h * e) - value_at(motors - h * e)) / (2 * h) for e in np.eye(2)]
+    np.testing.assert_allclose(gradient, fd, rtol=1e-5)
+
+
+def test_a_design_far_from_singularities_scores_zero():
+    text = (MECHANISMS / "five_bar.toml").read_text()
+    text = text.replace("min = -40.0\nmax = 40.0", "min = -10.0\nmax = 10.0").replace("min = 15.0\nmax = 80.0", "min = 58.0\nmax = 72.0")
+    mech = linkopt.loads(text, "small_box.toml")
+    tips = np.stack(np.meshgrid(np.linspace(-10, 10, 21), np.linspace(58, 72, 15)), -1).reshape(-1, 2)
+    solved = linkopt.solve_bk(mech, tips)
+    assert np.all(solved.converged)
+    assert float(np.max(linkopt.f_sing(mech, solved.state))) < 0.6 * alpha_minus(mech)  # far from α₋
+    ev = evaluate(mech)
+    assert float(ev.f_design) < 1e-6
+    assert float(np.max(ev.adv_culled)) == 0.0
+
+
+def test_batched_evaluation_matches_single(five_bar, five_bar_evaluation):
+    designs = np.stack([five_bar.design.p0, five_bar.design.p0 + np.array([2.0, 3.0, -2.0])])
+    batch = evaluate(five_bar, designs)
+    assert batch.f_design.shape == (2,)
+    np.testing.assert_allclose(batch.f_design[0], five_bar_evaluation.f_design, rtol=1e-9)
+    assert float(batch.regularizer[1]) > 0 and float(batch.regularizer[0]) == 0.0
