@@ -1,4 +1,4 @@
-"""Command line: ``linkopt check | fk | bk``; a thin layer over the public API.
+"""Command line: ``linkopt check | fk | bk | evaluate | plot``; a thin layer over the public API.
 
 Bad input exits with status 2 and one line on stderr; a failed solve exits with 1.
 """
@@ -16,7 +16,9 @@ import numpy as np
 from . import _report
 from ._errors import InputError, LinkoptError
 from ._kinematics import solve_bk, solve_bk_path, solve_fk, solve_fk_path
+from ._evaluation import alpha_minus, evaluate
 from ._loader import load
+from ._readout import output_values
 
 
 def _parse_row(text: str, names: tuple[str, ...], where: str) -> list[float]:
@@ -118,6 +120,96 @@ def _solve_command(args, kind: str) -> int:
     return 0
 
 
+def _design_arg(mech, text: str | None) -> np.ndarray | None:
+    """``--design``: comma-separated values in parameter order, or a mechanism file whose
+    parameters (same names) hold the design."""
+    if text is None:
+        return None
+    names = mech.design.names
+    if text.lower().endswith(".toml"):
+        other = load(text)
+        if other.design.names != names:
+            raise InputError(f"{text}: parameters {list(other.design.names)} do not match those of {mech.source}: {list(names)}")
+        return other.design.p0
+    values = np.array(_parse_row(text, names, "--design"))
+    outside = (values < mech.design.lower) | (values > mech.design.upper)
+    if np.any(outside):
+        k = int(np.argmax(outside))
+        raise InputError(f"--design: {names[k]} = {values[k]:g} is outside its bounds [{mech.design.lower[k]:g}, {mech.design.upper[k]:g}]")
+    return values
+
+
+def _evaluation_payload(mech, ev) -> dict:
+    from ._evaluation import targets
+
+    ik_out = np.asarray(output_values(mech, ev.ik_states))
+    adv_out = np.asarray(output_values(mech, ev.adv_states))
+    samples = []
+    for t, goal in enumerate(targets(mech)):
+        samples.append(
+            {
+                "target": dict(zip(mech.output_names, map(float, goal))),
+                "ik": {
+                    "motors": dict(zip(mech.motor_names, map(float, np.asarray(ev.ik_motors[t]) * mech.motor_scale))),
+                    "reached": dict(zip(mech.output_names, map(float, ik_out[t]))),
+                    "f_bk": float(ev.ik_reach[t]),
+                    "f_sing": float(ev.ik_f_sing[t]),
+                },
+                "adversarial": {
+                    "motors": dict(zip(mech.motor_names, map(float, np.asarray(ev.adv_motors[t]) * mech.motor_scale))),
+                    "outputs": dict(zip(mech.output_names, map(float, adv_out[t]))),
+                    "f_sing": float(ev.adv_f_sing[t]),
+                    "culled": float(ev.adv_culled[t]),
+                },
+            }
+        )
+    return {
+        "f_design": float(ev.f_design),
+        "reach": float(ev.reach),
+        "singularity": float(ev.singularity),
+        "regularizer": float(ev.regularizer),
+        "alpha_minus": alpha_minus(mech),
+        "samples": samples,
+    }
+
+
+def _cmd_evaluate(args) -> int:
+    mech = load(args.file)
+    design = _design_arg(mech, args.design)
+    payload = _evaluation_payload(mech, evaluate(mech, design))
+    if args.json:
+        print(json.dumps(payload, indent=2))
+        return 0
+    print(f"{mech.name}: f_design = {payload['f_design']:.4g} (reach {payload['reach']:.4g}, singularity {payload['singularity']:.4g}); regulariser {payload['regularizer']:.4g}; α₋ = {payload['alpha_minus']:.4g}")
+    print(f"  {'target':<22} {'IK reached':<22} {'f_BK':>9} {'f_sing IK':>10} {'f_sing adv':>10} {'culled':>9}")
+    for sample in payload["samples"]:
+        target = ", ".join(f"{v:.4g}" for v in sample["target"].values())
+        reached = ", ".join(f"{v:.4g}" for v in sample["ik"]["reached"].values())
+        print(f"  {target:<22} {reached:<22} {sample['ik']['f_bk']:9.2e} {sample['ik']['f_sing']:10.4g} {sample['adversarial']['f_sing']:10.4g} {sample['adversarial']['culled']:9.3g}")
+    return 0
+
+
+def _cmd_plot(args) -> int:
+    from .plots import plot_mechanism, plot_spaces
+
+    mech = load(args.file)
+    design = _design_arg(mech, args.design)
+    if args.resolution < 8:
+        raise InputError(f"--resolution: expected at least 8 cells per axis, got {args.resolution}")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    label = args.label or ("initial" if design is None else "design")
+    stem = Path(args.file).stem
+    print(f"evaluating {mech.name} ...", file=sys.stderr)
+    ev = evaluate(mech, design)
+    print(f"solving the {args.resolution}x{args.resolution} motor and end-effector grids ...", file=sys.stderr)
+    spaces = plot_spaces(mech, ev, out / f"{stem}_{label}.png", resolution=args.resolution, design=design)
+    drawing = plot_mechanism(mech, out / f"{stem}_{label}_mechanism.png", designs={label: design})
+    print(spaces)
+    print(drawing)
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="linkopt", description="Singularity-aware design of closed-loop spatial linkages.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -131,6 +223,18 @@ def _parser() -> argparse.ArgumentParser:
         cmd.add_argument(f"--{what}", required=True, help=f"comma-separated {what} (file units, radians), or a CSV file of rows solved as one continuation path")
         cmd.add_argument("--json", action="store_true", help="machine-readable output")
         cmd.set_defaults(run=lambda a, k=kind: _solve_command(a, k))
+    evaluate_cmd = sub.add_parser("evaluate", help="IK and adversarial samples, f_design (paper Sec. IV)")
+    evaluate_cmd.add_argument("file")
+    evaluate_cmd.add_argument("--design", help="design values in parameter order (comma-separated), or a mechanism file with the same parameters")
+    evaluate_cmd.add_argument("--json", action="store_true", help="machine-readable output")
+    evaluate_cmd.set_defaults(run=_cmd_evaluate)
+    plot = sub.add_parser("plot", help="motor- and end-effector-space maps and a drawing (PNG)")
+    plot.add_argument("file")
+    plot.add_argument("--design", help="as for evaluate")
+    plot.add_argument("--out", required=True, help="output directory")
+    plot.add_argument("--resolution", type=int, default=60, help="grid cells per axis (default 60)")
+    plot.add_argument("--label", help="file-name label (default 'initial', or 'design' with --design)")
+    plot.set_defaults(run=_cmd_plot)
     return parser
 
 
@@ -143,7 +247,7 @@ def _join_value_options(argv: list[str]) -> list[str]:
             joined[-1] = f"{joined[-1]}={token}"
         else:
             joined.append(token)
-        pending = token in ("--motors", "--outputs")
+        pending = token in ("--motors", "--outputs", "--design")
     return joined
 
 

@@ -1,0 +1,96 @@
+"""Dense motor-space and end-effector-space maps by continuation (for plots and checks).
+
+A regular grid is solved in breadth-first waves from the cell nearest the rest pose:
+each wave takes the unsolved cells next to solved ones and solves them all in one
+batched call, each warm-started from a solved neighbour, so the map shows the rest
+assembly branch and not a mix of branches. A cell is feasible when its solve converged
+and its state stayed within ``MAX_JUMP`` (homogenised, max-norm) of the neighbour it
+started from; otherwise it is infeasible (NaN in the maps). Python iterates over waves
+(about twice the grid side), never over cells.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ._kinematics import solve_bk, solve_fk
+from ._model import Mechanism
+from ._readout import motor_values, output_values
+from ._singularity import f_sing
+
+MAX_JUMP = 0.25
+NEIGHBOURS = ((1, 0), (-1, 0), (0, 1), (0, -1))
+
+
+class Map2D(NamedTuple):
+    """A solved 2-D grid: ``values[i, j]`` at ``(axis0[i], axis1[j])``; NaN = infeasible."""
+
+    axis0: np.ndarray  # (N,)
+    axis1: np.ndarray  # (N,)
+    f_sing: np.ndarray  # (N, N)
+    motors: np.ndarray  # (N, N, M)
+    outputs: np.ndarray  # (N, N, K)
+    feasible: np.ndarray  # (N, N) bool
+
+
+def _waves(solve, values: np.ndarray, start_cell: tuple[int, int], start_state: np.ndarray, chunk: int):
+    """Breadth-first continuation over a grid of input values ``(N, N, D)``."""
+    shape = values.shape[:2]
+    states = np.zeros(shape + start_state.shape)
+    status = np.zeros(shape, dtype=int)  # 0 unvisited, 1 solved, -1 failed
+    parent_state = {start_cell: start_state}
+    frontier = [start_cell]
+    while frontier:
+        cells = np.array(frontier)
+        starts = np.stack([parent_state[tuple(c)] for c in cells])
+        inputs = values[cells[:, 0], cells[:, 1]]
+        padded = -len(cells) % chunk
+        sol = solve(np.concatenate([inputs, np.repeat(inputs[-1:], padded, 0)]), np.concatenate([starts, np.repeat(starts[-1:], padded, 0)]))
+        new_states = np.asarray(sol.state)[: len(cells)]
+        ok = np.asarray(sol.converged)[: len(cells)] & (np.max(np.abs(new_states - starts), axis=1) <= MAX_JUMP)
+        status[cells[:, 0], cells[:, 1]] = np.where(ok, 1, -1)
+        states[cells[:, 0], cells[:, 1]] = new_states
+        frontier = []
+        for k in np.flatnonzero(ok):
+            i, j = cells[k]
+            for di, dj in NEIGHBOURS:
+                n = (int(i + di), int(j + dj))
+                if 0 <= n[0] < shape[0] and 0 <= n[1] < shape[1] and status[n] == 0 and n not in parent_state:
+                    parent_state[n] = new_states[k]
+                    frontier.append(n)
+    return states, status == 1
+
+
+def _grid(low, high, resolution):
+    axes = [np.linspace(lo, hi, resolution) for lo, hi in zip(low, high)]
+    return axes, np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+
+
+def _finish(mech, axes, states, feasible, design) -> Map2D:
+    flat = states.reshape(-1, states.shape[-1])
+    shape = feasible.shape
+    fs = np.asarray(f_sing(mech, flat, design=design)).reshape(shape)
+    motors = np.asarray(motor_values(mech, flat, design=design)).reshape(shape + (-1,))
+    outputs = np.asarray(output_values(mech, flat, design=design)).reshape(shape + (-1,))
+    nan = np.where(feasible, 1.0, np.nan)
+    return Map2D(axes[0], axes[1], fs * nan, motors * nan[..., None], outputs * nan[..., None], feasible)
+
+
+def motor_map(mech: Mechanism, low, high, resolution: int, *, start_state, start_motors, design=None) -> Map2D:
+    """FK over a motor-space box ``[low, high]`` (2 motors), from a solved start state."""
+    axes, values = _grid(low, high, resolution)
+    cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_motors))
+    solve = lambda v, s: solve_fk(mech, v, start=s, design=design)  # noqa: E731
+    states, feasible = _waves(solve, values, cell, np.asarray(start_state), chunk=4 * resolution)
+    return _finish(mech, axes, states, feasible, design)
+
+
+def output_map(mech: Mechanism, low, high, resolution: int, *, start_state, start_outputs, design=None) -> Map2D:
+    """BK over an end-effector-space box ``[low, high]`` (2 outputs), from a solved start state."""
+    axes, values = _grid(low, high, resolution)
+    cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_outputs))
+    solve = lambda v, s: solve_bk(mech, v, start=s, design=design)  # noqa: E731
+    states, feasible = _waves(solve, values, cell, np.asarray(start_state), chunk=4 * resolution)
+    return _finish(mech, axes, states, feasible, design)

@@ -1,0 +1,55 @@
+"""Continuation maps against the five-bar closed form, and the plot/evaluate commands."""
+
+import json
+
+import matplotlib.image as mpimg
+import numpy as np
+from scipy import ndimage
+
+import linkopt
+from conftest import MECHANISMS
+from five_bar_closed_form import L2, elbows, forward
+from linkopt import cli
+from linkopt._maps import motor_map
+
+
+def test_motor_map_matches_closed_form_feasibility(five_bar):
+    grid = motor_map(five_bar, [-1.5, -1.5], [1.5, 1.5], 25, start_state=linkopt.rest_state(five_bar), start_motors=[0.0, 0.0])
+    motors = np.stack(np.meshgrid(grid.axis0, grid.axis1, indexing="ij"), -1)
+    e_l, e_r = elbows(motors.reshape(-1, 2))
+    gap = np.linalg.norm(e_r - e_l, axis=1).reshape(25, 25)
+    labels, _ = ndimage.label(gap < 2 * L2)
+    expected = labels == labels[12, 12]  # the component of the rest pose
+    # cells away from both forward-singular sets: distal links aligned (gap = 2 L2) and
+    # elbows coincident (gap = 0, where the tip is undetermined)
+    clear = (np.abs(gap - 2 * L2) > 2.0) & (gap > 10.0)
+    assert expected.sum() > 100 and (~expected).sum() > 50
+    np.testing.assert_array_equal(grid.feasible[clear], expected[clear])
+    tips = grid.outputs[expected & clear]
+    np.testing.assert_allclose(tips, forward(motors[expected & clear]), atol=1e-8)
+
+
+def test_plot_command_writes_pngs(tmp_path, capsys):
+    code = cli.main(["plot", str(MECHANISMS / "five_bar.toml"), "--out", str(tmp_path), "--resolution", "16"])
+    assert code == 0
+    spaces = mpimg.imread(tmp_path / "five_bar_initial.png")
+    drawing = mpimg.imread(tmp_path / "five_bar_initial_mechanism.png")
+    assert spaces.shape[:2] == (520, 1200)
+    assert drawing.shape[:2] == (650, 650)
+    assert spaces[..., :3].std() > 0.1  # not a blank canvas
+
+
+def test_evaluate_command_json(capsys):
+    assert cli.main(["evaluate", str(MECHANISMS / "five_bar.toml"), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert len(result["samples"]) == 9
+    assert result["reach"] > 0 and result["singularity"] > 0
+    assert abs(result["f_design"] - result["reach"] - result["singularity"]) < 1e-12
+    sample = result["samples"][4]
+    assert sample["target"] == {"x": 0.0, "y": 47.5}
+    assert abs(sample["ik"]["reached"]["y"] - 47.5) < 1e-8
+
+
+def test_bad_design_argument(capsys):
+    assert cli.main(["evaluate", str(MECHANISMS / "five_bar.toml"), "--design", "100,37,36"]) == 2
+    assert "base_x = 100 is outside its bounds [5, 45]" in capsys.readouterr().err
