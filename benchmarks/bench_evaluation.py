@@ -1,0 +1,70 @@
+"""Design-evaluation speed (paper Sec. IV): one five-bar design (9 targets) and 20 at once.
+
+Run: ``.venv/bin/python benchmarks/bench_evaluation.py``
+
+Prints the warm time of one evaluation and of a batch of 20 designs (one vmapped call),
+and the compile time of each with a cold and a warm persistent cache (fresh processes).
+Baseline: a prototype stand-in (20 designs x 18 samples x 30 fixed BFGS steps) took
+3.5 s per batch, 50 s to compile cold and 2 s with a warm cache; target <= 1 s a batch.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+FILE = ROOT / "mechanisms/five_bar.toml"
+BASELINE_BATCH_S = 3.5
+TARGET_BATCH_S = 1.0
+
+FIRST_CALL = """
+import time, numpy as np, jax, linkopt
+from linkopt._evaluation import evaluate
+m = linkopt.load({path!r})
+designs = np.asarray(m.design.p0) + np.random.default_rng(0).normal(0, 1.0, ({n}, m.design.size))
+t = time.perf_counter()
+jax.block_until_ready(evaluate(m, designs if {n} > 1 else None))
+print(time.perf_counter() - t)
+"""
+
+
+def first_call_seconds(cache: str, n: int) -> float:
+    env = dict(os.environ, LINKOPT_CACHE_DIR=cache)
+    code = FIRST_CALL.format(path=str(FILE), n=n)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    import jax
+    import numpy as np
+
+    import linkopt
+    from linkopt._evaluation import evaluate
+
+    mech = linkopt.load(FILE)
+    designs = np.asarray(mech.design.p0) + np.random.default_rng(0).normal(0, 1.0, (20, mech.design.size))
+    timings = {}
+    for label, arg, repeats in (("one design", None, 5), ("20 designs", designs, 3)):
+        jax.block_until_ready(evaluate(mech, arg))
+        start = time.perf_counter()
+        for _ in range(repeats):
+            jax.block_until_ready(evaluate(mech, arg))
+        timings[label] = (time.perf_counter() - start) / repeats
+    with tempfile.TemporaryDirectory() as cache:
+        cold = [first_call_seconds(cache, n) for n in (1, 20)]
+        warm = [first_call_seconds(cache, n) for n in (1, 20)]
+    print(f"five-bar design evaluation, 9 targets, {os.cpu_count()} cores")
+    print(f"  one design                {timings['one design']:8.3f} s")
+    print(f"  20 designs (one call)     {timings['20 designs']:8.3f} s   target <= {TARGET_BATCH_S} s, prototype baseline {BASELINE_BATCH_S} s (ratio {BASELINE_BATCH_S / timings['20 designs']:.2f}x)")
+    print(f"  first call, one design    cold cache {cold[0]:6.1f} s, warm cache {warm[0]:6.1f} s (includes tracing)")
+    print(f"  first call, 20 designs    cold cache {cold[1]:6.1f} s, warm cache {warm[1]:6.1f} s")
+
+
+if __name__ == "__main__":
+    main()
