@@ -21,7 +21,6 @@ from ._readout import motor_values, output_values
 from ._singularity import f_sing
 
 MAX_JUMP = 0.25
-NEIGHBOURS = ((1, 0), (-1, 0), (0, 1), (0, -1))
 
 
 class Map2D(NamedTuple):
@@ -35,29 +34,41 @@ class Map2D(NamedTuple):
     feasible: np.ndarray  # (N, N) bool
 
 
-def _waves(solve, values: np.ndarray, start_cell: tuple[int, int], start_state: np.ndarray, chunk: int):
-    """Breadth-first continuation over a grid of input values ``(N, N, D)``."""
-    shape = values.shape[:2]
+def _neighbours(cell: tuple[int, ...], shape: tuple[int, ...]):
+    for axis in range(len(shape)):
+        for step in (-1, 1):
+            n = list(cell)
+            n[axis] += step
+            if 0 <= n[axis] < shape[axis]:
+                yield tuple(n)
+
+
+def continuation_grid(solve, values: np.ndarray, start_cell: tuple[int, ...], start_state: np.ndarray, chunk: int):
+    """Breadth-first continuation over a grid of input values ``grid_shape + (D,)``.
+
+    ``solve(inputs (n, D), starts (n, S))`` is a batched solver; returns the states and a
+    feasibility mask over the grid.
+    """
+    shape = values.shape[:-1]
     states = np.zeros(shape + start_state.shape)
     status = np.zeros(shape, dtype=int)  # 0 unvisited, 1 solved, -1 failed
     parent_state = {start_cell: start_state}
     frontier = [start_cell]
     while frontier:
         cells = np.array(frontier)
+        index = tuple(cells.T)
         starts = np.stack([parent_state[tuple(c)] for c in cells])
-        inputs = values[cells[:, 0], cells[:, 1]]
+        inputs = values[index]
         padded = -len(cells) % chunk
         sol = solve(np.concatenate([inputs, np.repeat(inputs[-1:], padded, 0)]), np.concatenate([starts, np.repeat(starts[-1:], padded, 0)]))
         new_states = np.asarray(sol.state)[: len(cells)]
         ok = np.asarray(sol.converged)[: len(cells)] & (np.max(np.abs(new_states - starts), axis=1) <= MAX_JUMP)
-        status[cells[:, 0], cells[:, 1]] = np.where(ok, 1, -1)
-        states[cells[:, 0], cells[:, 1]] = new_states
+        status[index] = np.where(ok, 1, -1)
+        states[index] = new_states
         frontier = []
         for k in np.flatnonzero(ok):
-            i, j = cells[k]
-            for di, dj in NEIGHBOURS:
-                n = (int(i + di), int(j + dj))
-                if 0 <= n[0] < shape[0] and 0 <= n[1] < shape[1] and status[n] == 0 and n not in parent_state:
+            for n in _neighbours(tuple(int(v) for v in cells[k]), shape):
+                if status[n] == 0 and n not in parent_state:
                     parent_state[n] = new_states[k]
                     frontier.append(n)
     return states, status == 1
@@ -83,7 +94,7 @@ def motor_map(mech: Mechanism, low, high, resolution: int, *, start_state, start
     axes, values = _grid(low, high, resolution)
     cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_motors))
     solve = lambda v, s: solve_fk(mech, v, start=s, design=design)  # noqa: E731
-    states, feasible = _waves(solve, values, cell, np.asarray(start_state), chunk=4 * resolution)
+    states, feasible = continuation_grid(solve, values, cell, np.asarray(start_state), chunk=4 * resolution)
     return _finish(mech, axes, states, feasible, design)
 
 
@@ -92,5 +103,5 @@ def output_map(mech: Mechanism, low, high, resolution: int, *, start_state, star
     axes, values = _grid(low, high, resolution)
     cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_outputs))
     solve = lambda v, s: solve_bk(mech, v, start=s, design=design)  # noqa: E731
-    states, feasible = _waves(solve, values, cell, np.asarray(start_state), chunk=4 * resolution)
+    states, feasible = continuation_grid(solve, values, cell, np.asarray(start_state), chunk=4 * resolution)
     return _finish(mech, axes, states, feasible, design)

@@ -1,4 +1,4 @@
-"""Command line: ``linkopt check | fk | bk | evaluate | plot``; a thin layer over the public API.
+"""Command line: ``linkopt check | fk | bk | evaluate | plot | verify``; a thin layer over the public API.
 
 Bad input exits with status 2 and one line on stderr; a failed solve exits with 1.
 """
@@ -210,6 +210,40 @@ def _cmd_plot(args) -> int:
     return 0
 
 
+def _verification_payload(mech, result) -> dict:
+    return {
+        "passed": result.passed,
+        "coverage": result.coverage,
+        "cells": result.cells,
+        "grid": list(result.grid_shape),
+        "threshold_alpha_minus": result.threshold,
+        "max_f_sing": result.max_f_sing,
+        "min_sigma_fk": result.min_sigma_fk,
+        "min_sigma_bk": result.min_sigma_bk,
+        "worst_cell": dict(zip(mech.output_names, map(float, result.worst_outputs))),
+        "unreached_example": None if result.unreached_example is None else dict(zip(mech.output_names, map(float, result.unreached_example))),
+    }
+
+
+def _cmd_verify(args) -> int:
+    from ._verify import verify
+
+    mech = load(args.file)
+    design = _design_arg(mech, args.design)
+    if args.resolution is not None and args.resolution < 2:
+        raise InputError(f"--resolution: expected at least 2 points per output, got {args.resolution}")
+    payload = _verification_payload(mech, verify(mech, design, args.resolution))
+    if args.json:
+        print(json.dumps(payload, indent=2))
+    else:
+        verdict = "PASS" if payload["passed"] else "FAIL"
+        print(f"{mech.name}: {verdict}: coverage {100 * payload['coverage']:.1f}% of {payload['cells']} cells; max f_sing {payload['max_f_sing']:.4g} (threshold α₋ {payload['threshold_alpha_minus']:.4g}); min σ FK {payload['min_sigma_fk']:.3g}, BK {payload['min_sigma_bk']:.3g}")
+        print("  worst cell " + ", ".join(f"{n}={v:.4g}" for n, v in payload["worst_cell"].items()))
+        if payload["unreached_example"]:
+            print("  e.g. unreached " + ", ".join(f"{n}={v:.4g}" for n, v in payload["unreached_example"].items()))
+    return 0 if payload["passed"] else 1
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="linkopt", description="Singularity-aware design of closed-loop spatial linkages.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -235,6 +269,12 @@ def _parser() -> argparse.ArgumentParser:
     plot.add_argument("--resolution", type=int, default=60, help="grid cells per axis (default 60)")
     plot.add_argument("--label", help="file-name label (default 'initial', or 'design' with --design)")
     plot.set_defaults(run=_cmd_plot)
+    verify_cmd = sub.add_parser("verify", help="dense check of the whole target range: coverage and singularity distance")
+    verify_cmd.add_argument("file")
+    verify_cmd.add_argument("--design", help="as for evaluate")
+    verify_cmd.add_argument("--resolution", type=int, help="grid points per output (default 41, or 13 for 3 outputs)")
+    verify_cmd.add_argument("--json", action="store_true", help="machine-readable output")
+    verify_cmd.set_defaults(run=_cmd_verify)
     return parser
 
 

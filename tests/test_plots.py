@@ -53,3 +53,21 @@ def test_evaluate_command_json(capsys):
 def test_bad_design_argument(capsys):
     assert cli.main(["evaluate", str(MECHANISMS / "five_bar.toml"), "--design", "100,37,36"]) == 2
     assert "base_x = 100 is outside its bounds [5, 45]" in capsys.readouterr().err
+
+
+def test_verify_fails_on_the_initial_five_bar_for_both_reasons(capsys):
+    assert cli.main(["verify", str(MECHANISMS / "five_bar.toml"), "--resolution", "21", "--json"]) == 1
+    result = json.loads(capsys.readouterr().out)
+    assert result["coverage"] < 1.0  # the upper corners are out of reach
+    assert result["max_f_sing"] > result["threshold_alpha_minus"]  # forward singularity inside
+    assert result["min_sigma_fk"] < 0.01
+
+
+def test_verify_passes_on_a_box_away_from_singularities(tmp_path, capsys):
+    text = (MECHANISMS / "five_bar.toml").read_text()
+    text = text.replace("min = -40.0\nmax = 40.0", "min = -10.0\nmax = 10.0").replace("min = 15.0\nmax = 80.0", "min = 58.0\nmax = 72.0")
+    path = tmp_path / "small.toml"
+    path.write_text(text)
+    assert cli.main(["verify", str(path), "--resolution", "21", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["coverage"] == 1.0 and result["max_f_sing"] < result["threshold_alpha_minus"]
