@@ -66,7 +66,10 @@ def targets(mech: Mechanism) -> np.ndarray:
 
 @lru_cache(maxsize=None)
 def alpha_minus(mech: Mechanism) -> float:
-    """``α₋ = alpha_factor · f_sing(rest pose of the initial design)``."""
+    """``α₋ = alpha_factor · f_sing(rest pose of the initial design)``, unless the file
+    gives ``alpha_minus`` itself."""
+    if mech.evaluation.alpha_minus is not None:
+        return float(mech.evaluation.alpha_minus)
     value = jax.jit(lambda: f_sing_value(mech, geometry(mech), rest_state(mech)))()
     return float(mech.evaluation.alpha_factor * value)
 

@@ -154,7 +154,7 @@ def build(data: dict, source: str) -> Mechanism:
     bodies = rd.entries(data, "bodies", required=True)
     body_index = rd.names(bodies, "bodies")
     for k, body in enumerate(bodies):
-        rd.table(body, "bodies", f"bodies[{k}]", {"name"}, {"name"})
+        rd.table(body, "bodies", f"bodies[{k}]", {"name", "origin"}, {"name"})
     ground = rd.lookup(body_index, head["ground"], "[mechanism].ground", "body")
     joints = _read_joints(rd, data, body_index)
     origins = _body_origins(rd, bodies, joints, ground)
@@ -246,13 +246,14 @@ def _read_joints(rd: _Reader, data: dict, body_index: dict[str, int]) -> list[di
 
 
 def _body_origins(rd: _Reader, bodies: list[dict], joints: list[dict], ground: int) -> np.ndarray:
-    """Centroid of each body's joint anchors; every body must reach the ground."""
+    """Each body's frame origin at rest: ``origin`` if given, else the centroid of its
+    joint anchors. Every body must reach the ground through joints."""
     origins = np.zeros((len(bodies), 3))
     for b, body in enumerate(bodies):
         anchors = [j["anchor"] for j in joints if b in j["bodies"]]
         if not anchors:
             raise rd.fail(f"bodies[{b}]", f"body {body['name']!r} has no joint; every body must be connected")
-        origins[b] = np.mean(anchors, axis=0)
+        origins[b] = rd.vector(body, "origin", f"bodies[{b}]") if "origin" in body else np.mean(anchors, axis=0)
     reached = {ground}
     grew = True
     while grew:
@@ -467,7 +468,9 @@ def _read_evaluation(rd: _Reader, data: dict) -> EvaluationSettings:
     for key, value in table.items():
         default = getattr(defaults, key)
         where = f"[evaluation].{key}"
-        if isinstance(default, bool):
+        if default is None:
+            value = rd.positive(table, key, "[evaluation]")
+        elif isinstance(default, bool):
             if not isinstance(value, bool):
                 raise rd.fail(where, f"expected true or false, got {value!r}")
         elif isinstance(default, int):

@@ -57,6 +57,8 @@ class EvaluationSettings:
     ``regularizer_weight``: weight of ½|p - p₀|² with lengths divided by the reference
     length. ``max_step``: largest motor step (rad, or reference lengths for linear
     motors) of one IK/adversarial iteration, so that one step cannot jump a singularity.
+    ``alpha_minus``: an absolute α₋ that overrides ``alpha_factor`` (written into
+    optimised files so that they are judged by the threshold they were optimised for).
     """
 
     samples_per_dimension: int = 3
@@ -68,6 +70,7 @@ class EvaluationSettings:
     max_step: float = 0.1
     ik_iterations: int = 40
     adversarial_iterations: int = 40
+    alpha_minus: float | None = None
 
 
 @dataclass(frozen=True)
