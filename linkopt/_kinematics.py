@@ -56,8 +56,9 @@ def _implicit_state_jvp(mech, kind, primals, tangents):
     return state, d_state
 
 
-def _solve_single(mech: Mechanism, kind: str, geom: Geometry, values, start) -> Solution:
-    """One LM solve of ``C(values, s) = 0`` from ``start`` (all homogenised)."""
+def _solve_single(mech: Mechanism, kind: str, geom: Geometry, values, start, max_iterations: int | None = None) -> Solution:
+    """One LM solve of ``C(values, s) = 0`` from ``start`` (all homogenised); the iteration
+    cap defaults to the file's ``[solver] max_iterations``."""
     fixed_geom = jax.lax.stop_gradient(geom)
     fixed_values = jax.lax.stop_gradient(values)
     settings = mech.solver
@@ -65,7 +66,7 @@ def _solve_single(mech: Mechanism, kind: str, geom: Geometry, values, start) -> 
         lambda s: _RESIDUALS[kind](mech, fixed_geom, fixed_values, s),
         jax.lax.stop_gradient(start),
         tolerance=settings.tolerance,
-        max_iterations=settings.max_iterations,
+        max_iterations=max_iterations or settings.max_iterations,
         initial_damping=settings.initial_damping,
     )
     state = _implicit_state(mech, kind, geom, values, result.x)

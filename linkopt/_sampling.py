@@ -36,6 +36,10 @@ ARMIJO = 1e-4
 GRADIENT_TOL = 1e-9
 MAX_DAMPING = 1e8
 BRANCH_TOL = 0.5
+#: Iteration cap of a trial forward solve: a step of at most ``max_step`` from a solved
+#: state converges in 3-5 LM iterations; one that needs more is rejected, and under
+#: ``vmap`` a lane that ran to the file's full cap would hold up every other sample.
+TRIAL_ITERATIONS = 12
 
 
 class Sample(NamedTuple):
@@ -87,7 +91,7 @@ def minimise(mech: Mechanism, geom: Geometry, objective, motors0, state0, iterat
         delta = -jnp.linalg.solve(system, it.gradient)
         norm = jnp.sqrt(delta @ delta)
         delta = delta * jnp.minimum(1.0, settings.max_step / jnp.maximum(norm, 1e-300))
-        trial = _solve_single(mech, "fk", geom, it.motors + delta, it.state)
+        trial = _solve_single(mech, "fk", geom, it.motors + delta, it.state, TRIAL_ITERATIONS)
         predicted = it.ds_da @ delta
         departure = jnp.sqrt(jnp.sum((trial.state - it.state - predicted) ** 2))
         on_branch = departure <= BRANCH_TOL * jnp.sqrt(predicted @ predicted) + 1e-10
