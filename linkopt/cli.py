@@ -1,4 +1,4 @@
-"""Command line: ``linkopt check | fk | bk | evaluate | plot | verify``; a thin layer over the public API.
+"""Command line: ``linkopt check | fk | bk | evaluate | plot | verify | optimize``; a thin layer over the public API.
 
 Bad input exits with status 2 and one line on stderr; a failed solve exits with 1.
 """
@@ -244,6 +244,32 @@ def _cmd_verify(args) -> int:
     return 0 if payload["passed"] else 1
 
 
+def _cmd_optimize(args) -> int:
+    from ._optimizer import OptimizerSettings
+    from ._run import optimize, write_outputs
+
+    mech = load(args.file)
+    if mech.design.size == 0:
+        raise InputError(f"{args.file}: [[parameters]]: the file declares no design parameters to optimise")
+    for flag in ("particles", "iterations"):
+        if getattr(args, flag) < 1:
+            raise InputError(f"--{flag}: expected a positive integer, got {getattr(args, flag)}")
+    settings = OptimizerSettings(particles=args.particles, iterations=args.iterations, seed=args.seed, mode=args.mode)
+
+    def report(record: dict) -> None:
+        done = record["iteration"] + 1
+        elapsed = record["wall_time"]
+        remaining = elapsed / done * (settings.iterations - done)
+        print(f"iteration {record['iteration']:4d}  best f_design {record['best_f_design']:.4e}  regulariser {record['regularizer']:.3e}  elapsed {elapsed:7.1f} s  at most {remaining:7.1f} s left", file=sys.stderr, flush=True)
+
+    run = optimize(mech, args.out, settings, resume=args.resume, progress=report)
+    print("writing the optimised file, verification and figures ...", file=sys.stderr, flush=True)
+    summary = write_outputs(mech, args.out, run, settings, resolution=args.resolution)
+    print(json.dumps({k: summary[k] for k in ("iterations", "f_design", "regularizer", "verified", "initial_verified", "design", "optimized_file")}, indent=2))
+    print(f"figures: {Path(args.out) / 'spaces_optimized.png'}, {Path(args.out) / 'convergence.png'}, {Path(args.out) / 'mechanism.png'}", file=sys.stderr)
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="linkopt", description="Singularity-aware design of closed-loop spatial linkages.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -275,6 +301,16 @@ def _parser() -> argparse.ArgumentParser:
     verify_cmd.add_argument("--resolution", type=int, help="grid points per output (default 41, or 13 for 3 outputs)")
     verify_cmd.add_argument("--json", action="store_true", help="machine-readable output")
     verify_cmd.set_defaults(run=_cmd_verify)
+    opt = sub.add_parser("optimize", help="hybrid particle swarm + partial gradient design optimisation (paper Sec. V)")
+    opt.add_argument("file")
+    opt.add_argument("--out", required=True, help="run directory (checkpoint, history, optimised file, figures)")
+    opt.add_argument("--particles", type=int, default=20, help="swarm size (default 20)")
+    opt.add_argument("--iterations", type=int, default=60, help="iteration cap (default 60)")
+    opt.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    opt.add_argument("--mode", choices=["hybrid", "gradient"], default="hybrid", help="hybrid PSO + partial gradient (default), or partial gradient only")
+    opt.add_argument("--resume", action="store_true", help="continue the run checkpointed in --out")
+    opt.add_argument("--resolution", type=int, default=60, help="grid cells per axis of the final plots")
+    opt.set_defaults(run=_cmd_optimize)
     return parser
 
 

@@ -148,3 +148,20 @@ def plot_mechanism(mech: Mechanism, path: str | Path, *, designs: dict[str, np.n
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
+
+
+def plot_convergence(history: list[dict], path: str | Path, *, title: str = "") -> Path:
+    """Best total, f_design and its parts per iteration (log scale)."""
+    it = [h["iteration"] for h in history]
+    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    floor = 1e-16
+    for key, style in (("best_total", "k-"), ("best_f_design", "b-"), ("reach", "g--"), ("singularity", "m--"), ("regularizer", "0.5")):
+        ax.semilogy(it, [max(h[key], floor) for h in history], style, label=key.replace("_", " "))
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("value (best particle)")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    path = Path(path)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path

@@ -1,0 +1,172 @@
+"""Hybrid particle swarm + partial gradient design optimisation (paper Sec. V).
+
+Per iteration: all particles are evaluated in one batched call; personal and global
+bests are updated (pyswarms' ``compute_pbest`` and star topology); then each particle
+independently, with probability ``gradient_probability`` (½ in the paper), takes a
+partial-gradient step (:mod:`linkopt._partial`), otherwise a swarm step
+``v ← w v + c₁ r₁ (p_best - x) + c₂ r₂ (g_best - x)``, ``x ← x + lr · v``, with the
+inertia ``w`` falling linearly from 0.9 to 0.4 over 100 iterations, ``c₁ = c₂ = 2``,
+``lr = 1``. Positions are kept in bounds by pyswarms' ``nearest`` boundary handler; ties
+(symmetry) hold by construction since ``p`` is the reduced parameter vector.
+
+The swarm state lives in a pyswarms ``Swarm``; the velocity update is written here
+because pyswarms draws ``r₁, r₂`` from numpy's global random state, and every result
+here must follow from an explicit seed (``numpy.random.Generator``).
+
+Partial-gradient step: in scaled parameters (lengths divided by the reference length)
+``Δ = -g · min(gradient_rate, gradient_step / |g|)``, i.e. a gradient step whose length
+is capped at ``gradient_step`` reference lengths; the particle's velocity is unchanged.
+
+The run stops once the best ``f_design`` is below ``tolerance`` and the best total
+(``f_design`` + regulariser) has not improved by more than 1e-9 (relative) for
+``patience`` iterations, or at ``iterations``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import jax
+import numpy as np
+from ._evaluation import Evaluation, alpha_minus, evaluate
+from ._model import Mechanism
+from ._partial import partial_gradient
+from ._swarm_backend import BoundaryHandler, Star, compute_pbest, compute_position, create_swarm
+
+
+@dataclass(frozen=True)
+class OptimizerSettings:
+    particles: int = 20
+    iterations: int = 60
+    seed: int = 0
+    mode: str = "hybrid"  # "hybrid" (PSO + partial gradient) or "gradient" (partial gradient only)
+    gradient_probability: float = 0.5
+    cognitive: float = 2.0
+    social: float = 2.0
+    inertia_start: float = 0.9
+    inertia_end: float = 0.4
+    inertia_iterations: int = 100
+    learning_rate: float = 1.0
+    spread: float = 0.05  # initial particles: p₀ ± spread · (upper - lower), uniform
+    gradient_rate: float = 0.01
+    gradient_step: float = 0.02  # reference lengths
+    tolerance: float = 1e-6
+    patience: int = 3
+
+    def inertia(self, iteration: int) -> float:
+        fraction = min(iteration / self.inertia_iterations, 1.0)
+        return self.inertia_start - (self.inertia_start - self.inertia_end) * fraction
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class SwarmRun:
+    """Everything needed to continue a run exactly: the swarm, the RNG and the history."""
+
+    iteration: int
+    position: np.ndarray  # (N, n_p)
+    velocity: np.ndarray
+    pbest_pos: np.ndarray
+    pbest_cost: np.ndarray
+    best_pos: np.ndarray
+    best_cost: float
+    rng_state: dict
+    history: list[dict]
+    stalled: int = 0
+    finished: bool = False
+
+
+def start(mech: Mechanism, settings: OptimizerSettings) -> SwarmRun:
+    """Particles uniformly around ``p₀`` (the first one exactly ``p₀``), zero velocity."""
+    rng = np.random.default_rng(settings.seed)
+    d = mech.design
+    offsets = rng.uniform(-1.0, 1.0, size=(settings.particles, d.size)) * settings.spread * (d.upper - d.lower)
+    offsets[0] = 0.0
+    position = np.clip(d.p0 + offsets, d.lower, d.upper)
+    n = settings.particles
+    return SwarmRun(0, position, np.zeros_like(position), position.copy(), np.full(n, np.inf), d.p0.copy(), float("inf"), rng.bit_generator.state, [])
+
+
+def _swarm(run: SwarmRun, settings: OptimizerSettings, inertia: float):
+    swarm = create_swarm(n_particles=run.position.shape[0], dimensions=run.position.shape[1], options={"c1": settings.cognitive, "c2": settings.social, "w": inertia})
+    swarm.position = run.position.copy()
+    swarm.velocity = run.velocity.copy()
+    swarm.pbest_pos = run.pbest_pos.copy()
+    swarm.pbest_cost = run.pbest_cost.copy()
+    swarm.best_pos = run.best_pos.copy()
+    swarm.best_cost = run.best_cost
+    return swarm
+
+
+def _gradient_moves(mech: Mechanism, gradients: np.ndarray, settings: OptimizerSettings) -> np.ndarray:
+    scale = np.where(mech.design.is_length, mech.length_scale, 1.0)
+    scaled = gradients * scale
+    norm = np.linalg.norm(scaled, axis=1, keepdims=True)
+    factor = np.minimum(settings.gradient_rate, settings.gradient_step / np.maximum(norm, 1e-300))
+    return -scaled * factor * scale
+
+
+def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray, best: int, wall: float) -> dict:
+    return {
+        "iteration": run.iteration,
+        "best_total": float(costs[best]),
+        "best_f_design": float(ev.f_design[best]),
+        "regularizer": float(ev.regularizer[best]),
+        "reach": float(ev.reach[best]),
+        "singularity": float(ev.singularity[best]),
+        "swarm_best_total": run.best_cost,
+        "evaluations": (run.iteration + 1) * len(costs),
+        "wall_time": wall,
+    }
+
+
+def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings, wall_time: float = 0.0) -> SwarmRun:
+    """One iteration: evaluate, update bests, record, then move every particle."""
+    alpha = alpha_minus(mech)
+    ev = jax.tree_util.tree_map(np.asarray, evaluate(mech, run.position))
+    costs = ev.f_design + ev.regularizer
+    costs = np.where(np.isfinite(costs), costs, np.inf)
+    swarm = _swarm(run, settings, settings.inertia(run.iteration))
+    swarm.current_cost = costs
+    swarm.pbest_pos, swarm.pbest_cost = compute_pbest(swarm)
+    previous = run.best_cost
+    swarm.best_pos, swarm.best_cost = Star().compute_gbest(swarm)
+    best = int(np.argmin(costs))
+    improved = float(swarm.best_cost) < previous - 1e-9 * max(abs(previous), 1e-12) if np.isfinite(previous) else True
+    run = SwarmRun(run.iteration, run.position, run.velocity, swarm.pbest_pos, swarm.pbest_cost, np.asarray(swarm.best_pos), float(swarm.best_cost), run.rng_state, list(run.history), 0 if improved else run.stalled + 1)
+    record = _record(run, ev, costs, best, wall_time)
+    gbest_index = int(np.argmin(run.pbest_cost))
+    record["best_design"] = [float(v) for v in run.pbest_pos[gbest_index]]
+    record["best_f_design_overall"] = float(min(h["best_f_design"] for h in run.history + [record]))
+    run.history.append(record)
+    done_f = min(r["best_f_design"] for r in run.history) <= settings.tolerance
+    if (done_f and run.stalled >= settings.patience) or run.iteration + 1 >= settings.iterations:
+        run.finished = True
+        run.iteration += 1
+        return run
+    rng = np.random.default_rng()
+    rng.bit_generator.state = run.rng_state
+    use_gradient = np.ones(len(costs), bool) if settings.mode == "gradient" else rng.random(len(costs)) < settings.gradient_probability
+    r1 = rng.random(run.position.shape)
+    r2 = rng.random(run.position.shape)
+    velocity = settings.inertia(run.iteration) * run.velocity + settings.cognitive * r1 * (run.pbest_pos - run.position) + settings.social * r2 * (run.best_pos - run.position)
+    swarm.velocity = np.where(use_gradient[:, None], run.velocity, settings.learning_rate * velocity)
+    bounds = (mech.design.lower, mech.design.upper)
+    moved = compute_position(swarm, bounds, BoundaryHandler(strategy="nearest"))
+    if use_gradient.any():
+        gradients = np.asarray(partial_gradient(mech, run.position, jax.tree_util.tree_map(np.asarray, ev), alpha))
+        gradients = np.where(np.isfinite(gradients), gradients, 0.0)
+        stepped = np.clip(run.position + _gradient_moves(mech, gradients, settings), *bounds)
+        moved = np.where(use_gradient[:, None], stepped, moved)
+    run.position = np.asarray(moved)
+    run.velocity = np.where(use_gradient[:, None], run.velocity, swarm.velocity)
+    run.rng_state = rng.bit_generator.state
+    run.iteration += 1
+    return run
+
+
+def best_design(run: SwarmRun) -> np.ndarray:
+    """The best design seen so far (lowest total)."""
+    return run.pbest_pos[int(np.argmin(run.pbest_cost))]

@@ -1,0 +1,155 @@
+"""Optimisation runs on disk: checkpoint after every iteration, resume, final outputs.
+
+``DIR/checkpoint.json`` holds the whole swarm state (positions, velocities, bests, the
+RNG state, the history) and is replaced atomically (write, fsync, rename) after each
+finished iteration, so a run killed at any moment resumes from the last finished
+iteration and, every step being deterministic, ends exactly as an uninterrupted run
+with the same seed. The checkpoint records the mechanism file's content and the
+settings; resuming with different ones is refused.
+
+Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.csv``,
+``verification.json`` (``linkopt verify`` on the initial and optimised designs),
+``summary.json``, and the figures ``spaces_initial.png``, ``spaces_optimized.png``,
+``convergence.png``, ``mechanism.png`` (initial and optimised overlaid).
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import os
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ._errors import InputError
+from ._evaluation import alpha_minus
+from ._model import Mechanism
+from ._optimizer import OptimizerSettings, SwarmRun, best_design, start, step
+from ._writer import write_design
+
+CHECKPOINT = "checkpoint.json"
+HISTORY_FIELDS = ["iteration", "best_total", "best_f_design", "regularizer", "reach", "singularity", "evaluations", "wall_time"]
+
+
+def _fingerprint(mech: Mechanism) -> str:
+    return hashlib.sha256(json.dumps(mech.raw, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def _encode(run: SwarmRun, mech: Mechanism, settings: OptimizerSettings) -> dict:
+    arrays = {k: getattr(run, k).tolist() for k in ("position", "velocity", "pbest_pos", "pbest_cost", "best_pos")}
+    return {
+        "mechanism": _fingerprint(mech),
+        "settings": settings.to_dict(),
+        "iteration": run.iteration,
+        "best_cost": run.best_cost,
+        "rng_state": run.rng_state,
+        "history": run.history,
+        "stalled": run.stalled,
+        "finished": run.finished,
+        **arrays,
+    }
+
+
+def _decode(data: dict) -> SwarmRun:
+    arr = {k: np.asarray(data[k], dtype=float) for k in ("position", "velocity", "pbest_pos", "pbest_cost", "best_pos")}
+    return SwarmRun(data["iteration"], arr["position"], arr["velocity"], arr["pbest_pos"], arr["pbest_cost"], arr["best_pos"], float(data["best_cost"]), data["rng_state"], data["history"], data["stalled"], data["finished"])
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", encoding="utf-8") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def save_checkpoint(out: Path, run: SwarmRun, mech: Mechanism, settings: OptimizerSettings) -> None:
+    _atomic_write(out / CHECKPOINT, json.dumps(_encode(run, mech, settings), allow_nan=True))
+    lines = [",".join(HISTORY_FIELDS)] + [",".join(repr(h[f]) for f in HISTORY_FIELDS) for h in run.history]
+    _atomic_write(out / "history.csv", "\n".join(lines) + "\n")
+
+
+def load_checkpoint(out: Path, mech: Mechanism, settings: OptimizerSettings) -> SwarmRun:
+    path = out / CHECKPOINT
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{out}: no checkpoint to resume ({CHECKPOINT} missing)") from None
+    except json.JSONDecodeError as err:
+        raise InputError(f"{path}: unreadable checkpoint ({err})") from None
+    if data["mechanism"] != _fingerprint(mech):
+        raise InputError(f"{path}: the checkpoint belongs to a different mechanism file; use another --out")
+    if data["settings"] != settings.to_dict():
+        changed = sorted(k for k in data["settings"] if data["settings"][k] != settings.to_dict().get(k))
+        raise InputError(f"{path}: the checkpoint was made with other settings ({', '.join(changed)}); resume with the same flags")
+    return _decode(data)
+
+
+def prepare(out: Path, mech: Mechanism, settings: OptimizerSettings, resume: bool) -> SwarmRun:
+    """A fresh run, or the checkpointed one with ``resume``."""
+    if resume:
+        return load_checkpoint(out, mech, settings)
+    if (out / CHECKPOINT).exists():
+        raise InputError(f"{out}: already holds a run; pass --resume to continue it, or choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    return start(mech, settings)
+
+
+def optimize(mech: Mechanism, out: str | Path, settings: OptimizerSettings, *, resume: bool = False, progress: Callable[[dict], None] | None = None) -> SwarmRun:
+    """Run (or resume) the optimiser, checkpointing after every iteration."""
+    out = Path(out)
+    run = prepare(out, mech, settings, resume)
+    offset = run.history[-1]["wall_time"] if run.history else 0.0
+    began = time.perf_counter()
+    while not run.finished:
+        run = step(mech, run, settings, wall_time=offset + time.perf_counter() - began)
+        save_checkpoint(out, run, mech, settings)
+        if progress is not None:
+            progress(run.history[-1])
+    return run
+
+
+def write_outputs(mech: Mechanism, out: str | Path, run: SwarmRun, settings: OptimizerSettings, *, resolution: int = 60, verify_resolution: int | None = None) -> dict:
+    """Optimised file, verification, summary and figures for a finished run."""
+    from . import plots
+    from ._evaluation import evaluate
+    from ._verify import verify
+
+    out = Path(out)
+    design = best_design(run)
+    alpha = alpha_minus(mech)
+    optimized = write_design(mech, design, alpha, out / "optimized.toml", header=f"Optimised by linkopt from {mech.source} (seed {settings.seed}, {run.iteration} iterations).")
+    checks = {}
+    for label, p in (("initial", None), ("optimized", design)):
+        result = verify(mech, p, verify_resolution)
+        checks[label] = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in result._asdict().items()}
+    (out / "verification.json").write_text(json.dumps(checks, indent=2))
+    final = evaluate(mech, design)
+    summary = {
+        "mechanism": mech.source,
+        "iterations": run.iteration,
+        "evaluations": run.history[-1]["evaluations"],
+        "wall_time": run.history[-1]["wall_time"],
+        "design": dict(zip(mech.design.names, map(float, design))),
+        "initial_design": dict(zip(mech.design.names, map(float, mech.design.p0))),
+        "f_design": float(final.f_design),
+        "reach": float(final.reach),
+        "singularity": float(final.singularity),
+        "regularizer": float(final.regularizer),
+        "verified": checks["optimized"]["passed"],
+        "initial_verified": checks["initial"]["passed"],
+        "settings": settings.to_dict(),
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    if mech.num_motors == 2 and mech.num_outputs == 2:
+        plots.plot_spaces(mech, evaluate(mech), out / "spaces_initial.png", resolution=resolution, title=f"{mech.name}, initial design")
+        plots.plot_spaces(mech, final, out / "spaces_optimized.png", resolution=resolution, design=design, title=f"{mech.name}, optimised design")
+    plots.plot_convergence(run.history, out / "convergence.png", title=f"{mech.name}: optimisation")
+    plots.plot_mechanism(mech, out / "mechanism.png", designs={"initial": None, "optimised": design})
+    summary["optimized_file"] = str(optimized)
+    return summary
