@@ -22,7 +22,7 @@ import jax.numpy as jnp
 from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, Bool, Float, Int
 
-from . import _lm
+from . import _jacobian, _lm
 from ._constraints import bk_residual, fk_residual
 from ._geometry import Geometry, design_vector, geometry, rest_state
 from ._model import Mechanism
@@ -51,7 +51,7 @@ def _implicit_state_jvp(mech, kind, primals, tangents):
     d_geom, d_values, _ = tangents
     residual = _RESIDUALS[kind]
     _, rhs = jax.jvp(lambda g, v: residual(mech, g, v, state), (geom, values), (d_geom, d_values))
-    jac = jax.jacfwd(lambda s: residual(mech, geom, values, s))(state)
+    jac = _jacobian.state_jacobian(mech, geom, kind, state)
     d_state = -cho_solve(cho_factor(jac.T @ jac), jac.T @ rhs)
     return state, d_state
 
@@ -68,6 +68,7 @@ def _solve_single(mech: Mechanism, kind: str, geom: Geometry, values, start, max
         tolerance=settings.tolerance,
         max_iterations=max_iterations or settings.max_iterations,
         initial_damping=settings.initial_damping,
+        linearise=lambda s: _jacobian.normal_equations(mech, fixed_geom, kind, fixed_values, s),
     )
     state = _implicit_state(mech, kind, geom, values, result.x)
     return Solution(state, result.converged, result.residual, result.iterations)

@@ -25,6 +25,8 @@ from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, Bool, Float, Int
 
 Residual = Callable[[Float[Array, " n"]], Float[Array, " m"]]
+#: ``x -> (C(x), J(x)ᵀJ(x), J(x)ᵀC(x))``: the residual and its Gauss–Newton normal equations.
+Linearisation = Callable[[Float[Array, " n"]], tuple[Float[Array, " m"], Float[Array, "n n"], Float[Array, " n"]]]
 
 MAX_DAMPING = 1e12
 MIN_STEP = 1e-15
@@ -33,7 +35,8 @@ MIN_STEP = 1e-15
 class LMState(NamedTuple):
     x: Float[Array, " n"]
     residual: Float[Array, " m"]
-    jacobian: Float[Array, "m n"]
+    hessian: Float[Array, "n n"]  # JᵀJ at x (Gauss–Newton)
+    gradient: Float[Array, " n"]  # Jᵀr at x
     damping: Float[Array, ""]
     growth: Float[Array, ""]
     iteration: Int[Array, ""]
@@ -49,24 +52,29 @@ class LMResult(NamedTuple):
     iterations: Int[Array, ""]
 
 
-def _linearise(fn: Residual, x):
+def _jacfwd_linearisation(fn: Residual, x):
     jacobian, residual = jax.jacfwd(lambda y: (fn(y), fn(y)), has_aux=True)(x)
-    return residual, jacobian
+    return residual, jacobian.T @ jacobian, jacobian.T @ residual
 
 
-def init(fn: Residual, x0, initial_damping: float) -> LMState:
-    residual, jacobian = _linearise(fn, x0)
-    return LMState(x0, residual, jacobian, jnp.asarray(initial_damping), jnp.asarray(2.0), jnp.asarray(0), jnp.asarray(False))
+def _linearise(fn: Residual, x, linearise: Linearisation | None = None):
+    """``(C(x), JᵀJ, JᵀC)``: from ``linearise`` if given, else by ``jax.jacfwd`` of ``fn``."""
+    if linearise is not None:
+        return linearise(x)
+    return _jacfwd_linearisation(fn, x)
 
 
-def step(fn: Residual, state: LMState) -> LMState:
+def init(fn: Residual, x0, initial_damping: float, linearise: Linearisation | None = None) -> LMState:
+    residual, hessian, gradient = _linearise(fn, x0, linearise)
+    return LMState(x0, residual, hessian, gradient, jnp.asarray(initial_damping), jnp.asarray(2.0), jnp.asarray(0), jnp.asarray(False))
+
+
+def step(fn: Residual, state: LMState, linearise: Linearisation | None = None) -> LMState:
     """One damped Gauss–Newton step with Nielsen's damping update."""
-    j, r, lam = state.jacobian, state.residual, state.damping
-    hessian = j.T @ j
-    gradient = j.T @ r
+    hessian, gradient, r, lam = state.hessian, state.gradient, state.residual, state.damping
     system = hessian + lam * jnp.eye(hessian.shape[0])
     delta = -cho_solve(cho_factor(system), gradient)
-    new_residual, new_jacobian = _linearise(fn, state.x + delta)
+    new_residual, new_hessian, new_gradient = _linearise(fn, state.x + delta, linearise)
     actual = r @ r - new_residual @ new_residual
     predicted = -(2.0 * delta @ gradient + delta @ hessian @ delta)
     rho = actual / jnp.where(predicted > 0, predicted, 1.0)
@@ -76,7 +84,8 @@ def step(fn: Residual, state: LMState) -> LMState:
     return LMState(
         x=jnp.where(accept, state.x + delta, state.x),
         residual=jnp.where(accept, new_residual, r),
-        jacobian=jnp.where(accept, new_jacobian, j),
+        hessian=jnp.where(accept, new_hessian, hessian),
+        gradient=jnp.where(accept, new_gradient, gradient),
         damping=jnp.where(accept, lam * shrink, lam * state.growth),
         growth=jnp.where(accept, 2.0, 2.0 * state.growth),
         iteration=state.iteration + 1,
@@ -89,11 +98,23 @@ def terminate(state: LMState, tolerance: float, max_iterations: int) -> Bool[Arr
     return done | state.stalled | (state.iteration >= max_iterations)
 
 
-def solve(fn: Residual, x0, *, tolerance: float, max_iterations: int, initial_damping: float) -> LMResult:
-    """Minimise ``½|fn(x)|²`` from ``x0``; jit- and vmap-friendly, no NaN on failure."""
-    state = init(fn, x0, initial_damping)
+def solve(
+    fn: Residual,
+    x0,
+    *,
+    tolerance: float,
+    max_iterations: int,
+    initial_damping: float,
+    linearise: Linearisation | None = None,
+) -> LMResult:
+    """Minimise ``½|fn(x)|²`` from ``x0``; jit- and vmap-friendly, no NaN on failure.
+
+    ``linearise`` (optional) gives ``(fn(x), JᵀJ, Jᵀfn(x))`` directly (the constraint
+    solves pass :func:`linkopt._jacobian.normal_equations`); without it ``jax.jacfwd``.
+    """
+    state = init(fn, x0, initial_damping, linearise)
     state = jax.lax.while_loop(
-        lambda st: ~terminate(st, tolerance, max_iterations), lambda st: step(fn, st), state
+        lambda st: ~terminate(st, tolerance, max_iterations), lambda st: step(fn, st, linearise), state
     )
     error = jnp.max(jnp.abs(state.residual))
     converged = error <= tolerance

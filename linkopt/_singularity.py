@@ -23,17 +23,15 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._constraints import motor_values, output_values, passive_residual
+from . import _jacobian
 from ._geometry import Geometry, design_vector, geometry
 from ._model import Mechanism
 
 
 def stacked_jacobians(mech: Mechanism, geom: Geometry, state) -> Float[Array, "2 m n"]:
-    """``[∂C_FK/∂s, ∂C_BK/∂s]`` at ``state`` (homogenised)."""
-    passive = jax.jacfwd(lambda s: passive_residual(mech, geom, s))(state)
-    motors = jax.jacfwd(lambda s: motor_values(mech, geom, s))(state)
-    outputs = jax.jacfwd(lambda s: output_values(mech, geom, s))(state)
-    return jnp.stack([jnp.concatenate([passive, motors]), jnp.concatenate([passive, outputs])])
+    """``[∂C_FK/∂s, ∂C_BK/∂s]`` at ``state`` (homogenised), from the closed-form
+    block Jacobians of :mod:`linkopt._jacobian` (differentiable in state and design)."""
+    return _jacobian.stacked_jacobians(mech, geom, state)
 
 
 def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, "2"]:
