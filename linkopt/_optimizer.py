@@ -148,10 +148,7 @@ def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings, wall_time:
         return run
     rng = np.random.default_rng()
     rng.bit_generator.state = run.rng_state
-    use_gradient = np.ones(len(costs), bool) if settings.mode == "gradient" else rng.random(len(costs)) < settings.gradient_probability
-    r1 = rng.random(run.position.shape)
-    r2 = rng.random(run.position.shape)
-    velocity = settings.inertia(run.iteration) * run.velocity + settings.cognitive * r1 * (run.pbest_pos - run.position) + settings.social * r2 * (run.best_pos - run.position)
+    use_gradient, velocity = swarm_moves(rng, run, settings)
     swarm.velocity = np.where(use_gradient[:, None], run.velocity, settings.learning_rate * velocity)
     bounds = (mech.design.lower, mech.design.upper)
     moved = compute_position(swarm, bounds, BoundaryHandler(strategy="nearest"))
@@ -165,6 +162,17 @@ def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings, wall_time:
     run.rng_state = rng.bit_generator.state
     run.iteration += 1
     return run
+
+
+def swarm_moves(rng: np.random.Generator, run: SwarmRun, settings: OptimizerSettings):
+    """Which particles take a gradient step, and everyone's swarm velocity (Sec. V)."""
+    n = run.position.shape[0]
+    use_gradient = np.ones(n, bool) if settings.mode == "gradient" else rng.random(n) < settings.gradient_probability
+    r1 = rng.random(run.position.shape)
+    r2 = rng.random(run.position.shape)
+    inertia = settings.inertia(run.iteration)
+    velocity = inertia * run.velocity + settings.cognitive * r1 * (run.pbest_pos - run.position) + settings.social * r2 * (run.best_pos - run.position)
+    return use_gradient, velocity
 
 
 def best_design(run: SwarmRun) -> np.ndarray:
