@@ -5,6 +5,15 @@ Imported first by :mod:`linkopt`. The cache lives in a per-user directory,
 ``~/.cache/linkopt/jax``), so a second process reuses compiled kernels instead of
 recompiling them. Float64 is required: a float32 Levenberg–Marquardt solve stalls
 at residuals of about 3e-7, far above the 1e-10 loop-closure tolerance we need.
+
+XLA's CPU runtime runs independent thunks on its intra-op (Eigen) thread pool, and
+jaxlib's batched LAPACK kernels (SVD, Cholesky) fan their batch out into that same
+pool and block until it is done. On a 2-core machine two such kernels running at
+once take both workers and wait for each other forever (seen with jax 0.10.2:
+``jit(vmap(grad(f_sing ∘ FK)))`` hung in ``jax::ParallelBatchMap``). We therefore
+append ``--xla_cpu_multi_thread_eigen=false`` to ``XLA_FLAGS`` unless the user set
+that flag. It must be in place before JAX creates its CPU client, i.e. before the
+first computation; importing :mod:`linkopt` first guarantees that.
 """
 
 from __future__ import annotations
@@ -12,7 +21,18 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import jax
+_EIGEN_FLAG = "--xla_cpu_multi_thread_eigen"
+
+
+def _single_threaded_eigen() -> None:
+    flags = os.environ.get("XLA_FLAGS", "")
+    if _EIGEN_FLAG not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} {_EIGEN_FLAG}=false".strip()
+
+
+_single_threaded_eigen()
+
+import jax  # noqa: E402  (XLA_FLAGS must be set first)
 
 
 def cache_directory() -> Path:
