@@ -6,14 +6,16 @@ Imported first by :mod:`linkopt`. The cache lives in a per-user directory,
 recompiling them. Float64 is required: a float32 Levenberg–Marquardt solve stalls
 at residuals of about 3e-7, far above the 1e-10 loop-closure tolerance we need.
 
-XLA's CPU runtime runs independent thunks on its intra-op (Eigen) thread pool, and
-jaxlib's batched LAPACK kernels (SVD, Cholesky) fan their batch out into that same
-pool and block until it is done. On a 2-core machine two such kernels running at
-once take both workers and wait for each other forever (seen with jax 0.10.2:
-``jit(vmap(grad(f_sing ∘ FK)))`` hung in ``jax::ParallelBatchMap``). We therefore
-append ``--xla_cpu_multi_thread_eigen=false`` to ``XLA_FLAGS`` unless the user set
-that flag. It must be in place before JAX creates its CPU client, i.e. before the
-first computation; importing :mod:`linkopt` first guarantees that.
+XLA's CPU runtime runs independent thunks on its intra-op thread pool, and jaxlib's
+batched LAPACK kernels (SVD, Cholesky, ...) split their batch into tasks on that same
+pool and block until those are done (``jax::ParallelBatchMap``). When every worker is
+such a blocked kernel, nobody runs the tasks: on a 2-core machine two LAPACK calls that
+happen to be ready at once hang the process for ever (seen with jax 0.10.2, e.g.
+``jit(vmap(grad(f_sing ∘ FK)))``; ``--xla_cpu_multi_thread_eigen=false`` does not
+help). ParallelBatchMap runs the whole batch inline when the pool has one thread, so
+unless the user set ``PJRT_NPROC`` we set it to 1 (read by XLA when it creates its
+CPU client, i.e. at the first computation; importing :mod:`linkopt` first guarantees
+that). Our kernels are vmapped and memory-bound, so the second core bought little.
 """
 
 from __future__ import annotations
@@ -21,18 +23,14 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-_EIGEN_FLAG = "--xla_cpu_multi_thread_eigen"
+
+def _single_threaded_pool() -> None:
+    os.environ.setdefault("PJRT_NPROC", "1")  # takes precedence over NPROC in XLA
 
 
-def _single_threaded_eigen() -> None:
-    flags = os.environ.get("XLA_FLAGS", "")
-    if _EIGEN_FLAG not in flags:
-        os.environ["XLA_FLAGS"] = f"{flags} {_EIGEN_FLAG}=false".strip()
+_single_threaded_pool()
 
-
-_single_threaded_eigen()
-
-import jax  # noqa: E402  (XLA_FLAGS must be set first)
+import jax  # noqa: E402  (PJRT_NPROC must be set first)
 
 
 def cache_directory() -> Path:
