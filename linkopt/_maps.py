@@ -79,14 +79,44 @@ def _grid(low, high, resolution):
     return axes, np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
 
 
-def _finish(mech, axes, states, feasible, design) -> Map2D:
+def _readouts(mech, states, feasible, design):
     flat = states.reshape(-1, states.shape[-1])
     shape = feasible.shape
     fs = np.asarray(f_sing(mech, flat, design=design)).reshape(shape)
     motors = np.asarray(motor_values(mech, flat, design=design)).reshape(shape + (-1,))
     outputs = np.asarray(output_values(mech, flat, design=design)).reshape(shape + (-1,))
     nan = np.where(feasible, 1.0, np.nan)
-    return Map2D(axes[0], axes[1], fs * nan, motors * nan[..., None], outputs * nan[..., None], feasible)
+    return fs * nan, motors * nan[..., None], outputs * nan[..., None]
+
+
+def _finish(mech, axes, states, feasible, design) -> Map2D:
+    fs, motors, outputs = _readouts(mech, states, feasible, design)
+    return Map2D(axes[0], axes[1], fs, motors, outputs, feasible)
+
+
+def sections(mech: Mechanism, kind: str, low, high, resolution: int, cuts, *, start_state, start_values, design=None, depth: int = 9) -> list[Map2D]:
+    """2-D sections of a 3-D motor (``kind="fk"``) or output (``"bk"``) space at the given
+    values ``cuts`` of the third variable.
+
+    One 3-D continuation grid is solved (``resolution² × n3`` cells, the third axis
+    ``depth`` even steps over ``[low[2], high[2]]`` merged with the cuts and the start
+    value), so every section shows the start state's assembly branch, reached through
+    the third dimension, and not a branch found by a fresh solve at the cut.
+    """
+    if len(low) != 3:
+        raise ValueError("sections need exactly three motors or outputs")
+    third = np.unique(np.concatenate([np.linspace(low[2], high[2], depth), np.asarray(cuts, float), [start_values[2]]]))
+    axes = [np.linspace(low[0], high[0], resolution), np.linspace(low[1], high[1], resolution), third]
+    values = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_values))
+    solver = solve_fk if kind == "fk" else solve_bk
+    solve = lambda v, s: solver(mech, v, start=s, design=design)  # noqa: E731
+    states, feasible = continuation_grid(solve, values, cell, np.asarray(start_state), chunk=4 * resolution)
+    out = []
+    for cut in cuts:
+        k = int(np.argmin(np.abs(third - cut)))
+        out.append(_finish(mech, axes, states[:, :, k], feasible[:, :, k], design))
+    return out
 
 
 def motor_map(mech: Mechanism, low, high, resolution: int, *, start_state, start_motors, design=None) -> Map2D:

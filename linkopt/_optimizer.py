@@ -108,7 +108,8 @@ def _gradient_moves(mech: Mechanism, gradients: np.ndarray, settings: OptimizerS
     return -scaled * factor * scale
 
 
-def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray, best: int, wall: float) -> dict:
+def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray, best: int) -> dict:
+    """The iteration's history row (the run loop adds ``wall_time``)."""
     return {
         "iteration": run.iteration,
         "best_total": float(costs[best]),
@@ -118,11 +119,10 @@ def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray, best: int, wall: f
         "singularity": float(ev.singularity[best]),
         "swarm_best_total": run.best_cost,
         "evaluations": (run.iteration + 1) * len(costs),
-        "wall_time": wall,
     }
 
 
-def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings, wall_time: float = 0.0) -> SwarmRun:
+def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings) -> SwarmRun:
     """One iteration: evaluate, update bests, record, then move every particle."""
     alpha = alpha_minus(mech)
     ev = jax.tree_util.tree_map(np.asarray, evaluate(mech, run.position))
@@ -136,7 +136,7 @@ def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings, wall_time:
     best = int(np.argmin(costs))
     improved = float(swarm.best_cost) < previous - 1e-9 * max(abs(previous), 1e-12) if np.isfinite(previous) else True
     run = SwarmRun(run.iteration, run.position, run.velocity, swarm.pbest_pos, swarm.pbest_cost, np.asarray(swarm.best_pos), float(swarm.best_cost), run.rng_state, list(run.history), 0 if improved else run.stalled + 1)
-    record = _record(run, ev, costs, best, wall_time)
+    record = _record(run, ev, costs, best)
     gbest_index = int(np.argmin(run.pbest_cost))
     record["best_design"] = [float(v) for v in run.pbest_pos[gbest_index]]
     record["best_f_design_overall"] = float(min(h["best_f_design"] for h in run.history + [record]))

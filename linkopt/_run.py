@@ -107,7 +107,8 @@ def optimize(mech: Mechanism, out: str | Path, settings: OptimizerSettings, *, r
     offset = run.history[-1]["wall_time"] if run.history else 0.0
     began = time.perf_counter()
     while not run.finished:
-        run = step(mech, run, settings, wall_time=offset + time.perf_counter() - began)
+        run = step(mech, run, settings)
+        run.history[-1]["wall_time"] = offset + time.perf_counter() - began
         save_checkpoint(out, run, mech, settings)
         if progress is not None:
             progress(run.history[-1])
@@ -146,7 +147,7 @@ def write_outputs(mech: Mechanism, out: str | Path, run: SwarmRun, settings: Opt
         "settings": settings.to_dict(),
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    if mech.num_motors == 2 and mech.num_outputs == 2:
+    if mech.num_motors == mech.num_outputs and mech.num_motors in (2, 3):
         plots.plot_spaces(mech, evaluate(mech), out / "spaces_initial.png", resolution=resolution, title=f"{mech.name}, initial design")
         plots.plot_spaces(mech, final, out / "spaces_optimized.png", resolution=resolution, design=design, title=f"{mech.name}, optimised design")
     plots.plot_convergence(run.history, out / "convergence.png", title=f"{mech.name}: optimisation")

@@ -27,6 +27,7 @@ from jaxtyping import Array, Bool, Float, Int
 
 from ._constraints import fk_residual, output_residual, output_values
 from ._geometry import Geometry
+from ._jacobian import state_jacobian
 from ._kinematics import _solve_single
 from ._metrics import Thresholds, attractive, barrier, culled
 from ._model import Mechanism
@@ -63,7 +64,7 @@ class _Iterate(NamedTuple):
 
 def state_motor_jacobian(mech: Mechanism, geom: Geometry, motors, state) -> Float[Array, "S M"]:
     """``ds/da`` at a solved state (eq. 2, least-squares form for tall Jacobians)."""
-    jac_s = jax.jacfwd(lambda s: fk_residual(mech, geom, motors, s))(state)
+    jac_s = state_jacobian(mech, geom, "fk", state)
     jac_a = jax.jacfwd(lambda a: fk_residual(mech, geom, a, state))(motors)
     return -cho_solve(cho_factor(jac_s.T @ jac_s), jac_s.T @ jac_a)
 
@@ -132,7 +133,8 @@ def ik_objective(mech: Mechanism, geom: Geometry, target, th: Thresholds):
 
     def objective(motors, state, ds_da):
         (value, residual), d_state = jax.value_and_grad(parts, has_aux=True)(state)
-        jac = jax.jacfwd(lambda s: output_residual(mech, geom, target, s))(state) @ ds_da
+        # ∂r/∂s · ds/da as M forward tangents along the columns of ds/da
+        jac = jax.jacfwd(lambda d: output_residual(mech, geom, target, state + ds_da @ d))(jnp.zeros(ds_da.shape[1]))
         return value, d_state @ ds_da, jac.T @ jac
 
     return objective

@@ -7,12 +7,17 @@ then the smallest of the ``n`` column-rank singular values, ``n = |s|``.
 The motor and output rows' Jacobians do not depend on the motor/output *targets*
 (the wrapped difference has unit slope), so both Jacobians are functions of ``s`` only.
 
-Hazard (jax 0.10, CPU): differentiating through ``jnp.linalg.svd`` under ``vmap``, or two
-batched SVD calls in one jitted function, deadlocked inside LAPACK. So we take *one*
-SVD of the stacked ``(2, m, n)`` Jacobians with the gradient stopped, and recover the
-exact first derivative from ``σ = uᵀ J(s) v`` with the singular vectors held fixed
-(valid for a simple smallest singular value). ``tests/test_singularity.py`` keeps a
-regression test with a timeout.
+σ_min is found by block inverse iteration with a Rayleigh–Ritz step on ``A = JᵀJ``
+(``BLOCK`` vectors, ``ITERATIONS`` sweeps, one Cholesky factorisation of ``A``, a fixed
+seeded start block) instead of a full SVD: the LAPACK SVD of a few dozen columns cost
+0.2 ms per matrix and was 80 % of a design evaluation; this is 3.5x cheaper. Against
+the SVD it agrees to 1e-4 relative along a five-bar path whose two smallest singular
+values come within 0.7 % of each other (``tests/test_singularity.py`` checks 1e-3).
+Close to a singularity the smallest eigenvalue separates and the iteration converges
+faster. The value returned is ``σ = ‖J(s) v‖`` with the Ritz vector ``v`` held fixed,
+an upper bound on σ_min that equals it at convergence, and whose derivative is the
+exact first derivative of σ_min for a simple smallest singular value
+(``dσ = uᵀ dJ v``, ``u = Jv/σ``).
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from functools import partial
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from . import _jacobian
@@ -34,14 +40,49 @@ def stacked_jacobians(mech: Mechanism, geom: Geometry, state) -> Float[Array, "2
     return _jacobian.stacked_jacobians(mech, geom, state)
 
 
+BLOCK = 6
+ITERATIONS = 6
+
+
+def _orthonormalise(x: Float[Array, "B n k"]) -> Float[Array, "B n k"]:
+    """Gram–Schmidt, each projection done twice, on the ``k`` columns of each block
+    (inverse iteration makes the columns nearly parallel, so Cholesky QR would fail)."""
+    columns = []
+    for j in range(x.shape[-1]):
+        v = x[:, :, j]
+        for _ in range(2):
+            for q in columns:
+                v = v - jnp.sum(q * v, axis=1, keepdims=True) * q
+        columns.append(v / jnp.sqrt(jnp.sum(v**2, axis=1, keepdims=True) + 1e-300))
+    return jnp.stack(columns, axis=-1)
+
+
+def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
+    """Right singular vectors of the smallest singular values of a stack of matrices
+    (block inverse iteration on ``JᵀJ`` + Rayleigh–Ritz; module docstring)."""
+    a = jnp.einsum("bmi,bmj->bij", jac, jac)
+    n = a.shape[-1]
+    shift = 1e-13 * jnp.trace(a, axis1=1, axis2=2)[:, None, None] * jnp.eye(n)
+    lower = jnp.linalg.cholesky(a + shift)
+    upper = jnp.swapaxes(lower, 1, 2)
+    start = np.random.default_rng(0).standard_normal((n, min(BLOCK, n)))
+    x = _orthonormalise(jnp.broadcast_to(jnp.asarray(start), (a.shape[0],) + start.shape))
+
+    def sweep(_, x):
+        y = jax.scipy.linalg.solve_triangular(lower, x, lower=True)
+        return _orthonormalise(jax.scipy.linalg.solve_triangular(upper, y, lower=False))
+
+    x = jax.lax.fori_loop(0, ITERATIONS, sweep, x)
+    _, ritz = jnp.linalg.eigh(jnp.einsum("bni,bnm,bmj->bij", x, a, x))
+    return jnp.einsum("bnk,bk->bn", x, ritz[:, :, 0])
+
+
 def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, "2"]:
     """``(σ_min^FK, σ_min^BK)`` at one state, differentiable in ``state`` and ``geom``."""
     jac = stacked_jacobians(mech, geom, state)
-    u_all, _, vt_all = jnp.linalg.svd(jax.lax.stop_gradient(jac), full_matrices=False)
-    k = min(jac.shape[1], jac.shape[2]) - 1
-    u = u_all[:, :, k]
-    v = vt_all[:, k, :]
-    return jnp.einsum("bi,bij,bj->b", u, jac, v)
+    v = jax.lax.stop_gradient(smallest_right_vectors(jax.lax.stop_gradient(jac)))
+    image = jnp.einsum("bij,bj->bi", jac, v)
+    return jnp.sqrt(jnp.sum(image**2, axis=1) + 1e-300)
 
 
 def f_sing_value(mech: Mechanism, geom: Geometry, state) -> Float[Array, ""]:

@@ -200,13 +200,15 @@ def _cmd_plot(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     label = args.label or ("initial" if design is None else "design")
     stem = Path(args.file).stem
-    print(f"evaluating {mech.name} ...", file=sys.stderr)
-    ev = evaluate(mech, design)
-    print(f"solving the {args.resolution}x{args.resolution} motor and end-effector grids ...", file=sys.stderr)
-    spaces = plot_spaces(mech, ev, out / f"{stem}_{label}.png", resolution=args.resolution, design=design)
-    drawing = plot_mechanism(mech, out / f"{stem}_{label}_mechanism.png", designs={label: design})
-    print(spaces)
-    print(drawing)
+    if mech.num_motors == mech.num_outputs and mech.num_motors in (2, 3):
+        print(f"evaluating {mech.name} ...", file=sys.stderr)
+        ev = evaluate(mech, design)
+        grids = "grids" if mech.num_motors == 2 else "grids (three 2-D sections each)"
+        print(f"solving the {args.resolution}x{args.resolution} motor and end-effector {grids} ...", file=sys.stderr)
+        print(plot_spaces(mech, ev, out / f"{stem}_{label}.png", resolution=args.resolution, design=design))
+    else:
+        print(f"{args.file}: space plots need 2 or 3 motors and outputs, the file has {mech.num_motors}; drawing the mechanism only", file=sys.stderr)
+    print(plot_mechanism(mech, out / f"{stem}_{label}_mechanism.png", designs={label: design}))
     return 0
 
 
@@ -260,7 +262,13 @@ def _cmd_optimize(args) -> int:
         done = record["iteration"] + 1
         elapsed = record["wall_time"]
         remaining = elapsed / done * (settings.iterations - done)
-        print(f"iteration {record['iteration']:4d}  best f_design {record['best_f_design']:.4e}  regulariser {record['regularizer']:.3e}  elapsed {elapsed:7.1f} s  at most {remaining:7.1f} s left", file=sys.stderr, flush=True)
+        print(
+            f"iteration {record['iteration']:4d}  best f_design {record['best_f_design_overall']:.4e}"
+            f" (this iteration {record['best_f_design']:.4e}, regulariser {record['regularizer']:.2e})"
+            f"  elapsed {elapsed:6.1f} s  at most {remaining:6.1f} s left",
+            file=sys.stderr,
+            flush=True,
+        )
 
     run = optimize(mech, args.out, settings, resume=args.resume, progress=report)
     print("writing the optimised file, verification and figures ...", file=sys.stderr, flush=True)

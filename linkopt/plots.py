@@ -52,8 +52,7 @@ def space_maps(mech: Mechanism, evaluation: Evaluation, resolution: int, design=
 def _panel(ax, grid: Map2D, norm, title: str, labels):
     extent = [grid.axis0[0], grid.axis0[-1], grid.axis1[0], grid.axis1[-1]]
     ax.set_facecolor("black")
-    cmap = plt.get_cmap("viridis").copy()
-    cmap.set_bad("black")
+    cmap = plt.get_cmap("viridis").with_extremes(bad="black")
     image = ax.imshow(grid.f_sing.T, origin="lower", extent=extent, aspect="auto", cmap=cmap, norm=norm, interpolation="nearest")
     ax.set_title(title)
     ax.set_xlabel(labels[0])
@@ -66,28 +65,71 @@ def _inside(mech: Mechanism, outputs: np.ndarray) -> np.ndarray:
     return np.where(np.isnan(outputs[..., 0]), 0.0, inside.astype(float))
 
 
+def section_maps(mech: Mechanism, evaluation: Evaluation, resolution: int, design=None):
+    """Three motors and three outputs: 2-D sections of both spaces at three values of the
+    third variable (output: the range's ends and middle; motor: the smallest, median and
+    largest third motor value of the IK samples). Returns ``[(motor_map, output_map,
+    motor_cut, output_cut)]``, one per section."""
+    from ._maps import sections
+
+    if mech.num_motors != 3 or mech.num_outputs != 3:
+        raise ValueError("sections need exactly three motors and three outputs")
+    rest = rest_state(mech)
+    ik_motors = np.asarray(evaluation.ik_motors) * mech.motor_scale
+    sample_motors = np.concatenate([ik_motors, np.asarray(evaluation.adv_motors) * mech.motor_scale])
+    m_low, m_high = _window(np.vstack([sample_motors, np.zeros((1, 3))]), -0.3, 0.3, PADDING)
+    rest_out = np.asarray(output_values(mech, rest, design=design))
+    o_low, o_high = _window(np.vstack([rest_out, mech.output_min, mech.output_max]), mech.output_min, mech.output_max, 0.2)
+    b_cuts = [mech.output_min[2], 0.5 * (mech.output_min[2] + mech.output_max[2]), mech.output_max[2]]
+    a_cuts = list(np.quantile(ik_motors[:, 2], [0.0, 0.5, 1.0]))
+    motors = sections(mech, "fk", m_low, m_high, resolution, a_cuts, start_state=rest, start_values=np.zeros(3), design=design)
+    outputs = sections(mech, "bk", o_low, o_high, resolution, b_cuts, start_state=rest, start_values=rest_out, design=design)
+    return list(zip(motors, outputs, a_cuts, b_cuts))
+
+
+def _nearest(values: np.ndarray, cuts) -> np.ndarray:
+    """Index of the cut nearest to each value."""
+    return np.argmin(np.abs(values[:, None] - np.asarray(cuts)[None, :]), axis=1)
+
+
 def plot_spaces(mech: Mechanism, evaluation: Evaluation, path: str | Path, *, resolution: int = 60, design=None, title: str = "") -> Path:
-    """Motor space (left) and end-effector space (right), as the paper's Fig. 2/4/6."""
-    motors, outputs = space_maps(mech, evaluation, resolution, design)
-    values = np.concatenate([motors.f_sing[motors.feasible], outputs.f_sing[outputs.feasible]])
-    norm = LogNorm(vmin=max(np.min(values), 1e-3), vmax=max(np.percentile(values, 99), np.min(values) * 10))
-    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 5.2), constrained_layout=True)
-    motor_labels = [f"motor {n} ({'rad' if not lin else 'length'})" for n, lin in zip(mech.motor_names, mech.motor_linear)]
-    output_labels = [f"output {n}" for n in mech.output_names]
-    _panel(left, motors, norm, "motor space", motor_labels)
-    image = _panel(right, outputs, norm, "end-effector space", output_labels)
-    left.contour(motors.axis0, motors.axis1, _inside(mech, motors.outputs).T, levels=[0.5], colors=MAGENTA, linewidths=2)
-    lo, hi = mech.output_min, mech.output_max
-    right.plot([lo[0], hi[0], hi[0], lo[0], lo[0]], [lo[1], lo[1], hi[1], hi[1], lo[1]], color=MAGENTA, lw=2)
+    """Motor space (left) and end-effector space (right), as the paper's Fig. 2/4/6; for
+    three motors and outputs, one row per 2-D section (:func:`section_maps`), each showing
+    the samples whose third coordinate is nearest to that section."""
     ik_a = np.asarray(evaluation.ik_motors) * mech.motor_scale
     adv_a = np.asarray(evaluation.adv_motors) * mech.motor_scale
     ik_b = np.asarray(output_values(mech, evaluation.ik_states, design=design))
     adv_b = np.asarray(output_values(mech, evaluation.adv_states, design=design))
-    for ax, ik, adv in ((left, ik_a, adv_a), (right, ik_b, adv_b)):
-        ax.scatter(ik[:, 0], ik[:, 1], s=40, facecolors="none", edgecolors="white", linewidths=1.5, label="IK samples", zorder=3)
-        ax.scatter(adv[:, 0], adv[:, 1], s=40, marker="x", color=MAGENTA, linewidths=1.8, label="adversarial samples", zorder=4)
-    right.legend(loc="upper right", fontsize=8, facecolor="0.85")
-    fig.colorbar(image, ax=[left, right], label="f_sing (brighter = closer to a singularity)")
+    if mech.num_motors == 2 and mech.num_outputs == 2:
+        motors, outputs = space_maps(mech, evaluation, resolution, design)
+        rows = [(motors, outputs, "", np.ones(len(ik_a), bool), np.ones(len(adv_a), bool))]
+    elif mech.num_motors == 3 and mech.num_outputs == 3:
+        rows = []
+        cuts = section_maps(mech, evaluation, resolution, design)
+        b_cuts = [c[3] for c in cuts]
+        for k, (motors, outputs, a_cut, b_cut) in enumerate(cuts):
+            label = f" at {mech.motor_names[2]} = {a_cut:.3g} | {mech.output_names[2]} = {b_cut:.3g}"
+            rows.append((motors, outputs, label, _nearest(ik_b[:, 2], b_cuts) == k, _nearest(adv_b[:, 2], b_cuts) == k))
+    else:
+        raise ValueError(f"space plots need 2 or 3 motors and as many outputs, not {mech.num_motors} and {mech.num_outputs}")
+    values = np.concatenate([np.concatenate([m.f_sing[m.feasible], o.f_sing[o.feasible]]) for m, o, *_ in rows])
+    norm = LogNorm(vmin=max(np.min(values), 1e-3), vmax=max(np.percentile(values, 99), np.min(values) * 10))
+    fig, axes = plt.subplots(len(rows), 2, figsize=(12, 5.2 * len(rows)), constrained_layout=True, squeeze=False)
+    motor_labels = [f"motor {n} ({'rad' if not lin else 'length'})" for n, lin in zip(mech.motor_names, mech.motor_linear)]
+    output_labels = [f"output {n}" for n in mech.output_names]
+    lo, hi = mech.output_min, mech.output_max
+    for (left, right), (motors, outputs, label, ik_rows, adv_rows) in zip(axes, rows):
+        _panel(left, motors, norm, "motor space" + label.split("|")[0], motor_labels)
+        image = _panel(right, outputs, norm, "end-effector space" + (" at" + label.split("|")[1] if label else ""), output_labels)
+        inside = _inside(mech, motors.outputs)
+        if 0.0 < inside.max():
+            left.contour(motors.axis0, motors.axis1, inside.T, levels=[0.5], colors=MAGENTA, linewidths=2)
+        right.plot([lo[0], hi[0], hi[0], lo[0], lo[0]], [lo[1], lo[1], hi[1], hi[1], lo[1]], color=MAGENTA, lw=2)
+        for ax, ik, adv in ((left, ik_a[ik_rows], adv_a[adv_rows]), (right, ik_b[ik_rows], adv_b[adv_rows])):
+            ax.scatter(ik[:, 0], ik[:, 1], s=40, facecolors="none", edgecolors="white", linewidths=1.5, label="IK samples", zorder=3)
+            ax.scatter(adv[:, 0], adv[:, 1], s=40, marker="x", color=MAGENTA, linewidths=1.8, label="adversarial samples", zorder=4)
+        right.legend(loc="upper right", fontsize=8, facecolor="0.85")
+    fig.colorbar(image, ax=axes.ravel().tolist(), label="f_sing (brighter = closer to a singularity)")
     fig.suptitle(title or f"{mech.name}: f_design = {float(evaluation.f_design):.3g} (reach {float(evaluation.reach):.3g}, singularity {float(evaluation.singularity):.3g})")
     path = Path(path)
     fig.savefig(path, dpi=100)

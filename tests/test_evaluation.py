@@ -55,10 +55,14 @@ def test_ik_objective_gradient_matches_finite_differences(five_bar):
     th = thresholds(alpha_minus(five_bar))
     target = jnp.asarray(np.array([0.0, 15.0]) / five_bar.length_scale)
     objective = ik_objective(five_bar, geom, target, th)
-    motors = jnp.array([0.405, -0.405])
-    state = linkopt.solve_fk(five_bar, motors).state
-    f = float(linkopt.f_sing(five_bar, state))
-    assert th.lower < f < th.upper  # the culled singularity term is active and not flat here
+    # walk the symmetric motor diagonal towards the forward singularity (near a = ±0.43)
+    # until the culled singularity term is active and not flat: α₋ < f_sing < α₊
+    diagonal = np.linspace(0.40, 0.425, 51)
+    path = linkopt.solve_fk_path(five_bar, np.stack([diagonal, -diagonal], 1))
+    f_path = np.asarray(linkopt.f_sing(five_bar, path.state))
+    k = int(np.flatnonzero((f_path > float(th.lower)) & (f_path < float(th.upper)))[0])
+    motors = jnp.array([diagonal[k], -diagonal[k]])
+    state = path.state[k]
     value, gradient, _ = objective(motors, state, state_motor_jacobian(five_bar, geom, motors, state))
 
     def value_at(a):

@@ -50,7 +50,24 @@ def test_f_sing_is_sum_of_inverse_sigmas(five_bar):
 
     jac = np.asarray(stacked_jacobians(five_bar, linkopt.geometry(five_bar), state))
     reference = [np.linalg.svd(j, compute_uv=False)[-1] for j in jac]
-    np.testing.assert_allclose(sigma, reference, rtol=1e-10)
+    np.testing.assert_allclose(sigma, reference, rtol=1e-4)
+
+
+def test_sigma_min_matches_svd_where_the_smallest_values_cluster(five_bar):
+    """Block inverse iteration vs LAPACK along a path through the motor square, where the
+    two smallest singular values come within 2 % of each other and near singularities."""
+    from linkopt._singularity import stacked_jacobians
+
+    motors = np.stack([np.linspace(-1.5, 1.5, 60), np.linspace(1.0, -1.0, 60)], 1)
+    path = linkopt.solve_fk_path(five_bar, motors)
+    states = np.asarray(path.state)[np.asarray(path.converged)]
+    geom = linkopt.geometry(five_bar)
+    jac = np.asarray(jax.vmap(lambda s: stacked_jacobians(five_bar, geom, s))(states))
+    exact = np.linalg.svd(jac, compute_uv=False)
+    assert np.min(exact[..., -2] / exact[..., -1]) < 1.02  # the hard case is in the path
+    sigma = np.asarray(linkopt.singular_values(five_bar, states))
+    np.testing.assert_allclose(sigma, exact[..., -1], rtol=1e-3)
+    assert np.all(sigma >= exact[..., -1] * (1 - 1e-12))  # ‖Jv‖ bounds σ_min from above
 
 
 def test_f_sing_gradient_through_fk_matches_finite_differences(five_bar):
@@ -64,12 +81,15 @@ def test_f_sing_gradient_through_fk_matches_finite_differences(five_bar):
     h = 1e-6
     fd_a = [(objective(motors + h * e, design) - objective(motors - h * e, design)) / (2 * h) for e in np.eye(2)]
     fd_p = [(objective(motors, design + h * e) - objective(motors, design - h * e)) / (2 * h) for e in np.eye(3)]
-    np.testing.assert_allclose(grad_a, fd_a, rtol=1e-5, atol=1e-7)
-    np.testing.assert_allclose(grad_p, fd_p, rtol=1e-5, atol=1e-7)
+    # σ_min comes from a converged-to-1e-5 Ritz vector (linkopt._singularity), so the
+    # analytic derivative and the finite difference of the computed σ differ at that level
+    np.testing.assert_allclose(grad_a, fd_a, rtol=3e-4, atol=1e-7)
+    np.testing.assert_allclose(grad_p, fd_p, rtol=3e-4, atol=1e-7)
 
 
 def test_batched_svd_gradient_does_not_hang():
-    """Regression: vmap(grad(f_sing ∘ FK)) once deadlocked in LAPACK under jax 0.10."""
+    """Regression: vmap(grad(f_sing ∘ FK)) deadlocked XLA's 2-thread pool in batched
+    LAPACK kernels (jax 0.10.2, 2 cores); linkopt._config now runs it with one thread."""
     script = textwrap.dedent(
         """
         import jax, jax.numpy as jnp, numpy as np, linkopt

@@ -1,0 +1,147 @@
+"""The hybrid optimiser (paper Sec. V): partial gradient, swarm rule, bounds, resume.
+
+Runs are tiny (4 particles, 3 iterations); the full five-bar optimisation is in
+``benchmarks/bench_optimizer.py``.
+"""
+
+import dataclasses
+import functools
+import json
+
+import jax
+import numpy as np
+import pytest
+
+from linkopt import InputError
+from linkopt._evaluation import alpha_minus, evaluate
+from linkopt._optimizer import OptimizerSettings, start, step, swarm_moves
+from linkopt._partial import frozen_objective, partial_gradient
+from linkopt._run import CHECKPOINT, optimize, prepare
+
+SMALL = OptimizerSettings(particles=4, iterations=3, seed=7)
+
+
+@functools.lru_cache(maxsize=None)
+def frozen(mech):
+    """``frozen_objective`` jitted once per mechanism, the evaluation as an argument."""
+    return jax.jit(lambda p, ev: frozen_objective(mech, p, ev, alpha_minus(mech)))
+
+
+@pytest.fixture(scope="module")
+def swarm_evaluation(five_bar):
+    run = start(five_bar, SMALL)
+    return run, jax.tree_util.tree_map(np.asarray, evaluate(five_bar, run.position))
+
+
+def test_partial_gradient_matches_finite_differences_of_the_frozen_objective(five_bar, swarm_evaluation):
+    run, ev = swarm_evaluation
+    alpha = alpha_minus(five_bar)
+    gradients = np.asarray(partial_gradient(five_bar, run.position, ev, alpha))
+    i = 2
+    one = jax.tree_util.tree_map(lambda x: x[i], ev)
+    objective = functools.partial(frozen(five_bar), ev=one)
+    p = run.position[i]
+    # the frozen objective at the evaluated design is the evaluation itself
+    assert np.isclose(float(objective(p)), ev.f_design[i] + ev.regularizer[i], rtol=1e-8)
+    h = 1e-5
+    fd = [(objective(p + h * e) - objective(p - h * e)) / (2 * h) for e in np.eye(p.size)]
+    # σ_min comes from a Ritz vector converged to ~1e-5 (linkopt._singularity), which
+    # bounds the agreement relative to the gradient's size
+    np.testing.assert_allclose(gradients[i], fd, rtol=1e-4, atol=2e-5 * np.max(np.abs(fd)))
+
+
+def test_inertia_falls_linearly_from_0_9_to_0_4_at_iteration_100():
+    s = OptimizerSettings()
+    assert s.inertia(0) == pytest.approx(0.9)
+    assert s.inertia(50) == pytest.approx(0.65)
+    assert s.inertia(100) == pytest.approx(0.4)
+    assert s.inertia(250) == pytest.approx(0.4)
+
+
+def test_swarm_moves_half_gradient_and_the_velocity_rule(five_bar):
+    run = start(five_bar, OptimizerSettings(particles=2000, seed=3))
+    rng = np.random.default_rng(11)
+    run.velocity = rng.normal(size=run.position.shape)
+    run.pbest_pos = run.position + rng.normal(size=run.position.shape)
+    run.best_pos = run.position[0] + 1.0
+    run.iteration = 20
+    settings = OptimizerSettings(particles=2000, seed=3)
+    use_gradient, velocity = swarm_moves(np.random.default_rng(5), run, settings)
+    assert abs(use_gradient.mean() - 0.5) < 0.05
+    # replay the draws: v = w v + c1 r1 (pbest - x) + c2 r2 (gbest - x), w(20) = 0.8
+    replay = np.random.default_rng(5)
+    replay.random(2000)
+    r1, r2 = replay.random(run.position.shape), replay.random(run.position.shape)
+    expected = 0.8 * run.velocity + 2 * r1 * (run.pbest_pos - run.position) + 2 * r2 * (run.best_pos - run.position)
+    np.testing.assert_allclose(velocity, expected, rtol=1e-12)
+    gradient_only = dataclasses.replace(settings, mode="gradient")
+    assert swarm_moves(np.random.default_rng(5), run, gradient_only)[0].all()
+
+
+def test_particles_start_around_p0_and_stay_in_bounds(five_bar):
+    d = five_bar.design
+    run = start(five_bar, SMALL)
+    np.testing.assert_array_equal(run.position[0], d.p0)
+    assert np.all(np.abs(run.position - d.p0) <= SMALL.spread * (d.upper - d.lower) + 1e-12)
+    # a huge swarm step is clipped to the bounds by pyswarms' 'nearest' handler
+    run.velocity[:] = 0.0
+    far = dataclasses.replace(SMALL, gradient_probability=0.0)
+    run = step(five_bar, run, far)
+    run.pbest_pos = run.pbest_pos + 1e3
+    run.pbest_cost[:] = -np.inf  # never replaced, so every pull points far outside
+    run = step(five_bar, run, far)
+    assert np.all(run.position >= d.lower - 1e-12) and np.all(run.position <= d.upper + 1e-12)
+    assert np.any(np.isclose(run.position, d.upper))
+
+
+def test_a_partial_gradient_step_goes_downhill(five_bar, swarm_evaluation):
+    """In gradient mode every particle moves along -g (in reference lengths), by at most
+    ``gradient_step``, and the objective with the samples frozen decreases."""
+    run, ev = swarm_evaluation
+    settings = dataclasses.replace(SMALL, mode="gradient")
+    moved = step(five_bar, dataclasses.replace(run, history=[]), settings)
+    gradients = np.asarray(partial_gradient(five_bar, run.position, ev, alpha_minus(five_bar)))
+    scale = np.where(five_bar.design.is_length, five_bar.length_scale, 1.0)
+    delta = (moved.position - run.position) / scale
+    g = gradients * scale
+    cosine = np.sum(delta * g, axis=1) / np.linalg.norm(delta, axis=1) / np.linalg.norm(g, axis=1)
+    np.testing.assert_allclose(cosine, -1.0, atol=1e-9)
+    assert np.all(np.linalg.norm(delta, axis=1) <= settings.gradient_step + 1e-12)
+    for i in range(len(run.position)):
+        one = jax.tree_util.tree_map(lambda x: x[i], ev)
+        before = float(frozen(five_bar)(run.position[i], one))
+        after = float(frozen(five_bar)(moved.position[i], one))
+        assert after < before, (i, before, after)
+
+
+def test_interrupted_run_resumes_to_the_same_result(five_bar, tmp_path):
+    whole = optimize(five_bar, tmp_path / "whole", SMALL)
+
+    class Killed(Exception):
+        pass
+
+    def die_after_first(record):
+        if record["iteration"] == 1:
+            raise Killed
+
+    with pytest.raises(Killed):
+        optimize(five_bar, tmp_path / "cut", SMALL, progress=die_after_first)
+    assert json.loads((tmp_path / "cut" / CHECKPOINT).read_text())["iteration"] == 2
+    resumed = optimize(five_bar, tmp_path / "cut", SMALL, resume=True)
+    assert resumed.iteration == whole.iteration == SMALL.iterations
+    np.testing.assert_array_equal(resumed.pbest_pos, whole.pbest_pos)
+    np.testing.assert_array_equal(resumed.position, whole.position)
+    assert [h["best_total"] for h in resumed.history] == [h["best_total"] for h in whole.history]
+    # the swarm's best never gets worse
+    best = [h["swarm_best_total"] for h in whole.history]
+    assert all(b <= a for a, b in zip(best, best[1:]))
+
+
+def test_resume_is_refused_with_other_settings_or_without_a_checkpoint(five_bar, tmp_path):
+    with pytest.raises(InputError, match="no checkpoint"):
+        prepare(tmp_path / "empty", five_bar, SMALL, resume=True)
+    optimize(five_bar, tmp_path / "run", dataclasses.replace(SMALL, iterations=1))
+    with pytest.raises(InputError, match="already holds a run"):
+        prepare(tmp_path / "run", five_bar, SMALL, resume=False)
+    with pytest.raises(InputError, match="seed"):
+        prepare(tmp_path / "run", five_bar, dataclasses.replace(SMALL, iterations=1, seed=8), resume=True)
