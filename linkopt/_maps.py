@@ -74,9 +74,8 @@ def continuation_grid(solve, values: np.ndarray, start_cell: tuple[int, ...], st
     return states, status == 1
 
 
-def _grid(low, high, resolution):
-    axes = [np.linspace(lo, hi, resolution) for lo, hi in zip(low, high)]
-    return axes, np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+def _axes(low, high, resolution):
+    return [np.linspace(lo, hi, resolution) for lo, hi in zip(low, high)]
 
 
 def _readouts(mech, states, feasible, design):
@@ -107,11 +106,7 @@ def sections(mech: Mechanism, kind: str, low, high, resolution: int, cuts, *, st
         raise ValueError("sections need exactly three motors or outputs")
     third = np.unique(np.concatenate([np.linspace(low[2], high[2], depth), np.asarray(cuts, float), [start_values[2]]]))
     axes = [np.linspace(low[0], high[0], resolution), np.linspace(low[1], high[1], resolution), third]
-    values = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
-    cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_values))
-    solver = solve_fk if kind == "fk" else solve_bk
-    solve = lambda v, s: solver(mech, v, start=s, design=design)  # noqa: E731
-    states, feasible = continuation_grid(solve, values, cell, np.asarray(start_state), chunk=4 * resolution)
+    states, feasible = _solve_from(mech, kind, axes, start_values, start_state, design)
     out = []
     for cut in cuts:
         k = int(np.argmin(np.abs(third - cut)))
@@ -119,19 +114,24 @@ def sections(mech: Mechanism, kind: str, low, high, resolution: int, cuts, *, st
     return out
 
 
+def _solve_from(mech: Mechanism, kind: str, axes, start_values, start_state, design):
+    """Continuation over the grid spanned by ``axes``, from the cell nearest ``start_values``."""
+    values = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_values))
+    solver = solve_fk if kind == "fk" else solve_bk
+    solve = lambda v, s: solver(mech, v, start=s, design=design)  # noqa: E731
+    return continuation_grid(solve, values, cell, np.asarray(start_state), chunk=4 * len(axes[0]))
+
+
 def motor_map(mech: Mechanism, low, high, resolution: int, *, start_state, start_motors, design=None) -> Map2D:
     """FK over a motor-space box ``[low, high]`` (2 motors), from a solved start state."""
-    axes, values = _grid(low, high, resolution)
-    cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_motors))
-    solve = lambda v, s: solve_fk(mech, v, start=s, design=design)  # noqa: E731
-    states, feasible = continuation_grid(solve, values, cell, np.asarray(start_state), chunk=4 * resolution)
+    axes = _axes(low, high, resolution)
+    states, feasible = _solve_from(mech, "fk", axes, start_motors, start_state, design)
     return _finish(mech, axes, states, feasible, design)
 
 
 def output_map(mech: Mechanism, low, high, resolution: int, *, start_state, start_outputs, design=None) -> Map2D:
     """BK over an end-effector-space box ``[low, high]`` (2 outputs), from a solved start state."""
-    axes, values = _grid(low, high, resolution)
-    cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_outputs))
-    solve = lambda v, s: solve_bk(mech, v, start=s, design=design)  # noqa: E731
-    states, feasible = continuation_grid(solve, values, cell, np.asarray(start_state), chunk=4 * resolution)
+    axes = _axes(low, high, resolution)
+    states, feasible = _solve_from(mech, "bk", axes, start_outputs, start_state, design)
     return _finish(mech, axes, states, feasible, design)
