@@ -132,9 +132,10 @@ def test_interrupted_run_resumes_to_the_same_result(five_bar, tmp_path):
     np.testing.assert_array_equal(resumed.pbest_pos, whole.pbest_pos)
     np.testing.assert_array_equal(resumed.position, whole.position)
     assert [h["best_total"] for h in resumed.history] == [h["best_total"] for h in whole.history]
-    # the swarm's best never gets worse
+    # the swarm's best never gets worse, and three iterations measurably lower it
     best = [h["swarm_best_total"] for h in whole.history]
     assert all(b <= a for a, b in zip(best, best[1:]))
+    assert best[-1] < 0.95 * best[0], best
 
 
 def test_resume_is_refused_with_other_settings_or_without_a_checkpoint(five_bar, tmp_path):
