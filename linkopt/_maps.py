@@ -78,19 +78,14 @@ def _axes(low, high, resolution):
     return [np.linspace(lo, hi, resolution) for lo, hi in zip(low, high)]
 
 
-def _readouts(mech, states, feasible, design):
+def _finish(mech, axes, states, feasible, design) -> Map2D:
     flat = states.reshape(-1, states.shape[-1])
     shape = feasible.shape
     fs = np.asarray(f_sing(mech, flat, design=design)).reshape(shape)
     motors = np.asarray(motor_values(mech, flat, design=design)).reshape(shape + (-1,))
     outputs = np.asarray(output_values(mech, flat, design=design)).reshape(shape + (-1,))
     nan = np.where(feasible, 1.0, np.nan)
-    return fs * nan, motors * nan[..., None], outputs * nan[..., None]
-
-
-def _finish(mech, axes, states, feasible, design) -> Map2D:
-    fs, motors, outputs = _readouts(mech, states, feasible, design)
-    return Map2D(axes[0], axes[1], fs, motors, outputs, feasible)
+    return Map2D(axes[0], axes[1], fs * nan, motors * nan[..., None], outputs * nan[..., None], feasible)
 
 
 def sections(mech: Mechanism, kind: str, low, high, resolution: int, cuts, *, start_state, start_values, design=None, depth: int = 9) -> list[Map2D]:
@@ -105,7 +100,7 @@ def sections(mech: Mechanism, kind: str, low, high, resolution: int, cuts, *, st
     if len(low) != 3:
         raise ValueError("sections need exactly three motors or outputs")
     third = np.unique(np.concatenate([np.linspace(low[2], high[2], depth), np.asarray(cuts, float), [start_values[2]]]))
-    axes = [np.linspace(low[0], high[0], resolution), np.linspace(low[1], high[1], resolution), third]
+    axes = _axes(low[:2], high[:2], resolution) + [third]
     states, feasible = _solve_from(mech, kind, axes, start_values, start_state, design)
     out = []
     for cut in cuts:

@@ -65,11 +65,11 @@ def _adjoint_term(mech: Mechanism, term, design, motors, state):
     """``g(s, p) - μᵀ C_FK(s, p; a)`` with ``μ`` held fixed (module docstring)."""
     motors = jax.lax.stop_gradient(motors)
     state = jax.lax.stop_gradient(state)
-    fixed = jax.lax.stop_gradient(geometry(mech, design))
+    geom = geometry(mech, design)
+    fixed = jax.lax.stop_gradient(geom)
     d_state = jax.grad(term)(state, fixed)
     jac = state_jacobian(mech, fixed, "fk", state)
-    mu = jax.lax.stop_gradient(jac @ cho_solve(cho_factor(jac.T @ jac), d_state))
-    geom = geometry(mech, design)
+    mu = jac @ cho_solve(cho_factor(jac.T @ jac), d_state)  # built from `fixed`: no gradient
     return term(state, geom) - mu @ fk_residual(mech, geom, motors, state)
 
 

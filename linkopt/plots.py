@@ -102,14 +102,14 @@ def plot_spaces(mech: Mechanism, evaluation: Evaluation, path: str | Path, *, re
     adv_b = np.asarray(output_values(mech, evaluation.adv_states, design=design))
     if mech.num_motors == 2 and mech.num_outputs == 2:
         motors, outputs = space_maps(mech, evaluation, resolution, design)
-        rows = [(motors, outputs, "", np.ones(len(ik_a), bool), np.ones(len(adv_a), bool))]
+        rows = [(motors, outputs, "", "", np.ones(len(ik_a), bool), np.ones(len(adv_a), bool))]
     elif mech.num_motors == 3 and mech.num_outputs == 3:
         rows = []
         cuts = section_maps(mech, evaluation, resolution, design)
         b_cuts = [c[3] for c in cuts]
         for k, (motors, outputs, a_cut, b_cut) in enumerate(cuts):
-            label = f" at {mech.motor_names[2]} = {a_cut:.3g} | {mech.output_names[2]} = {b_cut:.3g}"
-            rows.append((motors, outputs, label, _nearest(ik_b[:, 2], b_cuts) == k, _nearest(adv_b[:, 2], b_cuts) == k))
+            at_a, at_b = f" at {mech.motor_names[2]} = {a_cut:.3g}", f" at {mech.output_names[2]} = {b_cut:.3g}"
+            rows.append((motors, outputs, at_a, at_b, _nearest(ik_b[:, 2], b_cuts) == k, _nearest(adv_b[:, 2], b_cuts) == k))
     else:
         raise ValueError(f"space plots need 2 or 3 motors and as many outputs, not {mech.num_motors} and {mech.num_outputs}")
     values = np.concatenate([np.concatenate([m.f_sing[m.feasible], o.f_sing[o.feasible]]) for m, o, *_ in rows])
@@ -118,9 +118,9 @@ def plot_spaces(mech: Mechanism, evaluation: Evaluation, path: str | Path, *, re
     motor_labels = [f"motor {n} ({'rad' if not lin else 'length'})" for n, lin in zip(mech.motor_names, mech.motor_linear)]
     output_labels = [f"output {n}" for n in mech.output_names]
     lo, hi = mech.output_min, mech.output_max
-    for (left, right), (motors, outputs, label, ik_rows, adv_rows) in zip(axes, rows):
-        _panel(left, motors, norm, "motor space" + label.split("|")[0], motor_labels)
-        image = _panel(right, outputs, norm, "end-effector space" + (" at" + label.split("|")[1] if label else ""), output_labels)
+    for (left, right), (motors, outputs, at_a, at_b, ik_rows, adv_rows) in zip(axes, rows):
+        _panel(left, motors, norm, "motor space" + at_a, motor_labels)
+        image = _panel(right, outputs, norm, "end-effector space" + at_b, output_labels)
         inside = _inside(mech, motors.outputs)
         if 0.0 < inside.max():
             left.contour(motors.axis0, motors.axis1, inside.T, levels=[0.5], colors=MAGENTA, linewidths=2)
