@@ -115,7 +115,8 @@ def joint_positions(mech: Mechanism, geom: Geometry, state) -> Float[Array, "J 3
 
 def _output_rows(mech: Mechanism, geom: Geometry, state, outputs):
     positional = np.flatnonzero(mech.output_points >= 0)
-    angular = np.flatnonzero(mech.output_joints >= 0)
+    angular = np.flatnonzero((mech.output_joints >= 0) & (mech.output_coords < 0))
+    tait_bryan = np.flatnonzero((mech.output_joints >= 0) & (mech.output_coords >= 0))
 
     def coords(index):
         world = _point_world(mech, geom, state)[mech.output_points[index], mech.output_coords[index]]
@@ -127,7 +128,13 @@ def _output_rows(mech: Mechanism, geom: Geometry, state, outputs):
             return jax.vmap(_joints.relative_angle)(qi, qj, n, u)
         return jax.vmap(_joints.angle_error)(qi, qj, n, u, outputs[index])
 
-    return _combine(mech.num_outputs, [(positional, coords), (angular, angles)])
+    def sequence(index):
+        _, qi, _, _, qj, _, n, _, n2 = _joint_frames(mech, geom, state, mech.output_joints[index])
+        every = jax.vmap(_joints.tait_bryan)(qi, qj, n, n2)
+        value = jnp.stack([every[g, int(k)] for g, k in enumerate(mech.output_coords[index])])
+        return value if outputs is None else _joints.wrap(value - outputs[index])
+
+    return _combine(mech.num_outputs, [(positional, coords), (angular, angles), (tait_bryan, sequence)])
 
 
 def output_values(mech: Mechanism, geom: Geometry, state) -> Float[Array, " K"]:

@@ -28,10 +28,12 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from . import _joints
 from ._geometry import Geometry
 from ._model import JOINT_ROWS, Mechanism
 from ._quaternion import rotate
@@ -249,7 +251,8 @@ def _output_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
     """Output rows (values, or errors against ``outputs``) and their raw row order."""
     groups, order = [], []
     positional = np.flatnonzero(mech.output_points >= 0)
-    angular = np.flatnonzero(mech.output_joints >= 0)
+    angular = np.flatnonzero((mech.output_joints >= 0) & (mech.output_coords < 0))
+    tait_bryan = np.flatnonzero((mech.output_joints >= 0) & (mech.output_coords >= 0))
     if positional.size:
         points = mech.output_points[positional]
         coords = mech.output_coords[positional]
@@ -271,7 +274,35 @@ def _output_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
         value, ji, jj = _angle_row(f.qi, f.qj, f.n, f.u, target)
         groups.append(_Rows(value[:, None], ((mech.joint_bodies[joints, 0], ji[:, None]), (mech.joint_bodies[joints, 1], jj[:, None]))))
         order.append(angular)
+    if tait_bryan.size:
+        joints = mech.output_joints[tait_bryan]
+        f = _frames(mech, geom, x, q, joints)
+        target = None if outputs is None else _take(outputs, tait_bryan)
+        value, ji, jj = _tait_bryan_row(f.qi, f.qj, f.n, f.n2, mech.output_coords[tait_bryan], target)
+        groups.append(_Rows(value[:, None], ((mech.joint_bodies[joints, 0], ji[:, None]), (mech.joint_bodies[joints, 1], jj[:, None]))))
+        order.append(tait_bryan)
     return groups, order
+
+
+def _tait_bryan_row(qi, qj, e1, e2, which: np.ndarray, target):
+    """One Tait–Bryan angle per member (``which``: static 0..2), wrapped against ``target``.
+
+    Differentiated by forward mode in the 8 local quaternion entries: the three nested
+    ``atan2`` of :func:`linkopt._joints.tait_bryan` have no short closed form worth keeping.
+    """
+    select = jnp.asarray(np.eye(3)[which])  # (G, 3) one-hot
+
+    def angle(a, b, n, n2, pick, goal):
+        value = _dot(_joints.tait_bryan(a, b, n, n2), pick)
+        return value if goal is None else _joints.wrap(value - goal)
+
+    def local(a, b, n, n2, pick, goal):
+        value = angle(a, b, n, n2, pick, goal)
+        da, db = jax.jacfwd(angle, argnums=(0, 1))(a, b, n, n2, pick, goal)
+        return value, da, db
+
+    value, dqi, dqj = jax.vmap(local)(qi, qj, e1, e2, select, target)  # target None: no leaves
+    return value, _q_block(dqi), _q_block(dqj)
 
 
 def _split(state):

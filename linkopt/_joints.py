@@ -99,6 +99,31 @@ def angle_error(qi: Quat, qj: Quat, n: Vec, u: Vec, target: Float[Array, ""]) ->
     return jnp.arctan2(s * ct - c * st, c * ct + s * st)
 
 
+def tait_bryan(qi: Quat, qj: Quat, e1: Vec, e2: Vec) -> Float[Array, "3"]:
+    """Intrinsic angles ``(θ1, θ2, θ3)`` of body j relative to body i with
+    ``R_iᵀ R_j = Rot(e1, θ1) Rot(e2, θ2) Rot(e1 × e2, θ3)`` (rest axes, ``e1 ⟂ e2``); zero at rest.
+
+    With ``M_ab = (R_i e_a)·(R_j e_b)`` the relative rotation in the joint's frame,
+    ``θ1 = atan2(-M₂₃, M₃₃)``, ``θ2 = atan2(M₁₃, √(M₁₁² + M₁₂²))``, ``θ3 = atan2(-M₁₂, M₁₁)``;
+    the angles are defined for ``|θ2| < π/2`` (gimbal lock at ``±π/2``). For a universal
+    joint with ``e1 = n`` on body i and ``e2 = n2`` on body j, ``θ3 ≡ 0`` and ``θ1``, ``θ2``
+    are its two joint angles.
+    """
+    e3 = jnp.cross(e1, e2)
+    i1, i2, i3 = rotate(qi, e1), rotate(qi, e2), rotate(qi, e3)
+    j1, j2, j3 = rotate(qj, e1), rotate(qj, e2), rotate(qj, e3)
+    m11, m12, m13 = i1 @ j1, i1 @ j2, i1 @ j3
+    first = jnp.arctan2(-(i2 @ j3), i3 @ j3)
+    second = jnp.arctan2(m13, jnp.sqrt(m11 * m11 + m12 * m12))
+    third = jnp.arctan2(-m12, m11)
+    return jnp.stack([first, second, third])
+
+
+def wrap(angle: Float[Array, "..."]) -> Float[Array, "..."]:
+    """``angle`` wrapped to (-π, π], smooth away from ±π."""
+    return jnp.arctan2(jnp.sin(angle), jnp.cos(angle))
+
+
 def slide(xi, qi, ri, xj, qj, rj, n) -> Float[Array, ""]:
     """Translation of the anchor on body j relative to body i along ``R_i n``; zero at rest."""
     return anchor_separation(xi, qi, ri, xj, qj, rj) @ rotate(qi, n)

@@ -233,16 +233,19 @@ def _read_joints(rd: _Reader, data: dict, body_index: dict[str, int]) -> list[di
             axis = rd.direction(item, "axis", where)
         elif kind == "fixed":
             axis = rd.direction(item, "axis", where) if "axis" in item else np.array([0.0, 0.0, 1.0])
-        elif "axis" in item:
-            raise rd.fail(f"{where}.axis", "a spherical joint has no axis")
-        if kind == "universal":
+        elif "axis" in item or "axis2" in item:  # spherical: an optional frame for angle outputs
+            for key in ("axis", "axis2"):
+                if key not in item:
+                    raise rd.fail(f"{where}.{key}", "a spherical joint's frame for angle outputs needs both axis and axis2")
+            axis = rd.direction(item, "axis", where)
+        if kind in ("universal", "spherical") and (kind == "universal" or "axis2" in item):
             if "axis2" not in item:
                 raise rd.fail(f"{where}.axis2", "missing required field for a universal joint")
             axis2 = rd.direction(item, "axis2", where)
             if abs(axis @ axis2) > ORTHOGONAL_TOL:
                 raise rd.fail(f"{where}.axis2", "must be perpendicular to axis at the rest pose")
         elif "axis2" in item:
-            raise rd.fail(f"{where}.axis2", "only universal joints have a second axis")
+            raise rd.fail(f"{where}.axis2", "only universal and spherical joints have a second axis")
         joints.append({"name": item["name"], "type": kind, "bodies": (bi, bj), "anchor": rd.vector(item, "anchor", where), "axis": axis, "axis2": axis2})
     return joints
 
@@ -320,7 +323,7 @@ def _read_outputs(rd: _Reader, data: dict, points: list[dict], joints: list[dict
     outputs = []
     for k, item in enumerate(items):
         where = f"outputs[{k}]"
-        rd.table(item, "outputs", where, {"name", "point", "coordinate", "joint", "min", "max"}, {"name", "min", "max"})
+        rd.table(item, "outputs", where, {"name", "point", "coordinate", "joint", "angle", "min", "max"}, {"name", "min", "max"})
         low, high = rd.number(item, "min", where), rd.number(item, "max", where)
         if low >= high:
             raise rd.fail(f"{where}.min", f"target range needs min < max, got min={low} and max={high}")
@@ -335,13 +338,33 @@ def _read_outputs(rd: _Reader, data: dict, points: list[dict], joints: list[dict
             if "coordinate" in item:
                 raise rd.fail(f"{where}.coordinate", "an angle output has no coordinate")
             joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
-            if joints[joint]["type"] not in ("revolute", "cylindrical"):
-                raise rd.fail(f"{where}.joint", f"an angle output needs a revolute or cylindrical joint, {item['joint']!r} is {joints[joint]['type']}")
-            entry.update(kind="angle", joint=joint)
+            entry.update(kind="angle", joint=joint, coord=_angle_index(rd, item, where, joints[joint]))
         else:
             raise rd.fail(where, "give either 'point' and 'coordinate' (a Cartesian output) or 'joint' (an angle output)")
         outputs.append(entry)
     return outputs
+
+
+def _angle_index(rd: _Reader, item: dict, where: str, joint: dict) -> int:
+    """-1 for the angle of a revolute/cylindrical joint; ``angle - 1`` (0, 1 or 2) for
+    the Tait–Bryan angles of a universal or spherical joint about its axis, axis2 and
+    axis × axis2, in that intrinsic order."""
+    kind, name = joint["type"], joint["name"]
+    if kind in ("revolute", "cylindrical"):
+        if "angle" in item:
+            raise rd.fail(f"{where}.angle", f"{name!r} is {kind}: it has one angle, so give no 'angle'")
+        return -1
+    if kind not in ("universal", "spherical"):
+        raise rd.fail(f"{where}.joint", f"an angle output needs a revolute, cylindrical, universal or spherical joint, {name!r} is {kind}")
+    if kind == "spherical" and not np.any(joint["axis2"]):
+        raise rd.fail(f"{where}.joint", f"spherical joint {name!r} needs axis and axis2 (the frame its angles are measured in) for an angle output")
+    count = 2 if kind == "universal" else 3
+    if "angle" not in item:
+        raise rd.fail(f"{where}.angle", f"missing required field for an angle of a {kind} joint: 1 (about axis), 2 (about axis2)" + (", 3 (about axis x axis2)" if count == 3 else ""))
+    value = item["angle"]
+    if isinstance(value, bool) or value not in range(1, count + 1):
+        raise rd.fail(f"{where}.angle", f"expected an integer from 1 to {count}, got {value!r}")
+    return int(value) - 1
 
 
 def _reference_length(rd: _Reader, head: dict, anchors: np.ndarray) -> float:

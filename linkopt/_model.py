@@ -125,7 +125,8 @@ class Mechanism:
     output_names: tuple[str, ...]
     output_kinds: tuple[str, ...]  # "position" | "angle"
     output_points: np.ndarray  # (K,) int, -1 for angles
-    output_coords: np.ndarray  # (K,) int 0..2, -1 for angles
+    output_coords: np.ndarray  # (K,) int: x/y/z 0..2 for positions; for angles -1 (revolute,
+    # cylindrical) or the Tait–Bryan angle 0..2 of a universal/spherical joint
     output_joints: np.ndarray  # (K,) int, -1 for positions
     output_min: np.ndarray  # (K,) file units
     output_max: np.ndarray  # (K,)

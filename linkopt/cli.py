@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -343,6 +344,9 @@ def main(argv: list[str] | None = None) -> int:
     except LinkoptError as err:
         print(f"linkopt: error: {err}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # `linkopt check ... | head`: the reader left, nothing to report
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":

@@ -16,10 +16,24 @@ from linkopt._constraints import bk_residual, fk_residual
 FILES = [MECHANISMS / "five_bar.toml", MECHANISMS / "jansen_1dof.toml", ROOT / "tests/data/all_families.toml"]
 
 
-@pytest.mark.parametrize("path", FILES, ids=[p.stem for p in FILES])
-def test_linearise_matches_jacfwd(path):
+def _tait_bryan_variant(data: dict) -> dict:
+    """The all-families file with its joint-angle outputs moved onto the spherical joint
+    (third angle, in a frame given to it) and the universal joint (first angle)."""
+    joint = next(j for j in data["joints"] if j["name"] == "s1")
+    joint.update(axis=[0.3, 1.0, 0.1], axis2=[1.0, -0.3, 0.0])
+    data["outputs"][0].update(joint="s1", angle=3)
+    data["outputs"][2].update(joint="u1", angle=1)
+    return data
+
+
+VARIANTS = [(path, None) for path in FILES] + [(FILES[-1], _tait_bryan_variant)]
+
+
+@pytest.mark.parametrize("path, variant", VARIANTS, ids=[p.stem for p in FILES] + ["tait_bryan_outputs"])
+def test_linearise_matches_jacfwd(path, variant):
     # the all-families file is arbitrary geometry, not an assemblable linkage: no mobility check
-    mech = _loader.build(tomllib.loads(path.read_text()), str(path), check=False)
+    data = tomllib.loads(path.read_text())
+    mech = _loader.build(variant(data) if variant else data, str(path), check=False)
     rng = np.random.default_rng(3)
     design = mech.design.p0 + rng.normal(0, 0.01, mech.design.size) * (mech.design.upper - mech.design.lower)
     geom = linkopt.geometry(mech, design)
