@@ -56,6 +56,16 @@ BROKEN = {
     "singular_rest": (edit("anchor = [0.0, 70.0, 0.0]", "anchor = [0.0, 36.0, 0.0]"), "", "singularity"),
 }
 
+NECK_2 = (MECHANISMS / "neck_2dof.toml").read_text()
+NECK_3 = (MECHANISMS / "neck_3dof.toml").read_text()
+BROKEN |= {
+    "universal_angle_missing": (NECK_2.replace('joint = "neck"\nangle = 1\n', 'joint = "neck"\n'), "outputs[0].angle", "missing required field for an angle of a universal joint"),
+    "universal_has_two_angles": (NECK_2.replace('joint = "neck"\nangle = 2\n', 'joint = "neck"\nangle = 3\n'), "outputs[1].angle", "expected an integer from 1 to 2, got 3"),
+    "revolute_angle_index": (NECK_2.replace('joint = "neck"\nangle = 1\n', 'joint = "motor_left"\nangle = 1\n'), "outputs[0].angle", "it has one angle"),
+    "spherical_without_frame": (NECK_3.replace("axis = [0.0, 0.0, 1.0]\naxis2 = [1.0, 0.0, 0.0]\n", "", 1), "outputs[0].joint", "needs axis and axis2"),
+    "spherical_half_frame": (NECK_3.replace("axis = [0.0, 0.0, 1.0]\naxis2 = [1.0, 0.0, 0.0]\n", "axis = [0.0, 0.0, 1.0]\n", 1), "joints[0].axis2", "needs both axis and axis2"),
+}
+
 
 @pytest.mark.parametrize("name", sorted(BROKEN))
 def test_broken_file_reports_file_field_and_expectation(name, tmp_path, capsys):
