@@ -17,21 +17,21 @@ Partial-gradient step: in scaled parameters (lengths divided by the reference le
 ``Δ = -g · min(gradient_rate, gradient_step / |g|)``, i.e. a gradient step whose length
 is capped at ``gradient_step`` reference lengths; the particle's velocity is unchanged.
 
-The run stops once the best ``f_design`` is below ``tolerance`` and the best total
-(``f_design`` + regulariser) has not improved by more than 1e-9 (relative) for
-``patience`` iterations, or at ``iterations``.
+The run stops once the swarm's best design (by total, the design it returns) has
+``f_design`` below ``tolerance`` and the best total (``f_design`` + regulariser) has not
+improved by more than 1e-9 (relative) for ``patience`` iterations, or at ``iterations``.
 """
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-import jax
 import numpy as np
-from ._evaluation import Evaluation, alpha_minus, evaluate
+
+from ._evaluation import Evaluation, alpha_minus, regularizer
 from ._model import Mechanism
-from ._partial import partial_gradient
 from ._swarm_backend import BoundaryHandler, Star, compute_pbest, compute_position, create_swarm
+from ._workers import Workers
 
 
 @dataclass(frozen=True)
@@ -122,10 +122,14 @@ def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray, best: int) -> dict
     }
 
 
-def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings) -> SwarmRun:
-    """One iteration: evaluate, update bests, record, then move every particle."""
+def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings, workers: Workers | None = None) -> SwarmRun:
+    """One iteration: evaluate, update bests, record, then move every particle.
+
+    ``workers`` splits the batched evaluation and gradients over processes (default:
+    this process only)."""
+    workers = workers or Workers(mech)
     alpha = alpha_minus(mech)
-    ev = jax.tree_util.tree_map(np.asarray, evaluate(mech, run.position))
+    ev = workers.evaluate(run.position)
     costs = ev.f_design + ev.regularizer
     costs = np.where(np.isfinite(costs), costs, np.inf)
     swarm = _swarm(run, settings, settings.inertia(run.iteration))
@@ -141,7 +145,8 @@ def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings) -> SwarmRu
     record["best_design"] = [float(v) for v in run.pbest_pos[gbest_index]]
     record["best_f_design_overall"] = float(min(h["best_f_design"] for h in run.history + [record]))
     run.history.append(record)
-    done_f = min(r["best_f_design"] for r in run.history) <= settings.tolerance
+    # the design the run returns is the swarm's best total: its own f_design must be ≈ 0
+    done_f = run.best_cost - float(regularizer(mech, run.best_pos)) <= settings.tolerance
     if (done_f and run.stalled >= settings.patience) or run.iteration + 1 >= settings.iterations:
         run.finished = True
         run.iteration += 1
@@ -153,7 +158,7 @@ def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings) -> SwarmRu
     bounds = (mech.design.lower, mech.design.upper)
     moved = compute_position(swarm, bounds, BoundaryHandler(strategy="nearest"))
     if use_gradient.any():
-        gradients = np.asarray(partial_gradient(mech, run.position, jax.tree_util.tree_map(np.asarray, ev), alpha))
+        gradients = workers.partial_gradient(run.position, ev, alpha)
         gradients = np.where(np.isfinite(gradients), gradients, 0.0)
         stepped = np.clip(run.position + _gradient_moves(mech, gradients, settings), *bounds)
         moved = np.where(use_gradient[:, None], stepped, moved)

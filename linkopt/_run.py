@@ -28,6 +28,7 @@ import numpy as np
 from ._errors import InputError
 from ._evaluation import alpha_minus
 from ._model import Mechanism
+from ._workers import Workers
 from ._optimizer import OptimizerSettings, SwarmRun, best_design, start, step
 from ._writer import write_design
 
@@ -100,18 +101,20 @@ def prepare(out: Path, mech: Mechanism, settings: OptimizerSettings, resume: boo
     return start(mech, settings)
 
 
-def optimize(mech: Mechanism, out: str | Path, settings: OptimizerSettings, *, resume: bool = False, progress: Callable[[dict], None] | None = None) -> SwarmRun:
-    """Run (or resume) the optimiser, checkpointing after every iteration."""
+def optimize(mech: Mechanism, out: str | Path, settings: OptimizerSettings, *, resume: bool = False, progress: Callable[[dict], None] | None = None, workers: int = 1) -> SwarmRun:
+    """Run (or resume) the optimiser, checkpointing after every iteration; ``workers``
+    processes share the particles (:mod:`linkopt._workers`)."""
     out = Path(out)
     run = prepare(out, mech, settings, resume)
     offset = run.history[-1]["wall_time"] if run.history else 0.0
     began = time.perf_counter()
-    while not run.finished:
-        run = step(mech, run, settings)
-        run.history[-1]["wall_time"] = offset + time.perf_counter() - began
-        save_checkpoint(out, run, mech, settings)
-        if progress is not None:
-            progress(run.history[-1])
+    with Workers(mech, workers) as pool:
+        while not run.finished:
+            run = step(mech, run, settings, pool)
+            run.history[-1]["wall_time"] = offset + time.perf_counter() - began
+            save_checkpoint(out, run, mech, settings)
+            if progress is not None:
+                progress(run.history[-1])
     return run
 
 

@@ -254,7 +254,7 @@ def _cmd_optimize(args) -> int:
     mech = load(args.file)
     if mech.design.size == 0:
         raise InputError(f"{args.file}: [[parameters]]: the file declares no design parameters to optimise")
-    for flag in ("particles", "iterations"):
+    for flag in ("particles", "iterations", "workers"):
         if getattr(args, flag) < 1:
             raise InputError(f"--{flag}: expected a positive integer, got {getattr(args, flag)}")
     settings = OptimizerSettings(particles=args.particles, iterations=args.iterations, seed=args.seed, mode=args.mode)
@@ -271,7 +271,7 @@ def _cmd_optimize(args) -> int:
             flush=True,
         )
 
-    run = optimize(mech, args.out, settings, resume=args.resume, progress=report)
+    run = optimize(mech, args.out, settings, resume=args.resume, progress=report, workers=args.workers)
     print("writing the optimised file, verification and figures ...", file=sys.stderr, flush=True)
     summary = write_outputs(mech, args.out, run, settings, resolution=args.resolution)
     print(json.dumps({k: summary[k] for k in ("iterations", "f_design", "regularizer", "verified", "initial_verified", "design", "optimized_file")}, indent=2))
@@ -318,9 +318,13 @@ def _parser() -> argparse.ArgumentParser:
     opt.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     opt.add_argument("--mode", choices=["hybrid", "gradient"], default="hybrid", help="hybrid PSO + partial gradient (default), or partial gradient only")
     opt.add_argument("--resume", action="store_true", help="continue the run checkpointed in --out")
+    opt.add_argument("--workers", type=int, default=WORKERS, help=f"processes sharing the particles (default {WORKERS}: one per core, at most 2)")
     opt.add_argument("--resolution", type=int, default=60, help="grid cells per axis of the final plots")
     opt.set_defaults(run=_cmd_optimize)
     return parser
+
+
+WORKERS = max(1, min(2, os.cpu_count() or 1))
 
 
 def _join_value_options(argv: list[str]) -> list[str]:

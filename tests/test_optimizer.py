@@ -17,6 +17,7 @@ from linkopt._evaluation import alpha_minus, evaluate
 from linkopt._optimizer import OptimizerSettings, start, step, swarm_moves
 from linkopt._partial import frozen_objective, partial_gradient
 from linkopt._run import CHECKPOINT, optimize, prepare
+from linkopt._workers import Workers
 
 SMALL = OptimizerSettings(particles=4, iterations=3, seed=7)
 
@@ -146,3 +147,14 @@ def test_resume_is_refused_with_other_settings_or_without_a_checkpoint(five_bar,
         prepare(tmp_path / "run", five_bar, SMALL, resume=False)
     with pytest.raises(InputError, match="seed"):
         prepare(tmp_path / "run", five_bar, dataclasses.replace(SMALL, iterations=1, seed=8), resume=True)
+
+
+def test_particles_split_over_two_worker_processes_give_the_same_numbers(five_bar, swarm_evaluation):
+    run, ev = swarm_evaluation
+    alpha = alpha_minus(five_bar)
+    with Workers(five_bar, 2) as workers:
+        split = workers.evaluate(run.position)
+        gradients = workers.partial_gradient(run.position, split, alpha)
+    for name, whole, part in zip(ev._fields, ev, split):
+        np.testing.assert_allclose(part, whole, rtol=1e-12, atol=1e-14, err_msg=name)
+    np.testing.assert_allclose(gradients, partial_gradient(five_bar, run.position, ev, alpha), rtol=1e-10, atol=1e-14)
