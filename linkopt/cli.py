@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import importlib
 import json
 import os
 import sys
@@ -321,7 +322,22 @@ def _parser() -> argparse.ArgumentParser:
     opt.add_argument("--workers", type=int, default=WORKERS, help=f"processes sharing the particles (default {WORKERS}: one per core, at most 2)")
     opt.add_argument("--resolution", type=int, default=60, help="grid cells per axis of the final plots")
     opt.set_defaults(run=_cmd_optimize)
+    _add_arm_commands(sub)
     return parser
+
+
+#: Modules of ``linkopt`` whose ``register(subparsers)`` adds one ``linkopt arm ...`` command.
+_ARM_COMMANDS: tuple[str, ...] = (
+)
+
+
+def _add_arm_commands(sub) -> None:
+    if not _ARM_COMMANDS:
+        return
+    arm = sub.add_parser("arm", help="serial-arm synthesis and co-design")
+    arm_sub = arm.add_subparsers(dest="arm_command", required=True)
+    for name in _ARM_COMMANDS:
+        importlib.import_module(f"linkopt.{name}").register(arm_sub)
 
 
 WORKERS = max(1, min(2, os.cpu_count() or 1))
