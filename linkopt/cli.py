@@ -328,6 +328,7 @@ def _parser() -> argparse.ArgumentParser:
 
 #: Modules of ``linkopt`` whose ``register(subparsers)`` adds one ``linkopt arm ...`` command.
 _ARM_COMMANDS: tuple[str, ...] = (
+    "_cli_manipulability",
 )
 
 

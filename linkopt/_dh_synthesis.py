@@ -1,0 +1,325 @@
+"""Manipulability-driven synthesis of a DH table from task points (paper 004, Sec. IV-V).
+
+Unknowns: the constant DH parameters ``K`` (``a``, ``α`` and the constant one of
+``d``/``θ`` per joint, see :mod:`linkopt._dh`) and one joint vector ``q_i`` per target
+``p_i``. The cost is eq. 10,
+
+    F(K, q_1..q_m) = ξ·L(K) + Σ_i [ 1/(w_i² + b) + ε·D_i² ],
+
+with ``w_i`` Yoshikawa's manipulability (eq. 1) of the tip at ``q_i``, ``D_i`` the
+distance from the tip to ``p_i``, ``L`` the size of eq. 9, ``ε`` the precision weight,
+``ξ`` the size damping and ``b`` the regulariser of eq. 6 (1e-10, the paper's value).
+
+Choices where the paper is vague (stated here, as the project asks):
+
+* ``L = Σ|a_j| + Σ|d_j|`` over constant offsets. Eq. 9 writes ``a_j + d_j`` without
+  absolute values, which is unbounded below (a negative offset would shrink "size");
+  the issue defines total size with absolute values. In the cost ``|x|`` is smoothed to
+  ``sqrt(x² + δ²) - δ`` with ``δ = 1e-4`` of the task scale so the gradient is
+  continuous; the reported size uses the exact ``|x|``.
+* The optimiser: the paper used steepest descent in Mathematica; we use L-BFGS
+  (scipy) with exact JAX gradients of the cost, jitted and vmapped over targets.
+* For speed the cost uses the closed-form DH map (:func:`linkopt._dh.tip_position`) and
+  its Jacobian. The numbers we *report* (residual, manipulability) are recomputed on the
+  engine's :class:`~linkopt.Mechanism` built from the table
+  (:func:`engine_report`), and tests check that both agree.
+* Multi-start: ``starts`` seeded initial guesses (``np.random.default_rng(seed)``); each
+  target's initial joint vector is the member of a shared random pool of joint vectors
+  whose tip lands nearest to it. The start with the lowest eq. 10 value wins.
+* Reaching the targets: at the paper's ``ε = 25`` the minimiser of eq. 10 misses targets
+  by up to ~0.1 (the paper's own Fig. 3-B residual is 0.094). After the minimisation at
+  the user's ``ε`` (stage 1, reported as such) a *precision continuation* re-minimises
+  eq. 10 with ``ε`` multiplied by 10 each round until every residual is below
+  ``reach_tolerance`` (at most ``precision_rounds`` rounds), then each joint vector is
+  polished by damped Gauss–Newton on ``D_i`` with ``K`` fixed. This is the paper's own
+  remedy ("by increasing ε one can increase the precision"), automated.
+* Joint-type enumeration (Sec. V): for an integer ``N`` all ``2^N`` R/P strings are
+  synthesised and the one with the highest mean manipulability over the targets wins.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass, field
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import scipy.optimize
+from jaxtyping import Array, Float
+
+from . import _dh
+from ._errors import InputError
+
+_SMOOTH_ABS = 1e-4  # δ of the smoothed |x| in L, relative to the task scale
+_POOL = 512  # random joint vectors per start for the initial per-target joint guesses
+
+
+@dataclass(frozen=True)
+class SynthesisSettings:
+    """Weights of eq. 10 and optimiser settings.
+
+    ``precision`` = ε (eq. 8), ``size_damping`` = ξ (eq. 9-10), ``b`` of eq. 6.
+    ``reach_tolerance``: residual (task units) below which a target counts as reached.
+    """
+
+    precision: float = 25.0
+    size_damping: float = 12.0
+    b: float = 1e-10
+    starts: int = 8
+    seed: int = 0
+    max_iterations: int = 4000
+    reach_tolerance: float = 1e-3
+    precision_rounds: int = 6
+    polish_iterations: int = 40
+
+
+@dataclass(frozen=True)
+class Synthesis:
+    """One synthesised arm: its table, one joint vector per target and their measures.
+
+    ``residual`` and ``manipulability`` (shape ``(m,)``) are closed-form values at ``q``;
+    :func:`engine_report` recomputes them on the Mechanism. ``stage1`` holds the same
+    summary for the minimiser of eq. 10 at the user's ε, before the precision
+    continuation.
+    """
+
+    types: str
+    table: _dh.DHTable
+    q: np.ndarray  # (m, N)
+    targets: np.ndarray  # (m, 3)
+    residual: np.ndarray  # (m,)
+    manipulability: np.ndarray  # (m,)
+    cost: float  # eq. 10 at the user's ε
+    size: float  # Σ|a| + Σ|d| (constant offsets)
+    stage1: dict = field(default_factory=dict)
+    seconds: float = 0.0
+    starts: list = field(default_factory=list)  # per start: eq. 10 value after stage 1
+
+    def summary(self) -> dict:
+        return _summary(self.residual, self.manipulability, self.size) | {"cost": self.cost}
+
+
+def _summary(residual, w, size) -> dict:
+    return {
+        "mean_manipulability": float(np.mean(w)),
+        "min_manipulability": float(np.min(w)),
+        "max_residual": float(np.max(residual)),
+        "size": float(size),
+    }
+
+
+def _unpack(types: str, x: Float[Array, " V"], m: int) -> tuple[_dh.DHTable, Float[Array, "m N"]]:
+    n = len(types)
+    return _dh.DHTable(x[:n], x[n : 2 * n], x[2 * n : 3 * n]), x[3 * n :].reshape(m, n)
+
+
+def _pack(table: _dh.DHTable, q) -> np.ndarray:
+    return np.concatenate([np.asarray(table.a), np.asarray(table.alpha), np.asarray(table.offset), np.asarray(q).ravel()])
+
+
+def _w_squared(jac: Float[Array, "3 N"]) -> Float[Array, ""]:
+    """``w²`` of eq. 1: ``det(J Jᵀ)``, or ``det(Jᵀ J)`` for fewer than 3 joints."""
+    k, n = jac.shape
+    return jnp.linalg.det(jac @ jac.T if k <= n else jac.T @ jac)
+
+
+def _per_target(types: str, table: _dh.DHTable, q, target):
+    """``(w², D²)`` of one target (closed-form DH map)."""
+    jac = _dh.tip_jacobian(types, table, q)
+    gap = _dh.tip_position(types, table, q) - target
+    return _w_squared(jac), gap @ gap
+
+
+def _smooth_size(types: str, table: _dh.DHTable, delta: float) -> Float[Array, ""]:
+    revolute = np.array([c == "R" for c in types])
+    smooth = lambda v: jnp.sqrt(v * v + delta * delta) - delta  # noqa: E731
+    return jnp.sum(smooth(table.a)) + jnp.sum(jnp.where(revolute, smooth(table.offset), 0.0))
+
+
+@partial(jax.jit, static_argnums=(0,))
+def cost(types: str, x: Float[Array, " V"], targets: Float[Array, "m 3"], weights: Float[Array, "4"]) -> Float[Array, ""]:
+    """Eq. 10 of the flat vector ``x = [a, α, offset, q_1..q_m]``; ``weights = (ξ, ε, b, δ)``."""
+    xi, eps, b, delta = weights
+    table, q = _unpack(types, x, targets.shape[0])
+    w2, d2 = jax.vmap(lambda qi, p: _per_target(types, table, qi, p))(q, targets)
+    return xi * _smooth_size(types, table, delta) + jnp.sum(1.0 / (w2 + b) + eps * d2)
+
+
+_value_and_grad = jax.jit(jax.value_and_grad(cost, argnums=1), static_argnums=(0,))
+
+
+@partial(jax.jit, static_argnums=(0,))
+def measures(types: str, table: _dh.DHTable, q: Float[Array, "m N"], targets: Float[Array, "m 3"]):
+    """Closed-form ``(residual D_i, manipulability w_i)`` per target, each ``(m,)``."""
+    w2, d2 = jax.vmap(lambda qi, p: _per_target(types, table, qi, p))(q, targets)
+    return jnp.sqrt(d2), jnp.sqrt(jnp.maximum(w2, 0.0))
+
+
+@partial(jax.jit, static_argnums=(0, 4))
+def polish(types: str, table: _dh.DHTable, q: Float[Array, "m N"], targets: Float[Array, "m 3"], iterations: int) -> Float[Array, "m N"]:
+    """Damped Gauss–Newton on ``p(q_i) = p_i`` with the table fixed, vmapped over targets;
+    a step is kept only if it lowers the residual."""
+
+    def one(qi, target):
+        def step(_, v):
+            jac = _dh.tip_jacobian(types, table, v)
+            gap = _dh.tip_position(types, table, v) - target
+            delta = jnp.linalg.solve(jac.T @ jac + 1e-12 * jnp.eye(jac.shape[1]), jac.T @ gap)
+            trial = v - delta
+            better = jnp.sum((_dh.tip_position(types, table, trial) - target) ** 2) < gap @ gap
+            return jnp.where(better, trial, v)
+
+        return jax.lax.fori_loop(0, iterations, step, qi)
+
+    return jax.vmap(one)(q, targets)
+
+
+def _minimise(types: str, x0: np.ndarray, targets, weights, settings: SynthesisSettings) -> np.ndarray:
+    targets = jnp.asarray(targets)
+    weights = jnp.asarray(weights, dtype=float)
+
+    def fun(x):
+        value, grad = _value_and_grad(types, jnp.asarray(x), targets, weights)
+        return float(value), np.asarray(grad, dtype=float)
+
+    result = scipy.optimize.minimize(fun, x0, jac=True, method="L-BFGS-B", options={"maxiter": settings.max_iterations, "maxcor": 30})
+    return result.x
+
+
+def _initial_guess(types: str, targets: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Random table scaled to the task, per-target joints from the nearest of a random pool."""
+    n, scale = len(types), float(np.max(np.linalg.norm(targets, axis=1))) or 1.0
+    revolute = np.array([c == "R" for c in types])
+    a = rng.uniform(0.3, 1.0, n) * scale
+    alpha = rng.uniform(-np.pi, np.pi, n)
+    offset = np.where(revolute, rng.uniform(-0.2, 0.2, n) * scale, rng.uniform(-np.pi, np.pi, n))
+    pool = np.where(revolute, rng.uniform(-np.pi, np.pi, (_POOL, n)), rng.uniform(-scale, scale, (_POOL, n)))
+    table = _dh.DHTable(jnp.asarray(a), jnp.asarray(alpha), jnp.asarray(offset))
+    tips = np.asarray(jax.vmap(lambda v: _dh.tip_position(types, table, v))(jnp.asarray(pool)))
+    nearest = np.argmin(np.linalg.norm(tips[None] - targets[:, None], axis=-1), axis=1)
+    return _pack(table, pool[nearest])
+
+
+def check_targets(points, source: str = "task points") -> np.ndarray:
+    """Task points as a finite ``(m, 3)`` float array, else :class:`InputError`."""
+    array = np.asarray(points, dtype=float)
+    if array.ndim != 2 or array.shape[1] != 3 or array.shape[0] < 1 or not np.all(np.isfinite(array)):
+        raise InputError(f"{source}: expected at least one row of 3 finite coordinates (x, y, z), got an array of shape {array.shape}")
+    return array
+
+
+def _weights(settings: SynthesisSettings, targets: np.ndarray, precision: float) -> np.ndarray:
+    scale = float(np.max(np.linalg.norm(targets, axis=1))) or 1.0
+    return np.array([settings.size_damping, precision, settings.b, _SMOOTH_ABS * scale])
+
+
+def _check_settings(settings: SynthesisSettings) -> None:
+    for name in ("precision", "size_damping", "b", "reach_tolerance"):
+        value = getattr(settings, name)
+        if not np.isfinite(value) or value < 0 or (name == "reach_tolerance" and value == 0):
+            raise InputError(f"synthesis settings: {name}: expected a finite non-negative number, got {value!r}")
+    if settings.starts < 1 or settings.max_iterations < 1:
+        raise InputError(f"synthesis settings: starts and max_iterations must be at least 1, got {settings.starts} and {settings.max_iterations}")
+
+
+def _reach(types: str, x: np.ndarray, targets: np.ndarray, settings: SynthesisSettings) -> np.ndarray:
+    """Precision continuation (module docstring): ε × 10 per round until all are reached."""
+    m = len(targets)
+    precision = settings.precision
+    for _ in range(settings.precision_rounds):
+        residual, _ = measures(types, *_unpack(types, jnp.asarray(x), m), jnp.asarray(targets))
+        if float(np.max(residual)) <= settings.reach_tolerance:
+            break
+        precision *= 10.0
+        x = _minimise(types, x, targets, _weights(settings, targets, precision), settings)
+    table, q = _unpack(types, jnp.asarray(x), m)
+    q = polish(types, table, q, jnp.asarray(targets), settings.polish_iterations)
+    return _pack(table, q)
+
+
+def synthesize_config(types: str, targets, settings: SynthesisSettings = SynthesisSettings()) -> Synthesis:
+    """Synthesise one joint-type string (e.g. ``"RRR"``) for ``targets`` ``(m, 3)``."""
+    types = _dh.check_joint_types(types)
+    targets = check_targets(targets)
+    _check_settings(settings)
+    started = time.perf_counter()
+    rng = np.random.default_rng(settings.seed)
+    weights = _weights(settings, targets, settings.precision)
+    runs = [_minimise(types, _initial_guess(types, targets, rng), targets, weights, settings) for _ in range(settings.starts)]
+    values = [float(cost(types, jnp.asarray(x), jnp.asarray(targets), jnp.asarray(weights))) for x in runs]
+    best = runs[int(np.argmin(values))]
+    table1, q1 = _unpack(types, jnp.asarray(best), len(targets))
+    stage1 = _summary(*measures(types, table1, q1, jnp.asarray(targets)), _dh.size(types, table1)) | {"cost": min(values)}
+    final = _reach(types, best, targets, settings)
+    table, q = _unpack(types, jnp.asarray(final), len(targets))
+    residual, w = (np.asarray(v) for v in measures(types, table, q, jnp.asarray(targets)))
+    return Synthesis(
+        types=types, table=_dh.DHTable(*(np.asarray(v) for v in table)), q=np.asarray(q), targets=targets,
+        residual=residual, manipulability=w,
+        cost=float(cost(types, jnp.asarray(final), jnp.asarray(targets), jnp.asarray(weights))),
+        size=float(_dh.size(types, table)), stage1=stage1, seconds=time.perf_counter() - started, starts=values,
+    )
+
+
+def all_configurations(n: int) -> list[str]:
+    """The ``2^n`` R/P strings of ``n`` joints (paper Sec. V), P before R in each place."""
+    if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or not 1 <= n <= 8:
+        raise InputError(f"joints: expected a number of joints between 1 and 8 or an R/P string, got {n!r}")
+    return ["".join(c) for c in itertools.product("PR", repeat=int(n))]
+
+
+def synthesize(targets, joints: str | int, settings: SynthesisSettings = SynthesisSettings(), progress=None) -> tuple[Synthesis, dict[str, Synthesis]]:
+    """Synthesise ``joints`` (an R/P string, or a number N: all 2^N strings, keep the one
+    with the highest mean manipulability). Returns ``(best, every synthesis by string)``.
+
+    ``progress(types, synthesis)`` is called after each configuration (the CLI prints).
+    """
+    if isinstance(joints, str) and joints.strip().isdigit():
+        joints = int(joints.strip())
+    configs = all_configurations(joints) if not isinstance(joints, str) else [_dh.check_joint_types(joints, "joints")]
+    results = {}
+    for types in configs:
+        results[types] = synthesize_config(types, targets, settings)
+        if progress is not None:
+            progress(types, results[types])
+    best = max(results.values(), key=lambda s: float(np.mean(s.manipulability)))
+    return best, results
+
+
+def rest_configuration(synthesis: Synthesis) -> np.ndarray:
+    """The joint vector used as the Mechanism's rest pose: the target with the largest
+    manipulability (a rest pose must be non-singular)."""
+    return synthesis.q[int(np.argmax(synthesis.manipulability))]
+
+
+def engine_report(synthesis: Synthesis, *, name: str = "DH arm"):
+    """Build the Mechanism of a synthesis and measure it there.
+
+    Each target's engine state is solved by :func:`linkopt.solve_fk` from the closed-form
+    state (motors ``q_i - q_rest``); the tip, the residual and Yoshikawa's ``w`` (from the
+    engine's sensitivities, :func:`linkopt._manipulability.manipulability`) are read off
+    the solved states. Returns ``(mechanism, toml_text, report)`` where ``report`` has
+    ``positions (m,3)``, ``residual (m,)``, ``manipulability (m,)``, ``converged (m,)``.
+    """
+    from ._kinematics import solve_fk
+    from ._manipulability import manipulability
+    from ._readout import point_positions
+
+    types, table, q = synthesis.types, _dh.DHTable(*(jnp.asarray(v) for v in synthesis.table)), jnp.asarray(synthesis.q)
+    q_rest = jnp.asarray(rest_configuration(synthesis))
+    bounds = (synthesis.targets.min(axis=0), synthesis.targets.max(axis=0))
+    mech, text = _dh.to_mechanism(types, table, q_rest, name=name, bounds=bounds)
+    starts = _dh.engine_states(types, table, q, q_rest, float(mech.length_scale))
+    solution = solve_fk(mech, _dh.motor_values(q, q_rest), start=starts)
+    tip = np.asarray(point_positions(mech, solution.state))[:, mech.point_names.index("tip")]
+    w = np.asarray(manipulability(mech, solution.state, "tip", (0, 1, 2)))
+    report = {
+        "positions": tip,
+        "residual": np.linalg.norm(tip - synthesis.targets, axis=1),
+        "manipulability": w,
+        "converged": np.asarray(solution.converged),
+    }
+    return mech, text, report
