@@ -1,0 +1,80 @@
+"""Voxel signed distance field: interpolated values and gradients against the analytic
+box and sphere distances, a trimesh box mesh against the analytic box, and the CHOMP
+cost's continuity."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import linkopt  # noqa: F401  (float64)
+from linkopt._sdf import Obstacle, box_distance, build_field, chomp_cost, field_distance, sphere_distance
+
+H = 0.02
+LOWER, UPPER = [-0.5, -0.5, -0.5], [0.5, 0.5, 0.5]
+BOX = Obstacle("box", center=(0.1, -0.05, 0.0), size=(0.3, 0.2, 0.4))
+SPHERE = Obstacle("sphere", center=(-0.2, 0.15, 0.1), radius=0.12)
+
+
+def _points(seed, count=400):
+    return np.random.default_rng(seed).uniform(-0.45, 0.45, (count, 3))
+
+
+def _box_gradient(p):
+    """Analytic gradient of the box distance: the outward direction from the nearest
+    surface point outside, the normal of the nearest face inside."""
+    rel = p - np.array(BOX.center)
+    q = np.abs(rel) - 0.5 * np.array(BOX.size)
+    outside = np.maximum(q, 0.0)
+    norm = np.linalg.norm(outside, axis=1, keepdims=True)
+    face = np.eye(3)[np.argmax(q, axis=1)]
+    return np.sign(rel) * np.where(norm > 0, outside / np.where(norm > 0, norm, 1.0), face)
+
+
+@pytest.mark.parametrize("obstacle, exact", [(BOX, lambda p: box_distance(p, BOX.center, BOX.size)), (SPHERE, lambda p: sphere_distance(p, SPHERE.center, SPHERE.radius))])
+def test_values_match_analytic_distance(obstacle, exact):
+    field = build_field((obstacle,), LOWER, UPPER, H)
+    p = _points(0)
+    got = np.asarray(field_distance(field, jnp.asarray(p)))
+    # Trilinear interpolation of a 1-Lipschitz function: error well below a voxel.
+    np.testing.assert_allclose(got, exact(p), atol=0.25 * H)
+
+
+def test_gradients_match_analytic_normals():
+    field = build_field((BOX, SPHERE), LOWER, UPPER, H)
+    p = _points(1, 2000)
+    d_box = box_distance(p, BOX.center, BOX.size)
+    d_sph = sphere_distance(p, SPHERE.center, SPHERE.radius)
+    # Face regions of the box (away from its edges and medial planes) and away from the
+    # sphere's centre, where the SDF is smooth.
+    q = np.abs(p - np.array(BOX.center)) - 0.5 * np.array(BOX.size)
+    gaps = np.sort(q, axis=1)
+    clean_box = (d_box < d_sph - 3 * H) & (gaps[:, 2] - gaps[:, 1] > 3 * H) & (gaps[:, 1] < -2 * H) & (np.abs(d_box) > 2 * H)
+    clean_sph = (d_sph < d_box - 3 * H) & (np.abs(d_sph + SPHERE.radius) > 3 * H)
+    grad = np.asarray(jax.vmap(jax.grad(lambda x: field_distance(field, x[None])[0]))(jnp.asarray(p)))
+    np.testing.assert_allclose(grad[clean_box], _box_gradient(p[clean_box]), atol=0.05)
+    normal = (p - np.array(SPHERE.center)) / np.linalg.norm(p - np.array(SPHERE.center), axis=1, keepdims=True)
+    np.testing.assert_allclose(grad[clean_sph], normal[clean_sph], atol=0.1)
+    assert clean_box.sum() > 100 and clean_sph.sum() > 50
+
+
+def test_mesh_obstacle_matches_box(tmp_path):
+    import trimesh
+
+    path = tmp_path / "box.stl"
+    trimesh.creation.box(extents=BOX.size).export(path)
+    field = build_field((Obstacle("mesh", center=BOX.center, path=str(path)),), LOWER, UPPER, H)
+    p = _points(2)
+    got = np.asarray(field_distance(field, jnp.asarray(p)))
+    np.testing.assert_allclose(got, box_distance(p, BOX.center, BOX.size), atol=1.5 * H)
+
+
+def test_chomp_cost_is_smooth_and_vanishes_beyond_clearance():
+    eps = 0.05
+    d = jnp.linspace(-0.1, 0.1, 2001)
+    cost = chomp_cost(d, eps)
+    slope = jax.vmap(jax.grad(lambda x: chomp_cost(x, eps)))(d)
+    assert float(jnp.max(jnp.abs(jnp.diff(cost)))) < 1.01e-4  # |slope| <= 1, step 1e-4
+    assert float(jnp.max(jnp.abs(jnp.diff(slope)))) < 1e-2
+    assert float(jnp.max(cost[d > eps])) == 0.0
+    np.testing.assert_allclose(slope[d < 0], -1.0)
