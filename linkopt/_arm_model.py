@@ -36,6 +36,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from . import _quaternion as quat
+from ._constraints import point_positions
 from ._geometry import Geometry
 from ._kinematics import _implicit_state
 from ._loader import build
@@ -275,3 +276,17 @@ def arm_loads(arm: Arm, d: Float[Array, " m"], gravity, payload: float = 0.0) ->
     bodies = np.append(module_bodies(arm.modules), arm.num_joints)
     forces = masses[:, None] * np.asarray(gravity, dtype=float)[None, :]
     return bodies, jnp.stack(points), jnp.asarray(forces)
+
+
+def tool_pose(arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]) -> tuple[Float[Array, "3"], Float[Array, "3 3"], Geometry, Float[Array, " S"]]:
+    """``FK(θ, d) = (p_fk, R_fk)`` read off the engine state (Sec. III-B), plus geometry and state.
+
+    ``p_fk`` is the ``tip`` point; ``R_fk = R(q_last) R_fk(0, d)``, the last body's rotation
+    applied to the tool's rest orientation (bodies are at identity orientation at rest).
+    """
+    geom, state = arm_state(arm, theta, d)
+    mech = arm.mechanism
+    tip = point_positions(mech, geom, state)[-1] * mech.length_scale
+    q_last = state.reshape(-1, 7)[-1, 3:]
+    rest = tool_rotation(arm, jnp.zeros_like(theta), d)
+    return tip, _rotation_matrix(q_last) @ rest, geom, state
