@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _dh
-from ._dh_synthesis import Synthesis, SynthesisSettings, engine_report, rest_configuration, synthesize
+from ._dh_synthesis import DHSynthesis, DHSynthesisSettings, engine_report, rest_configuration, synthesize_dh
 from ._errors import InputError
 
 CONVENTION = "A_i = Rot_z(theta_i) Trans_z(d_i) Trans_x(a_i) Rot_x(alpha_i) (standard, distal DH); T = A_1 ... A_N; tip = origin of frame N"
@@ -65,7 +65,7 @@ def _joints_argument(text: str) -> str | int:
     return _dh.check_joint_types(stripped, "--joints")
 
 
-def _payload(synthesis: Synthesis, report: dict, results: dict, settings: SynthesisSettings) -> dict:
+def _payload(synthesis: DHSynthesis, report: dict, results: dict, settings: DHSynthesisSettings) -> dict:
     types, table = synthesis.types, synthesis.table
     revolute = [c == "R" for c in types]
     targets = [
@@ -99,7 +99,7 @@ def _payload(synthesis: Synthesis, report: dict, results: dict, settings: Synthe
     }
 
 
-def draw(synthesis: Synthesis, path: str | Path, count: int = 4, title: str = "") -> Path:
+def draw(synthesis: DHSynthesis, path: str | Path, count: int = 4, title: str = "") -> Path:
     """PNG of the task points and the arm (links through the DH frame origins) at
     ``count`` targets spread over the list; headless matplotlib."""
     import matplotlib
@@ -113,10 +113,13 @@ def draw(synthesis: Synthesis, path: str | Path, count: int = 4, title: str = ""
     pts = synthesis.targets
     ax.scatter(*pts.T, c=synthesis.manipulability, cmap="viridis", s=14, label="task points (colour = w)")
     picks = np.unique(np.linspace(0, len(pts) - 1, min(count, len(pts))).round().astype(int))
+    drawn = [pts, np.zeros((1, 3))]
     for k, i in enumerate(picks):
         origins = np.asarray(_dh.frames(types, table, synthesis.q[i]))[:, :3, 3]
+        drawn.append(origins)
         ax.plot(*origins.T, "-o", lw=2.5, ms=4, color=plt.cm.tab10(k), label=f"target {i}: w = {synthesis.manipulability[i]:.3f}")
     ax.scatter([0], [0], [0], marker="s", s=60, color="k", label="base (frame 0)")
+    _equal_axes(ax, np.concatenate(drawn))
     ax.set_xlabel("x")
     ax.set_ylabel("y")
     ax.set_zlabel("z")
@@ -129,7 +132,15 @@ def draw(synthesis: Synthesis, path: str | Path, count: int = 4, title: str = ""
     return path
 
 
-def _progress(types: str, synthesis: Synthesis) -> None:
+def _equal_axes(ax, points: np.ndarray) -> None:
+    """Same scale on x, y and z (a cube around everything drawn)."""
+    centre, half = (points.max(axis=0) + points.min(axis=0)) / 2, (points.max(axis=0) - points.min(axis=0)).max() / 2 or 1.0
+    for setter, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre):
+        setter(c - half, c + half)
+    ax.set_box_aspect((1, 1, 1))
+
+
+def _progress(types: str, synthesis: DHSynthesis) -> None:
     s = synthesis.summary()
     print(f"  {types}: mean w {s['mean_manipulability']:.4f}, min w {s['min_manipulability']:.4f}, max residual {s['max_residual']:.1e}, size {s['size']:.4f} ({synthesis.seconds:.1f} s)", file=sys.stderr, flush=True)
 
@@ -137,11 +148,11 @@ def _progress(types: str, synthesis: Synthesis) -> None:
 def run(args) -> int:
     points = read_points(args.points)
     joints = _joints_argument(args.joints)
-    settings = SynthesisSettings(precision=args.precision, size_damping=args.size_damping, seed=args.seed, starts=args.starts, max_iterations=args.iterations)
+    settings = DHSynthesisSettings(precision=args.precision, size_damping=args.size_damping, seed=args.seed, starts=args.starts, max_iterations=args.iterations)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     print(f"linkopt arm manipulability: {len(points)} points, joints {joints}, ε = {settings.precision:g}, ξ = {settings.size_damping:g}, {settings.starts} starts", file=sys.stderr, flush=True)
-    best, results = synthesize(points, joints, settings, progress=_progress)
+    best, results = synthesize_dh(points, joints, settings, progress=_progress)
     print(f"  measuring {best.types} on the engine's mechanism ...", file=sys.stderr, flush=True)
     _, text, report = engine_report(best, name=f"{best.types} arm from {Path(args.points).name}")
     header = f"# DH arm synthesised by `linkopt arm manipulability` (paper 004) from {Path(args.points).name}\n# rest pose: joint values {rest_configuration(best).tolist()}; motors are measured from it\n"

@@ -58,7 +58,7 @@ _POOL = 512  # random joint vectors per start for the initial per-target joint g
 
 
 @dataclass(frozen=True)
-class SynthesisSettings:
+class DHSynthesisSettings:
     """Weights of eq. 10 and optimiser settings.
 
     ``precision`` = ε (eq. 8), ``size_damping`` = ξ (eq. 9-10), ``b`` of eq. 6.
@@ -77,7 +77,7 @@ class SynthesisSettings:
 
 
 @dataclass(frozen=True)
-class Synthesis:
+class DHSynthesis:
     """One synthesised arm: its table, one joint vector per target and their measures.
 
     ``residual`` and ``manipulability`` (shape ``(m,)``) are closed-form values at ``q``;
@@ -177,7 +177,7 @@ def polish(types: str, table: _dh.DHTable, q: Float[Array, "m N"], targets: Floa
     return jax.vmap(one)(q, targets)
 
 
-def _minimise(types: str, x0: np.ndarray, targets, weights, settings: SynthesisSettings) -> np.ndarray:
+def _minimise(types: str, x0: np.ndarray, targets, weights, settings: DHSynthesisSettings) -> np.ndarray:
     targets = jnp.asarray(targets)
     weights = jnp.asarray(weights, dtype=float)
 
@@ -211,12 +211,12 @@ def check_targets(points, source: str = "task points") -> np.ndarray:
     return array
 
 
-def _weights(settings: SynthesisSettings, targets: np.ndarray, precision: float) -> np.ndarray:
+def _weights(settings: DHSynthesisSettings, targets: np.ndarray, precision: float) -> np.ndarray:
     scale = float(np.max(np.linalg.norm(targets, axis=1))) or 1.0
     return np.array([settings.size_damping, precision, settings.b, _SMOOTH_ABS * scale])
 
 
-def _check_settings(settings: SynthesisSettings) -> None:
+def _check_settings(settings: DHSynthesisSettings) -> None:
     for name in ("precision", "size_damping", "b", "reach_tolerance"):
         value = getattr(settings, name)
         if not np.isfinite(value) or value < 0 or (name == "reach_tolerance" and value == 0):
@@ -225,7 +225,7 @@ def _check_settings(settings: SynthesisSettings) -> None:
         raise InputError(f"synthesis settings: starts and max_iterations must be at least 1, got {settings.starts} and {settings.max_iterations}")
 
 
-def _reach(types: str, x: np.ndarray, targets: np.ndarray, settings: SynthesisSettings) -> np.ndarray:
+def _reach(types: str, x: np.ndarray, targets: np.ndarray, settings: DHSynthesisSettings) -> np.ndarray:
     """Precision continuation (module docstring): ε × 10 per round until all are reached."""
     m = len(targets)
     precision = settings.precision
@@ -240,7 +240,7 @@ def _reach(types: str, x: np.ndarray, targets: np.ndarray, settings: SynthesisSe
     return _pack(table, q)
 
 
-def synthesize_config(types: str, targets, settings: SynthesisSettings = SynthesisSettings()) -> Synthesis:
+def synthesize_config(types: str, targets, settings: DHSynthesisSettings = DHSynthesisSettings()) -> DHSynthesis:
     """Synthesise one joint-type string (e.g. ``"RRR"``) for ``targets`` ``(m, 3)``."""
     types = _dh.check_joint_types(types)
     targets = check_targets(targets)
@@ -256,7 +256,7 @@ def synthesize_config(types: str, targets, settings: SynthesisSettings = Synthes
     final = _reach(types, best, targets, settings)
     table, q = _unpack(types, jnp.asarray(final), len(targets))
     residual, w = (np.asarray(v) for v in measures(types, table, q, jnp.asarray(targets)))
-    return Synthesis(
+    return DHSynthesis(
         types=types, table=_dh.DHTable(*(np.asarray(v) for v in table)), q=np.asarray(q), targets=targets,
         residual=residual, manipulability=w,
         cost=float(cost(types, jnp.asarray(final), jnp.asarray(targets), jnp.asarray(weights))),
@@ -271,7 +271,7 @@ def all_configurations(n: int) -> list[str]:
     return ["".join(c) for c in itertools.product("PR", repeat=int(n))]
 
 
-def synthesize(targets, joints: str | int, settings: SynthesisSettings = SynthesisSettings(), progress=None) -> tuple[Synthesis, dict[str, Synthesis]]:
+def synthesize_dh(targets, joints: str | int, settings: DHSynthesisSettings = DHSynthesisSettings(), progress=None) -> tuple[DHSynthesis, dict[str, DHSynthesis]]:
     """Synthesise ``joints`` (an R/P string, or a number N: all 2^N strings, keep the one
     with the highest mean manipulability). Returns ``(best, every synthesis by string)``.
 
@@ -289,13 +289,13 @@ def synthesize(targets, joints: str | int, settings: SynthesisSettings = Synthes
     return best, results
 
 
-def rest_configuration(synthesis: Synthesis) -> np.ndarray:
+def rest_configuration(synthesis: DHSynthesis) -> np.ndarray:
     """The joint vector used as the Mechanism's rest pose: the target with the largest
     manipulability (a rest pose must be non-singular)."""
     return synthesis.q[int(np.argmax(synthesis.manipulability))]
 
 
-def engine_report(synthesis: Synthesis, *, name: str = "DH arm"):
+def engine_report(synthesis: DHSynthesis, *, name: str = "DH arm"):
     """Build the Mechanism of a synthesis and measure it there.
 
     Each target's engine state is solved by :func:`linkopt.solve_fk` from the closed-form

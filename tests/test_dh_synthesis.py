@@ -129,7 +129,7 @@ def test_eq10_gradient_matches_finite_differences():
 
 
 TASK = np.array([[np.cos(5 * t), np.sin(3 * t), np.sin(t)] for t in np.arange(0.0, 0.6, 0.1)])
-SMALL = syn.SynthesisSettings(starts=2, seed=1, max_iterations=300)
+SMALL = syn.DHSynthesisSettings(starts=2, seed=1, max_iterations=300)
 
 
 @pytest.fixture(scope="module")
@@ -147,7 +147,7 @@ def test_small_synthesis_reaches_its_targets(small_synthesis):
 
 def test_enumeration_keeps_the_best_mean_manipulability():
     assert sorted(syn.all_configurations(3)) == sorted(["PPP", "PPR", "PRP", "RPP", "PRR", "RPR", "RRP", "RRR"])
-    best, results = syn.synthesize(TASK[:2], 1, syn.SynthesisSettings(starts=1, max_iterations=50))
+    best, results = syn.synthesize_dh(TASK[:2], 1, syn.DHSynthesisSettings(starts=1, max_iterations=50))
     assert set(results) == {"P", "R"}
     assert np.mean(best.manipulability) == max(np.mean(r.manipulability) for r in results.values())
 
@@ -201,4 +201,4 @@ def test_bad_input_gives_one_line_errors(tmp_path, capsys):
     with pytest.raises(linkopt.InputError, match="DH table: alpha: expected 3"):
         _dh.table_from_arrays("RRR", [1, 1, 1], [0, 0], [0, 0, 0])
     with pytest.raises(linkopt.InputError, match="precision"):
-        syn.synthesize_config("RR", TASK[:2], syn.SynthesisSettings(precision=-1.0))
+        syn.synthesize_config("RR", TASK[:2], syn.DHSynthesisSettings(precision=-1.0))
