@@ -117,7 +117,7 @@ def swept_figure(task: Task, design: ArmDesign, verification: TraceVerification,
     fig, ax = plt.subplots(figsize=(6, 6))
     for seg in verification.segments:
         for s in seg.states[:: max(1, len(seg.states) // 120)]:
-            ax.plot(s[-3:, 0], s[-3:, 1], color="0.6", lw=0.4, alpha=0.5, zorder=1)
+            ax.plot(s[:, 0], s[:, 1], color="0.6", lw=0.4, alpha=0.5, zorder=1)
     draw_task(ax, task)
     lengths = jnp.asarray(design.lengths)
     colors = plt.cm.tab10(np.arange(len(task.primitives)) % 10)

@@ -18,8 +18,10 @@ Constraints (all ``>= 0``, lengths in task units):
   with a small margin ``m`` that keeps the arm off the singular annulus boundary;
 * eqs. 3-4: obstacle discs (grown by Δ/2) clear of SV^over or SV^app (``_trace_swept``);
   for 3 links also of the static proximal link;
-* eq. 8: end-effector at ``p_closest`` farther than Δ from the first distal link; eq. 9
-  (3 links): the primitive (24 samples) farther than Δ from the proximal link;
+* eq. 8: end-effector at ``p_closest`` farther than Δ from the first distal link (the
+  paper imposes it when ``r_{n-1} > r_n``; we impose it always: otherwise the same
+  distance is the end-effector's distance to the module at ``s_{n-1}``, a collision too);
+  eq. 9 (3 links): the primitive (24 samples) farther than Δ from the proximal link;
 * eqs. 6-7 (3 links): the four-bar at each transition point. Eqs. 6-7 are the law of
   cosines form of "``|P - s_2(θ_1)|`` within the distal annulus"; we impose that form at
   5 interior values of the linear ``θ_1`` motion the verifier will check, together with

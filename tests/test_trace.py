@@ -255,3 +255,21 @@ def test_discretised_design_misses_the_curve_between_its_points():
     assert cmp.excursion == pytest.approx(0.4 - reach, abs=1e-6) and cmp.excursion > 1e-4
     assert 0 < cmp.fraction_outside < 0.2
     assert not cmp.verification.passed
+
+
+def test_cli_writes_result_mechanism_and_figures(tmp_path, capsys):
+    from linkopt.cli import main
+
+    task = tmp_path / "small.toml"
+    task.write_text(SMALL)
+    out = tmp_path / "out"
+    assert main(["arm", "trace", str(task), "--out", str(out), "--restarts", "1", "--no-gif"]) == 0
+    import json
+
+    payload = json.loads((out / "result.json").read_text())
+    assert payload["success"] and payload["verification"]["passed"] and payload["n_links"] == 2
+    assert [p["type"] for p in payload["primitives"]] == ["line", "arc"]
+    assert set(payload["primitives"][0]["critical_states"]) == {"initial", "final", "closest", "farthest"}
+    assert all((out / f).is_file() for f in payload["figures"]) and len(payload["figures"]) == 3
+    assert main(["check", str(out / "arm.toml")]) == 0
+    assert "2 links" in capsys.readouterr().out
