@@ -258,7 +258,9 @@ def _cmd_optimize(args) -> int:
     for flag in ("particles", "iterations", "workers"):
         if getattr(args, flag) < 1:
             raise InputError(f"--{flag}: expected a positive integer, got {getattr(args, flag)}")
-    settings = OptimizerSettings(particles=args.particles, iterations=args.iterations, seed=args.seed, mode=args.mode)
+    if not (args.tolerance > 0 and 0 <= args.improvement < 1 and args.patience >= 0):
+        raise InputError(f"--tolerance must be > 0, --improvement in [0, 1), --patience >= 0; got {args.tolerance}, {args.improvement}, {args.patience}")
+    settings = OptimizerSettings(particles=args.particles, iterations=args.iterations, seed=args.seed, mode=args.mode, tolerance=args.tolerance, patience=args.patience, improvement=args.improvement)
 
     def report(record: dict) -> None:
         done = record["iteration"] + 1
@@ -318,6 +320,9 @@ def _parser() -> argparse.ArgumentParser:
     opt.add_argument("--iterations", type=int, default=60, help="iteration cap (default 60)")
     opt.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     opt.add_argument("--mode", choices=["hybrid", "gradient"], default="hybrid", help="hybrid PSO + partial gradient (default), or partial gradient only")
+    opt.add_argument("--tolerance", type=float, default=1e-6, help="f_design at or below which a design counts as reaching its range with no singularity (default 1e-6)")
+    opt.add_argument("--patience", type=int, default=3, help="stop after this many iterations without improving the returned feasible design (default 3)")
+    opt.add_argument("--improvement", type=float, default=1e-3, help="relative drop of the returned design's total that counts as improving (default 1e-3)")
     opt.add_argument("--resume", action="store_true", help="continue the run checkpointed in --out")
     opt.add_argument("--workers", type=int, default=WORKERS, help=f"processes sharing the particles (default {WORKERS}: one per core, at most 2)")
     opt.add_argument("--resolution", type=int, default=60, help="grid cells per axis of the final plots")
@@ -328,7 +333,9 @@ def _parser() -> argparse.ArgumentParser:
 
 #: Modules of ``linkopt`` whose ``register(subparsers)`` adds one ``linkopt arm ...`` command.
 _ARM_COMMANDS: tuple[str, ...] = (
+    "_cli_arm",
     "_cli_manipulability",
+    "_cli_trace",
 )
 
 
