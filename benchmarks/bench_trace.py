@@ -26,7 +26,7 @@ import json, sys, time
 t0, c0 = time.perf_counter(), time.process_time()
 import linkopt
 from linkopt._trace_task import load_task
-from linkopt._trace_synthesis import SynthesisSettings, synthesize
+from linkopt._trace_synthesis import TraceSettings, synthesize
 name, seed, figures = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "1"
 root = sys.argv[4]
 task_name = "rose" if name.startswith("rose") else name
@@ -39,8 +39,8 @@ if name == "rose_discretised":
     out.update(lengths=design.lengths.tolist(), excursion=cmp.excursion, fraction_outside=cmp.fraction_outside,
                verified=cmp.verification.passed, failure=(cmp.verification.failures or [None])[0])
 else:
-    settings = {"rose_over": SynthesisSettings(links=(2,), swept=("over",)),
-                "rose_app": SynthesisSettings(links=(2,), swept=("app",))}.get(name, SynthesisSettings())
+    settings = {"rose_over": TraceSettings(links=(2,), swept=("over",)),
+                "rose_app": TraceSettings(links=(2,), swept=("app",))}.get(name, TraceSettings())
     result = synthesize(task, seed=seed, settings=settings)
     out.update(success=result.success, solves=len(result.attempts))
     if result.success:

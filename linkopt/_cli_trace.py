@@ -35,7 +35,7 @@ def _say(msg: str) -> None:
 
 def run(args) -> int:
     from ._trace_export import mechanism_text, result_dict
-    from ._trace_synthesis import SynthesisSettings, synthesize
+    from ._trace_synthesis import TraceSettings, synthesize
     from ._trace_task import load_task
 
     if args.restarts < 1:
@@ -45,7 +45,7 @@ def run(args) -> int:
     task = load_task(args.task)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    result = synthesize(task, seed=args.seed, settings=SynthesisSettings(restarts=args.restarts), progress=_say)
+    result = synthesize(task, seed=args.seed, settings=TraceSettings(restarts=args.restarts), progress=_say)
     payload = result_dict(result)
     figures = _figures(task, result, out, not args.no_gif) if result.success else []
     if args.discretised:

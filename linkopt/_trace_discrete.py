@@ -20,9 +20,9 @@ import numpy as np
 from jaxtyping import Float
 
 from . import _trace_geometry as geo
-from ._trace_synthesis import SynthesisSettings, _Problem, initial_guess, solve_nlp
-from ._trace_task import Task
-from ._trace_verify import ArmDesign, TraceVerification, verify
+from ._trace_synthesis import TraceSettings, _Problem, initial_guess, solve_nlp
+from ._trace_task import TraceTask
+from ._trace_verify import PlanarArm, TraceVerification, verify
 
 
 @dataclass
@@ -30,7 +30,7 @@ class DiscreteComparison:
     """``points``: the ``n`` targets; ``curve``: dense path points; ``outside``: which of
     them lie outside the design's annulus; ``excursion``: the largest distance outside."""
 
-    design: ArmDesign
+    design: PlanarArm
     points: Float[np.ndarray, "n 2"]
     curve: Float[np.ndarray, "N 2"]
     outside: np.ndarray
@@ -39,7 +39,7 @@ class DiscreteComparison:
     verification: TraceVerification
 
 
-def equidistant_points(task: Task, n: int, dense: int = 4000) -> Float[np.ndarray, "n 2"]:
+def equidistant_points(task: TraceTask, n: int, dense: int = 4000) -> Float[np.ndarray, "n 2"]:
     """``n`` points at equal arc length along the whole path (first and last included)."""
     curve = dense_curve(task, dense)
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0), axis=1))])
@@ -47,13 +47,13 @@ def equidistant_points(task: Task, n: int, dense: int = 4000) -> Float[np.ndarra
     return np.stack([np.interp(want, s, curve[:, i]) for i in range(2)], axis=1)
 
 
-def dense_curve(task: Task, total: int = 4000) -> Float[np.ndarray, "N 2"]:
+def dense_curve(task: TraceTask, total: int = 4000) -> Float[np.ndarray, "N 2"]:
     lengths = np.array([p.length for p in task.primitives])
     counts = np.maximum(16, (total * lengths / lengths.sum()).astype(int))
     return np.concatenate([np.asarray(geo.points(p, jnp.linspace(0.0, 1.0, c))) for p, c in zip(task.primitives, counts)])
 
 
-def _point_problem(task: Task, pts: np.ndarray) -> _Problem:
+def _point_problem(task: TraceTask, pts: np.ndarray) -> _Problem:
     centers = jnp.asarray(task.obstacles[:, :2])
     grown = jnp.asarray(task.obstacles[:, 2]) + task.link_diameter / 2
     p = jnp.asarray(pts)
@@ -73,11 +73,11 @@ def _point_problem(task: Task, pts: np.ndarray) -> _Problem:
     return _Problem(jax.jit(g), jax.jit(jax.jacfwd(g)), jax.jit(jax.value_and_grad(violation)), 2, "points")
 
 
-def discretised_design(task: Task, n: int = 25, seed: int = 0, restarts: int = 6) -> ArmDesign | None:
+def discretised_design(task: TraceTask, n: int = 25, seed: int = 0, restarts: int = 6) -> PlanarArm | None:
     """Shortest 2-link arm found that reaches the ``n`` points collision-free (see module)."""
     rng = np.random.default_rng(seed)
     problem = _point_problem(task, equidistant_points(task, n))
-    settings = SynthesisSettings()
+    settings = TraceSettings()
     best = None
     for restart in range(restarts):
         region = restart % max(1, len(task.base_regions))
@@ -85,11 +85,11 @@ def discretised_design(task: Task, n: int = 25, seed: int = 0, restarts: int = 6
         for sigma in (1, -1):
             x, feasible, length = solve_nlp(task, problem, x0, sigma, region, settings)
             if feasible and (best is None or length < best[1]):
-                best = (ArmDesign(x[:2].copy(), x[2:4].copy(), np.zeros(0), sigma), length)
+                best = (PlanarArm(x[:2].copy(), x[2:4].copy(), np.zeros(0), sigma), length)
     return None if best is None else best[0]
 
 
-def compare(task: Task, design: ArmDesign, n: int = 25) -> DiscreteComparison:
+def compare(task: TraceTask, design: PlanarArm, n: int = 25) -> DiscreteComparison:
     """Where the continuous path leaves the annulus of ``design`` (eq. 2), and the
     continuous verification of ``design`` on the whole path."""
     curve = dense_curve(task)

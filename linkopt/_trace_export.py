@@ -14,7 +14,7 @@ import numpy as np
 
 from . import _trace_geometry as geo
 from ._trace_synthesis import TraceResult
-from ._trace_verify import ArmDesign, critical_states
+from ._trace_verify import PlanarArm, critical_states
 from ._writer import dumps
 
 CRITICAL = ("initial", "final", "closest", "farthest")
@@ -52,7 +52,7 @@ def result_dict(result: TraceResult) -> dict:
     return out
 
 
-def design_dict(d: ArmDesign) -> dict:
+def design_dict(d: PlanarArm) -> dict:
     return {"n_links": d.n_links, "base": d.base.tolist(), "link_lengths": d.lengths.tolist(),
             "total_length": float(d.lengths.sum()), "elbow": "up" if d.sigma > 0 else "down",
             "proximal_angles": d.proximal_angles.tolist()}

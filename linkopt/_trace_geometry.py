@@ -44,6 +44,7 @@ def arc_parameter(prim: Primitive, p: Float[Array, "... 2"]) -> tuple[Float[Arra
     d = p - prim.center
     ang = jnp.arctan2(d[..., 1], d[..., 0])
     offset = jnp.mod((ang - prim.angle0) * jnp.sign(prim.sweep), 2 * jnp.pi)
+    offset = jnp.where(offset > 2 * jnp.pi - 1e-9, 0.0, offset)  # the start, rounded past 2π
     t = offset / abs(prim.sweep)
     return t, t <= 1.0 + 1e-12
 

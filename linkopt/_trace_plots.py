@@ -20,13 +20,13 @@ from matplotlib.patches import Circle, Rectangle, Wedge  # noqa: E402
 from . import _trace_geometry as geo  # noqa: E402
 from ._trace_discrete import DiscreteComparison  # noqa: E402
 from ._trace_swept import outline, swept_support  # noqa: E402
-from ._trace_task import Task  # noqa: E402
-from ._trace_verify import ArmDesign, TraceVerification, critical_states  # noqa: E402
+from ._trace_task import TraceTask  # noqa: E402
+from ._trace_verify import PlanarArm, TraceVerification, critical_states  # noqa: E402
 
 PATH = dict(color="0.45", lw=2.0, zorder=3)
 
 
-def draw_task(ax, task: Task) -> None:
+def draw_task(ax, task: TraceTask) -> None:
     """Path (grey, arrow at the start), obstacles (red), base rectangles (black)."""
     for p in task.primitives:
         pts = np.asarray(geo.points(p, jnp.linspace(0.0, 1.0, 200)))
@@ -42,14 +42,14 @@ def draw_task(ax, task: Task) -> None:
     ax.set_ylabel("y")
 
 
-def draw_arm(ax, state: np.ndarray, task: Task, color="k", alpha=1.0, zorder=5) -> None:
+def draw_arm(ax, state: np.ndarray, task: TraceTask, color="k", alpha=1.0, zorder=5) -> None:
     """One state ``(n+1, 2)``: links as thick lines (width ≈ Δ in points), joints as dots."""
     ax.plot(state[:, 0], state[:, 1], "-", color=color, alpha=alpha, lw=3, solid_capstyle="round", zorder=zorder)
     ax.plot(state[:-1, 0], state[:-1, 1], "o", color=color, alpha=alpha, ms=5, zorder=zorder + 1)
     ax.plot(state[-1, 0], state[-1, 1], "s", color=color, alpha=alpha, ms=4, zorder=zorder + 1)
 
 
-def reachable_grid(task: Task, design: ArmDesign, proximal_angle: float, res: int = 220):
+def reachable_grid(task: TraceTask, design: PlanarArm, proximal_angle: float, res: int = 220):
     """Obstacle-free reachable space of the distal pair at ``proximal_angle``: grid
     points inside the annulus (eq. 2) with all links clear of obstacles on either branch."""
     pts = _view_points(task, design)
@@ -70,7 +70,7 @@ def reachable_grid(task: Task, design: ArmDesign, proximal_angle: float, res: in
     return xs, ys, (ok & free).reshape(res, res)
 
 
-def _view_points(task: Task, design: ArmDesign | None) -> np.ndarray:
+def _view_points(task: TraceTask, design: PlanarArm | None) -> np.ndarray:
     pts = [np.asarray(geo.points(p, jnp.linspace(0.0, 1.0, 50))) for p in task.primitives]
     pts.append(task.obstacles[:, :2] + task.obstacles[:, 2:3])
     pts.append(task.obstacles[:, :2] - task.obstacles[:, 2:3])
@@ -83,14 +83,14 @@ def _view_points(task: Task, design: ArmDesign | None) -> np.ndarray:
     return np.stack([pts.min(0) - pad, pts.max(0) + pad])
 
 
-def draw_reachable(ax, task: Task, design: ArmDesign) -> None:
+def draw_reachable(ax, task: TraceTask, design: PlanarArm) -> None:
     angles = np.unique(design.proximal_angles) if design.n_links == 3 else [0.0]
     for phi in angles:
         xs, ys, mask = reachable_grid(task, design, float(phi))
         ax.contourf(xs, ys, mask.astype(float), levels=[0.5, 1.5], colors=["0.85"], alpha=0.6 if len(angles) > 1 else 1.0, zorder=0)
 
 
-def solution_figure(task: Task, design: ArmDesign, verification: TraceVerification, title: str = ""):
+def solution_figure(task: TraceTask, design: PlanarArm, verification: TraceVerification, title: str = ""):
     """Task, obstacle-free reachable space (light grey), arm at the critical states of
     every primitive (one colour per primitive)."""
     fig, ax = plt.subplots(figsize=(6, 6))
@@ -105,13 +105,13 @@ def solution_figure(task: Task, design: ArmDesign, verification: TraceVerificati
     return fig
 
 
-def _limits(ax, task: Task, design: ArmDesign | None) -> None:
+def _limits(ax, task: TraceTask, design: PlanarArm | None) -> None:
     lo, hi = _view_points(task, design)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
 
 
-def swept_figure(task: Task, design: ArmDesign, verification: TraceVerification, kind: str):
+def swept_figure(task: TraceTask, design: PlanarArm, verification: TraceVerification, kind: str):
     """SV^kind bounds (dashed) of each primitive against the true swept area (the dense
     link positions of the verification, thin grey)."""
     fig, ax = plt.subplots(figsize=(6, 6))
@@ -132,7 +132,7 @@ def swept_figure(task: Task, design: ArmDesign, verification: TraceVerification,
     return fig
 
 
-def discretised_figure(task: Task, cmp: DiscreteComparison):
+def discretised_figure(task: TraceTask, cmp: DiscreteComparison):
     """Fig. 6: reachable space of the discretised design, its 25 points, and the parts
     of the continuous curve outside it (red), with a zoom on the largest excursion."""
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.5))
@@ -163,7 +163,7 @@ def discretised_figure(task: Task, cmp: DiscreteComparison):
     return fig
 
 
-def write_gif(path, task: Task, design: ArmDesign, verification: TraceVerification, frames: int = 90, dpi: int = 55) -> None:
+def write_gif(path, task: TraceTask, design: PlanarArm, verification: TraceVerification, frames: int = 90, dpi: int = 55) -> None:
     """Animation of the arm along every primitive and transition (PillowWriter)."""
     states = np.concatenate([s.states for s in verification.segments])
     pick = np.unique(np.linspace(0, len(states) - 1, frames).round().astype(int))

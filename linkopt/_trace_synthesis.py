@@ -47,8 +47,8 @@ from jaxtyping import Array, Float
 
 from . import _trace_geometry as geo
 from ._trace_swept import signed_distance, swept_support
-from ._trace_task import Task
-from ._trace_verify import ArmDesign, TraceVerification, verify
+from ._trace_task import TraceTask
+from ._trace_verify import PlanarArm, TraceVerification, verify
 
 EQ9_SAMPLES = 24
 TRANSITION_SAMPLES = 5
@@ -56,7 +56,7 @@ POLISH_ROUNDS = 4
 
 
 @dataclass(frozen=True)
-class SynthesisSettings:
+class TraceSettings:
     """``restarts``: initial guesses per (links, bound) stage; ``reach_margin``,
     ``clearance_margin`` (added to every obstacle radius in the NLP, so that tight optima
     survive the verifier's motion bound), ``smoothing`` (the temperature of the
@@ -78,8 +78,8 @@ class TraceResult:
     """Outcome of :func:`synthesize`: the verified design (or ``None``), the stage that
     produced it and one record per NLP solved."""
 
-    task: Task
-    design: ArmDesign | None
+    task: TraceTask
+    design: PlanarArm | None
     verification: TraceVerification | None
     swept: str | None
     seconds: float
@@ -96,7 +96,7 @@ def unpack(x: Float[Array, "V"], n: int, q: int):
     return x[:2], x[2:2 + n], phi
 
 
-def constraint_function(task: Task, n: int, kind: str, settings: SynthesisSettings) -> Callable:
+def constraint_function(task: TraceTask, n: int, kind: str, settings: TraceSettings) -> Callable:
     """``g(x, sigma) -> (m,)``, feasible where every entry is ``>= 0`` (eqs. 2-11)."""
     q, delta = len(task.primitives), task.link_diameter
     margin = settings.reach_margin * task.scale
@@ -159,13 +159,13 @@ class _Problem:
     kind: str
 
 
-def _problem(task: Task, n: int, kind: str, settings: SynthesisSettings) -> _Problem:
+def _problem(task: TraceTask, n: int, kind: str, settings: TraceSettings) -> _Problem:
     g = constraint_function(task, n, kind, settings)
     violation = lambda x, sigma: 0.5 * jnp.sum(jnp.minimum(g(x, sigma), 0.0) ** 2)
     return _Problem(jax.jit(g), jax.jit(jax.jacfwd(g)), jax.jit(jax.value_and_grad(violation)), n, kind)
 
 
-def _bounds(task: Task, n: int, region: int) -> list[tuple]:
+def _bounds(task: TraceTask, n: int, region: int) -> list[tuple]:
     if len(task.base_regions):
         x0, y0, x1, y1 = task.base_regions[region]
         base = [(x0, x1), (y0, y1)]
@@ -177,11 +177,11 @@ def _bounds(task: Task, n: int, region: int) -> list[tuple]:
     return base + links + [(None, None)] * (len(task.primitives) if n == 3 else 0)
 
 
-def _path_points(task: Task, per: int = 64) -> np.ndarray:
+def _path_points(task: TraceTask, per: int = 64) -> np.ndarray:
     return np.concatenate([np.asarray(geo.points(p, jnp.linspace(0.0, 1.0, per))) for p in task.primitives])
 
 
-def initial_guess(task: Task, n: int, region: int, rng: np.random.Generator) -> np.ndarray:
+def initial_guess(task: TraceTask, n: int, region: int, rng: np.random.Generator) -> np.ndarray:
     """A seeded random start: base in its rectangle (or near the path), links sized so
     the farthest path point is just reachable, one proximal angle for all primitives."""
     pts = _path_points(task)
@@ -204,7 +204,7 @@ def initial_guess(task: Task, n: int, region: int, rng: np.random.Generator) -> 
     return np.concatenate([np.ravel(v) for v in x])
 
 
-def solve_nlp(task: Task, problem: _Problem, x0: np.ndarray, sigma: int, region: int, settings: SynthesisSettings):
+def solve_nlp(task: TraceTask, problem: _Problem, x0: np.ndarray, sigma: int, region: int, settings: TraceSettings):
     """One solve of eq. 1 from ``x0``; returns (x, feasible, total length).
 
     As the paper (Sec. III-I), a simpler problem first: L-BFGS-B on the squared
@@ -240,15 +240,16 @@ def solve_nlp(task: Task, problem: _Problem, x0: np.ndarray, sigma: int, region:
     return best["x"], best["feasible"], cost(best["x"])
 
 
-def design_from(x: np.ndarray, n: int, sigma: int, q: int) -> ArmDesign:
+def design_from(x: np.ndarray, n: int, sigma: int, q: int) -> PlanarArm:
     base, r, phi = unpack(np.asarray(x), n, q)
-    return ArmDesign(np.asarray(base), np.asarray(r), np.asarray(phi) if n == 3 else np.zeros(0), int(sigma))
+    return PlanarArm(np.asarray(base), np.asarray(r), np.asarray(phi) if n == 3 else np.zeros(0), int(sigma))
 
 
-def synthesize(task: Task, seed: int = 0, settings: SynthesisSettings = SynthesisSettings(),
+def synthesize(task: TraceTask, seed: int = 0, settings: TraceSettings = TraceSettings(),
                progress: Callable[[str], None] | None = None) -> TraceResult:
     """Try 2 links then 3, SV^over then SV^app, ``settings.restarts`` seeded starts each
-    and both elbow branches; return the first design that passes verification."""
+    (cycling through the base rectangles) and both elbow branches; return the first
+    design that passes verification. ``progress`` receives one line per NLP solve."""
     rng = np.random.default_rng(seed)
     start, attempts = time.perf_counter(), []
     say = progress or (lambda _msg: None)

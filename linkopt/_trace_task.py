@@ -94,7 +94,7 @@ class Primitive:
 
 
 @dataclass(frozen=True)
-class Task:
+class TraceTask:
     """A parsed task: primitives, obstacles ``(n_obs, 3)`` rows ``(x, y, r)``, base
     rectangles ``(n_B, 4)`` rows ``(x_min, y_min, x_max, y_max)`` (empty: anywhere)."""
 
@@ -163,7 +163,7 @@ class _Fields:
         return v
 
 
-def load_task(path: str | Path) -> Task:
+def load_task(path: str | Path) -> TraceTask:
     """Read and validate a task file; raises :class:`MechanismFileError` on bad input."""
     path = Path(path)
     try:
@@ -173,7 +173,7 @@ def load_task(path: str | Path) -> Task:
     return loads_task(text, str(path))
 
 
-def loads_task(text: str, source: str = "<string>") -> Task:
+def loads_task(text: str, source: str = "<string>") -> TraceTask:
     """Parse task TOML ``text``; ``source`` names it in error messages."""
     rd = _Fields(source)
     try:
@@ -197,7 +197,7 @@ def loads_task(text: str, source: str = "<string>") -> Task:
     prims = tuple(_read_primitive(rd, item, f"primitives[{k}]") for k, item in enumerate(raw))
     obstacles = _read_obstacles(rd, data)
     regions = _read_regions(rd, data)
-    task = Task(head["name"], source, prims, obstacles, regions, diameter, min_link, np.inf)
+    task = TraceTask(head["name"], source, prims, obstacles, regions, diameter, min_link, np.inf)
     max_link = rd.number(head, "max_link_length", "task", positive=True) if "max_link_length" in head else 4 * task.scale
     if max_link <= min_link:
         raise rd.fail("task.max_link_length", f"expected more than min_link_length {min_link:g}, got {max_link:g}")
@@ -275,7 +275,7 @@ def _read_regions(rd: _Fields, data: dict) -> np.ndarray:
     return np.asarray(rows, dtype=float).reshape(-1, 4)
 
 
-def _check_connected(rd: _Fields, task: Task) -> None:
+def _check_connected(rd: _Fields, task: TraceTask) -> None:
     tol = REL_TOL * task.scale
     for k in range(len(task.primitives) - 1):
         gap = np.linalg.norm(task.primitives[k].end - task.primitives[k + 1].start)
@@ -284,7 +284,7 @@ def _check_connected(rd: _Fields, task: Task) -> None:
             raise rd.fail(f"primitives[{k + 1}].start", f"expected the end of primitives[{k}] {end} (primitives must be connected), gap {gap:g}")
 
 
-def _check_obstacles_outside_circles(rd: _Fields, task: Task) -> None:
+def _check_obstacles_outside_circles(rd: _Fields, task: TraceTask) -> None:
     for k, (x, y, r) in enumerate(task.obstacles):
         for j, p in enumerate(task.primitives):
             if p.kind != "line" and np.hypot(x - p.center[0], y - p.center[1]) < p.radius:

@@ -28,7 +28,7 @@ import numpy as np
 from jaxtyping import Float
 
 from . import _trace_geometry as geo
-from ._trace_task import Task
+from ._trace_task import TraceTask
 
 MAX_JOINT_STEP = 0.25
 MIN_SAMPLES = 200
@@ -36,7 +36,7 @@ MAX_SAMPLES = 200_000
 
 
 @dataclass(frozen=True)
-class ArmDesign:
+class PlanarArm:
     """A planar arm: base ``s_1``, link lengths ``r`` (2 or 3), the static proximal
     angle per primitive (3 links; absolute, from the x-axis) and the elbow branch."""
 
@@ -71,17 +71,17 @@ class TraceVerification:
     segments: list[Segment] = field(default_factory=list)
 
 
-def _proximal(design: ArmDesign, j: int) -> float:
+def _proximal(design: PlanarArm, j: int) -> float:
     return float(design.proximal_angles[j]) if design.n_links == 3 else 0.0
 
 
-def primitive_states(task: Task, design: ArmDesign, j: int, t: np.ndarray) -> np.ndarray:
+def primitive_states(task: TraceTask, design: PlanarArm, j: int, t: np.ndarray) -> np.ndarray:
     """``(N, n_links+1, 2)`` states along primitive ``j`` at path parameters ``t``."""
     p = geo.points(task.primitives[j], jnp.asarray(t))
     return np.asarray(geo.arm_states(design.base, jnp.asarray(design.lengths), _proximal(design, j), p, design.sigma))
 
 
-def transition_states(task: Task, design: ArmDesign, j: int, tau: np.ndarray) -> np.ndarray:
+def transition_states(task: TraceTask, design: PlanarArm, j: int, tau: np.ndarray) -> np.ndarray:
     """States of the transition from primitive ``j`` to ``j+1`` at fractions ``tau``:
     the end-effector stays at the transition point, ``θ_1`` moves linearly (3 links);
     a 2-link arm has no transition motion (mobility 0), its state is repeated."""
@@ -108,7 +108,7 @@ def dense_states(fn, n: int, target: float) -> tuple[np.ndarray, np.ndarray]:
     return t, states
 
 
-def critical_states(task: Task, design: ArmDesign) -> list[np.ndarray]:
+def critical_states(task: TraceTask, design: PlanarArm) -> list[np.ndarray]:
     """States at (initial, final, closest, farthest) of every primitive, ``(4, n+1, 2)`` each."""
     out = []
     lengths = jnp.asarray(design.lengths)
@@ -120,11 +120,11 @@ def critical_states(task: Task, design: ArmDesign) -> list[np.ndarray]:
     return out
 
 
-def _sample_count(length: float, task: Task) -> int:
+def _sample_count(length: float, task: TraceTask) -> int:
     return int(max(MIN_SAMPLES, np.ceil(length / (task.link_diameter / 16))))
 
 
-def _reach_margin(task: Task, design: ArmDesign, states: np.ndarray) -> np.ndarray:
+def _reach_margin(task: TraceTask, design: PlanarArm, states: np.ndarray) -> np.ndarray:
     a, b = design.lengths[-2:]
     d = np.linalg.norm(states[:, -1] - states[:, -3], axis=1)
     return np.minimum(a + b - d, d - abs(a - b))
@@ -142,7 +142,7 @@ def _motion_bound(states: np.ndarray) -> np.ndarray:
     return 0.5 * np.maximum(padded[:-1], padded[1:])
 
 
-def _clearance(task: Task, states: np.ndarray) -> np.ndarray:
+def _clearance(task: TraceTask, states: np.ndarray) -> np.ndarray:
     """``(N, links, n_obs)`` distance of link segments to obstacle discs minus Δ/2 and
     minus the motion bound between samples."""
     if len(task.obstacles) == 0:
@@ -159,7 +159,7 @@ def _self_distance(states: np.ndarray) -> np.ndarray:
     return np.asarray(geo.segment_distance(ee, jnp.asarray(states[:, :-2]), jnp.asarray(states[:, 1:-1])))
 
 
-def _check(task: Task, design: ArmDesign, label: str, states: np.ndarray, failures: list[str]) -> dict:
+def _check(task: TraceTask, design: PlanarArm, label: str, states: np.ndarray, failures: list[str]) -> dict:
     clear = _clearance(task, states)
     selfd = _self_distance(states) - task.link_diameter
     reach = _reach_margin(task, design, states)
@@ -180,7 +180,7 @@ def _check(task: Task, design: ArmDesign, label: str, states: np.ndarray, failur
             "reach": reach.min(), "jstep": jstep, "angles": angles}
 
 
-def verify(task: Task, design: ArmDesign) -> TraceVerification:
+def verify(task: TraceTask, design: PlanarArm) -> TraceVerification:
     """Check the whole continuous task (every primitive and transition) densely: ``t``
     spaced Δ/16 along the path, refined until no joint moves more than Δ/32."""
     failures: list[str] = []

@@ -15,9 +15,9 @@ from linkopt._errors import MechanismFileError
 from linkopt._trace_discrete import compare
 from linkopt._trace_export import mechanism_text, result_dict
 from linkopt._trace_swept import DIRS, app_support, over_support, signed_distance
-from linkopt._trace_synthesis import SynthesisSettings, TraceResult, _problem, initial_guess, synthesize
+from linkopt._trace_synthesis import TraceSettings, TraceResult, _problem, initial_guess, synthesize
 from linkopt._trace_task import load_task, loads_task
-from linkopt._trace_verify import ArmDesign, critical_states, verify
+from linkopt._trace_verify import PlanarArm, critical_states, verify
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -91,7 +91,7 @@ def test_support_function_matches_sampled_maximum(index):
 
 def test_swept_area_over_approximation_contains_the_true_swept_area():
     task = loads_task(SMALL, "small.toml")
-    design = ArmDesign(np.array([0.0, 0.0]), np.array([0.2, 0.22]), np.zeros(0), 1)
+    design = PlanarArm(np.array([0.0, 0.0]), np.array([0.2, 0.22]), np.zeros(0), 1)
     check = verify(task, design)
     ang = np.linspace(0, 2 * np.pi, 720, endpoint=False)
     fine = np.stack([np.cos(ang), np.sin(ang)], -1)
@@ -116,7 +116,7 @@ def _clip_task(obstacle):
 
 
 def test_verifier_rejects_a_design_that_clips_an_obstacle_only_between_critical_points():
-    design = ArmDesign(np.array([0.0, 0.0]), np.array([0.2, 0.22]), np.zeros(0), 1)
+    design = PlanarArm(np.array([0.0, 0.0]), np.array([0.2, 0.22]), np.zeros(0), 1)
     probe = _clip_task((5.0, 5.0, 0.01))
     # on the forearm near its tip, three quarters along the line (t = 0.75): between the
     # closest point (t = 0.5) and the final point
@@ -135,9 +135,9 @@ def test_verifier_rejects_a_design_that_clips_an_obstacle_only_between_critical_
 
 def test_verifier_rejects_unreachable_and_self_colliding_designs():
     task = loads_task(HEAD + LINE, "reach.toml")
-    short = ArmDesign(np.array([0.0, 0.0]), np.array([0.15, 0.15]), np.zeros(0), 1)
+    short = PlanarArm(np.array([0.0, 0.0]), np.array([0.15, 0.15]), np.zeros(0), 1)
     assert any("annulus" in f for f in verify(task, short).failures)
-    folded = ArmDesign(np.array([0.0, 0.0]), np.array([0.5, 0.201]), np.zeros(0), 1)  # EE passes near link 1
+    folded = PlanarArm(np.array([0.0, 0.0]), np.array([0.5, 0.201]), np.zeros(0), 1)  # EE passes near link 1
     assert verify(task, folded).min_reach_margin > 0
     assert any("eqs. 8-9" in f for f in verify(task, folded).failures)
 
@@ -189,7 +189,7 @@ def test_shipped_tasks_match_the_paper_description():
 @pytest.fixture(scope="module")
 def small_result():
     task = loads_task(SMALL, "small.toml")
-    return synthesize(task, seed=0, settings=SynthesisSettings(restarts=2, links=(2,), swept=("over",)))
+    return synthesize(task, seed=0, settings=TraceSettings(restarts=2, links=(2,), swept=("over",)))
 
 
 def test_synthesis_finds_the_shortest_two_link_arm(small_result):
@@ -204,13 +204,13 @@ def test_synthesis_finds_the_shortest_two_link_arm(small_result):
     start = bases[far(bases).argmin()]
     clipped = lambda b: far(np.clip(b, -0.05, 0.05))[0]  # farthest distance is convex in the base
     ref = scipy.optimize.minimize(clipped, start, method="Nelder-Mead", options={"xatol": 1e-9, "fatol": 1e-12})
-    best = ref.fun + SynthesisSettings().reach_margin * task.scale
+    best = ref.fun + TraceSettings().reach_margin * task.scale
     assert result.design.lengths.sum() == pytest.approx(best, rel=1e-4, abs=1e-6)
 
 
 def test_constraint_jacobian_matches_finite_differences():
     task = loads_task(SMALL.replace("[-0.3, 0.3]", "[0.1, 0.35]"), "small.toml")
-    problem = _problem(task, 3, "app", SynthesisSettings())
+    problem = _problem(task, 3, "app", TraceSettings())
     x = initial_guess(task, 3, 0, np.random.default_rng(3))
     jac = np.asarray(problem.jac(x, 1))
     fd = np.stack([(np.asarray(problem.g(x + e, 1)) - np.asarray(problem.g(x - e, 1))) / 2e-6
@@ -233,7 +233,7 @@ def test_exported_arm_is_a_mechanism_whose_fk_retraces_the_states(small_result):
 
 def test_three_link_export_loads_with_a_shoulder_angle_output():
     task = loads_task(SMALL, "small.toml")
-    design = ArmDesign(np.array([0.0, 0.0]), np.array([0.1, 0.15, 0.15]), np.array([0.3, 0.5]), -1)
+    design = PlanarArm(np.array([0.0, 0.0]), np.array([0.1, 0.15, 0.15]), np.array([0.3, 0.5]), -1)
     result = TraceResult(task, design, verify(task, design), "app", 0.0)
     mech = linkopt.loads(mechanism_text(result), "arm3.toml")
     assert list(mech.output_names) == ["x", "y", "shoulder_angle"]
@@ -250,7 +250,7 @@ def test_discretised_design_misses_the_curve_between_its_points():
 
     pts = equidistant_points(task, 25)
     reach = np.linalg.norm(pts, axis=1).max()
-    design = ArmDesign(np.array([0.0, 0.0]), np.array([reach / 2, reach / 2]), np.zeros(0), 1)
+    design = PlanarArm(np.array([0.0, 0.0]), np.array([reach / 2, reach / 2]), np.zeros(0), 1)
     cmp = compare(task, design)
     assert cmp.excursion == pytest.approx(0.4 - reach, abs=1e-6) and cmp.excursion > 1e-4
     assert 0 < cmp.fraction_outside < 0.2
