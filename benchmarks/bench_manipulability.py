@@ -36,6 +36,7 @@ sys.path.insert(0, str(ROOT))
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import scipy.optimize  # noqa: E402
+from threadpoolctl import threadpool_limits  # noqa: E402
 
 import linkopt  # noqa: E402,F401  (float64 and the compilation cache first)
 from linkopt import _dh  # noqa: E402
@@ -75,7 +76,8 @@ def paper_eq10_with_fixed_table(table: _dh.DHTable, targets: np.ndarray, q0: np.
         value, grad = syn._value_and_grad("RRR", jnp.asarray(np.concatenate([k, q])), jnp.asarray(targets), weights)
         return float(value), np.asarray(grad)[k.size :]
 
-    q = scipy.optimize.minimize(fun, q0.ravel(), jac=True, method="L-BFGS-B", options={"maxiter": 4000}).x
+    with threadpool_limits(1, user_api="blas"):  # as in linkopt._dh_synthesis._minimise
+        q = scipy.optimize.minimize(fun, q0.ravel(), jac=True, method="L-BFGS-B", options={"maxiter": 4000}).x
     residual, w = syn.measures("RRR", table, jnp.asarray(q.reshape(-1, 3)), jnp.asarray(targets))
     return fun(q)[0], np.asarray(residual), np.asarray(w)
 
