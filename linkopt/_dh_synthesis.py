@@ -37,6 +37,9 @@ Choices where the paper is vague (stated here, as the project asks):
   remedy ("by increasing ε one can increase the precision"), automated.
 * Joint-type enumeration (Sec. V): for an integer ``N`` all ``2^N`` R/P strings are
   synthesised and the one with the highest mean manipulability over the targets wins.
+  As in the paper, w mixes units across joint types (length per rad for R, length per
+  length for P) and prismatic travel is not part of ``L`` (eq. 9 counts constant offsets
+  only), so the heuristic favours prismatic joints when ξ is large; we keep it as given.
 """
 
 from __future__ import annotations
@@ -226,8 +229,9 @@ def _weights(settings: DHSynthesisSettings, targets: np.ndarray, precision: floa
 def _check_settings(settings: DHSynthesisSettings) -> None:
     for name in ("precision", "size_damping", "b", "reach_tolerance"):
         value = getattr(settings, name)
-        if not np.isfinite(value) or value < 0 or (name == "reach_tolerance" and value == 0):
-            raise InputError(f"synthesis settings: {name}: expected a finite non-negative number, got {value!r}")
+        positive = name == "reach_tolerance"
+        if not np.isfinite(value) or value < 0 or (positive and value == 0):
+            raise InputError(f"synthesis settings: {name}: expected a finite {'positive' if positive else 'non-negative'} number, got {value!r}")
     if settings.starts < 1 or settings.max_iterations < 1:
         raise InputError(f"synthesis settings: starts and max_iterations must be at least 1, got {settings.starts} and {settings.max_iterations}")
 
