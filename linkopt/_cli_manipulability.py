@@ -163,6 +163,8 @@ def run(args) -> int:
     s = payload["summary"]
     print(f"{best.types}: mean w {s['mean_manipulability']:.4f}, min w {s['min_manipulability']:.4f}, max residual {s['max_residual']:.2e} ({s['reached']}/{s['targets']} reached), size {s['size']:.4f}")
     print(f"wrote {out / 'dh.json'}, {out / 'arm.toml'}, {out / 'manipulability.png'}")
+    if s["reached"] < s["targets"]:
+        print(f"linkopt: warning: {s['targets'] - s['reached']} target(s) not reached within {settings.reach_tolerance:g} (a {len(best.types)}-joint arm may not reach them at all)", file=sys.stderr)
     return 0 if bool(report["converged"].all()) else 1
 
 
