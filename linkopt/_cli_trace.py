@@ -23,6 +23,8 @@ def register(arm_subparsers) -> None:
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--seed", type=int, default=0, help="seed of the initial guesses (default 0)")
     p.add_argument("--restarts", type=int, default=6, help="initial guesses per stage (default 6)")
+    p.add_argument("--best-of", type=int, default=1, metavar="K",
+                   help="collect K verified designs in the first successful stage and keep the shortest (default 1)")
     p.add_argument("--discretised", type=int, default=0, metavar="N",
                    help="also synthesise from N equidistant points and show where the curve leaves its reachable space")
     p.add_argument("--no-gif", action="store_true", help="skip the animation")
@@ -40,12 +42,14 @@ def run(args) -> int:
 
     if args.restarts < 1:
         raise InputError(f"--restarts: expected a positive integer, got {args.restarts}")
+    if args.best_of < 1:
+        raise InputError(f"--best-of: expected a positive integer, got {args.best_of}")
     if args.discretised < 0 or args.discretised == 1:
         raise InputError(f"--discretised: expected 0 (off) or at least 2 points, got {args.discretised}")
     task = load_task(args.task)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    result = synthesize(task, seed=args.seed, settings=TraceSettings(restarts=args.restarts), progress=_say)
+    result = synthesize(task, seed=args.seed, settings=TraceSettings(restarts=args.restarts, best_of=args.best_of), progress=_say)
     payload = result_dict(result)
     figures = _figures(task, result, out, not args.no_gif) if result.success else []
     if args.discretised:

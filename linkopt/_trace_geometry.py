@@ -14,12 +14,20 @@ from jaxtyping import Array, Float
 
 from ._trace_task import Primitive
 
-TINY = 1e-12
+TINY = 1e-30  # keeps sqrt differentiable at 0 without biasing lengths >= 1e-15
 
 
 def _norm(v: Float[Array, "... 2"]) -> Float[Array, "..."]:
     """NaN-safe Euclidean norm (zero gradient at 0 rather than NaN)."""
     return jnp.sqrt(jnp.sum(v * v, axis=-1) + TINY)
+
+
+def unit_vector(v: Float[Array, "2"]) -> Float[Array, "2"]:
+    """``v / |v|``, and the x-axis for ``v = 0`` (where every direction is as good, e.g.
+    a circle seen from its centre), with finite gradients everywhere."""
+    n2 = jnp.sum(v * v)
+    safe = n2 > 1e-30
+    return jnp.where(safe, v / jnp.sqrt(jnp.where(safe, n2, 1.0)), jnp.array([1.0, 0.0]))
 
 
 def cross(a: Float[Array, "... 2"], b: Float[Array, "... 2"]) -> Float[Array, "..."]:
@@ -71,7 +79,7 @@ def _candidates(prim: Primitive, origin: Float[Array, "2"]) -> tuple[Float[Array
         d = prim.end - prim.start
         s = jnp.clip(jnp.dot(origin - prim.start, d) / jnp.dot(d, d), 0.0, 1.0)
         return jnp.concatenate([ends, (prim.start + s * d)[None]]), jnp.ones(3, bool)
-    u = (origin - prim.center) / _norm(origin - prim.center)
+    u = unit_vector(origin - prim.center)
     ray = jnp.stack([prim.center + prim.radius * u, prim.center - prim.radius * u])
     if prim.kind == "circle":
         return ray, jnp.ones(2, bool)

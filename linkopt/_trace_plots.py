@@ -163,13 +163,19 @@ def discretised_figure(task: TraceTask, cmp: DiscreteComparison):
     return fig
 
 
-def write_gif(path, task: TraceTask, design: PlanarArm, verification: TraceVerification, frames: int = 90, dpi: int = 55) -> None:
+def write_gif(path, task: TraceTask, design: PlanarArm, verification: TraceVerification, frames: int = 90, dpi: int = 80) -> None:
     """Animation of the arm along every primitive and transition (PillowWriter)."""
     states = np.concatenate([s.states for s in verification.segments])
     pick = np.unique(np.linspace(0, len(states) - 1, frames).round().astype(int))
     fig, ax = plt.subplots(figsize=(4.5, 4.5))
     draw_task(ax, task)
-    _limits(ax, task, design)
+    lo, hi = _view_points(task, None)
+    flat = states.reshape(-1, 2)
+    lo, hi = np.minimum(lo, flat.min(0)), np.maximum(hi, flat.max(0))
+    pad = 0.05 * (hi - lo).max()
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_title(f"{task.name}: {design.n_links} links", fontsize=9)
     (links,) = ax.plot([], [], "-o", color="k", lw=3, ms=4, zorder=6)
     (trail,) = ax.plot([], [], color="tab:blue", lw=2, zorder=5)
 

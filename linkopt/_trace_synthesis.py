@@ -23,7 +23,10 @@ Constraints (all ``>= 0``, lengths in task units):
   distance is the end-effector's distance to the module at ``s_{n-1}``, a collision too);
   eq. 9 (3 links): the primitive (24 samples) farther than Δ from the proximal link;
 * eqs. 6-7 (3 links): the four-bar at each transition point. Eqs. 6-7 are the law of
-  cosines form of "``|P - s_2(θ_1)|`` within the distal annulus"; we impose that form at
+  cosines form of "``|P - s_2(θ_1)|`` within the distal annulus" (with
+  ``|P - s_2|² = r_g² + r_1² - 2 r_1 r_g cos θ_1`` the bound with ``(r_2 + r_3)²`` is the
+  lower one; the paper prints the two bounds of eq. 6 in the other order, and eq. 7 is
+  the same closure seen from the end-effector); we impose that form at
   5 interior values of the linear ``θ_1`` motion the verifier will check, together with
   obstacle clearance and self-collision of the links there (the paper leaves these to
   verification; here they are also constraints, which makes verification pass more often).
@@ -57,7 +60,9 @@ POLISH_ROUNDS = 4
 
 @dataclass(frozen=True)
 class TraceSettings:
-    """``restarts``: initial guesses per (links, bound) stage; ``reach_margin``,
+    """``restarts``: initial guesses per (links, bound) stage; ``best_of``: verified
+    designs to collect in the successful stage before returning the shortest;
+    ``reach_margin``,
     ``clearance_margin`` (added to every obstacle radius in the NLP, so that tight optima
     survive the verifier's motion bound), ``smoothing`` (the temperature of the
     conservative soft maxima in the swept-area distances) and ``feasibility_tol`` are
@@ -70,6 +75,7 @@ class TraceSettings:
     smoothing: float = 1e-3
     feasibility_tol: float = 1e-7
     links: tuple[int, ...] = (2, 3)
+    best_of: int = 1
     swept: tuple[str, ...] = ("over", "app")
 
 
@@ -248,34 +254,48 @@ def design_from(x: np.ndarray, n: int, sigma: int, q: int) -> PlanarArm:
 def synthesize(task: TraceTask, seed: int = 0, settings: TraceSettings = TraceSettings(),
                progress: Callable[[str], None] | None = None) -> TraceResult:
     """Try 2 links then 3, SV^over then SV^app, ``settings.restarts`` seeded starts each
-    (cycling through the base rectangles) and both elbow branches; return the first
-    design that passes verification. ``progress`` receives one line per NLP solve."""
+    (cycling through the base rectangles) and both elbow branches. As the paper, the
+    first stage that yields a verified design ends the search; within it the shortest
+    of the first ``settings.best_of`` verified designs is returned (default 1: the
+    first, which is the paper's feasibility-first rule). ``progress`` receives one line
+    per NLP solve."""
     rng = np.random.default_rng(seed)
     start, attempts = time.perf_counter(), []
     say = progress or (lambda _msg: None)
-    regions = max(1, len(task.base_regions))
     for n in settings.links:
         for kind in settings.swept:
-            problem = _problem(task, n, kind, settings)
-            for restart in range(settings.restarts):
-                region = restart % regions
-                x0 = initial_guess(task, n, region, rng)
-                for sigma in (1, -1):
-                    t0 = time.perf_counter()
-                    x, feasible, length = solve_nlp(task, problem, x0, sigma, region, settings)
-                    record = {"links": n, "swept": kind, "restart": restart, "sigma": sigma, "region": region,
-                              "feasible": bool(feasible), "total_length": length, "verified": False, "failure": None}
-                    if feasible:
-                        design = design_from(x, n, sigma, len(task.primitives))
-                        check = verify(task, design)
-                        record["verified"] = check.passed
-                        record["failure"] = None if check.passed else check.failures[0]
-                    record["seconds"] = time.perf_counter() - t0
-                    attempts.append(record)
-                    say(_describe(record))
-                    if feasible and check.passed:
-                        return TraceResult(task, design, check, kind, time.perf_counter() - start, attempts)
+            found = _stage(task, n, kind, settings, rng, attempts, say)
+            if found:
+                design, check = min(found, key=lambda dc: dc[0].lengths.sum())
+                return TraceResult(task, design, check, kind, time.perf_counter() - start, attempts)
     return TraceResult(task, None, None, None, time.perf_counter() - start, attempts)
+
+
+def _stage(task, n, kind, settings, rng, attempts, say) -> list:
+    """One (links, bound) stage: seeded restarts × elbow branches until ``best_of``
+    verified designs are found; returns them as (design, verification) pairs."""
+    problem = _problem(task, n, kind, settings)
+    found = []
+    for restart in range(settings.restarts):
+        region = restart % max(1, len(task.base_regions))
+        x0 = initial_guess(task, n, region, rng)
+        for sigma in (1, -1):
+            t0 = time.perf_counter()
+            x, feasible, length = solve_nlp(task, problem, x0, sigma, region, settings)
+            record = {"links": n, "swept": kind, "restart": restart, "sigma": sigma, "region": region,
+                      "feasible": bool(feasible), "total_length": length, "verified": False, "failure": None}
+            if feasible:
+                design = design_from(x, n, sigma, len(task.primitives))
+                check = verify(task, design)
+                record.update(verified=check.passed, failure=None if check.passed else check.failures[0])
+                if check.passed:
+                    found.append((design, check))
+            record["seconds"] = time.perf_counter() - t0
+            attempts.append(record)
+            say(_describe(record))
+            if len(found) >= settings.best_of:
+                return found
+    return found
 
 
 def _describe(rec: dict) -> str:

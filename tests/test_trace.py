@@ -82,6 +82,16 @@ def test_critical_points_match_brute_force_sampling(index):
             assert np.min(np.linalg.norm(dense - np.asarray(cp[k]), axis=1)) < 1e-5
 
 
+@pytest.mark.parametrize("offset", [0.0, 1e-16, 3e-8])
+def test_circle_seen_from_its_centre_has_every_point_at_the_radius(offset):
+    """Regression: a bias in the norm's epsilon turned (s - c)/|s - c| into a short
+    vector near the centre, so closest = farthest = the centre and the NLP accepted a
+    0.08 m arm for a 0.2 m circle (caught by the verifier)."""
+    circle = _primitives()[3]
+    dmin, dmax = geo.distance_range(circle, jnp.asarray(circle.center + offset))
+    assert float(dmin) == pytest.approx(0.1, abs=1e-7) and float(dmax) == pytest.approx(0.1, abs=1e-7)
+
+
 @pytest.mark.parametrize("index", range(4), ids=["line", "arc_ccw", "arc_cw", "circle"])
 def test_support_function_matches_sampled_maximum(index):
     prim = _primitives()[index]
