@@ -60,13 +60,15 @@ POLISH_ROUNDS = 4
 
 @dataclass(frozen=True)
 class TraceSettings:
-    """``restarts``: initial guesses per (links, bound) stage; ``best_of``: verified
-    designs to collect in the successful stage before returning the shortest;
-    ``reach_margin``,
-    ``clearance_margin`` (added to every obstacle radius in the NLP, so that tight optima
-    survive the verifier's motion bound), ``smoothing`` (the temperature of the
-    conservative soft maxima in the swept-area distances) and ``feasibility_tol`` are
-    fractions of the task size."""
+    """Search settings.
+
+    ``restarts``: seeded initial guesses per (links, bound) stage; ``best_of``: verified
+    designs to collect in the successful stage before returning the shortest; ``links``
+    and ``swept``: the stages, in order. Fractions of the task size: ``reach_margin``
+    (distance kept from the annulus boundary), ``clearance_margin`` (added to every
+    obstacle radius in the NLP, so that tight optima survive the verifier's motion
+    bound), ``smoothing`` (temperature of the conservative soft maxima in the
+    swept-area distances) and ``feasibility_tol``."""
 
     restarts: int = 6
     max_iterations: int = 300
@@ -110,7 +112,7 @@ def constraint_function(task: TraceTask, n: int, kind: str, settings: TraceSetti
     centers = jnp.asarray(task.obstacles[:, :2])
     grown = jnp.asarray(task.obstacles[:, 2]) + delta / 2 + settings.clearance_margin * task.scale
 
-    def reach_rows(origin, a, b, dmin, dmax):
+    def reach_rows(a, b, dmin, dmax):
         gap = jnp.sqrt((a - b) ** 2 + 1e-12)
         return jnp.stack([a + b - dmax - margin, dmin - gap - margin])
 
@@ -118,7 +120,7 @@ def constraint_function(task: TraceTask, n: int, kind: str, settings: TraceSetti
         prim, a, b = task.primitives[j], r[-2], r[-1]
         origin = geo.distal_origin(base, r, phi[j])
         dmin, dmax = geo.distance_range(prim, origin)
-        rows = [reach_rows(origin, a, b, dmin, dmax)]
+        rows = [reach_rows(a, b, dmin, dmax)]
         for h in swept_support(kind, prim, origin, a, b, sigma, temp) if len(centers) else []:
             rows.append(signed_distance(centers, h, temp) - grown)
         close = geo.critical_points(prim, origin)["closest"]
