@@ -143,6 +143,22 @@ def test_verifier_rejects_a_design_that_clips_an_obstacle_only_between_critical_
     assert verify(probe, design).passed  # the same motion with the obstacle far away passes
 
 
+def test_verifier_rejects_a_three_link_transition_through_an_obstacle():
+    """The proximal link swings from -0.6 to 0.6 rad at the transition point and sweeps
+    over an obstacle on the x-axis that no primitive state touches."""
+    lines = ('[[primitives]]\ntype = "line"\nstart = [0.3, -0.1]\nend = [0.3, 0.0]\n'
+             '[[primitives]]\ntype = "line"\nstart = [0.3, 0.0]\nend = [0.35, 0.05]\n')
+    obstacle = '[[obstacles]]\ncenter = [{x}, 0.0]\nradius = 0.01\n'
+    design = PlanarArm(np.array([0.0, 0.0]), np.array([0.2, 0.15, 0.15]), np.array([-0.6, 0.6]), 1)
+    blocked = loads_task(HEAD + lines + obstacle.format(x=0.1), "swing.toml")
+    for states in critical_states(blocked, design):
+        d = np.asarray(geo.segment_distance(jnp.array([0.1, 0.0]), jnp.asarray(states[:, :-1]), jnp.asarray(states[:, 1:])))
+        assert d.min() > 0.01 + blocked.link_diameter / 2
+    failures = verify(blocked, design).failures
+    assert failures and all(f.startswith("transition 0->1: link 1 clips obstacles[0]") for f in failures)
+    assert verify(loads_task(HEAD + lines + obstacle.format(x=-0.5), "swing.toml"), design).passed
+
+
 def test_verifier_rejects_unreachable_and_self_colliding_designs():
     task = loads_task(HEAD + LINE, "reach.toml")
     short = PlanarArm(np.array([0.0, 0.0]), np.array([0.15, 0.15]), np.zeros(0), 1)
