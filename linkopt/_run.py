@@ -51,13 +51,16 @@ def _encode(run: SwarmRun, mech: Mechanism, settings: OptimizerSettings) -> dict
         "history": run.history,
         "stalled": run.stalled,
         "finished": run.finished,
+        "result_pos": None if run.result_pos is None else run.result_pos.tolist(),
+        "result_total": run.result_total,
+        "result_feasible": run.result_feasible,
         **arrays,
     }
 
 
 def _decode(data: dict) -> SwarmRun:
     arr = {k: np.asarray(data[k], dtype=float) for k in ("position", "velocity", "pbest_pos", "pbest_cost", "best_pos")}
-    return SwarmRun(data["iteration"], arr["position"], arr["velocity"], arr["pbest_pos"], arr["pbest_cost"], arr["best_pos"], float(data["best_cost"]), data["rng_state"], data["history"], data["stalled"], data["finished"])
+    return SwarmRun(data["iteration"], arr["position"], arr["velocity"], arr["pbest_pos"], arr["pbest_cost"], arr["best_pos"], float(data["best_cost"]), data["rng_state"], data["history"], data["stalled"], data["finished"], None if data["result_pos"] is None else np.asarray(data["result_pos"], dtype=float), float(data["result_total"]), data["result_feasible"])
 
 
 def _atomic_write(path: Path, text: str) -> None:

@@ -14,7 +14,7 @@ import pytest
 
 from linkopt import InputError
 from linkopt._evaluation import alpha_minus, evaluate
-from linkopt._optimizer import OptimizerSettings, start, step, swarm_moves
+from linkopt._optimizer import OptimizerSettings, SwarmRun, start, step, swarm_moves
 from linkopt._partial import frozen_objective, partial_gradient
 from linkopt._run import CHECKPOINT, optimize, prepare
 from linkopt._workers import Workers
@@ -158,3 +158,28 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(five_ba
     for name, whole, part in zip(ev._fields, ev, split):
         np.testing.assert_allclose(part, whole, rtol=1e-12, atol=1e-14, err_msg=name)
     np.testing.assert_allclose(gradients, partial_gradient(five_bar, run.position, ev, alpha), rtol=1e-10, atol=1e-14)
+
+
+def test_the_returned_design_ranks_feasibility_before_total_and_the_run_stops_when_it_stalls():
+    """A design with a tiny non-zero f_design and a smaller regulariser (what the swarm's
+    global best may be) is neither returned nor able to hold the run open."""
+    from linkopt._optimizer import _update_result
+
+    settings = OptimizerSettings(patience=2, improvement=1e-3)
+    run = SwarmRun(0, np.array([[0.0], [1.0]]), np.zeros((2, 1)), np.zeros((2, 1)), np.full(2, np.inf), np.array([9.0]), 1e-5, {}, [])
+    # nothing feasible yet: the swarm's best is returned
+    _update_result(run, np.array([False, False]), np.array([1.0, 2.0]), settings)
+    assert run.result_pos[0] == 9.0 and not run.result_feasible
+    # particle 1 is feasible with total 3e-4; particle 0 has a lower total but f > tolerance
+    _update_result(run, np.array([False, True]), np.array([1e-4, 3e-4]), settings)
+    assert run.result_feasible and run.result_pos[0] == 1.0 and run.result_total == 3e-4 and run.stalled == 0
+    # a 0.01 % better feasible design is kept but does not count as improving
+    run.position = np.array([[2.0], [3.0]])
+    _update_result(run, np.array([True, False]), np.array([2.9997e-4, 1e-9]), settings)
+    assert run.result_pos[0] == 2.0 and run.stalled == 1
+    # an iteration with no feasible design never replaces a feasible result
+    _update_result(run, np.array([False, False]), np.array([1e-9, 1e-9]), settings)
+    assert run.result_pos[0] == 2.0 and run.stalled == 2
+    # a 10 % better one resets the count
+    _update_result(run, np.array([False, True]), np.array([1.0, 2.7e-4]), settings)
+    assert run.result_pos[0] == 3.0 and run.stalled == 0
