@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.optimize
 
+from . import _checks
 from ._arm_model import Arm, arm_loads, tool_pose
 from ._arm_task import Task
 from ._constraints import point_positions
@@ -239,11 +240,17 @@ def constraints(problem: Problem, z: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return evaluate(problem, z)[2:]
 
 
+@partial(jax.jit, static_argnums=0)
+def _waypoints(problem: Problem, z):
+    """:func:`_waypoint` at every waypoint (compiled once per problem)."""
+    theta, d = problem.split(z)
+    loads = _loads(problem, d)
+    return jax.vmap(lambda th: _waypoint(problem, th, d, loads))(theta)
+
+
 def waypoint_report(problem: Problem, z) -> dict:
     """Per waypoint: tool positions, tip axes, torques (numpy), for output files and plots."""
-    theta, d = problem.split(jnp.asarray(z))
-    loads = _loads(problem, d)
-    tip, rot, tau, obstacle = jax.jit(jax.vmap(lambda th: _waypoint(problem, th, d, loads)))(theta)
+    tip, rot, tau, obstacle = _waypoints(problem, jnp.asarray(z, dtype=float))
     return {"tip": np.asarray(tip), "axis": np.asarray(rot[:, :, 2]), "torque": np.asarray(tau), "obstacle": np.asarray(obstacle)}
 
 
@@ -265,7 +272,7 @@ class ArmSolution:
 
 def initial_point(problem: Problem, seed: int) -> np.ndarray:
     """A random seed point (module docstring), from ``np.random.default_rng(seed)``."""
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(_checks.seed(seed))
     arm = problem.arm
     d = rng.uniform(arm.lower, arm.upper)
     at_targets = rng.uniform(-np.pi, np.pi, (len(problem.target_waypoints), arm.num_joints))
@@ -329,11 +336,15 @@ def _solve_start(job) -> ArmSolution:
 def solve(problem: Problem, *, starts: int | None = None, seed: int | None = None, workers: int = 1, progress=None) -> tuple[ArmSolution, list[ArmSolution]]:
     """Multi-start solve: start ``k`` uses seed ``seed + k``; returns (best, all).
 
+    ``starts`` and ``seed`` default to the task's ``[solver]`` values; ``starts`` and
+    ``workers`` must be at least 1 and ``seed`` non-negative (else :class:`InputError`).
+
     With ``workers > 1`` the starts run in that many spawned processes (each one core:
     see :mod:`linkopt._config`); results do not depend on the worker count.
     """
-    starts = starts or problem.task.solver["starts"]
-    seed = problem.task.solver["seed"] if seed is None else seed
+    starts = _checks.count(problem.task.solver["starts"] if starts is None else starts, "starts")
+    seed = _checks.seed(problem.task.solver["seed"] if seed is None else seed, "seed")
+    workers = _checks.count(workers, "workers")
     jobs = [(problem, seed + k, k) for k in range(starts)]
     if workers <= 1:
         results = []

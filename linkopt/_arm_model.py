@@ -170,7 +170,10 @@ def tool_rotation(arm: Arm, theta, d) -> Float[Array, "3 3"]:
 
 
 def _definition(arm_name: str, modules: tuple[Module, ...], d: np.ndarray, length_scale: float | None) -> dict:
-    """The mechanism-file dictionary of the arm at design ``d`` (rest pose θ = 0)."""
+    """The mechanism-file dictionary of the arm at design ``d`` (rest pose θ = 0).
+
+    ``units = "m"``: arm task files are in metres (and kg, N·m; see :mod:`linkopt._arm_task`),
+    which the task's gravity and torque limit assume, so the arm's lengths are too."""
     ends, joints = chain(modules, jnp.zeros(sum(m.kind == "joint" for m in modules)), jnp.asarray(d, dtype=jnp.float64))
     ends = [np.asarray(p) for _, p in ends]
     frames = [(np.asarray(q), np.asarray(p)) for q, p in joints]

@@ -42,14 +42,12 @@ def _draw_obstacle(ax, obstacle: Obstacle, limits) -> None:
     style = {"color": "0.45", "linewidth": 0.8}
     if obstacle.kind == "box":
         lo, hi = limits
-        center = np.clip(obstacle.center, lo, hi)  # huge boxes (the ground) clipped to the view
-        half = 0.5 * np.asarray(obstacle.size)
+        half = 0.5 * np.asarray(obstacle.size)  # huge boxes (the ground) clipped to the view
         low = np.maximum(np.asarray(obstacle.center) - half, lo)
         high = np.minimum(np.asarray(obstacle.center) + half, hi)
         if np.all(high > low):
             for a, b in _box_edges(0.5 * (low + high), high - low):
                 ax.plot(*zip(a, b), **style)
-        del center
     elif obstacle.kind in ("sphere", "capsule"):
         u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 16), np.linspace(0, np.pi, 9))
         ball = np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)], axis=-1) * obstacle.radius

@@ -51,8 +51,8 @@ import numpy as np
 
 from ._arm_model import LENGTH_SLOTS, SLOTS, Arm, Module, make_arm
 from ._errors import MechanismFileError
-from ._loader import _Reader
-from ._sdf import Obstacle
+from ._loader import _parse_text, _Reader
+from ._sdf import Obstacle, load_mesh
 
 TOP_LEVEL = {"task", "modules", "targets", "obstacles", "workspace", "weights", "tolerances", "solver"}
 WEIGHTS = {"path": 500.0, "joints": 200.0, "length": 1.0, "torque": 20.0, "obstacle": 5000.0}
@@ -117,7 +117,7 @@ def _read_modules(rd: _Reader, data: dict) -> tuple[tuple[Module, ...], list, li
     for k, item in enumerate(items):
         where = f"modules[{k}]"
         kind = item.get("type")
-        if kind not in SLOTS:
+        if not isinstance(kind, str) or kind not in SLOTS:
             raise rd.fail(f"{where}.type", f"unknown module type {kind!r}; expected one of {list(SLOTS)}")
         needs_mass = kind in ("joint", "link", "tool")
         rd.table(item, "modules", where, {"type", "name", "mass", *SLOTS[kind]}, {"type"} | ({"mass"} if needs_mass else set()))
@@ -173,7 +173,7 @@ def _read_obstacles(rd: _Reader, data: dict, base: Path) -> tuple[Obstacle, ...]
     for k, item in enumerate(rd.entries(data, "obstacles", required=False)):
         where = f"obstacles[{k}]"
         kind = item.get("type")
-        if kind not in OBSTACLE_FIELDS:
+        if not isinstance(kind, str) or kind not in OBSTACLE_FIELDS:
             raise rd.fail(f"{where}.type", f"unknown obstacle type {kind!r}; expected one of {list(OBSTACLE_FIELDS)}")
         required, optional = OBSTACLE_FIELDS[kind]
         rd.table(item, "obstacles", where, {"type"} | required | optional, {"type"} | required)
@@ -190,6 +190,10 @@ def _read_obstacles(rd: _Reader, data: dict, base: Path) -> tuple[Obstacle, ...]
             path = base / rd.string(item, "path", where)
             if not path.is_file():
                 raise rd.fail(f"{where}.path", f"mesh file {str(path)!r} not found")
+            try:
+                load_mesh(str(path))
+            except ValueError as err:
+                raise rd.fail(f"{where}.path", str(err)) from None
             args["path"] = str(path)
         obstacles.append(Obstacle(**args))
     return tuple(obstacles)
@@ -204,7 +208,8 @@ def _options(rd: _Reader, data: dict, key: str, defaults: dict, integer: bool = 
     for name in table:
         value = rd.number(table, name, f"[{key}]")
         if value < 0 or (integer and (value != int(value) or (name != "seed" and value < 1))):
-            raise rd.fail(f"[{key}].{name}", f"expected a {'positive integer' if integer else 'number >= 0'}, got {table[name]!r}")
+            what = "number >= 0" if not integer else "non-negative integer" if name == "seed" else "positive integer"
+            raise rd.fail(f"[{key}].{name}", f"expected a {what}, got {table[name]!r}")
         out[name] = int(value) if integer else value
     return out
 
@@ -214,6 +219,8 @@ def _read_workspace(rd: _Reader, data: dict, obstacles) -> tuple:
         if obstacles:
             raise rd.fail("[workspace]", "missing table; obstacles need the voxel grid's lower and upper corners")
         return None, 0.02, 0.04
+    if not isinstance(data["workspace"], dict):
+        raise rd.fail("[workspace]", f"expected a table {{lower, upper, voxel?, clearance?}}, got {data['workspace']!r}")
     table = rd.table(data["workspace"], "workspace", "[workspace]", {"lower", "upper", "voxel", "clearance"}, {"lower", "upper"})
     lower, upper = rd.vector(table, "lower", "[workspace]"), rd.vector(table, "upper", "[workspace]")
     if np.any(lower >= upper):
@@ -249,15 +256,7 @@ def parse_task(data: dict, source: str, base: Path = Path(".")) -> Task:
 def load_task(path: str | Path) -> Task:
     """Read and validate an arm task file."""
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise MechanismFileError(str(path), "", "file not found") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise MechanismFileError(str(path), "", f"cannot read file ({err})") from None
-    except tomllib.TOMLDecodeError as err:
-        raise MechanismFileError(str(path), "", f"invalid TOML: {err}") from None
-    return parse_task(data, str(path), path.parent)
+    return parse_task(_parse_text(path), str(path), path.parent)
 
 
 def loads_task(text: str, source: str = "<string>") -> Task:

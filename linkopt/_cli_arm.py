@@ -6,6 +6,10 @@
 ``torques.csv`` (static torques per waypoint), ``constraints.json`` (every constraint
 value ``g``, ≤ 0 is satisfied), ``summary.json`` and the figures (``arm.png``, and for
 ``simplify`` ``elimination.png``). Progress lines go to stderr.
+
+Exit status: 0 when the returned arm is feasible (``design``: the best start;
+``simplify``: the smallest feasible stage), 1 when it is not (the files are still
+written), 2 on bad input (one ``linkopt: error: ...`` line on stderr).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _arm_design as nlp
+from . import _checks
 from ._arm_model import mechanism_definition
 from ._writer import dumps
 
@@ -64,12 +69,22 @@ def write_solution(problem: nlp.Problem, solution: nlp.ArmSolution, out: Path, p
     }
 
 
+def _check_arguments(args) -> None:
+    if args.starts is not None:
+        _checks.count(args.starts, "--starts")
+    if args.seed is not None:
+        _checks.seed(args.seed, "--seed")
+    _checks.count(args.workers, "--workers")
+    if hasattr(args, "min_joints"):
+        _checks.count(args.min_joints, "--min-joints")
+
+
 def _solve(args):
     from ._arm_task import load_task
 
+    _check_arguments(args)
     task = load_task(args.task)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = _checks.output_directory(args.out)
     problem = nlp.prepare(task)
     print(f"{task.name}: {task.arm.num_joints} joints, {task.arm.num_design} design parameters, {len(task.targets)} targets, {problem.num_waypoints} waypoints", file=sys.stderr, flush=True)
     started = time.perf_counter()

@@ -5,6 +5,10 @@ values, residual and manipulability measured on the engine's Mechanism), ``DIR/a
 (the equivalent mechanism file, accepted by ``linkopt check`` / ``fk``) and
 ``DIR/manipulability.png`` (the arm at a few targets with the point cloud). Progress
 lines go to stderr; the summary to stdout.
+
+Exit status: 0 when every target is reached (residual on the engine's mechanism within
+the reach tolerance, 1e-3), 1 when some are not or an engine FK solve fails (the files
+are still written), 2 on bad input (one ``linkopt: error: ...`` line on stderr).
 """
 
 from __future__ import annotations
@@ -16,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _dh
-from ._dh_synthesis import DHSynthesis, DHSynthesisSettings, engine_report, rest_configuration, synthesize_dh
+from . import _checks, _dh
+from ._dh_synthesis import DHSynthesis, DHSynthesisSettings, configurations, engine_report, rest_configuration, synthesize_dh
 from ._errors import InputError
 
 CONVENTION = "A_i = Rot_z(theta_i) Trans_z(d_i) Trans_x(a_i) Rot_x(alpha_i) (standard, distal DH); T = A_1 ... A_N; tip = origin of frame N"
@@ -59,10 +63,11 @@ def _numbers(cells: list[str]) -> list[float] | None:
 
 
 def _joints_argument(text: str) -> str | int:
+    """``--joints``: an R/P string or a number of joints, checked before any work."""
     stripped = text.strip()
-    if stripped.isdigit():
-        return int(stripped)
-    return _dh.check_joint_types(stripped, "--joints")
+    joints = int(stripped) if stripped.isdigit() else stripped
+    configurations(joints, "--joints")
+    return joints if isinstance(joints, int) else joints.upper()
 
 
 def _payload(synthesis: DHSynthesis, report: dict, results: dict, settings: DHSynthesisSettings) -> dict:
@@ -146,11 +151,13 @@ def _progress(types: str, synthesis: DHSynthesis) -> None:
 
 
 def run(args) -> int:
+    _checks.seed(args.seed, "--seed")
+    _checks.count(args.starts, "--starts")
+    _checks.count(args.iterations, "--iterations")
     points = read_points(args.points)
     joints = _joints_argument(args.joints)
     settings = DHSynthesisSettings(precision=args.precision, size_damping=args.size_damping, seed=args.seed, starts=args.starts, max_iterations=args.iterations)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = _checks.output_directory(args.out)
     print(f"linkopt arm manipulability: {len(points)} points, joints {joints}, ε = {settings.precision:g}, ξ = {settings.size_damping:g}, {settings.starts} starts", file=sys.stderr, flush=True)
     best, results = synthesize_dh(points, joints, settings, progress=_progress)
     print(f"  measuring {best.types} on the engine's mechanism ...", file=sys.stderr, flush=True)
@@ -165,7 +172,7 @@ def run(args) -> int:
     print(f"wrote {out / 'dh.json'}, {out / 'arm.toml'}, {out / 'manipulability.png'}")
     if s["reached"] < s["targets"]:
         print(f"linkopt: warning: {s['targets'] - s['reached']} target(s) not reached within {settings.reach_tolerance:g} (a {len(best.types)}-joint arm may not reach them at all)", file=sys.stderr)
-    return 0 if bool(report["converged"].all()) else 1
+    return 0 if bool(report["converged"].all()) and s["reached"] == s["targets"] else 1
 
 
 def register(arm_subparsers) -> None:

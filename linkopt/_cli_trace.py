@@ -4,16 +4,22 @@ Writes ``DIR/result.json`` (design, per-primitive critical states and joint-angl
 trajectories, verification figures, every NLP attempt), ``DIR/arm.toml`` (the arm as a
 mechanism file that ``linkopt check`` accepts), ``DIR/<task>_task.png``,
 ``<task>_solution.png``, ``<task>_swept.png``, ``<task>.gif`` and, with
-``--discretised N``, the comparison with an N-point discretisation. Progress goes to
-stderr; exit status 0 with a verified design, 1 when none was found, 2 on bad input.
+``--discretised N``, the comparison with an N-point discretisation. ``<task>`` is the
+task's name with every character other than letters, digits, ``.``, ``_`` and ``-``
+replaced by ``_`` (leading dots dropped). When no design is found only ``result.json`` and ``<task>_task.png``
+(the task alone) are written, plus the discretised comparison if one was asked for and
+found. Progress goes to stderr; exit status 0 with a verified design, 1 when none was
+found, 2 on bad input.
 """
 
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 
+from . import _checks
 from ._errors import InputError
 
 
@@ -40,18 +46,16 @@ def run(args) -> int:
     from ._trace_synthesis import TraceSettings, synthesize
     from ._trace_task import load_task
 
-    if args.restarts < 1:
-        raise InputError(f"--restarts: expected a positive integer, got {args.restarts}")
-    if args.best_of < 1:
-        raise InputError(f"--best-of: expected a positive integer, got {args.best_of}")
+    _checks.seed(args.seed, "--seed")
+    _checks.count(args.restarts, "--restarts")
+    _checks.count(args.best_of, "--best-of")
     if args.discretised < 0 or args.discretised == 1:
         raise InputError(f"--discretised: expected 0 (off) or at least 2 points, got {args.discretised}")
     task = load_task(args.task)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = _checks.output_directory(args.out)
     result = synthesize(task, seed=args.seed, settings=TraceSettings(restarts=args.restarts, best_of=args.best_of), progress=_say)
     payload = result_dict(result)
-    figures = _figures(task, result, out, not args.no_gif) if result.success else []
+    figures = _figures(task, result, out, not args.no_gif)
     if args.discretised:
         payload["discretised"] = _discretised(task, args, out, figures)
     payload["figures"] = figures
@@ -63,25 +67,34 @@ def run(args) -> int:
     return 0 if result.success else 1
 
 
+def file_stem(name: str) -> str:
+    """The task name made safe as a file-name stem (module docstring)."""
+    return re.sub(r"[^A-Za-z0-9._-]", "_", name).lstrip(".") or "task"
+
+
 def _figures(task, result, out: Path, gif: bool) -> list[str]:
+    """The task figure always; the solution, swept-area figures and GIF with a design."""
     import matplotlib.pyplot as plt
 
     from . import _trace_plots as tp
 
-    names = []
+    stem, names = file_stem(task.name), []
     fig, ax = plt.subplots(figsize=(6, 6))
     tp.draw_task(ax, task)
     tp._limits(ax, task, result.design)
     ax.set_title(f"task {task.name}")
-    for name, figure in (("task", fig),
-                         ("solution", tp.solution_figure(task, result.design, result.verification)),
-                         ("swept", tp.swept_figure(task, result.design, result.verification, result.swept))):
-        figure.savefig(out / f"{task.name}_{name}.png", dpi=110, bbox_inches="tight")
+    figures = [("task", lambda: fig)]
+    if result.success:
+        figures += [("solution", lambda: tp.solution_figure(task, result.design, result.verification)),
+                    ("swept", lambda: tp.swept_figure(task, result.design, result.verification, result.swept))]
+    for name, make in figures:
+        figure = make()
+        figure.savefig(out / f"{stem}_{name}.png", dpi=110, bbox_inches="tight")
         plt.close(figure)
-        names.append(f"{task.name}_{name}.png")
-    if gif:
-        tp.write_gif(out / f"{task.name}.gif", task, result.design, result.verification)
-        names.append(f"{task.name}.gif")
+        names.append(f"{stem}_{name}.png")
+    if gif and result.success:
+        tp.write_gif(out / f"{stem}.gif", task, result.design, result.verification)
+        names.append(f"{stem}.gif")
     return names
 
 
@@ -98,9 +111,9 @@ def _discretised(task, args, out: Path, figures: list[str]) -> dict:
         return {"points": args.discretised, "found": False}
     cmp = compare(task, design, args.discretised)
     fig = tp.discretised_figure(task, cmp)
-    fig.savefig(out / f"{task.name}_discretised.png", dpi=110, bbox_inches="tight")
+    fig.savefig(out / f"{file_stem(task.name)}_discretised.png", dpi=110, bbox_inches="tight")
     plt.close(fig)
-    figures.append(f"{task.name}_discretised.png")
+    figures.append(f"{file_stem(task.name)}_discretised.png")
     return {"points": args.discretised, "found": True, **design_dict(design), "max_excursion": cmp.excursion,
             "fraction_outside": cmp.fraction_outside, "continuous_verification_passed": cmp.verification.passed,
             "continuous_verification_failures": cmp.verification.failures[:10]}

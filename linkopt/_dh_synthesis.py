@@ -36,7 +36,9 @@ Choices where the paper is vague (stated here, as the project asks):
   polished by damped Gauss–Newton on ``D_i`` with ``K`` fixed. This is the paper's own
   remedy ("by increasing ε one can increase the precision"), automated.
 * Joint-type enumeration (Sec. V): for an integer ``N`` all ``2^N`` R/P strings are
-  synthesised and the one with the highest mean manipulability over the targets wins.
+  synthesised (for ``N > 3`` only those with at least ``N - 3`` R joints, which the
+  engine's mechanism file needs: :func:`has_engine_model`) and the one with the highest
+  mean manipulability over the targets wins.
   As in the paper, w mixes units across joint types (length per rad for R, length per
   length for P) and prismatic travel is not part of ``L`` (eq. 9 counts constant offsets
   only), so the heuristic favours prismatic joints when ξ is large; we keep it as given.
@@ -56,7 +58,7 @@ import scipy.optimize
 from jaxtyping import Array, Float
 from threadpoolctl import threadpool_limits
 
-from . import _dh
+from . import _checks, _dh
 from ._errors import InputError
 
 _SMOOTH_ABS = 1e-4  # δ of the smoothed |x| in L, relative to the task scale
@@ -234,6 +236,7 @@ def _check_settings(settings: DHSynthesisSettings) -> None:
             raise InputError(f"synthesis settings: {name}: expected a finite {'positive' if positive else 'non-negative'} number, got {value!r}")
     if settings.starts < 1 or settings.max_iterations < 1:
         raise InputError(f"synthesis settings: starts and max_iterations must be at least 1, got {settings.starts} and {settings.max_iterations}")
+    _checks.seed(settings.seed, "synthesis settings: seed")
 
 
 def _reach(types: str, x: np.ndarray, targets: np.ndarray, settings: DHSynthesisSettings) -> np.ndarray:
@@ -282,17 +285,36 @@ def all_configurations(n: int) -> list[str]:
     return ["".join(c) for c in itertools.product("PR", repeat=int(n))]
 
 
+def has_engine_model(types: str) -> bool:
+    """Whether :func:`engine_report` can build the arm's mechanism file: an ``N``-joint
+    arm with ``N > 3`` needs ``N - 3`` revolute joints whose angles complete the outputs
+    (:func:`linkopt._dh.mechanism_definition`)."""
+    return types.count("R") >= len(types) - 3
+
+
+def configurations(joints: str | int, where: str = "joints") -> list[str]:
+    """The R/P strings ``joints`` asks for: one string, or for a number ``N`` those of the
+    ``2^N`` that have an engine model (:func:`has_engine_model`; all of them for N <= 3).
+    A given string without an engine model is an :class:`InputError`, before any work."""
+    if isinstance(joints, str) and joints.strip().isdigit():
+        joints = int(joints.strip())
+    if not isinstance(joints, str):
+        return [t for t in all_configurations(joints) if has_engine_model(t)]
+    types = _dh.check_joint_types(joints, where)
+    if not has_engine_model(types):
+        raise InputError(f"{where}: {types!r}: a {len(types)}-joint arm needs at least {len(types) - 3} revolute joints (R) for its mechanism file, it has {types.count('R')}")
+    return [types]
+
+
 def synthesize_dh(targets, joints: str | int, settings: DHSynthesisSettings = DHSynthesisSettings(), progress=None) -> tuple[DHSynthesis, dict[str, DHSynthesis]]:
-    """Synthesise ``joints`` (an R/P string, or a number N: all 2^N strings, keep the one
-    with the highest mean manipulability). Returns ``(best, every synthesis by string)``.
+    """Synthesise ``joints`` (an R/P string, or a number N: all 2^N strings that have an
+    engine model, see :func:`configurations`; keep the one with the highest mean
+    manipulability). Returns ``(best, every synthesis by string)``.
 
     ``progress(types, synthesis)`` is called after each configuration (the CLI prints).
     """
-    if isinstance(joints, str) and joints.strip().isdigit():
-        joints = int(joints.strip())
-    configs = all_configurations(joints) if not isinstance(joints, str) else [_dh.check_joint_types(joints, "joints")]
     results = {}
-    for types in configs:
+    for types in configurations(joints):
         results[types] = synthesize_config(types, targets, settings)
         if progress is not None:
             progress(types, results[types])

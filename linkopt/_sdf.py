@@ -21,7 +21,6 @@ both the configurations and the design.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import NamedTuple
 
 import jax.numpy as jnp
@@ -78,14 +77,29 @@ def capsule_distance(points: np.ndarray, a, b, radius: float) -> np.ndarray:
     return np.linalg.norm(points - (a + t[:, None] * ab), axis=-1) - radius
 
 
-def _mesh_distance(obstacle: Obstacle, grid_points: np.ndarray, shape, spacing: float) -> np.ndarray:
+def load_mesh(path: str):
+    """The triangle mesh in ``path`` (``trimesh.Trimesh``); ``ValueError`` with a one-line
+    reason when the file cannot be read as a non-empty mesh."""
     import trimesh  # heavy import, only for mesh obstacles
 
-    mesh = trimesh.load(obstacle.path, force="mesh")
+    try:
+        mesh = trimesh.load(path, force="mesh")
+    except Exception as err:  # trimesh raises many kinds on corrupt or unknown files
+        raise ValueError(f"cannot read {str(path)!r} as a mesh ({type(err).__name__}: {str(err).splitlines()[0] if str(err) else 'no detail'})") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise ValueError(f"{str(path)!r} holds no triangle mesh (no faces)")
+    return mesh
+
+
+def _mesh_distance(obstacle: Obstacle, grid_points: np.ndarray, shape, spacing: float) -> np.ndarray:
+    mesh = load_mesh(obstacle.path)
     mesh.apply_scale(obstacle.scale)
     mesh.apply_translation(obstacle.center)
     voxels = mesh.voxelized(spacing / 2.0).fill()
     inside = voxels.is_filled(grid_points).reshape(shape)
+    if not inside.any():  # the mesh misses the grid: distance to its bounding box (a lower bound)
+        low, high = mesh.bounds
+        return box_distance(grid_points, 0.5 * (low + high), high - low)
     outside = distance_transform_edt(~inside) * spacing
     interior = distance_transform_edt(inside) * spacing
     return np.where(inside, -(interior - 0.5 * spacing), outside - 0.5 * spacing).ravel()
@@ -108,19 +122,27 @@ def grid_shape(lower, upper, spacing: float) -> tuple[int, int, int]:
     return tuple(int(np.ceil(s / spacing)) + 1 for s in span)
 
 
-def build_field(obstacles: tuple[Obstacle, ...], lower, upper, spacing: float, empty: float = 1.0) -> DistanceField:
-    """The SDF of ``obstacles`` on the voxel grid over ``[lower, upper]`` (``empty`` where
-    there is no obstacle at all)."""
+def build_field(obstacles: tuple[Obstacle, ...], lower, upper, spacing: float, empty: float | None = None) -> DistanceField:
+    """The SDF of ``obstacles`` on the voxel grid over ``[lower, upper]``.
+
+    With no obstacle at all every value is ``empty`` (default: the grid's diagonal, a
+    distance no point of the grid is nearer to an obstacle than, in the task's units).
+    The obstacles' distances are not capped.
+    """
     origin = np.asarray(lower, dtype=float)
     shape = grid_shape(lower, upper, spacing)
     axes = [origin[k] + spacing * np.arange(shape[k]) for k in range(3)]
     points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    values = np.full(points.shape[0], float(empty))
+    values = None
     for obstacle in obstacles:
         if obstacle.kind == "mesh":
-            values = np.minimum(values, _mesh_distance(obstacle, points, shape, spacing))
+            distance = _mesh_distance(obstacle, points, shape, spacing)
         else:
-            values = np.minimum(values, obstacle_distance(obstacle, points))
+            distance = obstacle_distance(obstacle, points)
+        values = distance if values is None else np.minimum(values, distance)
+    if values is None:
+        diagonal = float(np.linalg.norm(np.asarray(upper, float) - origin))
+        values = np.full(points.shape[0], diagonal if empty is None else float(empty))
     return DistanceField(origin, float(spacing), values.reshape(shape))
 
 

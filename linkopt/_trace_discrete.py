@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Float
 
+from . import _checks
 from . import _trace_geometry as geo
 from ._trace_synthesis import TraceSettings, _Problem, initial_guess, solve_nlp
 from ._trace_task import TraceTask
@@ -75,7 +76,7 @@ def _point_problem(task: TraceTask, pts: np.ndarray) -> _Problem:
 
 def discretised_design(task: TraceTask, n: int = 25, seed: int = 0, restarts: int = 6) -> PlanarArm | None:
     """Shortest 2-link arm found that reaches the ``n`` points collision-free (see module)."""
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(_checks.seed(seed))
     problem = _point_problem(task, equidistant_points(task, n))
     settings = TraceSettings()
     best = None

@@ -48,6 +48,7 @@ import numpy as np
 import scipy.optimize
 from jaxtyping import Array, Float
 
+from . import _checks
 from . import _trace_geometry as geo
 from ._trace_swept import signed_distance, swept_support
 from ._trace_task import TraceTask
@@ -260,8 +261,8 @@ def synthesize(task: TraceTask, seed: int = 0, settings: TraceSettings = TraceSe
     first stage that yields a verified design ends the search; within it the shortest
     of the first ``settings.best_of`` verified designs is returned (default 1: the
     first, which is the paper's feasibility-first rule). ``progress`` receives one line
-    per NLP solve."""
-    rng = np.random.default_rng(seed)
+    per NLP solve. ``seed`` must be a non-negative integer (else :class:`InputError`)."""
+    rng = np.random.default_rng(_checks.seed(seed))
     start, attempts = time.perf_counter(), []
     say = progress or (lambda _msg: None)
     for n in settings.links:

@@ -57,6 +57,7 @@ import numpy as np
 from jaxtyping import Float
 
 from ._errors import MechanismFileError
+from ._loader import _parse_text
 
 KINDS = ("line", "arc", "circle")
 FIELDS = {
@@ -166,20 +167,21 @@ class _Fields:
 def load_task(path: str | Path) -> TraceTask:
     """Read and validate a task file; raises :class:`MechanismFileError` on bad input."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise MechanismFileError(str(path), "", f"cannot read task file ({err.strerror})") from None
-    return loads_task(text, str(path))
+    return parse_task(_parse_text(path), str(path))
 
 
 def loads_task(text: str, source: str = "<string>") -> TraceTask:
     """Parse task TOML ``text``; ``source`` names it in error messages."""
-    rd = _Fields(source)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
-        raise rd.fail("", f"malformed TOML: {err}") from None
+        raise MechanismFileError(source, "", f"invalid TOML: {err}") from None
+    return parse_task(data, source)
+
+
+def parse_task(data: dict, source: str) -> TraceTask:
+    """Validate parsed task TOML (as :func:`loads_task`)."""
+    rd = _Fields(source)
     unknown = sorted(set(data) - TOP_LEVEL)
     if unknown:
         raise rd.fail(unknown[0], f"unknown table; expected one of {sorted(TOP_LEVEL)}")

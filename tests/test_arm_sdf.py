@@ -78,3 +78,16 @@ def test_chomp_cost_is_smooth_and_vanishes_beyond_clearance():
     assert float(jnp.max(jnp.abs(jnp.diff(slope)))) < 1e-2
     assert float(jnp.max(cost[d > eps])) == 0.0
     np.testing.assert_allclose(slope[d < 0], -1.0)
+
+
+def test_millimetre_task_far_from_obstacles_has_no_obstacle_cost():
+    """Regression: the field was capped at 1 length unit, so in a task in mm every point
+    was inside the CHOMP penalty band (clearance 40 mm)."""
+    ball = Obstacle("sphere", center=(0.0, 0.0, 0.0), radius=50.0)
+    field = build_field((ball,), (-500.0,) * 3, (500.0,) * 3, 20.0)
+    far = np.array([[400.0, 0.0, 0.0], [0.0, -300.0, 300.0], [150.0, 150.0, -150.0]])
+    distance = field_distance(field, jnp.asarray(far))
+    np.testing.assert_allclose(np.asarray(distance), sphere_distance(far, ball.center, ball.radius), atol=5.0)
+    assert float(jnp.sum(chomp_cost(distance, 40.0))) == 0.0
+    empty = build_field((), (-500.0,) * 3, (500.0,) * 3, 100.0)
+    assert float(jnp.sum(chomp_cost(field_distance(empty, jnp.asarray(far)), 40.0))) == 0.0

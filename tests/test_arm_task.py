@@ -69,6 +69,10 @@ def test_shipped_tasks_load(name):
         ("[[targets]]", "[[obstacles]]\ntype = 'cone'\n[[targets]]", "obstacles[0].type: unknown obstacle type 'cone'"),
         ("[[targets]]", "[weights]\npath = -3\n[[targets]]", "[weights].path: expected a number >= 0"),
         ("[[targets]]", "[solver]\nstarts = 0.5\n[[targets]]", "[solver].starts: expected a positive integer"),
+        ("[[targets]]", "[solver]\nseed = -1\n[[targets]]", "[solver].seed: expected a non-negative integer"),
+        ('type = "link"', 'type = ["link"]', "modules[2].type: unknown module type ['link']"),
+        ("[[targets]]", "[[obstacles]]\ntype = ['box']\n[[targets]]", "obstacles[0].type: unknown obstacle type ['box']"),
+        ("[task]", "workspace = 1\n[task]", "[workspace]: expected a table"),
     ],
 )
 def test_bad_fields_name_file_and_field(old, new, where):
@@ -86,3 +90,22 @@ def test_missing_file_and_bad_toml(tmp_path):
     bad.write_text("[task\n")
     with pytest.raises(MechanismFileError, match="bad.toml: invalid TOML"):
         load_task(bad)
+
+
+def test_non_utf8_file_is_one_line(tmp_path):
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(GOOD.replace('"tiny"', '"caf\xe9"').encode("latin-1"))
+    with pytest.raises(MechanismFileError, match="latin1.toml: cannot read file") as err:
+        load_task(path)
+    assert "\n" not in str(err.value)
+
+
+def test_corrupt_mesh_obstacle_is_rejected_while_loading(tmp_path):
+    (tmp_path / "rock.stl").write_bytes(b"solid rock\nthis is not an STL file\n\x00\x01")
+    mesh = "[[obstacles]]\ntype = 'mesh'\npath = 'rock.stl'\n[workspace]\nlower = [-1, -1, -1]\nupper = [1, 1, 1]\n"
+    path = tmp_path / "task.toml"
+    path.write_text(GOOD + mesh)
+    with pytest.raises(MechanismFileError) as err:
+        load_task(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}: obstacles[0].path: ") and "\n" not in message

@@ -202,3 +202,15 @@ def test_bad_input_gives_one_line_errors(tmp_path, capsys):
         _dh.table_from_arrays("RRR", [1, 1, 1], [0, 0], [0, 0, 0])
     with pytest.raises(linkopt.InputError, match="precision"):
         syn.synthesize_config("RR", TASK[:2], syn.DHSynthesisSettings(precision=-1.0))
+
+
+def test_enumeration_skips_strings_without_an_engine_model():
+    """Regression: ``--joints 4`` failed in engine_report after the whole enumeration
+    when the best string had fewer than N - 3 revolute joints."""
+    four = syn.configurations(4)
+    assert "PPPP" not in four and len(four) == 15 and all(t.count("R") >= 1 for t in four)
+    assert syn.configurations(3) == syn.all_configurations(3)
+    with pytest.raises(linkopt.InputError, match="'PPPPR': a 5-joint arm needs at least 2 revolute"):
+        syn.configurations("PPPPR")
+    with pytest.raises(linkopt.InputError, match="seed: expected a non-negative integer"):
+        syn.synthesize_config("RR", TASK[:2], syn.DHSynthesisSettings(seed=-1))

@@ -171,7 +171,7 @@ def test_verifier_rejects_unreachable_and_self_colliding_designs():
 # --- task files ------------------------------------------------------------------------
 
 @pytest.mark.parametrize("text, field, words", [
-    (HEAD + "[[primitives]\n", "", "malformed TOML"),
+    (HEAD + "[[primitives]\n", "", "invalid TOML"),
     (LINE, "task", "missing required table"),
     (HEAD + LINE.replace('"line"', '"spline"'), "primitives[0].type", "unknown primitive type"),
     (HEAD + LINE + LINE, "primitives[1].start", "must be connected"),
@@ -200,6 +200,28 @@ def test_cli_reports_a_bad_task_file_with_status_2(tmp_path, capsys):
     assert main(["arm", "trace", str(path), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("linkopt: error: ") and "primitives[0].type" in err and len(err.splitlines()) == 1
+
+
+def test_non_utf8_task_file_is_one_line_error(tmp_path):
+    path = tmp_path / "latin1.toml"
+    path.write_bytes((HEAD + LINE).replace("[task]", "# caf\xe9\n[task]").encode("latin-1"))
+    with pytest.raises(MechanismFileError, match="latin1.toml: cannot read file") as err:
+        load_task(path)
+    assert "\n" not in str(err.value)
+
+
+def test_cli_without_a_design_draws_the_task_under_a_safe_name(tmp_path, monkeypatch, capsys):
+    """No design found: exit 1, result.json and the task figure only; the task name's
+    '/' does not reach the file name."""
+    import linkopt._trace_synthesis as synthesis
+    from linkopt.cli import main
+
+    path = tmp_path / "task.toml"
+    path.write_text((HEAD + LINE).replace('name = "', 'name = "a/', 1))
+    monkeypatch.setattr(synthesis, "synthesize", lambda task, **_: TraceResult(task, None, None, None, 0.0, []))
+    assert main(["arm", "trace", str(path), "--out", str(tmp_path / "out")]) == 1
+    written = sorted(p.name for p in (tmp_path / "out").iterdir())
+    assert len(written) == 2 and "result.json" in written and written[0].startswith("a_") and written[0].endswith("_task.png")
 
 
 def test_shipped_tasks_match_the_paper_description():

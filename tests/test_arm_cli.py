@@ -1,0 +1,106 @@
+"""``linkopt arm ...`` on the command line, in-process: ``arm design`` exits 0 exactly when
+the returned arm is feasible (else 1) and writes a ``design.toml`` the loader accepts; bad
+arguments exit 2 with one ``linkopt: error:`` line before any solving."""
+
+import json
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import linkopt
+from linkopt._arm_model import chain
+from linkopt._arm_task import loads_task
+from linkopt._cli_trace import file_stem
+from linkopt.cli import main
+
+ARM = """
+[task]
+name = "cli tiny"
+gravity = [0.0, 0.0, -9.81]
+torque_limit = 9.0
+module_radius = 0.03
+[[modules]]
+type = "base"
+z = { min = 0.0, max = 0.2 }
+[[modules]]
+type = "joint"
+mass = 0.3
+[[modules]]
+type = "link"
+length = { min = 0.1, max = 0.5 }
+twist = 1.5707963267948966
+mass = 0.2
+[[modules]]
+type = "joint"
+mass = 0.3
+[[modules]]
+type = "tool"
+length = 0.2
+mass = 0.1
+[solver]
+starts = 3
+max_iterations = 100
+waypoints_per_target = 2
+"""
+
+
+@pytest.fixture(scope="module")
+def task_file(tmp_path_factory):
+    """The tiny arm with two position targets reached by the design (0.1, 0.3)."""
+    skeleton = loads_task(ARM + "[[targets]]\nposition = [0.0, 0.0, 0.0]\n")
+    text = ARM
+    for theta in ([0.3, -0.5], [-0.4, 0.6]):
+        ends, _ = chain(skeleton.arm.modules, jnp.asarray(theta), jnp.asarray([0.1, 0.3]))
+        text += f"[[targets]]\nposition = {[float(v) for v in ends[-1][1]]}\n"
+    path = tmp_path_factory.mktemp("task") / "tiny.toml"
+    path.write_text(text)
+    return path
+
+
+def test_arm_design_exit_status_follows_feasibility_and_writes_a_loadable_file(task_file, tmp_path, capsys):
+    out = tmp_path / "run"
+    status = main(["arm", "design", str(task_file), "--out", str(out), "--starts", "1"])
+    summary = json.loads((out / "summary.json").read_text())
+    assert status == (0 if summary["feasible"] else 1)
+    assert len(summary["starts"]) == 1  # --starts overrides the task's 3
+    mech = linkopt.load(out / "design.toml")
+    assert mech.num_motors == 2
+    assert "best: start 0" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        (["--seed", "-1"], "--seed: expected a non-negative integer, got -1"),
+        (["--starts", "0"], "--starts: expected a positive integer, got 0"),
+        (["--starts", "-2"], "--starts: expected a positive integer, got -2"),
+        (["--workers", "0"], "--workers: expected a positive integer, got 0"),
+    ],
+)
+def test_arm_design_bad_arguments_exit_2_with_one_line(extra, words, tmp_path, capsys):
+    status = main(["arm", "design", str(tmp_path / "never_read.toml"), "--out", str(tmp_path / "run")] + extra)
+    err = capsys.readouterr().err
+    assert status == 2 and err == f"linkopt: error: {words}\n"
+    assert not (tmp_path / "run").exists()
+
+
+def test_arm_design_out_is_a_file_exits_2(task_file, tmp_path, capsys):
+    clash = tmp_path / "taken"
+    clash.write_text("a file, not a directory")
+    assert main(["arm", "design", str(task_file), "--out", str(clash)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("linkopt: error: --out: cannot create the output directory") and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("command", [["manipulability", "points.csv"], ["trace", "task.toml"]])
+def test_other_arm_commands_reject_a_negative_seed(command, tmp_path, capsys):
+    assert main(["arm", *command, "--out", str(tmp_path / "run"), "--seed", "-1"]) == 2
+    assert capsys.readouterr().err == "linkopt: error: --seed: expected a non-negative integer, got -1\n"
+
+
+def test_trace_file_names_are_safe_whatever_the_task_name():
+    assert file_stem("rose") == "rose"
+    assert file_stem("../a/b c") == "_a_b_c"
+    assert file_stem("..") == "task"
+    assert "/" not in file_stem("x/y") and np.all([c not in file_stem("a:b*?") for c in ":*?"])
