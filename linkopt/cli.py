@@ -258,6 +258,8 @@ def _cmd_optimize(args) -> int:
     for flag in ("particles", "iterations", "workers"):
         if getattr(args, flag) < 1:
             raise InputError(f"--{flag}: expected a positive integer, got {getattr(args, flag)}")
+    if args.seed < 0:
+        raise InputError(f"--seed: expected a non-negative integer, got {args.seed}")
     if not (args.tolerance > 0 and 0 <= args.improvement < 1 and args.patience >= 0):
         raise InputError(f"--tolerance must be > 0, --improvement in [0, 1), --patience >= 0; got {args.tolerance}, {args.improvement}, {args.patience}")
     settings = OptimizerSettings(particles=args.particles, iterations=args.iterations, seed=args.seed, mode=args.mode, tolerance=args.tolerance, patience=args.patience, improvement=args.improvement)

@@ -166,3 +166,15 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(five_ba
     for name, whole, part in zip(ev._fields, expected, split):
         np.testing.assert_allclose(part, whole, rtol=1e-12, atol=1e-14, err_msg=name)
     np.testing.assert_allclose(gradients, expected_gradients, rtol=1e-10, atol=1e-14)
+
+
+@pytest.mark.parametrize("flags", [["--seed", "-1"], ["--particles", "0"], ["--tolerance", "0"], ["--improvement", "1"]])
+def test_optimize_command_rejects_bad_settings_with_one_line(flags, tmp_path, capsys):
+    from linkopt import cli
+
+    from conftest import MECHANISMS
+
+    assert cli.main(["optimize", str(MECHANISMS / "five_bar.toml"), "--out", str(tmp_path / "run"), *flags]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("linkopt: error: --"), err
+    assert not (tmp_path / "run").exists()
