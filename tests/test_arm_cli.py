@@ -4,40 +4,16 @@ arguments exit 2 with one ``linkopt: error:`` line before any solving."""
 
 import json
 
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import linkopt
-from linkopt._arm_model import chain
-from linkopt._arm_task import loads_task
 from linkopt._cli_trace import file_stem
 from linkopt.cli import main
 
-ARM = """
-[task]
-name = "cli tiny"
-gravity = [0.0, 0.0, -9.81]
-torque_limit = 9.0
-module_radius = 0.03
-[[modules]]
-type = "base"
-z = { min = 0.0, max = 0.2 }
-[[modules]]
-type = "joint"
-mass = 0.3
-[[modules]]
-type = "link"
-length = { min = 0.1, max = 0.5 }
-twist = 1.5707963267948966
-mass = 0.2
-[[modules]]
-type = "joint"
-mass = 0.3
-[[modules]]
-type = "tool"
-length = 0.2
-mass = 0.1
+from arm_tasks import TINY_ARM, reached_targets
+
+ARM = TINY_ARM + """
 [solver]
 starts = 3
 max_iterations = 100
@@ -48,11 +24,7 @@ waypoints_per_target = 2
 @pytest.fixture(scope="module")
 def task_file(tmp_path_factory):
     """The tiny arm with two position targets reached by the design (0.1, 0.3)."""
-    skeleton = loads_task(ARM + "[[targets]]\nposition = [0.0, 0.0, 0.0]\n")
-    text = ARM
-    for theta in ([0.3, -0.5], [-0.4, 0.6]):
-        ends, _ = chain(skeleton.arm.modules, jnp.asarray(theta), jnp.asarray([0.1, 0.3]))
-        text += f"[[targets]]\nposition = {[float(v) for v in ends[-1][1]]}\n"
+    text = ARM + reached_targets(ARM, [0.1, 0.3], [[0.3, -0.5], [-0.4, 0.6]])
     path = tmp_path_factory.mktemp("task") / "tiny.toml"
     path.write_text(text)
     return path

@@ -2,39 +2,16 @@
 layout, exact gradients against finite differences, and a multi-start solve that reaches
 targets generated from a known design (so a feasible point exists)."""
 
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import linkopt  # noqa: F401  (float64)
 from linkopt import _arm_design as nlp
-from linkopt._arm_model import _rotation_matrix, chain
 from linkopt._arm_task import loads_task
 
-ARM = """
-[task]
-name = "tiny"
-gravity = [0.0, 0.0, -9.81]
-torque_limit = 9.0
-module_radius = 0.03
-[[modules]]
-type = "base"
-z = { min = 0.0, max = 0.2 }
-[[modules]]
-type = "joint"
-mass = 0.3
-[[modules]]
-type = "link"
-length = { min = 0.1, max = 0.5 }
-twist = 1.5707963267948966
-mass = 0.2
-[[modules]]
-type = "joint"
-mass = 0.3
-[[modules]]
-type = "tool"
-length = 0.2
-mass = 0.1
+from arm_tasks import TINY_ARM, reached_targets
+
+ARM = TINY_ARM + """
 [[obstacles]]
 type = "sphere"
 center = [-0.3, 0.0, 0.1]
@@ -53,13 +30,7 @@ POSES = np.array([[0.3, -0.5], [-0.4, 0.6], [0.9, 0.2]])
 
 def _task():
     """The tiny arm with targets at the tool poses of ``POSES`` for the design ``DESIGN``."""
-    skeleton = loads_task(ARM + "[[targets]]\nposition = [0.0, 0.0, 0.0]\n", "tiny.toml")
-    text = ARM
-    for theta in POSES:
-        ends, _ = chain(skeleton.arm.modules, jnp.asarray(theta), jnp.asarray(DESIGN))
-        q, p = ends[-1]
-        tip_axis = np.asarray(_rotation_matrix(q))[:, 2]
-        text += f"[[targets]]\nposition = {list(map(float, p))}\naxis = {list(map(float, tip_axis))}\n"
+    text = ARM + reached_targets(ARM, DESIGN, POSES, axis=True)
     return loads_task(text, "tiny.toml")
 
 
