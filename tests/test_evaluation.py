@@ -85,12 +85,3 @@ def test_a_design_far_from_singularities_scores_zero():
     ev = evaluate(mech)
     assert float(ev.f_design) < 1e-6
     assert float(np.max(ev.adv_culled)) == 0.0
-
-
-def test_batched_evaluation_matches_single(five_bar, five_bar_evaluation):
-    # four designs: the swarm batch of tests/test_optimizer.py, so one compiled kernel serves both
-    offsets = np.array([[0.0, 0.0, 0.0], [2.0, 3.0, -2.0], [-1.0, 1.0, 1.0], [1.0, -2.0, 0.5]])
-    batch = evaluate(five_bar, five_bar.design.p0 + offsets)
-    assert batch.f_design.shape == (4,)
-    np.testing.assert_allclose(batch.f_design[0], five_bar_evaluation.f_design, rtol=1e-9)
-    assert np.all(np.asarray(batch.regularizer[1:]) > 0) and float(batch.regularizer[0]) == 0.0
