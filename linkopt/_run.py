@@ -60,7 +60,13 @@ def _encode(run: SwarmRun, mech: Mechanism, settings: OptimizerSettings) -> dict
 
 def _decode(data: dict) -> SwarmRun:
     arr = {k: np.asarray(data[k], dtype=float) for k in ("position", "velocity", "pbest_pos", "pbest_cost", "best_pos")}
-    return SwarmRun(data["iteration"], arr["position"], arr["velocity"], arr["pbest_pos"], arr["pbest_cost"], arr["best_pos"], float(data["best_cost"]), data["rng_state"], data["history"], data["stalled"], data["finished"], None if data["result_pos"] is None else np.asarray(data["result_pos"], dtype=float), float(data["result_total"]), data["result_feasible"])
+    return SwarmRun(data["iteration"], arr["position"], arr["velocity"], arr["pbest_pos"], arr["pbest_cost"], arr["best_pos"], float(data["best_cost"]), data["rng_state"], data["history"], data["stalled"], data["finished"], *_decode_result(data))
+
+
+def _decode_result(data: dict) -> tuple:
+    """The returned design's fields; checkpoints written before they existed have none."""
+    position = data.get("result_pos")
+    return (None if position is None else np.asarray(position, dtype=float)), float(data.get("result_total", float("inf"))), bool(data.get("result_feasible", False))
 
 
 def _atomic_write(path: Path, text: str) -> None:
@@ -89,7 +95,8 @@ def load_checkpoint(out: Path, mech: Mechanism, settings: OptimizerSettings) -> 
     if data["mechanism"] != _fingerprint(mech):
         raise InputError(f"{path}: the checkpoint belongs to a different mechanism file; use another --out")
     if data["settings"] != settings.to_dict():
-        changed = sorted(k for k in data["settings"] if data["settings"][k] != settings.to_dict().get(k))
+        now = settings.to_dict()
+        changed = sorted(k for k in set(data["settings"]) | set(now) if data["settings"].get(k) != now.get(k))
         raise InputError(f"{path}: the checkpoint was made with other settings ({', '.join(changed)}); resume with the same flags")
     return _decode(data)
 
