@@ -43,15 +43,13 @@ Every problem raises one :class:`~linkopt.MechanismFileError` naming file and fi
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ._arm_model import LENGTH_SLOTS, SLOTS, Arm, Module, make_arm
-from ._errors import MechanismFileError
-from ._loader import _parse_text, _Reader
+from ._loader import _parse_text, _parse_toml, _Reader
 from ._sdf import Obstacle, load_mesh
 
 TOP_LEVEL = {"task", "modules", "targets", "obstacles", "workspace", "weights", "tolerances", "solver"}
@@ -261,8 +259,4 @@ def load_task(path: str | Path) -> Task:
 
 def loads_task(text: str, source: str = "<string>") -> Task:
     """As :func:`load_task`, from the text of a file."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise MechanismFileError(source, "", f"invalid TOML: {err}") from None
-    return parse_task(data, source)
+    return parse_task(_parse_toml(text, source), source)

@@ -121,6 +121,11 @@ def _parse_text(path: Path) -> dict:
         raise MechanismFileError(source, "", "file not found") from None
     except (OSError, UnicodeDecodeError) as err:
         raise MechanismFileError(source, "", f"cannot read file ({err})") from None
+    return _parse_toml(text, source)
+
+
+def _parse_toml(text: str, source: str) -> dict:
+    """TOML text -> tables; malformed TOML is one :class:`MechanismFileError` line."""
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
@@ -135,11 +140,7 @@ def load(path: str | Path) -> Mechanism:
 
 def loads(text: str, source: str = "<string>") -> Mechanism:
     """As :func:`load`, from the text of a file."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise MechanismFileError(source, "", f"invalid TOML: {err}") from None
-    return build(data, source)
+    return build(_parse_toml(text, source), source)
 
 
 def build(data: dict, source: str, check: bool = True) -> Mechanism:

@@ -49,7 +49,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -57,7 +56,7 @@ import numpy as np
 from jaxtyping import Float
 
 from ._errors import MechanismFileError
-from ._loader import _parse_text
+from ._loader import _parse_text, _parse_toml
 
 KINDS = ("line", "arc", "circle")
 FIELDS = {
@@ -172,11 +171,7 @@ def load_task(path: str | Path) -> TraceTask:
 
 def loads_task(text: str, source: str = "<string>") -> TraceTask:
     """Parse task TOML ``text``; ``source`` names it in error messages."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise MechanismFileError(source, "", f"invalid TOML: {err}") from None
-    return parse_task(data, source)
+    return parse_task(_parse_toml(text, source), source)
 
 
 def parse_task(data: dict, source: str) -> TraceTask:

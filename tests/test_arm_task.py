@@ -7,34 +7,11 @@ import pytest
 from linkopt import MechanismFileError
 from linkopt._arm_task import load_task, loads_task
 
+from arm_tasks import TINY_ARM
+
 ROOT = Path(__file__).resolve().parent.parent
 
-GOOD = """
-[task]
-name = "tiny"
-gravity = [0.0, 0.0, -9.81]
-torque_limit = 9.0
-module_radius = 0.03
-
-[[modules]]
-type = "base"
-z = { min = 0.0, max = 0.2 }
-[[modules]]
-type = "joint"
-mass = 0.3
-[[modules]]
-type = "link"
-length = { min = 0.1, max = 0.5 }
-twist = 1.5707963267948966
-mass = 0.2
-[[modules]]
-type = "joint"
-mass = 0.3
-[[modules]]
-type = "tool"
-length = 0.2
-mass = 0.1
-
+GOOD = TINY_ARM + """
 [[targets]]
 position = [0.3, 0.1, 0.1]
 axis = [1.0, 0.0, 0.0]
