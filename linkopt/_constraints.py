@@ -10,6 +10,8 @@ outputs both Jacobians have the same shape. All inputs are homogenised.
 
 from __future__ import annotations
 
+from functools import partial
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -137,16 +139,19 @@ def _output_rows(mech: Mechanism, geom: Geometry, state, outputs):
     return _combine(mech.num_outputs, [(positional, coords), (angular, angles), (tait_bryan, sequence)])
 
 
+@partial(jax.jit, static_argnums=0)
 def output_values(mech: Mechanism, geom: Geometry, state) -> Float[Array, " K"]:
     """End-effector variables ``b(s)`` (homogenised; rad for angles)."""
     return _output_rows(mech, geom, state, None)
 
 
+@partial(jax.jit, static_argnums=0)
 def output_residual(mech: Mechanism, geom: Geometry, outputs, state) -> Float[Array, " K"]:
     """One row per output: ``b_k(s) - b_k``, angles wrapped to (-π, π]."""
     return _output_rows(mech, geom, state, outputs)
 
 
+@partial(jax.jit, static_argnums=0)
 def fk_residual(mech: Mechanism, geom: Geometry, motors, state) -> Float[Array, " R"]:
     """``C_FK(a, s)``: passive rows then one row per motor."""
     return jnp.concatenate([passive_residual(mech, geom, state), motor_residual(mech, geom, motors, state)])

@@ -28,6 +28,8 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+from functools import partial
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -360,11 +362,13 @@ def linearise(mech: Mechanism, geom: Geometry, kind: str, values, state: Float[A
     return _permute_tail(residual, jacobian, head, order)
 
 
+@partial(jax.jit, static_argnums=(0, 2))
 def state_jacobian(mech: Mechanism, geom: Geometry, kind: str, state: Float[Array, " S"]) -> Float[Array, "m S"]:
     """``∂C_FK/∂s`` (``kind="fk"``) or ``∂C_BK/∂s`` (``"bk"``) at ``state``; targets play no part."""
     return linearise(mech, geom, kind, None, state)[1]
 
 
+@partial(jax.jit, static_argnums=0)
 def stacked_jacobians(mech: Mechanism, geom: Geometry, state: Float[Array, " S"]) -> Float[Array, "2 m S"]:
     """``[∂C_FK/∂s, ∂C_BK/∂s]``, the passive rows computed once (as in ``_singularity``)."""
     x, q = _split(state)
@@ -382,6 +386,7 @@ def stacked_jacobians(mech: Mechanism, geom: Geometry, state: Float[Array, " S"]
 # Normal equations for Levenberg–Marquardt.
 
 
+@partial(jax.jit, static_argnums=(0, 2))
 def normal_equations(mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]):
     """``(C, JᵀJ, JᵀC)`` with ``J = ∂C/∂s``, assembled from ``7 x 7`` body blocks.
 

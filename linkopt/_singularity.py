@@ -86,6 +86,7 @@ def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, "2"]:
     return jnp.sqrt(jnp.sum(image**2, axis=1) + 1e-300)
 
 
+@partial(jax.jit, static_argnums=0)
 def f_sing_value(mech: Mechanism, geom: Geometry, state) -> Float[Array, ""]:
     """Eq. 3 at one state."""
     sigma = sigma_min_pair(mech, geom, state)
