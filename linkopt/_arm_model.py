@@ -192,8 +192,12 @@ def _definition(arm_name: str, modules: tuple[Module, ...], d: np.ndarray, lengt
         "points": [],
         "outputs": [],
     }
-    if length_scale is not None:
-        data["mechanism"]["reference_length"] = float(length_scale)
+    if length_scale is None:  # the arm's span: joint anchors and module ends (the loader's
+        # default uses anchors only, and a 1-joint arm has a single anchor)
+        points = np.array(anchors + ends)
+        span = float(np.max(np.linalg.norm(points[:, None] - points[None], axis=-1)))
+        length_scale = span if span > 1e-9 else 1.0
+    data["mechanism"]["reference_length"] = float(length_scale)
     for k, (q, p) in enumerate(frames):
         axis = np.asarray(_rotation_matrix(jnp.asarray(q)))[:, 2]
         names = ["base" if k == 0 else f"body{k}", f"body{k + 1}"]

@@ -100,3 +100,13 @@ def test_design_jacobian_matches_finite_differences(arm):
     h = 1e-6
     fd = np.stack([(tip(d0.at[i].add(h)) - tip(d0.at[i].add(-h))) / (2 * h) for i in range(d0.size)], axis=1)
     np.testing.assert_allclose(engine, fd, atol=1e-8)
+
+
+def test_one_joint_arm_builds_with_its_span_as_reference_length():
+    """A 1-joint arm has a single joint anchor, so the loader cannot infer a reference length
+    from anchors (joint elimination reaches such arms); the arm supplies its span instead."""
+    fixed = lambda v: (-1, float(v))  # noqa: E731
+    modules = (Module("base", tuple(fixed(v) for v in (0.0, 0.0, 0.3, 0.0, 0.0, 0.0)), 0.0), Module("joint", (), 0.3), Module("link", ((0, 0.4), fixed(0.0), fixed(0.0)), 0.2), Module("tool", (fixed(0.1),), 0.1))
+    arm = make_arm("one", modules, ["l"], [0.4], [0.1], [0.6], [True], 9.0, 0.02)
+    assert arm.num_joints == 1
+    assert arm.mechanism.length_scale == pytest.approx(0.5)  # anchor at the base to the tool's end
