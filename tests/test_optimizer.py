@@ -19,7 +19,9 @@ from linkopt._partial import frozen_objective, partial_gradient
 from linkopt._run import CHECKPOINT, optimize, prepare
 from linkopt._workers import Workers
 
-SMALL = OptimizerSettings(particles=4, iterations=3, seed=7)
+# Seed 0: with 4 particles, 3 iterations lower the swarm's best by more than 5 % for seeds
+# 0-6 and not for seed 7 (measured), which the resume test below relies on.
+SMALL = OptimizerSettings(particles=4, iterations=3, seed=0)
 
 
 @functools.lru_cache(maxsize=None)
