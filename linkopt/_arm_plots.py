@@ -32,15 +32,22 @@ def module_points(arm: Arm, theta, d):
     return jax.vmap(one)(theta)
 
 
-def _box_edges(center, size):
-    c, h = np.asarray(center), 0.5 * np.asarray(size)
-    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h + c
-    return [(corners[a], corners[b]) for a in range(8) for b in range(a + 1, 8) if np.sum(np.abs(corners[a] - corners[b]) > 1e-12) == 1]
+def _box_edges(center, size, orientation=None):
+    unit = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
+    pairs = [(a, b) for a in range(8) for b in range(a + 1, 8) if np.sum(unit[a] != unit[b]) == 1]
+    corners = unit * 0.5 * np.asarray(size)
+    if orientation is not None:
+        corners = corners @ np.asarray(orientation).T
+    corners = corners + np.asarray(center)
+    return [(corners[a], corners[b]) for a, b in pairs]
 
 
 def _draw_obstacle(ax, obstacle: Obstacle, limits) -> None:
     style = {"color": "0.45", "linewidth": 0.8}
-    if obstacle.kind == "box":
+    if obstacle.kind == "box" and obstacle.orientation is not None:
+        for a, b in _box_edges(obstacle.center, obstacle.size, obstacle.orientation):
+            ax.plot(*zip(a, b), **style)
+    elif obstacle.kind == "box":
         lo, hi = limits
         half = 0.5 * np.asarray(obstacle.size)  # huge boxes (the ground) clipped to the view
         low = np.maximum(np.asarray(obstacle.center) - half, lo)
@@ -105,7 +112,8 @@ def plot_stages(stages, path: str | Path) -> Path:
     for k, stage in enumerate(stages):
         ax = fig.add_subplot(1, len(stages), k + 1, projection="3d")
         sol, prob = stage.solution, stage.problem
-        label = f"{prob.arm.num_joints} joints, {'feasible' if sol.feasible else 'infeasible'}"
+        n = prob.arm.num_joints
+        label = f"{n} joint{'s' if n != 1 else ''}, {'feasible' if sol.feasible else 'infeasible'}"
         if stage.elimination is not None:
             label += f"\nmerged {stage.elimination.candidate + 1}+{stage.elimination.candidate + 2}, δ = {stage.elimination.delta:.2g}"
         draw_solution(ax, prob.arm, sol.theta, sol.design, prob.target_position, prob.target_waypoints, prob.target_axis, prob.task.obstacles, label)

@@ -25,8 +25,9 @@ Format (lengths in metres, masses in kg, angles in radians unless named ``..._de
     # approach = { local = [1,0,0], direction = [0,0,-1], angle_deg = 30 }  # tool axis
     #   ``local`` within ``angle_deg`` of the world ``direction`` (Sec. III-E)
 
-    [[obstacles]]             # box {center, size} | sphere {center, radius}
+    [[obstacles]]             # box {center, size, orientation?} | sphere {center, radius}
     type = "box"              # | capsule {a, b, radius} | mesh {path, center?, scale?}
+    #   a box's orientation: rotation matrix (rows) whose columns are its edge directions
 
     [workspace]               # required with obstacles: the voxel grid of the SDF
     lower = [-1, -1, -1]
@@ -56,7 +57,7 @@ TOP_LEVEL = {"task", "modules", "targets", "obstacles", "workspace", "weights", 
 WEIGHTS = {"path": 500.0, "joints": 200.0, "length": 1.0, "torque": 20.0, "obstacle": 5000.0}
 TOLERANCES = {"position": 5e-4, "tip": 1e-3, "rotation": 1e-2}
 SOLVER = {"starts": 8, "seed": 0, "max_iterations": 300, "waypoints_per_target": 4}
-OBSTACLE_FIELDS = {"box": ({"center", "size"}, set()), "sphere": ({"center", "radius"}, set()), "capsule": ({"a", "b", "radius"}, set()), "mesh": ({"path"}, {"center", "scale"})}
+OBSTACLE_FIELDS = {"box": ({"center", "size"}, {"orientation"}), "sphere": ({"center", "radius"}, set()), "capsule": ({"a", "b", "radius"}, set()), "mesh": ({"path"}, {"center", "scale"})}
 
 
 @dataclass(frozen=True)
@@ -184,6 +185,8 @@ def _read_obstacles(rd: _Reader, data: dict, base: Path) -> tuple[Obstacle, ...]
         for key in ("radius", "scale"):
             if key in item:
                 args[key] = rd.positive(item, key, where)
+        if "orientation" in item:
+            args["orientation"] = tuple(tuple(float(v) for v in row) for row in _read_orientation(rd, item["orientation"], f"{where}.orientation"))
         if kind == "mesh":
             path = base / rd.string(item, "path", where)
             if not path.is_file():

@@ -5,8 +5,8 @@ distance field (SDF) is precomputed; the obstacle cost is the CHOMP workspace po
 (Zucker et al. 2013, eq. 21) of the SDF at points along every module, with gradients in
 both the configurations and the design.
 
-* Boxes (axis-aligned; ``size`` = full edge lengths), spheres and capsules get their exact
-  signed distances at the voxel centres. Mesh files are loaded and voxelised with trimesh
+* Boxes (``size`` = full edge lengths, axis-aligned unless an ``orientation`` is given),
+  spheres and capsules get their exact signed distances at the voxel centres. Mesh files are loaded and voxelised with trimesh
   (``voxelized(...).fill()``, which needs no spatial index) and their signed distance is the
   Euclidean distance transform of the occupancy (outside minus inside, half a voxel
   towards the surface), so it is accurate to about one voxel, as in the paper's voxel SDF.
@@ -34,9 +34,10 @@ from scipy.ndimage import distance_transform_edt
 class Obstacle:
     """One obstacle: ``kind`` box | sphere | capsule | mesh, in task length units.
 
-    box: ``center``, ``size``; sphere: ``center``, ``radius``; capsule: segment ``a``-``b``
-    and ``radius``; mesh: ``path`` (any format trimesh reads), scaled by ``scale`` then
-    translated by ``center``.
+    box: ``center``, ``size`` and optional ``orientation`` (a rotation matrix whose columns
+    are the directions of the box's x, y, z edges in the world; ``None``: axis-aligned);
+    sphere: ``center``, ``radius``; capsule: segment ``a``-``b`` and ``radius``; mesh:
+    ``path`` (any format trimesh reads), scaled by ``scale`` then translated by ``center``.
     """
 
     kind: str
@@ -47,6 +48,7 @@ class Obstacle:
     b: tuple[float, float, float] = (0.0, 0.0, 0.0)
     path: str = ""
     scale: float = 1.0
+    orientation: tuple[tuple[float, float, float], ...] | None = None  # (3, 3), rows
 
 
 class DistanceField(NamedTuple):
@@ -57,9 +59,13 @@ class DistanceField(NamedTuple):
     values: np.ndarray  # (nx, ny, nz)
 
 
-def box_distance(points: np.ndarray, center, size) -> np.ndarray:
-    """Exact signed distance to an axis-aligned box, ``(N, 3) -> (N,)``."""
-    q = np.abs(points - np.asarray(center)) - 0.5 * np.asarray(size)
+def box_distance(points: np.ndarray, center, size, orientation=None) -> np.ndarray:
+    """Exact signed distance to a box, ``(N, 3) -> (N,)``; ``orientation`` (columns: the
+    edge directions in the world) rotates it about its centre, ``None`` is axis-aligned."""
+    local = points - np.asarray(center)
+    if orientation is not None:
+        local = local @ np.asarray(orientation)  # world → box frame: Rᵀ (p - c), row-wise
+    q = np.abs(local) - 0.5 * np.asarray(size)
     outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
     return outside + np.minimum(np.max(q, axis=-1), 0.0)
 
@@ -108,7 +114,7 @@ def _mesh_distance(obstacle: Obstacle, grid_points: np.ndarray, shape, spacing: 
 def obstacle_distance(obstacle: Obstacle, points: np.ndarray) -> np.ndarray:
     """Exact signed distance of a primitive obstacle at ``points (N, 3)``."""
     if obstacle.kind == "box":
-        return box_distance(points, obstacle.center, obstacle.size)
+        return box_distance(points, obstacle.center, obstacle.size, obstacle.orientation)
     if obstacle.kind == "sphere":
         return sphere_distance(points, obstacle.center, obstacle.radius)
     if obstacle.kind == "capsule":

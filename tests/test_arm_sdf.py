@@ -91,3 +91,43 @@ def test_millimetre_task_far_from_obstacles_has_no_obstacle_cost():
     assert float(jnp.sum(chomp_cost(distance, 40.0))) == 0.0
     empty = build_field((), (-500.0,) * 3, (500.0,) * 3, 100.0)
     assert float(jnp.sum(chomp_cost(field_distance(empty, jnp.asarray(far)), 40.0))) == 0.0
+
+
+def test_rotated_box_matches_the_box_in_its_own_frame():
+    """A box turned 30° about z and 20° about x: its field at world points equals the
+    axis-aligned box's distance at the same points expressed in the box's frame, and a
+    point just outside the middle of a turned face is at the offset along that face's
+    normal (not along a world axis)."""
+    c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
+    rz = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    c, s = np.cos(np.radians(20)), np.sin(np.radians(20))
+    rx = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    rot = rz @ rx
+    box = Obstacle("box", center=BOX.center, size=BOX.size, orientation=tuple(map(tuple, rot)))
+    p = _points(2)
+    local = (p - np.array(BOX.center)) @ rot  # rows: Rᵀ (p - c)
+    exact = box_distance(local, (0.0, 0.0, 0.0), BOX.size)
+    np.testing.assert_allclose(box_distance(p, box.center, box.size, box.orientation), exact, atol=1e-12)
+    field = build_field((box,), LOWER, UPPER, H)
+    np.testing.assert_allclose(np.asarray(field_distance(field, jnp.asarray(p))), exact, atol=0.25 * H)
+    face_point = np.array(BOX.center) + rot[:, 0] * (0.5 * BOX.size[0] + 0.05)
+    assert box_distance(face_point[None], box.center, box.size, box.orientation)[0] == pytest.approx(0.05)
+
+
+def test_rotated_box_is_drawn_with_its_turned_edges():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from linkopt._arm_plots import _draw_obstacle
+
+    quarter = ((0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0))  # 90° about z
+    box = Obstacle("box", center=(0.0, 0.0, 0.0), size=(0.4, 0.1, 0.2), orientation=quarter)
+    ax = plt.figure().add_subplot(projection="3d")
+    _draw_obstacle(ax, box, (np.full(3, -1.0), np.full(3, 1.0)))
+    ends = np.array([np.array(line.get_data_3d()).T for line in ax.lines])  # (12, 2, 3)
+    plt.close("all")
+    assert ends.shape == (12, 2, 3)
+    # the 0.4 m edges now run along world y, the 0.1 m ones along x
+    np.testing.assert_allclose(np.abs(ends[..., :2]).max(axis=(0, 1)), [0.05, 0.2], atol=1e-12)

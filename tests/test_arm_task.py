@@ -50,6 +50,8 @@ def test_shipped_tasks_load(name):
         ('type = "link"', 'type = ["link"]', "modules[2].type: unknown module type ['link']"),
         ("[[targets]]", "[[obstacles]]\ntype = ['box']\n[[targets]]", "obstacles[0].type: unknown obstacle type ['box']"),
         ("[task]", "workspace = 1\n[task]", "[workspace]: expected a table"),
+        ("[[targets]]", "[[obstacles]]\ntype = 'box'\ncenter = [0,0,0]\nsize = [1,1,1]\norientation = [[1,0,0],[0,1,0],[0,1,0]]\n[workspace]\nlower = [-1,-1,-1]\nupper = [1,1,1]\n[[targets]]", "obstacles[0].orientation: expected a 3x3 rotation matrix"),
+        ("[[targets]]", "[[obstacles]]\ntype = 'sphere'\ncenter = [0,0,0]\nradius = 1\norientation = [[1,0,0],[0,1,0],[0,0,1]]\n[workspace]\nlower = [-1,-1,-1]\nupper = [1,1,1]\n[[targets]]", "orientation"),
     ],
 )
 def test_bad_fields_name_file_and_field(old, new, where):
@@ -86,3 +88,9 @@ def test_corrupt_mesh_obstacle_is_rejected_while_loading(tmp_path):
         load_task(path)
     message = str(err.value)
     assert message.startswith(f"{path}: obstacles[0].path: ") and "\n" not in message
+
+
+def test_box_orientation_is_read_as_rows():
+    text = GOOD.replace("[[targets]]", "[[obstacles]]\ntype = 'box'\ncenter = [0.5,0,0]\nsize = [0.1,0.2,0.3]\norientation = [[0,-1,0],[1,0,0],[0,0,1]]\n[workspace]\nlower = [-1,-1,-1]\nupper = [1,1,1]\n[[targets]]", 1)
+    (box,) = loads_task(text, "tiny.toml").obstacles
+    assert box.orientation == ((0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
