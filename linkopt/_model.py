@@ -55,8 +55,10 @@ class EvaluationSettings:
     ``alpha_factor``: α₋ as a multiple of f_sing at the initial design's rest pose (the
     paper used 1.2-4). ``motion_weight``/``range_weight``: w₁, w₂ of eq. 5.
     ``regularizer_weight``: weight of ½|p - p₀|² with lengths divided by the reference
-    length. ``max_step``: largest motor step (rad, or reference lengths for linear
-    motors) of one IK/adversarial iteration, so that one step cannot jump a singularity.
+    length. ``max_step``: the starting (and smallest) trust radius of the IK/adversarial
+    minimiser, in rad or reference lengths for linear motors; it grows to 4x after steps
+    it had to shorten (:mod:`linkopt._sampling`), and a step that jumps onto another
+    assembly branch is rejected.
     ``alpha_minus``: an absolute α₋ that overrides ``alpha_factor`` (written into
     optimised files so that they are judged by the threshold they were optimised for).
     """
