@@ -24,8 +24,9 @@ The row order and values are those of :func:`linkopt._constraints.fk_residual` /
 ``jax.jacfwd`` of those to rounding (``tests`` compare them to 1e-12).
 
 The entry points that the samplers call many times (``state_jacobian``,
-``stacked_jacobians``, ``normal_equations``) are jitted with the mechanism (and ``kind``) static, so one evaluation traces each once and reuses the
-jaxpr at every other call site: tracing a 20-design evaluation went from 14.5 s to 5 s.
+``stacked_jacobians``, ``normal_equations``) are jitted with the mechanism (and
+``kind``) static, so one evaluation traces each once and reuses the jaxpr at every other
+call site: tracing a 20-design evaluation went from 14.5 s to 5 s.
 """
 
 from __future__ import annotations
