@@ -18,7 +18,7 @@ design, fixed for the whole optimisation so that a design cannot move its own th
 from __future__ import annotations
 
 import itertools
-from functools import lru_cache, partial
+from functools import lru_cache
 from typing import NamedTuple
 
 import jax
@@ -26,6 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from . import _traces
 from ._constraints import output_residual, output_values
 from ._geometry import design_vector, geometry, rest_state
 from ._metrics import culled, thresholds
@@ -121,7 +122,9 @@ def _evaluate_one(mech: Mechanism, design, alpha) -> Evaluation:
     )
 
 
-@partial(jax.jit, static_argnums=0)
+jax.export.register_namedtuple_serialization(Evaluation, serialized_name="linkopt.Evaluation")
+
+
 def _evaluate(mech: Mechanism, designs, alpha) -> Evaluation:
     if designs.ndim == 1:
         return _evaluate_one(mech, designs, alpha)
@@ -130,4 +133,6 @@ def _evaluate(mech: Mechanism, designs, alpha) -> Evaluation:
 
 def evaluate(mech: Mechanism, design=None) -> Evaluation:
     """Evaluate a design ``(n_p,)`` or a batch of designs ``(N, n_p)`` (file units)."""
-    return _evaluate(mech, design_vector(mech, design), alpha_minus(mech))
+    designs = jnp.asarray(design_vector(mech, design), dtype=jnp.float64)
+    alpha = jnp.asarray(alpha_minus(mech), dtype=jnp.float64)
+    return _traces.call("evaluate", mech, lambda p, a: _evaluate(mech, p, a), designs, alpha)

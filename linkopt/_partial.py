@@ -18,12 +18,11 @@ the LM while-loops of :func:`frozen_objective` under ``vmap`` took many minutes.
 
 from __future__ import annotations
 
-from functools import partial
-
 import jax
 import jax.numpy as jnp
 from jax.scipy.linalg import cho_factor, cho_solve
 
+from . import _traces
 from ._constraints import fk_residual, output_residual
 from ._evaluation import Evaluation, regularizer, targets
 from ._geometry import geometry
@@ -84,7 +83,6 @@ def frozen_lagrangian(mech: Mechanism, design, evaluation: Evaluation, alpha) ->
     return jnp.mean(f_reach + f_sing) + regularizer(mech, design)
 
 
-@partial(jax.jit, static_argnums=0)
 def _gradients(mech: Mechanism, designs, evaluation: Evaluation, alpha):
     grad = jax.grad(lambda p, ev: frozen_lagrangian(mech, p, ev, alpha))
     if designs.ndim == 1:
@@ -95,4 +93,7 @@ def _gradients(mech: Mechanism, designs, evaluation: Evaluation, alpha):
 def partial_gradient(mech: Mechanism, designs, evaluation: Evaluation, alpha: float):
     """Partial gradients ``(n_p,)`` or ``(N, n_p)`` for designs evaluated as ``evaluation``
     (file units: per unit of each design parameter)."""
-    return _gradients(mech, jnp.asarray(designs, dtype=jnp.float64), evaluation, alpha)
+    designs = jnp.asarray(designs, dtype=jnp.float64)
+    evaluation = Evaluation(*(jnp.asarray(v, dtype=jnp.float64) for v in evaluation))
+    alpha = jnp.asarray(alpha, dtype=jnp.float64)
+    return _traces.call("partial_gradient", mech, lambda p, ev, a: _gradients(mech, p, ev, a), designs, evaluation, alpha)
