@@ -50,8 +50,8 @@ MAX_DAMPING = 1e8
 BRANCH_TOL = 0.5
 #: Iteration cap of a trial forward solve: from the linear prediction, a step of at most
 #: ``RADIUS_GROWTH · max_step`` converges in 2-4 LM iterations; one that needs more is
-#: rejected, and under ``vmap`` a lane that ran to the file's full cap (or to 12, as
-#: before) would hold up every other sample.
+#: rejected, since under ``vmap`` a lane that ran on to a longer cap would hold up every
+#: other sample.
 TRIAL_ITERATIONS = 6
 
 
