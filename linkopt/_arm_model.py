@@ -39,7 +39,7 @@ from . import _quaternion as quat
 from ._constraints import point_positions
 from ._geometry import Geometry
 from ._kinematics import _implicit_state
-from ._loader import build
+from ._loader import build, diameter
 from ._model import Mechanism
 
 #: Continuous slots of each module kind, in order, and whether each is a length.
@@ -194,8 +194,7 @@ def _definition(arm_name: str, modules: tuple[Module, ...], d: np.ndarray, lengt
     }
     if length_scale is None:  # the arm's span: joint anchors and module ends (the loader's
         # default uses anchors only, and a 1-joint arm has a single anchor)
-        points = np.array(anchors + ends)
-        span = float(np.max(np.linalg.norm(points[:, None] - points[None], axis=-1)))
+        span = diameter(np.array(anchors + ends))
         length_scale = span if span > 1e-9 else 1.0
     data["mechanism"]["reference_length"] = float(length_scale)
     for k, (q, p) in enumerate(frames):

@@ -36,6 +36,7 @@ from jaxtyping import Array, Float
 
 from . import _quaternion
 from ._errors import InputError
+from ._loader import diameter
 
 JOINT_LETTERS = "RP"
 _Z = np.array([0.0, 0.0, 1.0])
@@ -181,7 +182,7 @@ def mechanism_definition(types: str, table: DHTable, q_rest, *, name: str = "DH 
     poses = np.asarray(frames(types, table, q_rest))
     origins, z_axes = poses[:, :3, 3], poses[:, :3, 2]
     jac = np.asarray(tip_jacobian(types, table, q_rest))
-    spread = np.linalg.norm(origins[:, None] - origins[None], axis=-1).max()
+    spread = diameter(origins)
     bodies = [{"name": "base", "origin": origins[0].tolist()}]
     bodies += [{"name": f"link{k}", "origin": origins[k].tolist()} for k in range(1, len(types) + 1)]
     joints = [

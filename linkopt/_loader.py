@@ -368,13 +368,20 @@ def _angle_index(rd: _Reader, item: dict, where: str, joint: dict) -> int:
     return int(value) - 1
 
 
+def diameter(points: np.ndarray) -> float:
+    """Largest distance between two of ``points (N, 3)``: the default reference length
+    (over the joint anchors) and the one the arm builders give for their bodies."""
+    points = np.asarray(points, dtype=float)
+    return float(np.max(np.linalg.norm(points[:, None] - points[None], axis=-1)))
+
+
 def _reference_length(rd: _Reader, head: dict, anchors: np.ndarray) -> float:
     if "reference_length" in head:
         return rd.positive(head, "reference_length", "[mechanism]")
-    diameter = float(np.max(np.linalg.norm(anchors[:, None] - anchors[None], axis=-1)))
-    if diameter <= 0:
+    span = diameter(anchors)
+    if span <= 0:
         raise rd.fail("[mechanism].reference_length", "all joint anchors coincide; give a positive reference_length")
-    return diameter
+    return span
 
 
 def _read_symmetry(rd: _Reader, data: dict):
