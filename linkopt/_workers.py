@@ -1,9 +1,12 @@
 """The swarm's particles split over worker processes.
 
 XLA's CPU pool runs with one thread here (see :mod:`linkopt._config`), so one process
-keeps one core busy. :class:`Workers` spawns ``count`` processes that each hold the
-mechanism and evaluate (and differentiate) a contiguous chunk of the particles; the
-chunks' results are concatenated in particle order. Each chunk is the same batched,
+keeps one core busy. :class:`Workers` splits the particles into ``count`` contiguous
+chunks: the calling process evaluates (and differentiates) the first itself while
+``count - 1`` spawned processes, each holding the mechanism, take the others; the
+chunks' results are concatenated in particle order. The caller works rather than waits
+because a spawned process costs a Python and JAX start-up (about 1.5 s) before its
+first evaluation, and the caller has paid that already. Each chunk is the same batched,
 jitted call as in a single process, so the persistent compilation cache serves every
 worker after the first run. A chunk's numbers do not depend on which process computed
 it, so a run with the same seed and worker count always gives the same result.
@@ -44,7 +47,8 @@ def _concatenate(parts: list[Evaluation]) -> Evaluation:
 
 
 class Workers:
-    """``count`` processes sharing the particles of every batched call."""
+    """``count`` processes (this one and ``count - 1`` spawned) sharing the particles of
+    every batched call."""
 
     def __init__(self, mech: Mechanism, count: int = 1):
         if count < 1:
@@ -54,26 +58,30 @@ class Workers:
         self._pool = None
         if count > 1:
             context = multiprocessing.get_context("spawn")  # fork would copy JAX's threads
-            self._pool = context.Pool(count, initializer=_initialise, initargs=(mech,))
+            self._pool = context.Pool(count - 1, initializer=_initialise, initargs=(mech,))
 
     def _chunks(self, n: int) -> list[slice]:
         bounds = np.linspace(0, n, min(self.count, n) + 1).round().astype(int)
         return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
+    def _map(self, local, remote, jobs: list) -> list:
+        """``[local(jobs[0]), remote(jobs[1]), ...]``, the remote ones in the pool meanwhile."""
+        pending = self._pool.map_async(remote, jobs[1:]) if self._pool is not None and len(jobs) > 1 else None
+        first = local(jobs[0])
+        return [first] + (pending.get() if pending is not None else [])
+
     def evaluate(self, designs: Float[Array, "N n_p"]) -> Evaluation:
         """:func:`linkopt._evaluation.evaluate` of a batch of designs, as numpy arrays."""
         designs = np.asarray(designs, dtype=float)
-        if self._pool is None:
-            return jax.tree_util.tree_map(np.asarray, evaluate(self.mech, designs))
-        return _concatenate(self._pool.map(_evaluate_chunk, [designs[c] for c in self._chunks(len(designs))]))
+        local = lambda chunk: jax.tree_util.tree_map(np.asarray, evaluate(self.mech, chunk))  # noqa: E731
+        return _concatenate(self._map(local, _evaluate_chunk, [designs[c] for c in self._chunks(len(designs))]))
 
     def partial_gradient(self, designs: Float[Array, "N n_p"], evaluation: Evaluation, alpha: float) -> np.ndarray:
         """:func:`linkopt._partial.partial_gradient` of a batch, shape ``(N, n_p)``."""
         designs = np.asarray(designs, dtype=float)
-        if self._pool is None:
-            return np.asarray(partial_gradient(self.mech, designs, evaluation, alpha))
         jobs = [(designs[c], jax.tree_util.tree_map(lambda a, c=c: a[c], evaluation), alpha) for c in self._chunks(len(designs))]
-        return np.concatenate(self._pool.map(_gradient_chunk, jobs))
+        local = lambda job: np.asarray(partial_gradient(self.mech, *job))  # noqa: E731
+        return np.concatenate(self._map(local, _gradient_chunk, jobs))
 
     def close(self) -> None:
         if self._pool is not None:
