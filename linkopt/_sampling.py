@@ -6,17 +6,9 @@ kinematics solution, with exact gradients through the implicit function theorem:
 finite differences). Everything is homogenised.
 
 The minimiser (:func:`minimise`) is a damped quasi-Newton method on the 1-3 motor values:
-step ``δ = -(H + λI)⁻¹ g`` with ``‖δ‖ ≤ r``, accepted on an Armijo decrease. After a
-rejection ``λ`` grows at least fourfold and at least to ``2‖g‖/‖δ‖``, which makes the
-next step at most half as long as the rejected one (``‖(H + λI)⁻¹ g‖ ≤ ‖g‖/λ``); with
-``λ`` only multiplied by 4 from 1e-6, a lane took up to 15 rejections before its step
-got shorter at all, and 37 of 90 adversarial lanes of a five-bar batch hit the cap.
-``H`` is a Gauss–Newton matrix for IK samples: ``JᵣᵀJᵣ`` of the reach residual plus
-``g_c g_cᵀ / (2 f_c)`` for the culled singularity term ``f_c`` (the Gauss–Newton matrix
-of ``f_c = ½ρ²``, ``ρ = √(2 f_c)``), whose curvature is what holds targets out of reach
-at the workspace boundary; without it such lanes crept along at 1e-4 relative per
-iteration and stopped at the cap up to 25 % above the minimum. For adversarial samples
-(whose ``f_sing`` has no usable exact Hessian) ``H`` is a BFGS estimate. Every
+step ``δ = -(H + λI)⁻¹ g`` with ``‖δ‖ ≤ r``, accepted on an Armijo decrease, else ``λ``
+grows. ``H`` is the Gauss–Newton matrix of the reach residual for IK samples and a BFGS
+estimate for adversarial samples (whose ``f_sing`` has no usable exact Hessian). Every
 trial forward solve starts from the linear prediction ``s + (ds/da) δ``, and a trial is
 rejected when the solved state departs from that prediction by more than half of
 ``(ds/da) δ``: that is how a step that crossed a forward singularity onto another
@@ -31,9 +23,6 @@ minimisation proper began. Iteration stops when the gradient is below ``GRADIENT
 or when an accepted step that the radius did not shorten lowered the value by at most
 ``VALUE_RTOL`` of it (a converged quasi-Newton step: targets out of reach never get a
 zero gradient), or at the iteration cap.
-
-σ_min at each trial state starts its inverse iteration from the Ritz block of the
-current state (:func:`linkopt._singularity.f_sing_tracked`), which the iterate carries.
 """
 
 from __future__ import annotations
@@ -51,7 +40,7 @@ from ._jacobian import state_jacobian
 from ._kinematics import _solve_single
 from ._metrics import Thresholds, attractive, barrier, culled
 from ._model import Mechanism
-from ._singularity import f_sing_tracked
+from ._singularity import f_sing_value
 
 ARMIJO = 1e-4
 GRADIENT_TOL = 1e-9
@@ -80,7 +69,6 @@ class _Iterate(NamedTuple):
     gradient: Float[Array, " M"]
     hessian: Float[Array, "M M"]
     ds_da: Float[Array, "S M"]
-    ritz: Float[Array, "2 S k"]  # Ritz block of the σ_min iteration at ``state``
     damping: Float[Array, ""]
     radius: Float[Array, ""]
     iteration: Int[Array, ""]
@@ -94,25 +82,24 @@ def state_motor_jacobian(mech: Mechanism, geom: Geometry, motors, state) -> Floa
     return -cho_solve(cho_factor(jac_s.T @ jac_s), jac_s.T @ jac_a)
 
 
-# An objective maps (motors, state, ds/da, Ritz block or None) to (value, gradient in the
-# motors, Gauss–Newton matrix or None, Ritz block at ``state``): see ``f_sing_tracked``.
-Objective = Callable[[Float[Array, " M"], Float[Array, " S"], Float[Array, "S M"], Float[Array, "2 S k"] | None], tuple]
+# An objective maps (motors, state) to (value, ∂/∂s, ∂/∂a, Gauss–Newton matrix or None).
+Objective = Callable[[Float[Array, " M"], Float[Array, " S"], Float[Array, "S M"]], tuple]
 
 
-def _evaluate(objective, mech, geom, motors, state, ritz):
+def _evaluate(objective, mech, geom, motors, state):
     ds_da = state_motor_jacobian(mech, geom, motors, state)
-    value, gradient, model, ritz = objective(motors, state, ds_da, ritz)
-    return value, gradient, model, ds_da, ritz
+    value, gradient, model = objective(motors, state, ds_da)
+    return value, gradient, model, ds_da
 
 
 def minimise(mech: Mechanism, geom: Geometry, objective, motors0, state0, iterations: int, bfgs: bool) -> Sample:
     """Minimise ``objective`` over motors from a solved ``(motors0, state0)`` (see module doc)."""
     settings = mech.evaluation
-    value, gradient, model, ds_da, ritz = _evaluate(objective, mech, geom, motors0, state0, None)
+    value, gradient, model, ds_da = _evaluate(objective, mech, geom, motors0, state0)
     size = motors0.shape[0]
     start_hessian = jnp.eye(size) if bfgs else model
     max_step = settings.max_step
-    it0 = _Iterate(motors0, state0, value, gradient, start_hessian, ds_da, ritz, jnp.asarray(1e-6), jnp.asarray(max_step), jnp.asarray(0), jnp.asarray(False))
+    it0 = _Iterate(motors0, state0, value, gradient, start_hessian, ds_da, jnp.asarray(1e-6), jnp.asarray(max_step), jnp.asarray(0), jnp.asarray(False))
 
     def step(it: _Iterate) -> _Iterate:
         system = it.hessian + it.damping * jnp.eye(size)
@@ -124,7 +111,7 @@ def minimise(mech: Mechanism, geom: Geometry, objective, motors0, state0, iterat
         trial = _solve_single(mech, "fk", geom, it.motors + delta, it.state + predicted, TRIAL_ITERATIONS)
         departure = jnp.sqrt(jnp.sum((trial.state - it.state - predicted) ** 2))
         on_branch = departure <= BRANCH_TOL * jnp.sqrt(predicted @ predicted) + 1e-10
-        value, gradient, model, ds_da, ritz = _evaluate(objective, mech, geom, it.motors + delta, trial.state, it.ritz)
+        value, gradient, model, ds_da = _evaluate(objective, mech, geom, it.motors + delta, trial.state)
         decrease = value <= it.value + ARMIJO * (it.gradient @ delta)
         accept = trial.converged & on_branch & decrease & jnp.isfinite(value)
         if bfgs:
@@ -134,9 +121,7 @@ def minimise(mech: Mechanism, geom: Geometry, objective, motors0, state0, iterat
             updated = it.hessian - jnp.outer(hb, hb) / (delta @ hb) + jnp.outer(y, y) / jnp.where(curvature > 0, curvature, 1.0)
             model = jnp.where(curvature > 1e-12, updated, it.hessian)
         pick = lambda new, old: jnp.where(accept, new, old)  # noqa: E731
-        # after a rejection the next step is at most half as long: ‖(H + λI)⁻¹ g‖ ≤ ‖g‖ / λ
-        halving = 2.0 * jnp.sqrt(it.gradient @ it.gradient) / jnp.maximum(jnp.sqrt(delta @ delta), 1e-300)
-        damping = jnp.where(accept, jnp.maximum(it.damping / 3.0, 1e-9), jnp.maximum(it.damping * 4.0 + 1e-6, halving))
+        damping = jnp.where(accept, jnp.maximum(it.damping / 3.0, 1e-9), it.damping * 4.0 + 1e-6)
         radius = jnp.where(accept, jnp.where(shortened, jnp.minimum(2.0 * it.radius, RADIUS_GROWTH * max_step), it.radius), jnp.maximum(it.radius / 2.0, max_step))
         small = jnp.max(jnp.abs(pick(gradient, it.gradient))) < GRADIENT_TOL
         stalled = accept & ~shortened & (it.value - value <= VALUE_RTOL * jnp.abs(value))
@@ -147,7 +132,6 @@ def minimise(mech: Mechanism, geom: Geometry, objective, motors0, state0, iterat
             gradient=pick(gradient, it.gradient),
             hessian=pick(model, it.hessian),
             ds_da=pick(ds_da, it.ds_da),
-            ritz=pick(ritz, it.ritz),
             damping=damping,
             radius=radius,
             iteration=it.iteration + 1,
@@ -161,18 +145,15 @@ def minimise(mech: Mechanism, geom: Geometry, objective, motors0, state0, iterat
 def ik_objective(mech: Mechanism, geom: Geometry, target, th: Thresholds):
     """Eq. 4: ``f_BK(b^t, s(a)) + f_sing^c(s(a))`` with its Gauss–Newton model."""
 
-    def singular(state, ritz):
-        value, ritz = f_sing_tracked(mech, geom, state, ritz)
-        return culled(value, th), ritz
-
-    def objective(motors, state, ds_da, ritz):
-        (sing, ritz), d_sing = jax.value_and_grad(singular, has_aux=True)(state, ritz)
+    def parts(state):
         residual = output_residual(mech, geom, target, state)
+        return 0.5 * residual @ residual + culled(f_sing_value(mech, geom, state), th), residual
+
+    def objective(motors, state, ds_da):
+        (value, residual), d_state = jax.value_and_grad(parts, has_aux=True)(state)
         # ∂r/∂s · ds/da as M forward tangents along the columns of ds/da
         jac = jax.jacfwd(lambda d: output_residual(mech, geom, target, state + ds_da @ d))(jnp.zeros(ds_da.shape[1]))
-        g_sing = d_sing @ ds_da
-        model = jac.T @ jac + jnp.outer(g_sing, g_sing) / (2.0 * jnp.maximum(sing, 1e-300))
-        return 0.5 * residual @ residual + sing, jac.T @ residual + g_sing, model, ritz
+        return value, d_state @ ds_da, jac.T @ jac
 
     return objective
 
@@ -181,13 +162,12 @@ def adversarial_objective(mech: Mechanism, geom: Geometry, anchor_motors, low, h
     """Eq. 5: ``f_sing^a(s) + w₁ ½|a - a_IK|² + w₂ R₂(s)``."""
     w_motion, w_range = mech.evaluation.motion_weight, mech.evaluation.range_weight
 
-    def of_state(state, ritz):
-        f_sing, ritz = f_sing_tracked(mech, geom, state, ritz)
-        return attractive(f_sing, th) + w_range * barrier(output_values(mech, geom, state), low, high), ritz
+    def of_state(state):
+        return attractive(f_sing_value(mech, geom, state), th) + w_range * barrier(output_values(mech, geom, state), low, high)
 
-    def objective(motors, state, ds_da, ritz):
-        (value, ritz), d_state = jax.value_and_grad(of_state, has_aux=True)(state, ritz)
+    def objective(motors, state, ds_da):
+        value, d_state = jax.value_and_grad(of_state)(state)
         offset = motors - anchor_motors
-        return value + 0.5 * w_motion * offset @ offset, d_state @ ds_da + w_motion * offset, None, ritz
+        return value + 0.5 * w_motion * offset @ offset, d_state @ ds_da + w_motion * offset, None
 
     return objective

@@ -19,13 +19,6 @@ faster. The value returned is ``σ = ‖J(s) v‖`` with the Ritz vector ``v`` h
 an upper bound on σ_min that equals it at convergence, and whose derivative is the
 exact first derivative of σ_min for a simple smallest singular value
 (``dσ = uᵀ dJ v``, ``u = Jv/σ``).
-
-The IK and adversarial samplers call ``f_sing`` at a sequence of nearby states; there
-:func:`f_sing_tracked` starts from the previous state's Ritz block with ``WARM_SWEEPS``
-sweeps. Along the clustered path above in steps of about 0.18 rad it agrees with the
-SVD to 8e-4 with 2 sweeps (1.2e-4 with 3), in steps of 0.5 rad to 3e-3. The IK and
-adversarial loops of a 10-design five-bar batch took 0.89 s instead of 1.07 s with 6
-sweeps from the fixed start. The values that enter ``f_design`` come from the fixed start.
 """
 
 from __future__ import annotations
@@ -50,7 +43,6 @@ def stacked_jacobians(mech: Mechanism, geom: Geometry, state) -> Float[Array, "2
 
 BLOCK = 6
 ITERATIONS = 6
-WARM_SWEEPS = 2
 
 
 def _orthonormalise(x: Float[Array, "B n k"]) -> Float[Array, "B n k"]:
@@ -66,44 +58,32 @@ def _orthonormalise(x: Float[Array, "B n k"]) -> Float[Array, "B n k"]:
     return jnp.stack(columns, axis=-1)
 
 
-def ritz_vectors(jac: Float[Array, "B m n"], start: Float[Array, "B n k"] | None = None, sweeps: int = ITERATIONS) -> Float[Array, "B n k"]:
-    """Orthonormal Ritz vectors of ``JᵀJ`` for each matrix, smallest Ritz value first
-    (block inverse iteration + Rayleigh–Ritz; module docstring). ``start`` is the block
-    to iterate from, by default a fixed seeded one of ``BLOCK`` columns."""
+def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
+    """Right singular vectors of the smallest singular values of a stack of matrices
+    (block inverse iteration on ``JᵀJ`` + Rayleigh–Ritz; module docstring)."""
     a = jnp.einsum("bmi,bmj->bij", jac, jac)
     n = a.shape[-1]
     shift = 1e-13 * jnp.trace(a, axis1=1, axis2=2)[:, None, None] * jnp.eye(n)
     lower = jnp.linalg.cholesky(a + shift)
     upper = jnp.swapaxes(lower, 1, 2)
-    if start is None:
-        block = np.random.default_rng(0).standard_normal((n, min(BLOCK, n)))
-        start = jnp.broadcast_to(jnp.asarray(block), (a.shape[0],) + block.shape)
-    x = _orthonormalise(start)
+    start = np.random.default_rng(0).standard_normal((n, min(BLOCK, n)))
+    x = _orthonormalise(jnp.broadcast_to(jnp.asarray(start), (a.shape[0],) + start.shape))
 
     def sweep(_, x):
         y = jax.scipy.linalg.solve_triangular(lower, x, lower=True)
         return _orthonormalise(jax.scipy.linalg.solve_triangular(upper, y, lower=False))
 
-    x = jax.lax.fori_loop(0, sweeps, sweep, x)
+    x = jax.lax.fori_loop(0, ITERATIONS, sweep, x)
     _, ritz = jnp.linalg.eigh(jnp.einsum("bni,bnm,bmj->bij", x, a, x))
-    return jnp.einsum("bnk,bkj->bnj", x, ritz)
-
-
-def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
-    """Right singular vectors of the smallest singular values of a stack of matrices."""
-    return ritz_vectors(jac)[:, :, 0]
-
-
-def _sigmas_of(jac: Float[Array, "2 m n"], v: Float[Array, "2 n"]) -> Float[Array, "2"]:
-    """``‖J v‖`` with ``v`` held fixed: σ_min and its exact first derivative (module doc)."""
-    image = jnp.einsum("bij,bj->bi", jac, jax.lax.stop_gradient(v))
-    return jnp.sqrt(jnp.sum(image**2, axis=1) + 1e-300)
+    return jnp.einsum("bnk,bk->bn", x, ritz[:, :, 0])
 
 
 def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, "2"]:
     """``(σ_min^FK, σ_min^BK)`` at one state, differentiable in ``state`` and ``geom``."""
     jac = stacked_jacobians(mech, geom, state)
-    return _sigmas_of(jac, smallest_right_vectors(jax.lax.stop_gradient(jac)))
+    v = smallest_right_vectors(jax.lax.stop_gradient(jac))
+    image = jnp.einsum("bij,bj->bi", jac, v)
+    return jnp.sqrt(jnp.sum(image**2, axis=1) + 1e-300)
 
 
 @partial(jax.jit, static_argnums=0)
@@ -111,21 +91,6 @@ def f_sing_value(mech: Mechanism, geom: Geometry, state) -> Float[Array, ""]:
     """Eq. 3 at one state."""
     sigma = sigma_min_pair(mech, geom, state)
     return jnp.sum(1.0 / sigma)
-
-
-@partial(jax.jit, static_argnums=0)
-def f_sing_tracked(mech: Mechanism, geom: Geometry, state, block: Float[Array, "2 n k"] | None) -> tuple:
-    """``(f_sing, Ritz block)`` at ``state``, iterating from the Ritz ``block`` of a nearby
-    state (``WARM_SWEEPS`` sweeps), or from the fixed start when ``block`` is None.
-
-    The samplers' steps move the state a little at a time, so the previous step's block
-    already spans the smallest singular vectors up to that small move, and two sweeps
-    (against six from the fixed start) bring them back to convergence.
-    """
-    jac = stacked_jacobians(mech, geom, state)
-    fixed = jax.lax.stop_gradient(jac)
-    block = ritz_vectors(fixed) if block is None else ritz_vectors(fixed, block, WARM_SWEEPS)
-    return jnp.sum(1.0 / _sigmas_of(jac, block[:, :, 0])), jax.lax.stop_gradient(block)
 
 
 @partial(jax.jit, static_argnums=0)

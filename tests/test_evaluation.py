@@ -63,11 +63,11 @@ def test_ik_objective_gradient_matches_finite_differences(five_bar):
     k = int(np.flatnonzero((f_path > float(th.lower)) & (f_path < float(th.upper)))[0])
     motors = jnp.array([diagonal[k], -diagonal[k]])
     state = path.state[k]
-    value, gradient, _, _ = objective(motors, state, state_motor_jacobian(five_bar, geom, motors, state), None)
+    value, gradient, _ = objective(motors, state, state_motor_jacobian(five_bar, geom, motors, state))
 
     def value_at(a):
         s = linkopt.solve_fk(five_bar, a, start=state).state
-        return float(objective(a, s, state_motor_jacobian(five_bar, geom, a, s), None)[0])
+        return float(objective(a, s, state_motor_jacobian(five_bar, geom, a, s))[0])
 
     h = 1e-6
     fd = [(value_at(motors + h * e) - value_at(motors - h * e)) / (2 * h) for e in np.eye(2)]

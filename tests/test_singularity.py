@@ -70,33 +70,6 @@ def test_sigma_min_matches_svd_where_the_smallest_values_cluster(five_bar):
     assert np.all(sigma >= exact[..., -1] * (1 - 1e-12))  # ‖Jv‖ bounds σ_min from above
 
 
-def test_tracked_sigma_min_follows_svd_along_a_path(five_bar):
-    """The samplers' warm-started σ_min (each state iterating from the previous state's
-    Ritz block, two sweeps) against LAPACK, along the assembled part of the clustered
-    path above in steps of (0.15, -0.10) rad, about the samplers' trust radius."""
-    from linkopt._singularity import f_sing_tracked, stacked_jacobians
-
-    motors = np.stack([np.linspace(-1.5, 1.5, 60), np.linspace(1.0, -1.0, 60)], 1)
-    path = linkopt.solve_fk_path(five_bar, motors)
-    assert np.all(path.converged[:40])
-    states = jnp.asarray(path.state[:40:3])
-    geom = linkopt.geometry(five_bar)
-
-    def track(block, state):
-        value, block = f_sing_tracked(five_bar, geom, state, block)
-        return block, value
-
-    first, block = f_sing_tracked(five_bar, geom, states[0], None)
-    _, rest = jax.lax.scan(track, block, states[1:])
-    tracked = np.concatenate([[first], np.asarray(rest)])
-    jac = np.asarray(jax.vmap(lambda s: stacked_jacobians(five_bar, geom, s))(states))
-    singular = np.linalg.svd(jac, compute_uv=False)
-    assert np.min(singular[..., -2] / singular[..., -1]) < 1.05  # clustered on this path too
-    exact = np.sum(1.0 / singular[..., -1], axis=-1)
-    np.testing.assert_allclose(tracked, exact, rtol=1e-3)
-    assert np.all(tracked <= exact * (1 + 1e-12))  # ‖Jv‖ ≥ σ_min, so f_sing from below
-
-
 def test_f_sing_gradient_through_fk_matches_finite_differences(five_bar):
     def objective(motors, design):
         state = linkopt.solve_fk(five_bar, motors, design=design).state
