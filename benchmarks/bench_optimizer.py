@@ -10,7 +10,7 @@ and prints the iterations, the optimiser's wall time, the whole command's wall t
 passes on the result, then the median over the warm runs. Baseline: the paper's
 Table I, five-bar: 8 iterations, about 15 min (C++, 4 cores).
 
-The number of swarm iterations a seed needs varies a lot (8 to 20 over seeds 0-7), and a
+The number of swarm iterations a seed needs varies a lot (8 to 17 over seeds 0-7 in our runs), and a
 change anywhere in the evaluation moves every seed's count, so compare medians over
 many seeds, not one seed's time.
 """
