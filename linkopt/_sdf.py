@@ -6,7 +6,8 @@ distance field (SDF) is precomputed; the obstacle cost is the CHOMP workspace po
 both the configurations and the design.
 
 * Boxes (``size`` = full edge lengths, axis-aligned unless an ``orientation`` is given),
-  spheres and capsules get their exact signed distances at the voxel centres. Mesh files are loaded and voxelised with trimesh
+  spheres and capsules get their exact signed distances at the voxel centres. Mesh files
+  are loaded and voxelised with trimesh
   (``voxelized(...).fill()``, which needs no spatial index) and their signed distance is the
   Euclidean distance transform of the occupancy (outside minus inside, half a voxel
   towards the surface), so it is accurate to about one voxel, as in the paper's voxel SDF.
