@@ -20,6 +20,7 @@ from ._errors import InputError, LinkoptError
 from ._kinematics import solve_bk, solve_bk_path, solve_fk, solve_fk_path
 from ._evaluation import alpha_minus, evaluate
 from ._loader import load
+from ._optimizer import OptimizerSettings
 from ._readout import output_values
 
 
@@ -249,7 +250,6 @@ def _cmd_verify(args) -> int:
 
 
 def _cmd_optimize(args) -> int:
-    from ._optimizer import OptimizerSettings
     from ._run import optimize, write_outputs
 
     mech = load(args.file)
@@ -318,13 +318,14 @@ def _parser() -> argparse.ArgumentParser:
     opt = sub.add_parser("optimize", help="hybrid particle swarm + partial gradient design optimisation (paper Sec. V)")
     opt.add_argument("file")
     opt.add_argument("--out", required=True, help="run directory (checkpoint, history, optimised file, figures)")
-    opt.add_argument("--particles", type=int, default=20, help="swarm size (default 20)")
-    opt.add_argument("--iterations", type=int, default=60, help="iteration cap (default 60)")
-    opt.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    opt.add_argument("--mode", choices=["hybrid", "gradient"], default="hybrid", help="hybrid PSO + partial gradient (default), or partial gradient only")
-    opt.add_argument("--tolerance", type=float, default=1e-6, help="f_design at or below which a design counts as reaching its range with no singularity (default 1e-6)")
-    opt.add_argument("--patience", type=int, default=3, help="stop after this many iterations without improving the returned feasible design (default 3)")
-    opt.add_argument("--improvement", type=float, default=1e-3, help="relative drop of the returned design's total that counts as improving (default 1e-3)")
+    d = OptimizerSettings()
+    opt.add_argument("--particles", type=int, default=d.particles, help=f"swarm size (default {d.particles})")
+    opt.add_argument("--iterations", type=int, default=d.iterations, help=f"iteration cap (default {d.iterations})")
+    opt.add_argument("--seed", type=int, default=d.seed, help=f"random seed (default {d.seed})")
+    opt.add_argument("--mode", choices=["hybrid", "gradient"], default=d.mode, help="hybrid PSO + partial gradient (default), or partial gradient only")
+    opt.add_argument("--tolerance", type=float, default=d.tolerance, help=f"f_design at or below which a design counts as reaching its range with no singularity (default {d.tolerance:g})")
+    opt.add_argument("--patience", type=int, default=d.patience, help=f"stop after this many iterations without improving the returned feasible design (default {d.patience})")
+    opt.add_argument("--improvement", type=float, default=d.improvement, help=f"relative drop of the returned design's total that counts as improving (default {d.improvement:g})")
     opt.add_argument("--resume", action="store_true", help="continue the run checkpointed in --out")
     opt.add_argument("--workers", type=int, default=WORKERS, help=f"processes sharing the particles (default {WORKERS}: one per core, at most 2)")
     opt.add_argument("--resolution", type=int, default=60, help="grid cells per axis of the final plots")
