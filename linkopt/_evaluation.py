@@ -10,6 +10,9 @@ Targets: a grid of ``samples_per_dimension`` values per output spanning each ran
 keeping the points on the box's boundary and, with ``interior = true``, the interior
 ones too (3 per dimension, 2 outputs: 9 targets; 4 per dimension: 16; 3 per dimension,
 3 outputs: 27, as the paper's Table I). IK starts from the rest pose for every target.
+A batch of ``D`` designs is ``D·T`` independent IK lanes, run through
+:func:`linkopt._sampling.minimise_queue` with ``⌈D·T/2⌉`` slots, then ``D·T``
+adversarial lanes under ``vmap``.
 
 ``α₋`` is ``alpha_factor`` times ``f_sing`` at the rest pose of the file's *initial*
 design, fixed for the whole optimisation so that a design cannot move its own threshold.
@@ -31,7 +34,7 @@ from ._constraints import output_residual, output_values
 from ._geometry import design_vector, geometry, rest_state
 from ._metrics import culled, thresholds
 from ._model import Mechanism
-from ._sampling import adversarial_objective, ik_objective, minimise
+from ._sampling import adversarial_objective, ik_objective, minimise, minimise_queue
 from ._singularity import f_sing_value
 
 
@@ -82,42 +85,49 @@ def regularizer(mech: Mechanism, design) -> Float[Array, ""]:
     return 0.5 * mech.evaluation.regularizer_weight * offset @ offset
 
 
-def _evaluate_one(mech: Mechanism, design, alpha) -> Evaluation:
-    geom = geometry(mech, design)
+def _evaluate_batch(mech: Mechanism, designs: Float[Array, "D n_p"], alpha) -> Evaluation:
     th = thresholds(alpha)
     goals = jnp.asarray(targets(mech) / mech.output_scale)
     low = jnp.asarray(mech.output_min / mech.output_scale)
     high = jnp.asarray(mech.output_max / mech.output_scale)
-    rest = rest_state(mech)
-    zero = jnp.zeros(mech.num_motors)
+    count, per_design = designs.shape[0], goals.shape[0]
+    lanes = count * per_design
+    geoms = jax.vmap(lambda p: geometry(mech, p))(designs)
+    lane_geoms = jax.tree_util.tree_map(lambda g: jnp.repeat(g, per_design, axis=0), geoms)
+    lane_goals = jnp.tile(goals, (count, 1))
+    rest = jnp.broadcast_to(rest_state(mech), (lanes,) + rest_state(mech).shape)
+    zero = jnp.zeros((lanes, mech.num_motors))
     settings = mech.evaluation
 
-    def ik(goal):
-        return minimise(mech, geom, ik_objective(mech, geom, goal, th), zero, rest, settings.ik_iterations, bfgs=False)
+    def ik_problem(lane):
+        geom, goal = lane
+        return geom, ik_objective(mech, geom, goal, th)
 
-    def adversarial(motors, state):
+    def adversarial(geom, motors, state):
         objective = adversarial_objective(mech, geom, motors, low, high, th)
         return minimise(mech, geom, objective, motors, state, settings.adversarial_iterations, bfgs=True)
 
-    ik_samples = jax.vmap(ik)(goals)
-    adv_samples = jax.vmap(adversarial)(ik_samples.motors, ik_samples.state)
-    residuals = jax.vmap(lambda g, s: output_residual(mech, geom, g, s))(goals, ik_samples.state)
-    reach = 0.5 * jnp.sum(residuals**2, axis=1)
-    ik_sing = jax.vmap(lambda s: f_sing_value(mech, geom, s))(ik_samples.state)
-    adv_sing = jax.vmap(lambda s: f_sing_value(mech, geom, s))(adv_samples.state)
-    adv_culled = culled(adv_sing, th)
+    width = -(-lanes // 2)
+    ik_samples = minimise_queue(mech, ik_problem, (lane_geoms, lane_goals), zero, rest, settings.ik_iterations, False, width)
+    adv_samples = jax.vmap(adversarial)(lane_geoms, ik_samples.motors, ik_samples.state)
+    residuals = jax.vmap(lambda g, goal, s: output_residual(mech, g, goal, s))(lane_geoms, lane_goals, ik_samples.state)
+    ik_sing = jax.vmap(lambda g, s: f_sing_value(mech, g, s))(lane_geoms, ik_samples.state)
+    adv_sing = jax.vmap(lambda g, s: f_sing_value(mech, g, s))(lane_geoms, adv_samples.state)
+    per = lambda a: a.reshape((count, per_design) + a.shape[1:])  # noqa: E731
+    reach = per(0.5 * jnp.sum(residuals**2, axis=1))
+    adv_culled = per(culled(adv_sing, th))
     return Evaluation(
-        f_design=jnp.mean(reach + adv_culled),
-        reach=jnp.mean(reach),
-        singularity=jnp.mean(adv_culled),
-        regularizer=regularizer(mech, design),
-        ik_motors=ik_samples.motors,
-        ik_states=ik_samples.state,
+        f_design=jnp.mean(reach + adv_culled, axis=1),
+        reach=jnp.mean(reach, axis=1),
+        singularity=jnp.mean(adv_culled, axis=1),
+        regularizer=jax.vmap(lambda p: regularizer(mech, p))(designs),
+        ik_motors=per(ik_samples.motors),
+        ik_states=per(ik_samples.state),
         ik_reach=reach,
-        ik_f_sing=ik_sing,
-        adv_motors=adv_samples.motors,
-        adv_states=adv_samples.state,
-        adv_f_sing=adv_sing,
+        ik_f_sing=per(ik_sing),
+        adv_motors=per(adv_samples.motors),
+        adv_states=per(adv_samples.state),
+        adv_f_sing=per(adv_sing),
         adv_culled=adv_culled,
     )
 
@@ -127,8 +137,8 @@ jax.export.register_namedtuple_serialization(Evaluation, serialized_name="linkop
 
 def _evaluate(mech: Mechanism, designs, alpha) -> Evaluation:
     if designs.ndim == 1:
-        return _evaluate_one(mech, designs, alpha)
-    return jax.vmap(lambda p: _evaluate_one(mech, p, alpha))(designs)
+        return jax.tree_util.tree_map(lambda a: a[0], _evaluate_batch(mech, designs[None], alpha))
+    return _evaluate_batch(mech, designs, alpha)
 
 
 def evaluate(mech: Mechanism, design=None) -> Evaluation:

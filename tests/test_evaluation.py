@@ -10,7 +10,8 @@ from conftest import MECHANISMS
 from five_bar_closed_form import B_L, B_R, L1, L2, cross, elbows, forward_singular_height, inverse
 from linkopt._evaluation import alpha_minus, evaluate, targets
 from linkopt._metrics import thresholds
-from linkopt._sampling import ik_objective, state_motor_jacobian
+from linkopt._geometry import rest_state
+from linkopt._sampling import ik_objective, minimise, minimise_queue, state_motor_jacobian
 
 
 def reachable_on_rest_branch(tips):
@@ -72,6 +73,35 @@ def test_ik_objective_gradient_matches_finite_differences(five_bar):
     h = 1e-6
     fd = [(value_at(motors + h * e) - value_at(motors - h * e)) / (2 * h) for e in np.eye(2)]
     np.testing.assert_allclose(gradient, fd, rtol=1e-5)
+
+
+def test_queued_lanes_take_the_same_steps_as_vmapped_lanes(five_bar):
+    """IK lanes of two designs through 5 slots end where ``vmap(minimise)`` ends them,
+    after the same number of iterations (spread from a few to the cap)."""
+    th = thresholds(alpha_minus(five_bar))
+    goals = jnp.asarray(targets(five_bar) / five_bar.output_scale)
+    geoms = [linkopt.geometry(five_bar), linkopt.geometry(five_bar, five_bar.design.p0 * 1.02)]
+    lane_geoms = jax.tree_util.tree_map(lambda *g: jnp.repeat(jnp.stack(g), len(goals), axis=0), *geoms)
+    lane_goals = jnp.tile(goals, (2, 1))
+    lanes = len(lane_goals)
+    cap = five_bar.evaluation.ik_iterations
+    zero = jnp.zeros((lanes, five_bar.num_motors))
+    rest = jnp.broadcast_to(rest_state(five_bar), (lanes,) + rest_state(five_bar).shape)
+
+    def problem(lane):
+        geom, goal = lane
+        return geom, ik_objective(five_bar, geom, goal, th)
+
+    def plain(geom, goal, motors, state):
+        return minimise(five_bar, geom, problem((geom, goal))[1], motors, state, cap, bfgs=False)
+
+    expected = jax.jit(jax.vmap(plain))(lane_geoms, lane_goals, zero, rest)
+    queued = jax.jit(lambda *a: minimise_queue(five_bar, problem, (a[0], a[1]), a[2], a[3], cap, False, 5))(lane_geoms, lane_goals, zero, rest)
+    iterations = np.asarray(expected.iterations)
+    assert iterations.min() < 15 and iterations.max() == cap  # a spread worth queueing
+    np.testing.assert_array_equal(np.asarray(queued.iterations), iterations)
+    np.testing.assert_allclose(queued.motors, expected.motors, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(queued.value, expected.value, rtol=1e-8, atol=1e-14)
 
 
 def test_a_design_far_from_singularities_scores_zero():
