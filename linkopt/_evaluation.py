@@ -86,6 +86,7 @@ def regularizer(mech: Mechanism, design) -> Float[Array, ""]:
 
 
 def _evaluate_batch(mech: Mechanism, designs: Float[Array, "D n_p"], alpha) -> Evaluation:
+    """The evaluations of ``D`` designs (homogenised), every field with leading axis ``D``."""
     th = thresholds(alpha)
     goals = jnp.asarray(targets(mech) / mech.output_scale)
     low = jnp.asarray(mech.output_min / mech.output_scale)
@@ -108,7 +109,7 @@ def _evaluate_batch(mech: Mechanism, designs: Float[Array, "D n_p"], alpha) -> E
         return minimise(mech, geom, objective, motors, state, settings.adversarial_iterations, bfgs=True)
 
     width = -(-lanes // 2)
-    ik_samples = minimise_queue(mech, ik_problem, (lane_geoms, lane_goals), zero, rest, settings.ik_iterations, False, width)
+    ik_samples = minimise_queue(mech, ik_problem, (lane_geoms, lane_goals), zero, rest, settings.ik_iterations, bfgs=False, width=width)
     adv_samples = jax.vmap(adversarial)(lane_geoms, ik_samples.motors, ik_samples.state)
     residuals = jax.vmap(lambda g, goal, s: output_residual(mech, g, goal, s))(lane_geoms, lane_goals, ik_samples.state)
     ik_sing = jax.vmap(lambda g, s: f_sing_value(mech, g, s))(lane_geoms, ik_samples.state)

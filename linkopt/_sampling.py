@@ -164,13 +164,23 @@ def _where(mask: Bool[Array, " W"], new, old):
     return jax.tree_util.tree_map(lambda n, o: jnp.where(mask.reshape(mask.shape + (1,) * (n.ndim - 1)), n, o), new, old)
 
 
-def minimise_queue(mech: Mechanism, problem, lanes, motors0, state0, iterations: int, bfgs: bool, width: int) -> Sample:
+def minimise_queue(
+    mech: Mechanism,
+    problem,
+    lanes,
+    motors0: Float[Array, "L M"],
+    state0: Float[Array, "L S"],
+    iterations: int,
+    bfgs: bool,
+    width: int,
+) -> Sample:
     """:func:`minimise` of ``L`` independent lanes through ``width`` slots (module docstring).
 
     ``problem(lane) -> (geom, objective)`` builds one lane's problem from its leaf-wise
-    slice of ``lanes`` (a pytree with leading axis ``L``). Every lane takes exactly the
-    steps it would take under ``vmap(minimise)``; a slot whose lane has finished takes the
-    next waiting lane, so the batch that a step costs is ``width`` wide, not ``L``.
+    slice of ``lanes`` (a pytree with leading axis ``L``). Each lane takes the steps it
+    takes under ``vmap(minimise)``; a slot whose lane has finished takes the next waiting
+    lane, so the batch that a step costs is ``width`` wide, not ``L``. Returns the
+    ``L`` samples in lane order.
     """
     count = motors0.shape[0]
     width = min(width, count)
