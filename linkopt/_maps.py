@@ -9,10 +9,10 @@ started from; otherwise it is infeasible (NaN in the maps). Python iterates over
 (about twice the grid side), never over cells.
 
 A wave is padded to ``chunk · 2^k`` cells, the fewest that hold it, so few batch shapes
-are compiled and a wave never costs twice its size. The plots' maps start from
-``chunk`` = the grid side: a 2-D wave holds at most about twice that many cells. With
-waves padded to multiples of four grid sides instead, a five-bar ``plot_spaces`` at
-resolution 60 took 9.0 s warm, and now 3.7 s, with the same pixels.
+are compiled and a wave of more than ``chunk`` cells never costs twice its size. The
+plots' maps use ``chunk`` = the grid side: a 2-D wave holds at most about twice that
+many cells. With waves padded to multiples of four grid sides instead, a five-bar
+``plot_spaces`` at resolution 60 took 9.0 s warm, and now 3.7 s, with the same pixels.
 """
 
 from __future__ import annotations

@@ -24,10 +24,10 @@ evaluation and partial gradient of 20 designs took 5.2 s instead of 5.75 s).
 jaxlib's LAPACK kernels call the OpenBLAS that scipy ships, which starts one thread per
 core and keeps it spinning between calls. Two processes, each with that thread beside
 its own, put four busy threads on two cores: the 10-design five-bar chunks then took
-2.6-3.7 s per iteration instead of 1.0-1.1 s. Every chunk therefore runs with OpenBLAS held to one thread
-(``threadpoolctl``): in the workers for their lifetime, in the calling process only
-while it computes its chunk, so the user's own numpy keeps its threads. One process
-alone gains too (20 designs: 1.9 s instead of 2.0-2.3 s).
+2.6-3.7 s per iteration instead of 1.0-1.1 s. Every chunk therefore runs with OpenBLAS
+held to one thread (``threadpoolctl``): in the workers for their lifetime, in the
+calling process only while it computes, so the user's own numpy keeps its threads.
+One process alone gains too (20 designs: 1.9 s instead of 2.0-2.3 s).
 """
 
 from __future__ import annotations
