@@ -96,7 +96,8 @@ def _evaluate_batch(mech: Mechanism, designs: Float[Array, "D n_p"], alpha) -> E
     geoms = jax.vmap(lambda p: geometry(mech, p))(designs)
     lane_geoms = jax.tree_util.tree_map(lambda g: jnp.repeat(g, per_design, axis=0), geoms)
     lane_goals = jnp.tile(goals, (count, 1))
-    rest = jnp.broadcast_to(rest_state(mech), (lanes,) + rest_state(mech).shape)
+    rest = rest_state(mech)
+    rest = jnp.broadcast_to(rest, (lanes,) + rest.shape)
     zero = jnp.zeros((lanes, mech.num_motors))
     settings = mech.evaluation
 

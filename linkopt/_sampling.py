@@ -152,10 +152,15 @@ def _step(mech: Mechanism, geom: Geometry, objective, bfgs: bool, it: _Iterate) 
     )
 
 
+def _finished(it: _Iterate, iterations: int) -> Bool[Array, "..."]:
+    """Whether an iterate stops: converged, stalled or at the iteration cap."""
+    return it.done | (it.iteration >= iterations)
+
+
 def minimise(mech: Mechanism, geom: Geometry, objective, motors0, state0, iterations: int, bfgs: bool) -> Sample:
     """Minimise ``objective`` over motors from a solved ``(motors0, state0)`` (see module doc)."""
     it0 = _start(mech, geom, objective, motors0, state0, bfgs)
-    final = jax.lax.while_loop(lambda it: ~it.done & (it.iteration < iterations), lambda it: _step(mech, geom, objective, bfgs, it), it0)
+    final = jax.lax.while_loop(lambda it: ~_finished(it, iterations), lambda it: _step(mech, geom, objective, bfgs, it), it0)
     return Sample(final.motors, final.state, final.value, final.iteration)
 
 
@@ -203,7 +208,7 @@ def minimise_queue(
     def body(carry):
         slots, slot_lanes, owner, upcoming, out = carry
         slots = jax.vmap(step)(slot_lanes, slots)
-        finished = (owner >= 0) & (slots.done | (slots.iteration >= iterations))
+        finished = (owner >= 0) & _finished(slots, iterations)
         index = jnp.where(finished, owner, count)
         result = Sample(slots.motors, slots.state, slots.value, slots.iteration)
         out = jax.tree_util.tree_map(lambda o, r: o.at[index].set(r, mode="drop"), out, result)
