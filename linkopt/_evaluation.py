@@ -10,9 +10,15 @@ Targets: a grid of ``samples_per_dimension`` values per output spanning each ran
 keeping the points on the box's boundary and, with ``interior = true``, the interior
 ones too (3 per dimension, 2 outputs: 9 targets; 4 per dimension: 16; 3 per dimension,
 3 outputs: 27, as the paper's Table I). IK starts from the rest pose for every target.
-A batch of ``D`` designs is ``D·T`` independent IK lanes, run through
-:func:`linkopt._sampling.minimise_queue` with ``⌈D·T/2⌉`` slots, then ``D·T``
-adversarial lanes under ``vmap``.
+A batch of ``D`` designs is ``D·T`` independent lanes, each an IK minimisation followed
+by an adversarial one from its result, run through
+:func:`linkopt._sampling.minimise_queue` with ``QUEUE_WIDTH`` slots.
+
+``QUEUE_WIDTH`` = 12 is measured: a lane-step costs more in a wider batch (the matrices
+of a few dozen lanes fit the CPU caches, and the trial solve's inner loop runs to its
+slowest lane), which outweighs the per-step overhead that favours width. Ten five-bar
+designs (90 lanes) took 0.83-0.87 s at widths 6-15, 0.97 s at 45 and 1.14 s at 90; ten
+3-motor neck designs (270 lanes) 5.9-6.5 s at 8 and 15, 6.7 s at 45 and 8.1-9.1 s at 135.
 
 ``α₋`` is ``alpha_factor`` times ``f_sing`` at the rest pose of the file's *initial*
 design, fixed for the whole optimisation so that a design cannot move its own threshold.
@@ -34,8 +40,10 @@ from ._constraints import output_residual, output_values
 from ._geometry import design_vector, geometry, rest_state
 from ._metrics import culled, thresholds
 from ._model import Mechanism
-from ._sampling import adversarial_objective, ik_objective, minimise, minimise_queue
+from ._sampling import adversarial_objective, either, ik_objective, minimise_queue
 from ._singularity import f_sing_value
+
+QUEUE_WIDTH = 12  # slots of the sample queue (module docstring)
 
 
 class Evaluation(NamedTuple):
@@ -101,22 +109,17 @@ def _evaluate_batch(mech: Mechanism, designs: Float[Array, "D n_p"], alpha) -> E
     zero = jnp.zeros((lanes, mech.num_motors))
     settings = mech.evaluation
 
-    def ik_problem(lane):
+    def problem(lane, adversarial, anchor):
         geom, goal = lane
-        return geom, ik_objective(mech, geom, goal, th)
+        ik = ik_objective(mech, geom, goal, th)
+        return geom, either(ik, adversarial_objective(mech, geom, anchor, low, high, th), adversarial)
 
-    def adversarial(geom, motors, state):
-        objective = adversarial_objective(mech, geom, motors, low, high, th)
-        return minimise(mech, geom, objective, motors, state, settings.adversarial_iterations, bfgs=True)
-
-    width = -(-lanes // 2)
-    ik_samples = minimise_queue(mech, ik_problem, (lane_geoms, lane_goals), zero, rest, settings.ik_iterations, bfgs=False, width=width)
-    adv_samples = jax.vmap(adversarial)(lane_geoms, ik_samples.motors, ik_samples.state)
+    iterations = (settings.ik_iterations, settings.adversarial_iterations)
+    ik_samples, adv_samples = minimise_queue(mech, problem, (lane_geoms, lane_goals), zero, rest, iterations, width=QUEUE_WIDTH)
     residuals = jax.vmap(lambda g, goal, s: output_residual(mech, g, goal, s))(lane_geoms, lane_goals, ik_samples.state)
-    ik_sing = jax.vmap(lambda g, s: f_sing_value(mech, g, s))(lane_geoms, ik_samples.state)
-    adv_sing = jax.vmap(lambda g, s: f_sing_value(mech, g, s))(lane_geoms, adv_samples.state)
     per = lambda a: a.reshape((count, per_design) + a.shape[1:])  # noqa: E731
     reach = per(0.5 * jnp.sum(residuals**2, axis=1))
+    adv_sing = adv_samples.f_sing
     adv_culled = per(culled(adv_sing, th))
     return Evaluation(
         f_design=jnp.mean(reach + adv_culled, axis=1),
@@ -126,7 +129,7 @@ def _evaluate_batch(mech: Mechanism, designs: Float[Array, "D n_p"], alpha) -> E
         ik_motors=per(ik_samples.motors),
         ik_states=per(ik_samples.state),
         ik_reach=reach,
-        ik_f_sing=per(ik_sing),
+        ik_f_sing=per(ik_samples.f_sing),
         adv_motors=per(adv_samples.motors),
         adv_states=per(adv_samples.state),
         adv_f_sing=per(adv_sing),

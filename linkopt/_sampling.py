@@ -26,15 +26,21 @@ zero gradient), or at the iteration cap.
 
 Under ``vmap`` a ``while_loop`` steps every lane until the last one stops, so a batch
 costs its slowest lane's iterations times its width. :func:`minimise_queue` runs ``L``
-lanes through ``width`` slots instead: a slot whose lane has stopped takes the next
-waiting lane at once, and each lane takes the steps it takes in :func:`minimise` (the
-flat batch rounds differently from nested ``vmap``: samples agree to about 5e-11).
-It pays where iteration counts are spread: five-bar IK lanes from the rest pose stop
-after 5-12 iterations when their target is reachable and run to the cap of 40 when it
-is not, and 90 IK lanes (10 designs) through 45 slots took 0.15 s less than under
-``vmap`` (1.23 s → 1.06 s for the whole evaluation; 28 or 45 slots made no difference).
-Adversarial lanes stop after 14-40 iterations with most near the cap, where a queue of
-fixed width only adds a tail, so they stay under ``vmap``.
+lanes through ``width`` slots instead, each lane's IK minimisation and then its
+adversarial one from the IK result: a slot moves on to its lane's second phase, or to
+the next waiting lane, as soon as a phase stops, and each phase takes the steps it
+takes in :func:`minimise` (the flat batch rounds differently from nested ``vmap``:
+five-bar samples agree to about 1e-10, 3-motor neck samples to 1e-6 after 40 BFGS steps).
+Iteration counts are spread: five-bar IK lanes from the rest pose stop after 5-12
+iterations when their target is reachable and run to the cap of 40 when it is not;
+adversarial lanes stop after 14-40.
+
+Starting a minimisation is a :func:`_step` of length zero (``fresh``), and both phases
+share the step, choosing objective and Hessian model per slot, so the compiled loop
+holds the expensive evaluation (trial solve, ``ds/da``, ``f_sing`` and its gradient)
+once. The earlier program held it four times (IK start and step, adversarial start and
+step): for 10 five-bar designs it took 2.0 s to load from the compilation cache and
+27 s to compile, against 0.6 s and 9 s now.
 """
 
 from __future__ import annotations
@@ -71,6 +77,7 @@ class Sample(NamedTuple):
     motors: Float[Array, " M"]  # homogenised
     state: Float[Array, " S"]
     value: Float[Array, ""]
+    f_sing: Float[Array, ""]  # f_sing at ``state``
     iterations: Int[Array, ""]
 
 
@@ -81,6 +88,7 @@ class _Iterate(NamedTuple):
     gradient: Float[Array, " M"]
     hessian: Float[Array, "M M"]
     ds_da: Float[Array, "S M"]
+    f_sing: Float[Array, ""]
     damping: Float[Array, ""]
     radius: Float[Array, ""]
     iteration: Int[Array, ""]
@@ -94,45 +102,58 @@ def state_motor_jacobian(mech: Mechanism, geom: Geometry, motors, state) -> Floa
     return -cho_solve(cho_factor(jac_s.T @ jac_s), jac_s.T @ jac_a)
 
 
-# An objective maps (motors, state) to (value, ∂/∂s, ∂/∂a, Gauss–Newton matrix or None).
-Objective = Callable[[Float[Array, " M"], Float[Array, " S"], Float[Array, "S M"]], tuple]
+#: An objective maps ``(motors, state, ds/da, f_sing, ∂f_sing/∂s)`` at a solved state to
+#: ``(value, gradient in motors, Gauss–Newton matrix)`` (zeros where it has none). The
+#: caller computes ``f_sing`` and its gradient once per point, since every objective
+#: here uses them and they are most of a step's cost.
+Objective = Callable[..., tuple]
 
 
-def _evaluate(objective, mech, geom, motors, state):
+def _evaluate(objective: Objective, mech: Mechanism, geom: Geometry, motors, state):
     ds_da = state_motor_jacobian(mech, geom, motors, state)
-    value, gradient, model = objective(motors, state, ds_da)
-    return value, gradient, model, ds_da
+    f_sing, d_f_sing = jax.value_and_grad(lambda s: f_sing_value(mech, geom, s))(state)
+    value, gradient, model = objective(motors, state, ds_da, f_sing, d_f_sing)
+    return value, gradient, model, ds_da, f_sing
 
 
-def _start(mech: Mechanism, geom: Geometry, objective, motors0, state0, bfgs: bool) -> _Iterate:
-    """The iterate at a solved ``(motors0, state0)``."""
-    value, gradient, model, ds_da = _evaluate(objective, mech, geom, motors0, state0)
-    start_hessian = jnp.eye(motors0.shape[0]) if bfgs else model
-    return _Iterate(motors0, state0, value, gradient, start_hessian, ds_da, jnp.asarray(1e-6), jnp.asarray(mech.evaluation.max_step), jnp.asarray(0), jnp.asarray(False))
+def _unevaluated(motors0: Float[Array, " M"], state0: Float[Array, " S"]) -> _Iterate:
+    """An iterate at a start point whose objective is not computed yet: the next
+    :func:`_step` with ``fresh`` evaluates it."""
+    size, zero = motors0.shape[0], jnp.zeros(())
+    return _Iterate(motors0, state0, zero, jnp.zeros(size), jnp.eye(size), jnp.zeros(state0.shape + (size,)), zero, zero, zero, jnp.asarray(0), jnp.asarray(False))
 
 
-def _step(mech: Mechanism, geom: Geometry, objective, bfgs: bool, it: _Iterate) -> _Iterate:
-    """One damped quasi-Newton step with its trial forward solve (module docstring)."""
+def _step(mech: Mechanism, geom: Geometry, objective: Objective, bfgs, it: _Iterate, fresh=False) -> _Iterate:
+    """One damped quasi-Newton step with its trial forward solve (module docstring).
+
+    With ``fresh`` the step has length zero and is accepted: the iterate becomes the
+    start of a minimisation at its (solved) point, with the Gauss–Newton matrix (or the
+    identity with ``bfgs``), the initial damping and radius, and iteration 0. Starting
+    and stepping are one function so that a compiled loop holds the expensive
+    evaluation once. ``bfgs`` and ``fresh`` may be traced booleans.
+    """
+    fresh = jnp.asarray(fresh)
     size = it.motors.shape[0]
     max_step = mech.evaluation.max_step
     system = it.hessian + it.damping * jnp.eye(size)
     delta = -jnp.linalg.solve(system, it.gradient)
     norm = jnp.sqrt(delta @ delta)
     shortened = norm > it.radius
-    delta = delta * jnp.minimum(1.0, it.radius / jnp.maximum(norm, 1e-300))
-    predicted = it.ds_da @ delta
+    delta = jnp.where(fresh, 0.0, delta * jnp.minimum(1.0, it.radius / jnp.maximum(norm, 1e-300)))
+    predicted = jnp.where(fresh, 0.0, it.ds_da @ delta)
     trial = _solve_single(mech, "fk", geom, it.motors + delta, it.state + predicted, TRIAL_ITERATIONS)
+    state = jnp.where(fresh, it.state, trial.state)
     departure = jnp.sqrt(jnp.sum((trial.state - it.state - predicted) ** 2))
     on_branch = departure <= BRANCH_TOL * jnp.sqrt(predicted @ predicted) + 1e-10
-    value, gradient, model, ds_da = _evaluate(objective, mech, geom, it.motors + delta, trial.state)
+    value, gradient, model, ds_da, f_sing = _evaluate(objective, mech, geom, it.motors + delta, state)
     decrease = value <= it.value + ARMIJO * (it.gradient @ delta)
-    accept = trial.converged & on_branch & decrease & jnp.isfinite(value)
-    if bfgs:
-        y = gradient - it.gradient
-        curvature = y @ delta
-        hb = it.hessian @ delta
-        updated = it.hessian - jnp.outer(hb, hb) / (delta @ hb) + jnp.outer(y, y) / jnp.where(curvature > 0, curvature, 1.0)
-        model = jnp.where(curvature > 1e-12, updated, it.hessian)
+    accept = fresh | (trial.converged & on_branch & decrease & jnp.isfinite(value))
+    y = gradient - it.gradient
+    curvature = y @ delta
+    hb = it.hessian @ delta
+    updated = it.hessian - jnp.outer(hb, hb) / (delta @ hb) + jnp.outer(y, y) / jnp.where(curvature > 0, curvature, 1.0)
+    quasi_newton = jnp.where(curvature > 1e-12, updated, it.hessian)
+    model = jnp.where(bfgs, jnp.where(fresh, jnp.eye(size), quasi_newton), model)
     pick = lambda new, old: jnp.where(accept, new, old)  # noqa: E731
     damping = jnp.where(accept, jnp.maximum(it.damping / 3.0, 1e-9), it.damping * 4.0 + 1e-6)
     radius = jnp.where(accept, jnp.where(shortened, jnp.minimum(2.0 * it.radius, RADIUS_GROWTH * max_step), it.radius), jnp.maximum(it.radius / 2.0, max_step))
@@ -140,28 +161,33 @@ def _step(mech: Mechanism, geom: Geometry, objective, bfgs: bool, it: _Iterate) 
     stalled = accept & ~shortened & (it.value - value <= VALUE_RTOL * jnp.abs(value))
     return _Iterate(
         motors=pick(it.motors + delta, it.motors),
-        state=pick(trial.state, it.state),
+        state=pick(state, it.state),
         value=pick(value, it.value),
         gradient=pick(gradient, it.gradient),
         hessian=pick(model, it.hessian),
         ds_da=pick(ds_da, it.ds_da),
-        damping=damping,
-        radius=radius,
-        iteration=it.iteration + 1,
-        done=small | stalled | (damping > MAX_DAMPING),
+        f_sing=pick(f_sing, it.f_sing),
+        damping=jnp.where(fresh, 1e-6, damping),
+        radius=jnp.where(fresh, max_step, radius),
+        iteration=jnp.where(fresh, 0, it.iteration + 1),
+        done=~fresh & (small | stalled | (damping > MAX_DAMPING)),
     )
 
 
-def _finished(it: _Iterate, iterations: int) -> Bool[Array, "..."]:
+def _finished(it: _Iterate, iterations) -> Bool[Array, "..."]:
     """Whether an iterate stops: converged, stalled or at the iteration cap."""
     return it.done | (it.iteration >= iterations)
 
 
-def minimise(mech: Mechanism, geom: Geometry, objective, motors0, state0, iterations: int, bfgs: bool) -> Sample:
+def _sample(it: _Iterate) -> Sample:
+    return Sample(it.motors, it.state, it.value, it.f_sing, it.iteration)
+
+
+def minimise(mech: Mechanism, geom: Geometry, objective: Objective, motors0, state0, iterations: int, bfgs: bool) -> Sample:
     """Minimise ``objective`` over motors from a solved ``(motors0, state0)`` (see module doc)."""
-    it0 = _start(mech, geom, objective, motors0, state0, bfgs)
+    it0 = _step(mech, geom, objective, bfgs, _unevaluated(motors0, state0), fresh=True)
     final = jax.lax.while_loop(lambda it: ~_finished(it, iterations), lambda it: _step(mech, geom, objective, bfgs, it), it0)
-    return Sample(final.motors, final.state, final.value, final.iteration)
+    return _sample(final)
 
 
 def _where(mask: Bool[Array, " W"], new, old):
@@ -169,89 +195,101 @@ def _where(mask: Bool[Array, " W"], new, old):
     return jax.tree_util.tree_map(lambda n, o: jnp.where(mask.reshape(mask.shape + (1,) * (n.ndim - 1)), n, o), new, old)
 
 
+def _store(out: Sample, lane: Int[Array, " W"], it: _Iterate) -> Sample:
+    """``out`` with row ``lane[w]`` set to slot ``w``'s sample; lane ``L`` is dropped."""
+    return jax.tree_util.tree_map(lambda o, r: o.at[lane].set(r, mode="drop"), out, _sample(it))
+
+
 def minimise_queue(
     mech: Mechanism,
-    problem,
+    problem: Callable,
     lanes,
     motors0: Float[Array, "L M"],
     state0: Float[Array, "L S"],
-    iterations: int,
-    bfgs: bool,
+    iterations: tuple[int, int],
     width: int,
-) -> Sample:
-    """:func:`minimise` of ``L`` independent lanes through ``width`` slots (module docstring).
+) -> tuple[Sample, Sample]:
+    """Two chained minimisations of each of ``L`` lanes through ``width`` slots.
 
-    ``problem(lane) -> (geom, objective)`` builds one lane's problem from its leaf-wise
-    slice of ``lanes`` (a pytree with leading axis ``L``). Each lane takes the steps it
-    takes under ``vmap(minimise)``; a slot whose lane has finished takes the next waiting
-    lane, so the batch that a step costs is ``width`` wide, not ``L``. Returns the
-    ``L`` samples in lane order.
+    Each lane first minimises from ``(motors0, state0)`` (phase one, Gauss–Newton model,
+    at most ``iterations[0]`` steps), then from phase one's result (phase two, BFGS, at
+    most ``iterations[1]`` steps). ``problem(lane, second, anchor) -> (geom, objective)``
+    builds a lane's problem from its leaf-wise slice of ``lanes`` (a pytree with leading
+    axis ``L``), ``second`` (traced: phase two) and ``anchor`` (phase one's motors, for
+    phase two). Each phase takes the steps it takes under ``vmap(minimise)``; a slot
+    whose lane has finished phase one starts phase two at once, and one that has
+    finished phase two takes the next waiting lane, so a step costs a batch ``width``
+    wide, not ``L``. Returns both phases' ``L`` samples in lane order.
     """
     count = motors0.shape[0]
     width = min(width, count)
     take = lambda tree, index: jax.tree_util.tree_map(lambda a: a[index], tree)  # noqa: E731
+    caps = jnp.asarray(iterations)
 
-    def start(lane, motors, state):
-        geom, objective = problem(lane)
-        return _start(mech, geom, objective, motors, state, bfgs)
-
-    def step(lane, it):
-        geom, objective = problem(lane)
-        return _step(mech, geom, objective, bfgs, it)
-
-    waiting = jax.vmap(start)(lanes, motors0, state0)
-    out = Sample(waiting.motors, waiting.state, waiting.value, waiting.iteration)
-    if iterations < 1:
-        return out
-    first = jnp.arange(width)
+    def step(lane, second, anchor, fresh, it):
+        geom, objective = problem(lane, second, anchor)
+        return _step(mech, geom, objective, second, it, fresh)
 
     def body(carry):
-        slots, slot_lanes, owner, upcoming, out = carry
-        slots = jax.vmap(step)(slot_lanes, slots)
-        finished = (owner >= 0) & _finished(slots, iterations)
-        index = jnp.where(finished, owner, count)
-        result = Sample(slots.motors, slots.state, slots.value, slots.iteration)
-        out = jax.tree_util.tree_map(lambda o, r: o.at[index].set(r, mode="drop"), out, result)
-        free = finished | (owner < 0)
+        slots, second, anchor, fresh, slot_lanes, owner, upcoming, outs = carry
+        slots = jax.vmap(step)(slot_lanes, second, anchor, fresh, slots)
+        finished = (owner >= 0) & _finished(slots, caps[second.astype(int)])
+        first_done, second_done = finished & ~second, finished & second
+        outs = (_store(outs[0], jnp.where(first_done, owner, count), slots), _store(outs[1], jnp.where(second_done, owner, count), slots))
+        anchor = jnp.where(first_done[:, None], slots.motors, anchor)  # phase two starts where phase one ended
+        second, fresh = second | first_done, first_done
+        free = second_done | (owner < 0)
         incoming = upcoming + jnp.cumsum(free) - 1
         fill = free & (incoming < count)
         source = jnp.minimum(incoming, count - 1)
-        slots = _where(fill, take(waiting, source), slots)
+        slots = _where(fill, jax.vmap(_unevaluated)(motors0[source], state0[source]), slots)
         slot_lanes = _where(fill, take(lanes, source), slot_lanes)
+        second, fresh = second & ~fill, fresh | fill
         owner = jnp.where(fill, incoming, jnp.where(free, -1, owner))
-        return slots, slot_lanes, owner, upcoming + jnp.sum(free), out
+        return slots, second, anchor, fresh, slot_lanes, owner, upcoming + jnp.sum(free), outs
 
-    carry = (take(waiting, first), take(lanes, first), first, jnp.asarray(width), out)
-    carry = jax.lax.while_loop(lambda c: jnp.any(c[2] >= 0), body, carry)
-    return carry[4]
+    first = jnp.arange(width)
+    blank = jax.vmap(_unevaluated)(motors0, state0)
+    out = _sample(blank)
+    no = jnp.zeros(width, bool)
+    carry = (take(blank, first), no, motors0[first], ~no, take(lanes, first), first, jnp.asarray(width), (out, out))
+    carry = jax.lax.while_loop(lambda c: jnp.any(c[5] >= 0), body, carry)
+    return carry[7]
 
 
-def ik_objective(mech: Mechanism, geom: Geometry, target, th: Thresholds):
+def ik_objective(mech: Mechanism, geom: Geometry, target, th: Thresholds) -> Objective:
     """Eq. 4: ``f_BK(b^t, s(a)) + f_sing^c(s(a))`` with its Gauss–Newton model."""
 
-    def parts(state):
+    def objective(motors, state, ds_da, f_sing, d_f_sing):
         residual = output_residual(mech, geom, target, state)
-        return 0.5 * residual @ residual + culled(f_sing_value(mech, geom, state), th), residual
-
-    def objective(motors, state, ds_da):
-        (value, residual), d_state = jax.value_and_grad(parts, has_aux=True)(state)
         # ∂r/∂s · ds/da as M forward tangents along the columns of ds/da
         jac = jax.jacfwd(lambda d: output_residual(mech, geom, target, state + ds_da @ d))(jnp.zeros(ds_da.shape[1]))
-        return value, d_state @ ds_da, jac.T @ jac
+        term, slope = jax.value_and_grad(culled)(f_sing, th)
+        return 0.5 * residual @ residual + term, jac.T @ residual + slope * (d_f_sing @ ds_da), jac.T @ jac
 
     return objective
 
 
-def adversarial_objective(mech: Mechanism, geom: Geometry, anchor_motors, low, high, th: Thresholds):
+def adversarial_objective(mech: Mechanism, geom: Geometry, anchor_motors, low, high, th: Thresholds) -> Objective:
     """Eq. 5: ``f_sing^a(s) + w₁ ½|a - a_IK|² + w₂ R₂(s)``."""
     w_motion, w_range = mech.evaluation.motion_weight, mech.evaluation.range_weight
 
-    def of_state(state):
-        return attractive(f_sing_value(mech, geom, state), th) + w_range * barrier(output_values(mech, geom, state), low, high)
-
-    def objective(motors, state, ds_da):
-        value, d_state = jax.value_and_grad(of_state)(state)
+    def objective(motors, state, ds_da, f_sing, d_f_sing):
+        term, slope = jax.value_and_grad(attractive)(f_sing, th)
+        wall, d_wall = jax.value_and_grad(lambda s: barrier(output_values(mech, geom, s), low, high))(state)
         offset = motors - anchor_motors
-        return value + 0.5 * w_motion * offset @ offset, d_state @ ds_da + w_motion * offset, None
+        value = term + w_range * wall + 0.5 * w_motion * offset @ offset
+        gradient = (slope * d_f_sing + w_range * d_wall) @ ds_da + w_motion * offset
+        return value, gradient, jnp.zeros((motors.shape[0],) * 2)
+
+    return objective
+
+
+def either(first: Objective, second: Objective, use_second) -> Objective:
+    """The objective ``second`` where the traced ``use_second`` holds, else ``first``
+    (both are computed: the shared ``f_sing`` makes the rest cheap)."""
+
+    def objective(*args):
+        return jax.tree_util.tree_map(lambda a, b: jnp.where(use_second, b, a), first(*args), second(*args))
 
     return objective

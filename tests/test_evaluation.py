@@ -9,9 +9,10 @@ import linkopt
 from conftest import MECHANISMS
 from five_bar_closed_form import B_L, B_R, L1, L2, cross, elbows, forward_singular_height, inverse
 from linkopt._evaluation import alpha_minus, evaluate, targets
+from linkopt._constraints import output_values
 from linkopt._metrics import thresholds
 from linkopt._geometry import rest_state
-from linkopt._sampling import ik_objective, minimise, minimise_queue, state_motor_jacobian
+from linkopt._sampling import _evaluate, adversarial_objective, either, ik_objective, minimise, minimise_queue
 
 
 def reachable_on_rest_branch(tips):
@@ -51,24 +52,33 @@ def test_adversarial_samples_find_the_forward_singularity(five_bar, five_bar_eva
         assert np.all(np.asarray(linkopt.solve_fk(five_bar, motors, start=states).iterations) <= 1)
 
 
-def test_ik_objective_gradient_matches_finite_differences(five_bar):
-    geom = linkopt.geometry(five_bar)
-    th = thresholds(alpha_minus(five_bar))
-    target = jnp.asarray(np.array([0.0, 15.0]) / five_bar.length_scale)
-    objective = ik_objective(five_bar, geom, target, th)
-    # walk the symmetric motor diagonal towards the forward singularity (near a = ±0.43)
-    # until the culled singularity term is active and not flat: α₋ < f_sing < α₊
+def _near_forward_singularity(five_bar, th):
+    """A solved five-bar pose on the symmetric motor diagonal (towards the forward
+    singularity near a = ±0.43) where α₋ < f_sing < α₊: the singularity terms are
+    active and not flat."""
     diagonal = np.linspace(0.40, 0.425, 51)
     path = linkopt.solve_fk_path(five_bar, np.stack([diagonal, -diagonal], 1))
     f_path = np.asarray(linkopt.f_sing(five_bar, path.state))
     k = int(np.flatnonzero((f_path > float(th.lower)) & (f_path < float(th.upper)))[0])
-    motors = jnp.array([diagonal[k], -diagonal[k]])
-    state = path.state[k]
-    value, gradient, _ = objective(motors, state, state_motor_jacobian(five_bar, geom, motors, state))
+    return jnp.array([diagonal[k], -diagonal[k]]), path.state[k]
+
+
+@pytest.mark.parametrize("kind", ["ik", "adversarial"])
+def test_objective_gradients_match_finite_differences(five_bar, kind):
+    geom = linkopt.geometry(five_bar)
+    th = thresholds(alpha_minus(five_bar))
+    motors, state = _near_forward_singularity(five_bar, th)
+    if kind == "ik":
+        objective = ik_objective(five_bar, geom, jnp.asarray(np.array([0.0, 15.0]) / five_bar.length_scale), th)
+    else:  # the box's lower edge brought to the pose, so that the range barrier counts
+        outputs = output_values(five_bar, geom, state)  # homogenised
+        low = outputs - jnp.array([0.5, 0.01])
+        objective = adversarial_objective(five_bar, geom, motors + 0.05, low, low + 2.0, th)
+    value, gradient, *_ = _evaluate(objective, five_bar, geom, motors, state)
 
     def value_at(a):
         s = linkopt.solve_fk(five_bar, a, start=state).state
-        return float(objective(a, s, state_motor_jacobian(five_bar, geom, a, s))[0])
+        return float(_evaluate(objective, five_bar, geom, a, s)[0])
 
     h = 1e-6
     fd = [(value_at(motors + h * e) - value_at(motors - h * e)) / (2 * h) for e in np.eye(2)]
@@ -76,32 +86,41 @@ def test_ik_objective_gradient_matches_finite_differences(five_bar):
 
 
 def test_queued_lanes_take_the_same_steps_as_vmapped_lanes(five_bar):
-    """IK lanes of two designs through 5 slots end where ``vmap(minimise)`` ends them,
-    after the same number of iterations (spread from a few to the cap)."""
+    """IK then adversarial minimisation of the lanes of two designs through 5 slots end
+    where ``vmap(minimise)`` of each phase ends them, after as many iterations (IK counts
+    spread from a few to the cap)."""
     th = thresholds(alpha_minus(five_bar))
     goals = jnp.asarray(targets(five_bar) / five_bar.output_scale)
+    low = jnp.asarray(five_bar.output_min / five_bar.output_scale)
+    high = jnp.asarray(five_bar.output_max / five_bar.output_scale)
     geoms = [linkopt.geometry(five_bar), linkopt.geometry(five_bar, five_bar.design.p0 * 1.02)]
     lane_geoms = jax.tree_util.tree_map(lambda *g: jnp.repeat(jnp.stack(g), len(goals), axis=0), *geoms)
     lane_goals = jnp.tile(goals, (2, 1))
     lanes = len(lane_goals)
-    cap = five_bar.evaluation.ik_iterations
+    caps = (five_bar.evaluation.ik_iterations, five_bar.evaluation.adversarial_iterations)
     zero = jnp.zeros((lanes, five_bar.num_motors))
     rest = jnp.broadcast_to(rest_state(five_bar), (lanes,) + rest_state(five_bar).shape)
 
-    def problem(lane):
+    def ik(geom, goal, motors, state):
+        return minimise(five_bar, geom, ik_objective(five_bar, geom, goal, th), motors, state, caps[0], bfgs=False)
+
+    def adversarial(geom, motors, state):
+        return minimise(five_bar, geom, adversarial_objective(five_bar, geom, motors, low, high, th), motors, state, caps[1], bfgs=True)
+
+    def problem(lane, second, anchor):
         geom, goal = lane
-        return geom, ik_objective(five_bar, geom, goal, th)
+        return geom, either(ik_objective(five_bar, geom, goal, th), adversarial_objective(five_bar, geom, anchor, low, high, th), second)
 
-    def plain(geom, goal, motors, state):
-        return minimise(five_bar, geom, problem((geom, goal))[1], motors, state, cap, bfgs=False)
-
-    expected = jax.jit(jax.vmap(plain))(lane_geoms, lane_goals, zero, rest)
-    queued = jax.jit(lambda *a: minimise_queue(five_bar, problem, (a[0], a[1]), a[2], a[3], cap, False, 5))(lane_geoms, lane_goals, zero, rest)
-    iterations = np.asarray(expected.iterations)
-    assert iterations.min() < 15 and iterations.max() == cap  # a spread worth queueing
-    np.testing.assert_array_equal(np.asarray(queued.iterations), iterations)
-    np.testing.assert_allclose(queued.motors, expected.motors, rtol=0, atol=1e-8)
-    np.testing.assert_allclose(queued.value, expected.value, rtol=1e-8, atol=1e-14)
+    expected_ik = jax.jit(jax.vmap(ik))(lane_geoms, lane_goals, zero, rest)
+    expected_adv = jax.jit(jax.vmap(adversarial))(lane_geoms, expected_ik.motors, expected_ik.state)
+    queued = jax.jit(lambda *a: minimise_queue(five_bar, problem, (a[0], a[1]), a[2], a[3], caps, 5))(lane_geoms, lane_goals, zero, rest)
+    iterations = np.asarray(expected_ik.iterations)
+    assert iterations.min() < 15 and iterations.max() == caps[0]  # a spread worth queueing
+    for got, expected in zip(queued, (expected_ik, expected_adv)):
+        np.testing.assert_array_equal(np.asarray(got.iterations), np.asarray(expected.iterations))
+        np.testing.assert_allclose(got.motors, expected.motors, rtol=0, atol=1e-8)
+        np.testing.assert_allclose(got.value, expected.value, rtol=1e-8, atol=1e-14)
+        np.testing.assert_allclose(got.f_sing, expected.f_sing, rtol=1e-8)
 
 
 def test_a_design_far_from_singularities_scores_zero():
