@@ -10,7 +10,9 @@ settings; resuming with different ones is refused.
 Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.csv``,
 ``verification.json`` (``linkopt verify`` on the initial and optimised designs),
 ``summary.json``, and the figures ``spaces_initial.png``, ``spaces_optimized.png``,
-``convergence.png``, ``mechanism.png`` (initial and optimised overlaid).
+``convergence.png``, ``mechanism.png`` (initial and optimised overlaid). The initial
+design's verification and space plot do not depend on the run, so with ``workers`` > 1 a
+spawned process makes them while this one makes the optimised design's.
 """
 
 from __future__ import annotations
@@ -18,12 +20,15 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import multiprocessing
 import os
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ._errors import InputError
 from ._evaluation import alpha_minus
@@ -128,22 +133,56 @@ def optimize(mech: Mechanism, out: str | Path, settings: OptimizerSettings, *, r
     return run
 
 
-def write_outputs(mech: Mechanism, out: str | Path, run: SwarmRun, settings: OptimizerSettings, *, resolution: int = 60, verify_resolution: int | None = None) -> dict:
-    """Optimised file, verification, summary and figures for a finished run."""
+def _verification(mech: Mechanism, design, resolution: int | None) -> dict:
+    from ._verify import verify
+
+    result = verify(mech, design, resolution)
+    return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in result._asdict().items()}
+
+
+def _has_space_plots(mech: Mechanism) -> bool:
+    return mech.num_motors == mech.num_outputs and mech.num_motors in (2, 3)
+
+
+def _initial_outputs(mech: Mechanism, out: Path, resolution: int, verify_resolution: int | None) -> dict:
+    """The initial design's verification (returned) and space plot (written)."""
     from . import plots
     from ._evaluation import evaluate
-    from ._verify import verify
+
+    with threadpool_limits(1, user_api="blas"):  # OpenBLAS's spinning threads: linkopt._workers
+        check = _verification(mech, None, verify_resolution)
+        if _has_space_plots(mech):
+            plots.plot_spaces(mech, evaluate(mech), out / "spaces_initial.png", resolution=resolution, title=f"{mech.name}, initial design")
+    return check
+
+
+def write_outputs(mech: Mechanism, out: str | Path, run: SwarmRun, settings: OptimizerSettings, *, resolution: int = 60, verify_resolution: int | None = None, workers: int = 1) -> dict:
+    """Optimised file, verification, summary and figures for a finished run.
+
+    With ``workers`` > 1 a spawned process verifies and plots the initial design while
+    this one does the optimised design (module docstring)."""
+    from . import plots
+    from ._evaluation import evaluate
 
     out = Path(out)
     design = best_design(run)
     alpha = alpha_minus(mech)
     optimized = write_design(mech, design, alpha, out / "optimized.toml", header=f"Optimised by linkopt from {mech.source} (seed {settings.seed}, {run.iteration} iterations).")
-    checks = {}
-    for label, p in (("initial", None), ("optimized", design)):
-        result = verify(mech, p, verify_resolution)
-        checks[label] = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in result._asdict().items()}
+    side = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) if workers > 1 else None
+    try:
+        initial = side.submit(_initial_outputs, mech, out, resolution, verify_resolution) if side is not None else None
+        with threadpool_limits(1, user_api="blas"):
+            checked = _verification(mech, design, verify_resolution)
+            final = evaluate(mech, design)
+            if _has_space_plots(mech):
+                plots.plot_spaces(mech, final, out / "spaces_optimized.png", resolution=resolution, design=design, title=f"{mech.name}, optimised design")
+            plots.plot_convergence(run.history, out / "convergence.png", title=f"{mech.name}: optimisation")
+            plots.plot_mechanism(mech, out / "mechanism.png", designs={"initial": None, "optimised": design})
+        checks = {"initial": initial.result() if initial is not None else _initial_outputs(mech, out, resolution, verify_resolution), "optimized": checked}
+    finally:
+        if side is not None:
+            side.shutdown(cancel_futures=True)
     (out / "verification.json").write_text(json.dumps(checks, indent=2))
-    final = evaluate(mech, design)
     summary = {
         "mechanism": mech.source,
         "iterations": run.iteration,
@@ -160,10 +199,5 @@ def write_outputs(mech: Mechanism, out: str | Path, run: SwarmRun, settings: Opt
         "settings": settings.to_dict(),
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    if mech.num_motors == mech.num_outputs and mech.num_motors in (2, 3):
-        plots.plot_spaces(mech, evaluate(mech), out / "spaces_initial.png", resolution=resolution, title=f"{mech.name}, initial design")
-        plots.plot_spaces(mech, final, out / "spaces_optimized.png", resolution=resolution, design=design, title=f"{mech.name}, optimised design")
-    plots.plot_convergence(run.history, out / "convergence.png", title=f"{mech.name}: optimisation")
-    plots.plot_mechanism(mech, out / "mechanism.png", designs={"initial": None, "optimised": design})
     summary["optimized_file"] = str(optimized)
     return summary

@@ -20,7 +20,6 @@ from ._errors import InputError, LinkoptError
 from ._kinematics import solve_bk, solve_bk_path, solve_fk, solve_fk_path
 from ._evaluation import alpha_minus, evaluate
 from ._loader import load
-from ._optimizer import OptimizerSettings
 from ._readout import output_values
 
 
@@ -250,6 +249,7 @@ def _cmd_verify(args) -> int:
 
 
 def _cmd_optimize(args) -> int:
+    from ._optimizer import OptimizerSettings  # not at module level: it brings pyswarms
     from ._run import optimize, write_outputs
 
     mech = load(args.file)
@@ -278,7 +278,7 @@ def _cmd_optimize(args) -> int:
 
     run = optimize(mech, args.out, settings, resume=args.resume, progress=report, workers=args.workers)
     print("writing the optimised file, verification and figures ...", file=sys.stderr, flush=True)
-    summary = write_outputs(mech, args.out, run, settings, resolution=args.resolution)
+    summary = write_outputs(mech, args.out, run, settings, resolution=args.resolution, workers=args.workers)
     print(json.dumps({k: summary[k] for k in ("iterations", "f_design", "regularizer", "verified", "initial_verified", "design", "optimized_file")}, indent=2))
     print(f"figures: {Path(args.out) / 'spaces_optimized.png'}, {Path(args.out) / 'convergence.png'}, {Path(args.out) / 'mechanism.png'}", file=sys.stderr)
     return 0
@@ -318,6 +318,8 @@ def _parser() -> argparse.ArgumentParser:
     opt = sub.add_parser("optimize", help="hybrid particle swarm + partial gradient design optimisation (paper Sec. V)")
     opt.add_argument("file")
     opt.add_argument("--out", required=True, help="run directory (checkpoint, history, optimised file, figures)")
+    from ._optimizer import OptimizerSettings
+
     d = OptimizerSettings()
     opt.add_argument("--particles", type=int, default=d.particles, help=f"swarm size (default {d.particles})")
     opt.add_argument("--iterations", type=int, default=d.iterations, help=f"iteration cap (default {d.iterations})")

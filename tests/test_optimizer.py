@@ -12,11 +12,13 @@ import jax
 import numpy as np
 import pytest
 
+import linkopt
 from linkopt import InputError
 from linkopt._evaluation import alpha_minus, evaluate
-from linkopt._optimizer import OptimizerSettings, SwarmRun, start, step, swarm_moves
+from linkopt._optimizer import OptimizerSettings, SwarmRun, best_design, start, step, swarm_moves
 from linkopt._partial import frozen_objective, partial_gradient
-from linkopt._run import CHECKPOINT, optimize, prepare
+from linkopt._run import CHECKPOINT, optimize, prepare, write_outputs
+from linkopt._verify import verify
 from linkopt._workers import Workers
 
 # Seed 0: with 4 particles, 3 iterations lower the swarm's best by more than 5 % for seeds
@@ -179,6 +181,24 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(five_ba
     for name, whole, part in zip(ev._fields, expected, split):
         np.testing.assert_allclose(part, whole, rtol=1e-12, atol=1e-14, err_msg=name)
     np.testing.assert_allclose(gradients, expected_gradients, rtol=1e-10, atol=1e-14)
+
+
+def test_run_outputs_hold_the_optimised_file_verifications_and_figures(five_bar, tmp_path):
+    """With two workers the initial design is verified and plotted in a second process:
+    every output is written, the optimised file loads with the returned design, and the
+    other process's verification equals this one's."""
+    settings = dataclasses.replace(SMALL, iterations=1)
+    run = optimize(five_bar, tmp_path, settings)
+    summary = write_outputs(five_bar, tmp_path, run, settings, resolution=8, verify_resolution=7, workers=2)
+    for name in ("optimized.toml", "history.csv", "verification.json", "summary.json", "spaces_initial.png", "spaces_optimized.png", "convergence.png", "mechanism.png"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    checks = json.loads((tmp_path / "verification.json").read_text())
+    here = verify(five_bar, None, 7)
+    assert checks["initial"]["coverage"] == here.coverage and checks["initial"]["max_f_sing"] == pytest.approx(here.max_f_sing, rel=1e-12)
+    assert checks["initial"]["passed"] is False and summary["initial_verified"] is False  # the shipped five-bar's defects
+    design = best_design(run)
+    np.testing.assert_allclose(linkopt.load(tmp_path / "optimized.toml").design.p0, design, rtol=1e-12)
+    assert summary["f_design"] == pytest.approx(float(evaluate(five_bar, design).f_design), rel=1e-9, abs=1e-30)
 
 
 @pytest.mark.parametrize("flags", [["--seed", "-1"], ["--particles", "0"], ["--tolerance", "0"], ["--improvement", "1"]])
