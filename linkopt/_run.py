@@ -28,12 +28,11 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from ._errors import InputError
 from ._evaluation import alpha_minus
 from ._model import Mechanism
-from ._workers import Workers
+from ._workers import Workers, one_blas_thread
 from ._optimizer import OptimizerSettings, SwarmRun, best_design, start, step
 from ._writer import write_design
 
@@ -149,7 +148,7 @@ def _initial_outputs(mech: Mechanism, out: Path, resolution: int, verify_resolut
     from . import plots
     from ._evaluation import evaluate
 
-    with threadpool_limits(1, user_api="blas"):  # OpenBLAS's spinning threads: linkopt._workers
+    with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._workers
         check = _verification(mech, None, verify_resolution)
         if _has_space_plots(mech):
             plots.plot_spaces(mech, evaluate(mech), out / "spaces_initial.png", resolution=resolution, title=f"{mech.name}, initial design")
@@ -171,7 +170,7 @@ def write_outputs(mech: Mechanism, out: str | Path, run: SwarmRun, settings: Opt
     side = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) if workers > 1 else None
     try:
         initial = side.submit(_initial_outputs, mech, out, resolution, verify_resolution) if side is not None else None
-        with threadpool_limits(1, user_api="blas"):
+        with one_blas_thread():
             checked = _verification(mech, design, verify_resolution)
             final = evaluate(mech, design)
             if _has_space_plots(mech):

@@ -7,6 +7,8 @@ Runs are tiny (4 particles, 3 iterations); the full five-bar optimisation is in
 import dataclasses
 import functools
 import json
+import subprocess
+import sys
 
 import jax
 import numpy as np
@@ -181,6 +183,21 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(five_ba
     for name, whole, part in zip(ev._fields, expected, split):
         np.testing.assert_allclose(part, whole, rtol=1e-12, atol=1e-14, err_msg=name)
     np.testing.assert_allclose(gradients, expected_gradients, rtol=1e-10, atol=1e-14)
+
+
+def test_blas_limit_reaches_the_openblas_that_jax_loads_later():
+    """In a fresh interpreter (nothing else imported): jaxlib loads scipy's OpenBLAS at
+    its first LAPACK call, and ``threadpoolctl`` only limits loaded libraries; unlimited,
+    its spinning threads doubled the time of two worker processes."""
+    code = (
+        "import linkopt._workers as w, jax.numpy as jnp\n"
+        "from threadpoolctl import threadpool_info\n"
+        "with w.one_blas_thread():\n"
+        "    jnp.linalg.cholesky(jnp.eye(3)).block_until_ready()\n"
+        "    print([i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas'])\n"
+    )
+    threads = json.loads(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout)
+    assert len(threads) >= 1 and set(threads) == {1}, threads
 
 
 def test_run_outputs_hold_the_optimised_file_verifications_and_figures(five_bar, tmp_path):
