@@ -14,11 +14,12 @@ A batch of ``D`` designs is ``D·T`` independent lanes, each an IK minimisation 
 by an adversarial one from its result, run through
 :func:`linkopt._sampling.minimise_queue` with ``QUEUE_WIDTH`` slots.
 
-``QUEUE_WIDTH`` = 12 is measured: a lane-step costs more in a wider batch (the matrices
-of a few dozen lanes fit the CPU caches, and the trial solve's inner loop runs to its
-slowest lane), which outweighs the per-step overhead that favours width. Ten five-bar
-designs (90 lanes) took 0.83-0.87 s at widths 6-15, 0.97 s at 45 and 1.14 s at 90; ten
-3-motor neck designs (270 lanes) 5.9-6.5 s at 8 and 15, 6.7 s at 45 and 8.1-9.1 s at 135.
+``QUEUE_WIDTH`` = 12 is measured: a lane-step costs more in a wider batch (we think
+because a few dozen lanes' matrices stay in the CPU caches, and because the trial
+solve's inner loop runs to its slowest lane), more than the per-step overhead that
+favours width saves. Ten five-bar designs (90 lanes) took 0.83-0.87 s at widths 6-15,
+0.97 s at 45 and 1.14 s at 90; ten 3-motor neck designs (270 lanes) 5.9-6.5 s at 8 and
+15, 6.7 s at 45 and 8.1-9.1 s at 135.
 
 ``α₋`` is ``alpha_factor`` times ``f_sing`` at the rest pose of the file's *initial*
 design, fixed for the whole optimisation so that a design cannot move its own threshold.
