@@ -5,11 +5,11 @@ Run: ``.venv/bin/python benchmarks/bench_optimizer.py [--seeds 0,1,...,7] [--wor
 For each worker count, with a fresh compilation cache: runs ``linkopt optimize`` for the
 first seed twice (cold cache, then warm) and every other seed once (warm), each in a
 fresh process (20 particles, hybrid PSO + partial gradient) into a temporary directory,
-and prints the iterations, the optimiser's wall time (and how much of it iteration 0,
-which carries the start-up, took, and the mean of the others), the whole command's wall time
-(compilation, verification, plots), the final ``f_design`` and whether ``linkopt verify``
-passes on the result, then the median over the warm runs. Baseline: the paper's
-Table I, five-bar: 8 iterations, about 15 min (C++, 4 cores).
+and prints the iterations and design evaluations, the optimiser's wall time (and how
+much of it iteration 0, which carries the start-up, took, and the mean of the others),
+the whole command's wall time (compilation, verification, plots), the final ``f_design``
+and whether ``linkopt verify`` passes on the result, then the median over the warm runs.
+Baseline: the paper's Table I, five-bar: 8 iterations, about 15 min (C++, 4 cores).
 
 The number of swarm iterations a seed needs varies a lot (8 to 24 over seeds 0-7 in our
 runs, median 12), and a change anywhere in the evaluation can move every seed's count, so
@@ -51,7 +51,7 @@ def run(seed: int, workers: int, cache: Path) -> dict:
             times = [float(row["wall_time"]) for row in csv.DictReader(f)]
     # iteration 0 carries the start-up (worker processes, loading executables)
     per_iteration = (times[-1] - times[0]) / (len(times) - 1) if len(times) > 1 else float("nan")
-    return {"seed": seed, "seconds": seconds, "first": times[0], "per_iteration": per_iteration, **{k: summary[k] for k in ("iterations", "f_design", "regularizer", "verified", "wall_time")}}
+    return {"seed": seed, "seconds": seconds, "first": times[0], "per_iteration": per_iteration, **{k: summary[k] for k in ("iterations", "evaluations", "f_design", "regularizer", "verified", "wall_time")}}
 
 
 def main() -> None:
@@ -69,7 +69,7 @@ def main() -> None:
                     if label == "warm":
                         warm.append(r)
                     print(
-                        f"  workers {workers}, seed {r['seed']}, {label} cache: {r['iterations']:3d} iterations,"
+                        f"  workers {workers}, seed {r['seed']}, {label} cache: {r['iterations']:3d} iterations ({r['evaluations']} design evaluations),"
                         f" optimiser {r['wall_time']:6.1f} s (iteration 0 {r['first']:5.1f} s, then {r['per_iteration']:4.2f} s each),"
                         f" whole command {r['seconds']:6.1f} s,"
                         f" f_design {r['f_design']:.2e}, verified {r['verified']}"
