@@ -329,7 +329,7 @@ def _parser() -> argparse.ArgumentParser:
     opt.add_argument("--patience", type=int, default=d.patience, help=f"stop after this many iterations without improving the returned feasible design (default {d.patience})")
     opt.add_argument("--improvement", type=float, default=d.improvement, help=f"relative drop of the returned design's total that counts as improving (default {d.improvement:g})")
     opt.add_argument("--resume", action="store_true", help="continue the run checkpointed in --out")
-    opt.add_argument("--workers", type=int, default=WORKERS, help=f"processes sharing the particles (default {WORKERS}: one per core, at most 2)")
+    opt.add_argument("--workers", type=int, default=WORKERS, help=f"processes sharing the particles, and the final verifications and plots (default {WORKERS}: one per core, at most 2)")
     opt.add_argument("--resolution", type=int, default=60, help="grid cells per axis of the final plots")
     opt.set_defaults(run=_cmd_optimize)
     _add_arm_commands(sub)
