@@ -56,9 +56,9 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.optimize
 from jaxtyping import Array, Float
-from threadpoolctl import threadpool_limits
 
 from . import _checks, _dh
+from ._blas import one_blas_thread
 from ._errors import InputError
 
 _SMOOTH_ABS = 1e-4  # δ of the smoothed |x| in L, relative to the task scale
@@ -196,7 +196,7 @@ def _minimise(types: str, x0: np.ndarray, targets, weights, settings: DHSynthesi
     # L-BFGS-B's vector updates call OpenBLAS, whose worker threads spin for vectors of a
     # few hundred entries: on 2 busy cores one sample-run start took 6.5 s of CPU with the
     # default pool and 0.85 s with one thread (same iterates), so BLAS runs single-threaded here.
-    with threadpool_limits(1, user_api="blas"):
+    with one_blas_thread():
         result = scipy.optimize.minimize(fun, x0, jac=True, method="L-BFGS-B", options={"maxiter": settings.max_iterations, "maxcor": 30})
     return result.x
 

@@ -29,10 +29,11 @@ from typing import Callable
 
 import numpy as np
 
+from ._blas import one_blas_thread
 from ._errors import InputError
 from ._evaluation import alpha_minus
 from ._model import Mechanism
-from ._workers import Workers, one_blas_thread
+from ._workers import Workers
 from ._optimizer import OptimizerSettings, SwarmRun, best_design, start, step
 from ._writer import write_design
 
@@ -148,7 +149,7 @@ def _initial_outputs(mech: Mechanism, out: Path, resolution: int, verify_resolut
     from . import plots
     from ._evaluation import evaluate
 
-    with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._workers
+    with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._blas
         check = _verification(mech, None, verify_resolution)
         if _has_space_plots(mech):
             plots.plot_spaces(mech, evaluate(mech), out / "spaces_initial.png", resolution=resolution, title=f"{mech.name}, initial design")

@@ -190,9 +190,9 @@ def test_blas_limit_reaches_the_openblas_that_jax_loads_later():
     its first LAPACK call, and ``threadpoolctl`` only limits loaded libraries; unlimited,
     its spinning threads doubled the time of two worker processes."""
     code = (
-        "import linkopt._workers as w, jax.numpy as jnp\n"
+        "import linkopt._blas as b, jax.numpy as jnp\n"
         "from threadpoolctl import threadpool_info\n"
-        "with w.one_blas_thread():\n"
+        "with b.one_blas_thread():\n"
         "    jnp.linalg.cholesky(jnp.eye(3)).block_until_ready()\n"
         "    print([i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas'])\n"
     )
