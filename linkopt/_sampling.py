@@ -226,6 +226,8 @@ def minimise_queue(
     take = lambda tree, index: jax.tree_util.tree_map(lambda a: a[index], tree)  # noqa: E731
     caps = jnp.asarray(iterations)
 
+    blank = jax.vmap(_unevaluated)(motors0, state0)  # each lane's start, to be evaluated
+
     def step(lane, second, anchor, fresh, it):
         geom, objective = problem(lane, second, anchor)
         return _step(mech, geom, objective, second, it, fresh)
@@ -242,14 +244,13 @@ def minimise_queue(
         incoming = upcoming + jnp.cumsum(free) - 1
         fill = free & (incoming < count)
         source = jnp.minimum(incoming, count - 1)
-        slots = _where(fill, jax.vmap(_unevaluated)(motors0[source], state0[source]), slots)
+        slots = _where(fill, take(blank, source), slots)
         slot_lanes = _where(fill, take(lanes, source), slot_lanes)
         second, fresh = second & ~fill, fresh | fill
         owner = jnp.where(fill, incoming, jnp.where(free, -1, owner))
         return slots, second, anchor, fresh, slot_lanes, owner, upcoming + jnp.sum(free), outs
 
     first = jnp.arange(width)
-    blank = jax.vmap(_unevaluated)(motors0, state0)
     out = _sample(blank)
     no = jnp.zeros(width, bool)
     carry = (take(blank, first), no, motors0[first], ~no, take(lanes, first), first, jnp.asarray(width), (out, out))
