@@ -1,6 +1,9 @@
 """Every shipped mechanism loads and closes its loops; broken files give clear errors."""
 
+import ast
+import importlib
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -179,3 +182,17 @@ def test_parameter_on_non_coincident_joints_is_rejected(tmp_path):
     path.write_text(JANSEN + PIVOT_A.format(joints='["A_triangle", "O"]'))
     with pytest.raises(linkopt.MechanismFileError, match="parameters\\[0\\].joint: joints moved together must share their anchor"):
         linkopt.load(path)
+
+
+def test_public_names_resolve_and_match_the_type_checking_imports():
+    """``linkopt`` imports its public names on first use (PEP 562); the eager imports
+    kept for type checkers must name the same objects, or the two lists have drifted."""
+    init = Path(linkopt.__file__)
+    tree = ast.parse(init.read_text())
+    block = next(node for node in tree.body if isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING")
+    eager = {(alias.asname or alias.name): (stmt.module, alias.name) for stmt in block.body for alias in stmt.names}
+    assert eager == linkopt._EXPORTS
+    assert linkopt.__all__ == sorted(eager)
+    for name in linkopt.__all__:
+        module, attribute = linkopt._EXPORTS[name]
+        assert getattr(linkopt, name) is getattr(importlib.import_module(f"linkopt.{module}"), attribute)
