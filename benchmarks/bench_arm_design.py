@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 
 import linkopt  # noqa: F401  (float64, cache)
-from linkopt import _arm_design as nlp
-from linkopt._arm_plots import plot_solution
-from linkopt._arm_task import load_task
+from linkopt._arms.codesign import nlp
+from linkopt._arms.codesign.plots import plot_solution
+from linkopt._arms.codesign.task import load_task
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER_MINUTES = {"backpack": 1.8, "rover": 85.0}

@@ -24,7 +24,7 @@ TARGET_BATCH_S = 1.0
 
 FIRST_CALL = """
 import time, numpy as np, jax, linkopt
-from linkopt._evaluation import evaluate
+from linkopt._design.evaluation import evaluate
 m = linkopt.load({path!r})
 designs = np.asarray(m.design.p0) + np.random.default_rng(0).normal(0, 1.0, ({n}, m.design.size))
 t = time.perf_counter()
@@ -45,7 +45,7 @@ def main() -> None:
     import numpy as np
 
     import linkopt
-    from linkopt._evaluation import evaluate
+    from linkopt._design.evaluation import evaluate
 
     mech = linkopt.load(FILE)
     designs = np.asarray(mech.design.p0) + np.random.default_rng(0).normal(0, 1.0, (20, mech.design.size))

@@ -75,7 +75,7 @@ def bench_optimistix(mech, n: int) -> dict:
     import optimistix as optx
 
     import linkopt
-    from linkopt._constraints import fk_residual
+    from linkopt._engine.constraints import fk_residual
 
     geom = linkopt.geometry(mech)
     start = linkopt.rest_state(mech)
@@ -98,7 +98,7 @@ def bench_scipy(mech) -> dict:
     from scipy.optimize import least_squares
 
     import linkopt
-    from linkopt._constraints import fk_residual
+    from linkopt._engine.constraints import fk_residual
 
     geom = linkopt.geometry(mech)
     a = _motor_batch(mech, 1)[0] / mech.motor_scale

@@ -39,9 +39,9 @@ import scipy.optimize  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 import linkopt  # noqa: E402,F401  (float64 and the compilation cache first)
-from linkopt import _dh  # noqa: E402
-from linkopt import _dh_synthesis as syn  # noqa: E402
-from linkopt._cli_manipulability import draw, read_points  # noqa: E402
+from linkopt._arms.dh import table as _dh  # noqa: E402
+from linkopt._arms.dh import synthesis as syn  # noqa: E402
+from linkopt._cli.manipulability import draw, read_points  # noqa: E402
 
 TASK = ROOT / "tasks/curve_cos5t_sin3t_sint.csv"
 FIGURE = ROOT / "figures/manipulability_sample_run.png"
@@ -76,7 +76,7 @@ def paper_eq10_with_fixed_table(table: _dh.DHTable, targets: np.ndarray, q0: np.
         value, grad = syn._value_and_grad("RRR", jnp.asarray(np.concatenate([k, q])), jnp.asarray(targets), weights)
         return float(value), np.asarray(grad)[k.size :]
 
-    with threadpool_limits(1, user_api="blas"):  # as in linkopt._dh_synthesis._minimise
+    with threadpool_limits(1, user_api="blas"):  # as in linkopt._arms.dh.synthesis.minimise
         q = scipy.optimize.minimize(fun, q0.ravel(), jac=True, method="L-BFGS-B", options={"maxiter": 4000}).x
     residual, w = syn.measures("RRR", table, jnp.asarray(q.reshape(-1, 3)), jnp.asarray(targets))
     return fun(q)[0], np.asarray(residual), np.asarray(w)

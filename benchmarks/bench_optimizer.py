@@ -42,7 +42,7 @@ PAPER_SECONDS = 15 * 60
 def run(seed: int, workers: int, cache: Path) -> dict:
     with tempfile.TemporaryDirectory() as out:
         began = time.perf_counter()
-        cmd = [sys.executable, "-m", "linkopt.cli", "optimize", str(FILE), "--out", out, "--seed", str(seed), "--workers", str(workers)]
+        cmd = [sys.executable, "-m", "linkopt", "optimize", str(FILE), "--out", out, "--seed", str(seed), "--workers", str(workers)]
         env = {**os.environ, "LINKOPT_CACHE_DIR": str(cache)}
         subprocess.run(cmd, cwd=ROOT, check=True, capture_output=True, text=True, env=env)
         seconds = time.perf_counter() - began

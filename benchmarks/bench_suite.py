@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import linkopt  # noqa: E402
-from linkopt._evaluation import targets  # noqa: E402
+from linkopt._design.evaluation import targets  # noqa: E402
 
 # name: (|s|, |p|, targets, iterations, seconds) from the paper's Table I
 PAPER = {
@@ -41,7 +41,7 @@ def run(name: str, runs: Path) -> dict:
     seconds = None
     if not summary.exists():
         began = time.perf_counter()
-        cmd = [sys.executable, "-m", "linkopt.cli", "optimize", str(ROOT / "mechanisms" / f"{name}.toml"), "--out", str(out)]
+        cmd = [sys.executable, "-m", "linkopt", "optimize", str(ROOT / "mechanisms" / f"{name}.toml"), "--out", str(out)]
         if (out / "checkpoint.json").exists():
             cmd.append("--resume")
         subprocess.run(cmd, cwd=ROOT, check=True)

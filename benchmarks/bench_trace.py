@@ -25,15 +25,15 @@ CASE = r"""
 import json, sys, time
 t0, c0 = time.perf_counter(), time.process_time()
 import linkopt
-from linkopt._trace_task import load_task
-from linkopt._trace_synthesis import TraceSettings, synthesize
+from linkopt._arms.trace.task import load_task
+from linkopt._arms.trace.synthesis import TraceSettings, synthesize
 name, seed, figures = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "1"
 root = sys.argv[4]
 task_name = "rose" if name.startswith("rose") else name
 task = load_task(f"{root}/tasks/{task_name}.toml")
 out = {"case": name}
 if name == "rose_discretised":
-    from linkopt._trace_discrete import compare, discretised_design
+    from linkopt._arms.trace.discrete import compare, discretised_design
     design = discretised_design(task, 25, seed=seed)
     cmp = compare(task, design)
     out.update(lengths=design.lengths.tolist(), excursion=cmp.excursion, fraction_outside=cmp.fraction_outside,
@@ -50,7 +50,7 @@ else:
 out["wall_s"], out["cpu_s"] = time.perf_counter() - t0, time.process_time() - c0
 if figures:
     import matplotlib.pyplot as plt
-    from linkopt import _trace_plots as tp
+    from linkopt._arms.trace import plots as tp
     fig_dir = f"{root}/figures"
     if name == "rose_discretised":
         tp.discretised_figure(task, cmp).savefig(f"{fig_dir}/trace_rose_discretised.png", dpi=100, bbox_inches="tight")

@@ -15,66 +15,66 @@ from . import _config  # noqa: F401  (float64 and the compilation cache, before 
 # synthesis (004), path tracing (002) are the ``_arm``, ``_dh``, ``_elimination``,
 # ``_manipulability``, ``_statics`` and ``_trace`` modules.
 _EXPORTS = {
-    "constraint_rows": ("_constraints", "constraint_rows"),
+    "constraint_rows": ("_engine.constraints", "constraint_rows"),
     "InputError": ("_errors", "InputError"),
     "LinkoptError": ("_errors", "LinkoptError"),
     "MechanismFileError": ("_errors", "MechanismFileError"),
-    "Evaluation": ("_evaluation", "Evaluation"),
-    "evaluate": ("_evaluation", "evaluate"),
-    "geometry": ("_geometry", "geometry"),
-    "rest_state": ("_geometry", "rest_state"),
-    "Solution": ("_kinematics", "Solution"),
-    "sensitivity": ("_kinematics", "sensitivity"),
-    "solve_bk": ("_kinematics", "solve_bk"),
-    "solve_bk_path": ("_kinematics", "solve_bk_path"),
-    "solve_fk": ("_kinematics", "solve_fk"),
-    "solve_fk_path": ("_kinematics", "solve_fk_path"),
-    "load": ("_loader", "load"),
-    "loads": ("_loader", "loads"),
-    "mobility": ("_mobility", "mobility"),
-    "Mechanism": ("_model", "Mechanism"),
-    "OptimizerSettings": ("_optimizer", "OptimizerSettings"),
-    "partial_gradient": ("_partial", "partial_gradient"),
-    "joint_positions": ("_readout", "joint_positions"),
-    "motor_values": ("_readout", "motor_values"),
-    "output_values": ("_readout", "output_values"),
-    "point_positions": ("_readout", "point_positions"),
-    "optimize": ("_run", "optimize"),
-    "write_outputs": ("_run", "write_outputs"),
-    "f_sing": ("_singularity", "f_sing"),
-    "singular_values": ("_singularity", "singular_values"),
-    "Verification": ("_verify", "Verification"),
-    "verify": ("_verify", "verify"),
-    "write_design": ("_writer", "write_design"),
-    "ArmSolution": ("_arm_design", "ArmSolution"),
-    "prepare_arm": ("_arm_design", "prepare"),
-    "solve_arm": ("_arm_design", "solve"),
-    "Arm": ("_arm_model", "Arm"),
-    "ArmTask": ("_arm_task", "Task"),
-    "load_arm_task": ("_arm_task", "load_task"),
-    "loads_arm_task": ("_arm_task", "loads_task"),
-    "DHTable": ("_dh", "DHTable"),
-    "dh_mechanism": ("_dh", "to_mechanism"),
-    "DHSynthesis": ("_dh_synthesis", "DHSynthesis"),
-    "DHSynthesisSettings": ("_dh_synthesis", "DHSynthesisSettings"),
-    "synthesize_dh": ("_dh_synthesis", "synthesize_dh"),
-    "eliminate": ("_elimination", "eliminate"),
-    "simplify": ("_elimination", "simplify"),
-    "manipulability": ("_manipulability", "manipulability"),
-    "point_jacobian": ("_manipulability", "point_jacobian"),
-    "static_torques": ("_statics", "static_torques"),
-    "DiscreteComparison": ("_trace_discrete", "DiscreteComparison"),
-    "compare_discretised": ("_trace_discrete", "compare"),
-    "discretised_design": ("_trace_discrete", "discretised_design"),
-    "TraceResult": ("_trace_synthesis", "TraceResult"),
-    "TraceSettings": ("_trace_synthesis", "TraceSettings"),
-    "synthesize_trace": ("_trace_synthesis", "synthesize"),
-    "TraceTask": ("_trace_task", "TraceTask"),
-    "load_trace_task": ("_trace_task", "load_task"),
-    "loads_trace_task": ("_trace_task", "loads_task"),
-    "PlanarArm": ("_trace_verify", "PlanarArm"),
-    "TraceVerification": ("_trace_verify", "TraceVerification"),
-    "verify_trace": ("_trace_verify", "verify"),
+    "Evaluation": ("_design.evaluation", "Evaluation"),
+    "evaluate": ("_design.evaluation", "evaluate"),
+    "geometry": ("_engine.geometry", "geometry"),
+    "rest_state": ("_engine.geometry", "rest_state"),
+    "Solution": ("_engine.kinematics", "Solution"),
+    "sensitivity": ("_engine.kinematics", "sensitivity"),
+    "solve_bk": ("_engine.kinematics", "solve_bk"),
+    "solve_bk_path": ("_engine.kinematics", "solve_bk_path"),
+    "solve_fk": ("_engine.kinematics", "solve_fk"),
+    "solve_fk_path": ("_engine.kinematics", "solve_fk_path"),
+    "load": ("_engine.loader", "load"),
+    "loads": ("_engine.loader", "loads"),
+    "mobility": ("_engine.mobility", "mobility"),
+    "Mechanism": ("_engine.model", "Mechanism"),
+    "OptimizerSettings": ("_design.optimizer", "OptimizerSettings"),
+    "partial_gradient": ("_design.partial", "partial_gradient"),
+    "joint_positions": ("_engine.readout", "joint_positions"),
+    "motor_values": ("_engine.readout", "motor_values"),
+    "output_values": ("_engine.readout", "output_values"),
+    "point_positions": ("_engine.readout", "point_positions"),
+    "optimize": ("_design.run", "optimize"),
+    "write_outputs": ("_design.run", "write_outputs"),
+    "f_sing": ("_engine.singularity", "f_sing"),
+    "singular_values": ("_engine.singularity", "singular_values"),
+    "Verification": ("_design.verify", "Verification"),
+    "verify": ("_design.verify", "verify"),
+    "write_design": ("_engine.writer", "write_design"),
+    "ArmSolution": ("_arms.codesign.nlp", "ArmSolution"),
+    "prepare_arm": ("_arms.codesign.nlp", "prepare"),
+    "solve_arm": ("_arms.codesign.nlp", "solve"),
+    "Arm": ("_arms.codesign.model", "Arm"),
+    "ArmTask": ("_arms.codesign.task", "Task"),
+    "load_arm_task": ("_arms.codesign.task", "load_task"),
+    "loads_arm_task": ("_arms.codesign.task", "loads_task"),
+    "DHTable": ("_arms.dh.table", "DHTable"),
+    "dh_mechanism": ("_arms.dh.table", "to_mechanism"),
+    "DHSynthesis": ("_arms.dh.synthesis", "DHSynthesis"),
+    "DHSynthesisSettings": ("_arms.dh.synthesis", "DHSynthesisSettings"),
+    "synthesize_dh": ("_arms.dh.synthesis", "synthesize_dh"),
+    "eliminate": ("_arms.codesign.elimination", "eliminate"),
+    "simplify": ("_arms.codesign.elimination", "simplify"),
+    "manipulability": ("_engine.manipulability", "manipulability"),
+    "point_jacobian": ("_engine.manipulability", "point_jacobian"),
+    "static_torques": ("_engine.statics", "static_torques"),
+    "DiscreteComparison": ("_arms.trace.discrete", "DiscreteComparison"),
+    "compare_discretised": ("_arms.trace.discrete", "compare"),
+    "discretised_design": ("_arms.trace.discrete", "discretised_design"),
+    "TraceResult": ("_arms.trace.synthesis", "TraceResult"),
+    "TraceSettings": ("_arms.trace.synthesis", "TraceSettings"),
+    "synthesize_trace": ("_arms.trace.synthesis", "synthesize"),
+    "TraceTask": ("_arms.trace.task", "TraceTask"),
+    "load_trace_task": ("_arms.trace.task", "load_task"),
+    "loads_trace_task": ("_arms.trace.task", "loads_task"),
+    "PlanarArm": ("_arms.trace.verify", "PlanarArm"),
+    "TraceVerification": ("_arms.trace.verify", "TraceVerification"),
+    "verify_trace": ("_arms.trace.verify", "verify"),
 }
 
 
@@ -95,32 +95,32 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # the eager imports, for type checkers and editors
-    from ._constraints import constraint_rows
+    from ._engine.constraints import constraint_rows
     from ._errors import InputError, LinkoptError, MechanismFileError
-    from ._evaluation import Evaluation, evaluate
-    from ._geometry import geometry, rest_state
-    from ._kinematics import Solution, sensitivity, solve_bk, solve_bk_path, solve_fk, solve_fk_path
-    from ._loader import load, loads
-    from ._mobility import mobility
-    from ._model import Mechanism
-    from ._optimizer import OptimizerSettings
-    from ._partial import partial_gradient
-    from ._readout import joint_positions, motor_values, output_values, point_positions
-    from ._run import optimize, write_outputs
-    from ._singularity import f_sing, singular_values
-    from ._verify import Verification, verify
-    from ._writer import write_design
-    from ._arm_design import ArmSolution, prepare as prepare_arm, solve as solve_arm
-    from ._arm_model import Arm
-    from ._arm_task import Task as ArmTask, load_task as load_arm_task, loads_task as loads_arm_task
-    from ._dh import DHTable, to_mechanism as dh_mechanism
-    from ._dh_synthesis import DHSynthesis, DHSynthesisSettings, synthesize_dh
-    from ._elimination import eliminate, simplify
-    from ._manipulability import manipulability, point_jacobian
-    from ._statics import static_torques
-    from ._trace_discrete import DiscreteComparison, compare as compare_discretised, discretised_design
-    from ._trace_synthesis import TraceResult, TraceSettings, synthesize as synthesize_trace
-    from ._trace_task import TraceTask, load_task as load_trace_task, loads_task as loads_trace_task
-    from ._trace_verify import PlanarArm, TraceVerification, verify as verify_trace
+    from ._design.evaluation import Evaluation, evaluate
+    from ._engine.geometry import geometry, rest_state
+    from ._engine.kinematics import Solution, sensitivity, solve_bk, solve_bk_path, solve_fk, solve_fk_path
+    from ._engine.loader import load, loads
+    from ._engine.mobility import mobility
+    from ._engine.model import Mechanism
+    from ._design.optimizer import OptimizerSettings
+    from ._design.partial import partial_gradient
+    from ._engine.readout import joint_positions, motor_values, output_values, point_positions
+    from ._design.run import optimize, write_outputs
+    from ._engine.singularity import f_sing, singular_values
+    from ._design.verify import Verification, verify
+    from ._engine.writer import write_design
+    from ._arms.codesign.nlp import ArmSolution, prepare as prepare_arm, solve as solve_arm
+    from ._arms.codesign.model import Arm
+    from ._arms.codesign.task import Task as ArmTask, load_task as load_arm_task, loads_task as loads_arm_task
+    from ._arms.dh.table import DHTable, to_mechanism as dh_mechanism
+    from ._arms.dh.synthesis import DHSynthesis, DHSynthesisSettings, synthesize_dh
+    from ._arms.codesign.elimination import eliminate, simplify
+    from ._engine.manipulability import manipulability, point_jacobian
+    from ._engine.statics import static_torques
+    from ._arms.trace.discrete import DiscreteComparison, compare as compare_discretised, discretised_design
+    from ._arms.trace.synthesis import TraceResult, TraceSettings, synthesize as synthesize_trace
+    from ._arms.trace.task import TraceTask, load_task as load_trace_task, loads_task as loads_trace_task
+    from ._arms.trace.verify import PlanarArm, TraceVerification, verify as verify_trace
 
 __all__ = sorted(_EXPORTS)

@@ -57,3 +57,23 @@ def configure() -> None:
 
 
 configure()
+
+
+def one_blas_thread():
+    """OpenBLAS held to one thread while linkopt computes; also a context manager that
+    restores the previous limits.
+
+    jaxlib's LAPACK kernels call the OpenBLAS that scipy ships, which starts one thread
+    per core and keeps it spinning between calls: two processes, each with that thread
+    beside its own, overbook a 2-core machine and every chunk runs several times slower
+    (figures in ``benchmarks/bench_optimizer.py``). Every chunk therefore runs with
+    OpenBLAS held to one thread (``threadpoolctl``): in the workers for their lifetime,
+    in the calling process only while it computes, so the user's own numpy keeps its
+    threads. ``threadpoolctl`` only limits libraries already loaded, and jaxlib loads
+    scipy's OpenBLAS at its first LAPACK call, so ``scipy.linalg`` (which loads it) is
+    imported here, before the limit is set, and not at import of :mod:`linkopt`.
+    """
+    import scipy.linalg  # noqa: F401  (loads the OpenBLAS that jaxlib calls)
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(1, user_api="blas")

@@ -4,8 +4,8 @@ of free length, a second joint and a tool; and the targets it reaches for a know
 import jax.numpy as jnp
 import numpy as np
 
-from linkopt._arm_model import _rotation_matrix, chain
-from linkopt._arm_task import loads_task
+from linkopt._arms.codesign.model import rotation_matrix, chain
+from linkopt._arms.codesign.task import loads_task
 
 TINY_ARM = """
 [task]
@@ -44,5 +44,5 @@ def reached_targets(text: str, design, poses, *, axis: bool = False) -> str:
         q, p = ends[-1]
         tables += f"[[targets]]\nposition = {[float(v) for v in p]}\n"
         if axis:
-            tables += f"axis = {[float(v) for v in np.asarray(_rotation_matrix(q))[:, 2]]}\n"
+            tables += f"axis = {[float(v) for v in np.asarray(rotation_matrix(q))[:, 2]]}\n"
     return tables

@@ -17,6 +17,6 @@ def five_bar() -> linkopt.Mechanism:
 
 @pytest.fixture(scope="session")
 def five_bar_evaluation(five_bar):
-    from linkopt._evaluation import evaluate
+    from linkopt._design.evaluation import evaluate
 
     return evaluate(five_bar)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import linkopt
-from linkopt._cli_trace import file_stem
-from linkopt.cli import main
+from linkopt._cli.trace import file_stem
+from linkopt._cli.main import main
 
 from arm_tasks import TINY_ARM, reached_targets
 

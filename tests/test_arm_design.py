@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import linkopt  # noqa: F401  (float64)
-from linkopt import _arm_design as nlp
-from linkopt._arm_task import loads_task
+from linkopt._arms.codesign import nlp
+from linkopt._arms.codesign.task import loads_task
 
 from arm_tasks import TINY_ARM, reached_targets
 

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 import linkopt  # noqa: F401  (float64)
-from linkopt import _arm_design as nlp
-from linkopt import _elimination as elim
-from linkopt._arm_model import chain
-from linkopt._arm_task import loads_task
+from linkopt._arms.codesign import nlp
+from linkopt._arms.codesign import elimination as elim
+from linkopt._arms.codesign.model import chain
+from linkopt._arms.codesign.task import loads_task
 
 ARM = """
 [task]

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import linkopt  # noqa: F401  (float64)
-from linkopt._arm_model import Module, arm_state, make_arm, tool_rotation
-from linkopt._constraints import fk_residual, point_positions
+from linkopt._arms.codesign.model import Module, arm_state, make_arm, tool_rotation
+from linkopt._engine.constraints import fk_residual, point_positions
 
 # (offset d, length a, twist α) per joint, then the tool length.
 DH = [(0.10, 0.30, np.pi / 2), (0.00, 0.25, -0.4), (0.05, 0.20, 1.1)]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import linkopt  # noqa: F401  (float64)
-from linkopt._sdf import Obstacle, box_distance, build_field, chomp_cost, field_distance, sphere_distance
+from linkopt._arms.codesign.sdf import Obstacle, box_distance, build_field, chomp_cost, field_distance, sphere_distance
 
 H = 0.02
 LOWER, UPPER = [-0.5, -0.5, -0.5], [0.5, 0.5, 0.5]
@@ -120,12 +120,12 @@ def test_rotated_box_is_drawn_with_its_turned_edges():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from linkopt._arm_plots import _draw_obstacle
+    from linkopt._arms.codesign.plots import draw_obstacle
 
     quarter = ((0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0))  # 90° about z
     box = Obstacle("box", center=(0.0, 0.0, 0.0), size=(0.4, 0.1, 0.2), orientation=quarter)
     ax = plt.figure().add_subplot(projection="3d")
-    _draw_obstacle(ax, box, (np.full(3, -1.0), np.full(3, 1.0)))
+    draw_obstacle(ax, box, (np.full(3, -1.0), np.full(3, 1.0)))
     ends = np.array([np.array(line.get_data_3d()).T for line in ax.lines])  # (12, 2, 3)
     plt.close("all")
     assert ends.shape == (12, 2, 3)

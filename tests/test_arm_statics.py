@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import linkopt
-from linkopt._arm_model import Module, arm_loads, arm_state, make_arm
-from linkopt._statics import motor_torques, static_torques
+from linkopt._arms.codesign.model import Module, arm_loads, arm_state, make_arm
+from linkopt._engine.statics import motor_torques, static_torques
 
 ROOT = Path(__file__).resolve().parent.parent
 L1, L2, M1, M2, MJ, MP, G = 0.4, 0.3, 1.5, 0.8, 0.35, 0.6, 9.81

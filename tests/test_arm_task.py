@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from linkopt import MechanismFileError
-from linkopt._arm_task import load_task, loads_task
+from linkopt._arms.codesign.task import load_task, loads_task
 
 from arm_tasks import TINY_ARM
 

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 import linkopt
-from linkopt import _dh
-from linkopt import _dh_synthesis as syn
-from linkopt._cli_manipulability import read_points
-from linkopt._manipulability import manipulability, point_jacobian, yoshikawa
-from linkopt.cli import main
+from linkopt._arms.dh import table as _dh
+from linkopt._arms.dh import synthesis as syn
+from linkopt._cli.manipulability import read_points
+from linkopt._engine.manipulability import manipulability, point_jacobian, yoshikawa
+from linkopt._cli.main import main
 
 # The paper's DH table (Sec. VI) and its Fig. 3 targets, joint vectors, residuals and volumes.
 PAPER = _dh.table_from_arrays("RRR", [1.62611, 1.56317, 1.56376], [-1.56998, -0.000493347, 0.0], [-0.0403649, -0.00121933, 0.000180823])

@@ -8,11 +8,11 @@ import pytest
 import linkopt
 from conftest import MECHANISMS
 from five_bar_closed_form import B_L, B_R, L1, L2, cross, elbows, forward_singular_height, inverse
-from linkopt._evaluation import alpha_minus, evaluate, targets
-from linkopt._constraints import output_values
-from linkopt._metrics import thresholds
-from linkopt._geometry import rest_state
-from linkopt._sampling import _evaluate, adversarial_objective, either, ik_objective, minimise, minimise_queue
+from linkopt._design.evaluation import alpha_minus, evaluate, targets
+from linkopt._engine.constraints import output_values
+from linkopt._design.metrics import thresholds
+from linkopt._engine.geometry import rest_state
+from linkopt._design.sampling import evaluate_point, adversarial_objective, either, ik_objective, minimise, minimise_queue
 
 
 def reachable_on_rest_branch(tips):
@@ -74,11 +74,11 @@ def test_objective_gradients_match_finite_differences(five_bar, kind):
         outputs = output_values(five_bar, geom, state)  # homogenised
         low = outputs - jnp.array([0.5, 0.01])
         objective = adversarial_objective(five_bar, geom, motors + 0.05, low, low + 2.0, th)
-    value, gradient, *_ = _evaluate(objective, five_bar, geom, motors, state)
+    value, gradient, *_ = evaluate_point(objective, five_bar, geom, motors, state)
 
     def value_at(a):
         s = linkopt.solve_fk(five_bar, a, start=state).state
-        return float(_evaluate(objective, five_bar, geom, a, s)[0])
+        return float(evaluate_point(objective, five_bar, geom, a, s)[0])
 
     h = 1e-6
     fd = [(value_at(motors + h * e) - value_at(motors - h * e)) / (2 * h) for e in np.eye(2)]

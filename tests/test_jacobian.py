@@ -10,8 +10,9 @@ import pytest
 
 import linkopt
 from conftest import MECHANISMS, ROOT
-from linkopt import _jacobian, _loader
-from linkopt._constraints import bk_residual, fk_residual
+from linkopt._engine import jacobian as _jacobian
+from linkopt._engine import loader as _loader
+from linkopt._engine.constraints import bk_residual, fk_residual
 
 FILES = [MECHANISMS / "five_bar.toml", MECHANISMS / "jansen_1dof.toml", ROOT / "tests/data/all_families.toml"]
 

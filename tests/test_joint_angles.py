@@ -5,8 +5,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from linkopt import _joints
-from linkopt._quaternion import from_axis_angle, multiply
+from linkopt._engine import joints as _joints
+from linkopt._engine.quaternion import from_axis_angle, multiply
 
 
 def _frame(rng):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import linkopt
-from linkopt import cli
+from linkopt._cli import main as cli
 from conftest import MECHANISMS
 
 SHIPPED = sorted(MECHANISMS.glob("*.toml"))

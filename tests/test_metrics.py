@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from linkopt._metrics import attractive, barrier, culled, step, thresholds
+from linkopt._design.metrics import attractive, barrier, culled, step, thresholds
 
 TH = thresholds(7.0)  # α₋ = 7, α₊ = 10, α_t = 8.5
 

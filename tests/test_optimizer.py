@@ -16,12 +16,12 @@ import pytest
 
 import linkopt
 from linkopt import InputError
-from linkopt._evaluation import alpha_minus, evaluate
-from linkopt._optimizer import OptimizerSettings, SwarmRun, best_design, start, step, swarm_moves
-from linkopt._partial import frozen_objective, partial_gradient
-from linkopt._run import CHECKPOINT, optimize, prepare, write_outputs
-from linkopt._verify import verify
-from linkopt._workers import Workers
+from linkopt._design.evaluation import alpha_minus, evaluate
+from linkopt._design.optimizer import OptimizerSettings, SwarmRun, best_design, start, step, swarm_moves
+from linkopt._design.partial import frozen_objective, partial_gradient
+from linkopt._design.run import CHECKPOINT, optimize, prepare, write_outputs
+from linkopt._design.verify import verify
+from linkopt._design.workers import Workers
 
 # Seed 0: with 4 particles, 3 iterations lower the swarm's best by more than 5 % for seeds
 # 0-6 and not for seed 7 (measured), which the resume test below relies on.
@@ -63,7 +63,7 @@ def test_partial_gradient_matches_finite_differences_of_the_frozen_objective(fiv
     assert np.isclose(float(objective(p)), ev.f_design[i] + ev.regularizer[i], rtol=1e-8)
     h = 1e-5
     fd = [(objective(p + h * e) - objective(p - h * e)) / (2 * h) for e in np.eye(p.size)]
-    # σ_min comes from a Ritz vector converged to ~1e-5 (linkopt._singularity), which
+    # σ_min comes from a Ritz vector converged to ~1e-5 (linkopt._engine.singularity), which
     # bounds the agreement relative to the gradient's size
     np.testing.assert_allclose(gradients[i], fd, rtol=1e-4, atol=2e-5 * np.max(np.abs(fd)))
 
@@ -190,7 +190,7 @@ def test_blas_limit_reaches_the_openblas_that_jax_loads_later():
     its first LAPACK call, and ``threadpoolctl`` only limits loaded libraries; unlimited,
     its spinning threads doubled the time of two worker processes."""
     code = (
-        "import linkopt._blas as b, jax.numpy as jnp\n"
+        "import linkopt._config as b, jax.numpy as jnp\n"
         "from threadpoolctl import threadpool_info\n"
         "with b.one_blas_thread():\n"
         "    jnp.linalg.cholesky(jnp.eye(3)).block_until_ready()\n"
@@ -220,7 +220,7 @@ def test_run_outputs_hold_the_optimised_file_verifications_and_figures(five_bar,
 
 @pytest.mark.parametrize("flags", [["--seed", "-1"], ["--particles", "0"], ["--tolerance", "0"], ["--improvement", "1"]])
 def test_optimize_command_rejects_bad_settings_with_one_line(flags, tmp_path, capsys):
-    from linkopt import cli
+    from linkopt._cli import main as cli
 
     from conftest import MECHANISMS
 

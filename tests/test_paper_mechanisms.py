@@ -9,8 +9,8 @@ import pytest
 
 import linkopt
 from conftest import MECHANISMS
-from linkopt._evaluation import alpha_minus, targets
-from linkopt._verify import verify
+from linkopt._design.evaluation import alpha_minus, targets
+from linkopt._design.verify import verify
 
 # name: |s|, |p|, IK targets, mobility (Table I; the mobility is the number of motors)
 TABLE_I = {

@@ -9,8 +9,8 @@ from scipy import ndimage
 import linkopt
 from conftest import MECHANISMS
 from five_bar_closed_form import L2, elbows, forward
-from linkopt import cli
-from linkopt._maps import motor_map
+from linkopt._cli import main as cli
+from linkopt._design.maps import motor_map
 
 
 def test_motor_map_matches_closed_form_feasibility(five_bar):
@@ -77,7 +77,7 @@ def test_three_output_sections_match_direct_solves(tmp_path):
     """A 3R arm (3 motors, tip x/y/z): the plot has one row per section, and each section's
     map agrees with a direct backward solve and f_sing at a probed cell."""
     from conftest import ROOT
-    from linkopt.plots import plot_spaces, section_maps
+    from linkopt._design.plots import plot_spaces, section_maps
 
     arm = linkopt.load(ROOT / "tests/data/arm_3r.toml")
     ev = linkopt.evaluate(arm)

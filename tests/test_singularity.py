@@ -46,7 +46,7 @@ def test_f_sing_is_sum_of_inverse_sigmas(five_bar):
     sigma = np.asarray(linkopt.singular_values(five_bar, state))
     assert np.isclose(float(linkopt.f_sing(five_bar, state)), np.sum(1 / sigma), rtol=1e-12)
     # against numpy's SVD of the stacked Jacobians (homogenised)
-    from linkopt._singularity import stacked_jacobians
+    from linkopt._engine.singularity import stacked_jacobians
 
     jac = np.asarray(stacked_jacobians(five_bar, linkopt.geometry(five_bar), state))
     reference = [np.linalg.svd(j, compute_uv=False)[-1] for j in jac]
@@ -56,7 +56,7 @@ def test_f_sing_is_sum_of_inverse_sigmas(five_bar):
 def test_sigma_min_matches_svd_where_the_smallest_values_cluster(five_bar):
     """Block inverse iteration vs LAPACK along a path through the motor square, where the
     two smallest singular values come within 2 % of each other and near singularities."""
-    from linkopt._singularity import stacked_jacobians
+    from linkopt._engine.singularity import stacked_jacobians
 
     motors = np.stack([np.linspace(-1.5, 1.5, 60), np.linspace(1.0, -1.0, 60)], 1)
     path = linkopt.solve_fk_path(five_bar, motors)
@@ -81,7 +81,7 @@ def test_f_sing_gradient_through_fk_matches_finite_differences(five_bar):
     h = 1e-6
     fd_a = [(objective(motors + h * e, design) - objective(motors - h * e, design)) / (2 * h) for e in np.eye(2)]
     fd_p = [(objective(motors, design + h * e) - objective(motors, design - h * e)) / (2 * h) for e in np.eye(3)]
-    # σ_min comes from a converged-to-1e-5 Ritz vector (linkopt._singularity), so the
+    # σ_min comes from a converged-to-1e-5 Ritz vector (linkopt._engine.singularity), so the
     # analytic derivative and the finite difference of the computed σ differ at that level
     np.testing.assert_allclose(grad_a, fd_a, rtol=3e-4, atol=1e-7)
     np.testing.assert_allclose(grad_p, fd_p, rtol=3e-4, atol=1e-7)
@@ -95,7 +95,7 @@ def test_batched_svd_gradient_does_not_hang():
         import jax, jax.numpy as jnp, numpy as np, linkopt
         m = linkopt.load("mechanisms/five_bar.toml")
         g = linkopt.geometry(m)
-        from linkopt._singularity import f_sing_value
+        from linkopt._engine.singularity import f_sing_value
         def f(a):
             s = linkopt.solve_fk(m, a).state
             return f_sing_value(m, g, s)

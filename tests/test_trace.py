@@ -10,14 +10,14 @@ import pytest
 import scipy.optimize
 
 import linkopt
-from linkopt import _trace_geometry as geo
+from linkopt._arms.trace import geometry as geo
 from linkopt._errors import MechanismFileError
-from linkopt._trace_discrete import compare
-from linkopt._trace_export import mechanism_text, result_dict
-from linkopt._trace_swept import DIRS, app_support, over_support, signed_distance
-from linkopt._trace_synthesis import TraceSettings, TraceResult, _problem, initial_guess, synthesize
-from linkopt._trace_task import load_task, loads_task
-from linkopt._trace_verify import PlanarArm, critical_states, verify
+from linkopt._arms.trace.discrete import compare
+from linkopt._arms.trace.export import mechanism_text, result_dict
+from linkopt._arms.trace.swept import DIRS, app_support, over_support, signed_distance
+from linkopt._arms.trace.synthesis import TraceSettings, TraceResult, build_problem, initial_guess, synthesize
+from linkopt._arms.trace.task import load_task, loads_task
+from linkopt._arms.trace.verify import PlanarArm, critical_states, verify
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -193,7 +193,7 @@ def test_bad_task_files_give_one_line_naming_file_and_field(text, field, words):
 
 
 def test_cli_reports_a_bad_task_file_with_status_2(tmp_path, capsys):
-    from linkopt.cli import main
+    from linkopt._cli.main import main
 
     path = tmp_path / "bad.toml"
     path.write_text(HEAD + LINE.replace('"line"', '"spline"'))
@@ -213,8 +213,8 @@ def test_non_utf8_task_file_is_one_line_error(tmp_path):
 def test_cli_without_a_design_draws_the_task_under_a_safe_name(tmp_path, monkeypatch, capsys):
     """No design found: exit 1, result.json and the task figure only; the task name's
     '/' does not reach the file name."""
-    import linkopt._trace_synthesis as synthesis
-    from linkopt.cli import main
+    import linkopt._arms.trace.synthesis as synthesis
+    from linkopt._cli.main import main
 
     path = tmp_path / "task.toml"
     path.write_text((HEAD + LINE).replace('name = "', 'name = "a/', 1))
@@ -258,7 +258,7 @@ def test_synthesis_finds_the_shortest_two_link_arm(small_result):
 
 def test_constraint_jacobian_matches_finite_differences():
     task = loads_task(SMALL.replace("[-0.3, 0.3]", "[0.1, 0.35]"), "small.toml")
-    problem = _problem(task, 3, "app", TraceSettings())
+    problem = build_problem(task, 3, "app", TraceSettings())
     x = initial_guess(task, 3, 0, np.random.default_rng(3))
     jac = np.asarray(problem.jac(x, 1))
     fd = np.stack([(np.asarray(problem.g(x + e, 1)) - np.asarray(problem.g(x - e, 1))) / 2e-6
@@ -294,7 +294,7 @@ def test_discretised_design_misses_the_curve_between_its_points():
     of 25 sampled points leaves the true farthest point out by a closed-form amount."""
     task = loads_task(HEAD + '[[primitives]]\ntype = "circle"\ncenter = [0.3, 0.0]\nradius = 0.1\n'
                       'start = [0.38, 0.06]\ndirection = "ccw"\n', "circle.toml")
-    from linkopt._trace_discrete import equidistant_points
+    from linkopt._arms.trace.discrete import equidistant_points
 
     pts = equidistant_points(task, 25)
     reach = np.linalg.norm(pts, axis=1).max()
@@ -306,7 +306,7 @@ def test_discretised_design_misses_the_curve_between_its_points():
 
 
 def test_cli_writes_result_mechanism_and_figures(tmp_path, capsys):
-    from linkopt.cli import main
+    from linkopt._cli.main import main
 
     task = tmp_path / "small.toml"
     task.write_text(SMALL)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import linkopt
-from linkopt import _traces
+from linkopt._engine import programs as _traces
 
 from conftest import MECHANISMS
 

@@ -1,0 +1,1 @@
+"""DH tables synthesised for manipulability (Sobh & Toundykov, paper 004)."""

@@ -1,0 +1,1 @@
+"""Planar arms that trace continuous paths around obstacles (Campos et al., paper 002)."""

@@ -1,0 +1,9 @@
+"""Design optimisation on the engine (paper 001, Sec. IV-V).
+
+In pipeline order: ``metrics`` (the culled and attractive singularity metrics, the
+barrier), ``sampling`` (IK and adversarial sample minimisers), ``evaluation``
+(f_design, eq. 6), ``partial`` (the partial gradient), ``swarm`` and ``optimizer``
+(the hybrid particle swarm), ``workers`` (processes sharing the particles), ``run``
+(run folders, checkpoints, outputs), ``verify`` (the dense check of a result), ``maps``
+and ``plots`` (motor- and end-effector-space figures).
+"""

@@ -1,0 +1,154 @@
+"""Design evaluation: IK and adversarial samples over the target range, and ``f_design``.
+
+``f_design`` (eq. 6) is the mean over targets ``t`` of
+``f_BK(b^t, s_IK^t) + f_sing^c(s_adv^t)``: its first part (*reach*) is zero iff every
+target was reached, its second (*singularity*) is zero iff no adversarial sample found
+``f_sing > α₋``. The regulariser ``w ½|p - p₀|²`` (lengths divided by the reference
+length) is reported separately; the optimiser minimises their sum.
+
+Targets: a grid of ``samples_per_dimension`` values per output spanning each range,
+keeping the points on the box's boundary and, with ``interior = true``, the interior
+ones too (3 per dimension, 2 outputs: 9 targets; 4 per dimension: 16; 3 per dimension,
+3 outputs: 27, as the paper's Table I). IK starts from the rest pose for every target.
+A batch of ``D`` designs is ``D·T`` independent lanes, each an IK minimisation followed
+by an adversarial one from its result, run through
+:func:`linkopt._design.sampling.minimise_queue` with ``QUEUE_WIDTH`` slots.
+
+``QUEUE_WIDTH`` = 12 is measured: a lane-step costs more in a wider batch (we think
+because a few dozen lanes' matrices stay in the CPU caches, and because the trial
+solve's inner loop runs to its slowest lane), more than the per-step overhead that
+favours width saves. Ten five-bar designs (90 lanes) took 0.83-0.87 s at widths 6-15,
+0.97 s at 45 and 1.14 s at 90; ten 3-motor neck designs (270 lanes) 5.9-6.5 s at 8 and
+15, 6.7 s at 45 and 8.1-9.1 s at 135.
+
+``α₋`` is ``alpha_factor`` times ``f_sing`` at the rest pose of the file's *initial*
+design, fixed for the whole optimisation so that a design cannot move its own threshold.
+"""
+
+from __future__ import annotations
+
+import itertools
+from functools import lru_cache
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from .._engine import programs
+from .._engine.constraints import output_residual, output_values
+from .._engine.geometry import design_vector, geometry, rest_state
+from .metrics import culled, thresholds
+from .._engine.model import Mechanism
+from .sampling import adversarial_objective, either, ik_objective, minimise_queue
+from .._engine.singularity import f_sing_value
+
+QUEUE_WIDTH = 12  # slots of the sample queue (module docstring)
+
+
+class Evaluation(NamedTuple):
+    """One design's evaluation; a batch of designs adds a leading axis. Homogenised."""
+
+    f_design: Float[Array, ""]
+    reach: Float[Array, ""]
+    singularity: Float[Array, ""]
+    regularizer: Float[Array, ""]
+    ik_motors: Float[Array, "T M"]
+    ik_states: Float[Array, "T S"]
+    ik_reach: Float[Array, " T"]  # f_BK(b^t, s_IK^t)
+    ik_f_sing: Float[Array, " T"]
+    adv_motors: Float[Array, "T M"]
+    adv_states: Float[Array, "T S"]
+    adv_f_sing: Float[Array, " T"]
+    adv_culled: Float[Array, " T"]
+
+    @property
+    def total(self):
+        return self.f_design + self.regularizer
+
+
+def targets(mech: Mechanism) -> np.ndarray:
+    """IK target points ``b^t`` in file units, shape ``(T, K)``."""
+    settings = mech.evaluation
+    axes = [np.linspace(lo, hi, settings.samples_per_dimension) for lo, hi in zip(mech.output_min, mech.output_max)]
+    grid = np.array(list(itertools.product(*axes)), dtype=float).reshape(-1, mech.num_outputs)
+    on_boundary = np.any(np.isclose(grid, mech.output_min) | np.isclose(grid, mech.output_max), axis=1)
+    return grid if settings.interior else grid[on_boundary]
+
+
+@lru_cache(maxsize=None)
+def alpha_minus(mech: Mechanism) -> float:
+    """``α₋ = alpha_factor · f_sing(rest pose of the initial design)``, unless the file
+    gives ``alpha_minus`` itself."""
+    if mech.evaluation.alpha_minus is not None:
+        return float(mech.evaluation.alpha_minus)
+    value = jax.jit(lambda: f_sing_value(mech, geometry(mech), rest_state(mech)))()
+    return float(mech.evaluation.alpha_factor * value)
+
+
+def regularizer(mech: Mechanism, design) -> Float[Array, ""]:
+    """``w ½|p - p₀|²`` with lengths in reference lengths."""
+    scale = np.where(mech.design.is_length, mech.length_scale, 1.0)
+    offset = (design - mech.design.p0) / scale
+    return 0.5 * mech.evaluation.regularizer_weight * offset @ offset
+
+
+def _evaluate_batch(mech: Mechanism, designs: Float[Array, "D n_p"], alpha) -> Evaluation:
+    """The evaluations of ``D`` designs (homogenised), every field with leading axis ``D``."""
+    th = thresholds(alpha)
+    goals = jnp.asarray(targets(mech) / mech.output_scale)
+    low = jnp.asarray(mech.output_min / mech.output_scale)
+    high = jnp.asarray(mech.output_max / mech.output_scale)
+    count, per_design = designs.shape[0], goals.shape[0]
+    lanes = count * per_design
+    geoms = jax.vmap(lambda p: geometry(mech, p))(designs)
+    lane_geoms = jax.tree_util.tree_map(lambda g: jnp.repeat(g, per_design, axis=0), geoms)
+    lane_goals = jnp.tile(goals, (count, 1))
+    rest = rest_state(mech)
+    rest = jnp.broadcast_to(rest, (lanes,) + rest.shape)
+    zero = jnp.zeros((lanes, mech.num_motors))
+    settings = mech.evaluation
+
+    def problem(lane, adversarial, anchor):
+        geom, goal = lane
+        ik = ik_objective(mech, geom, goal, th)
+        return geom, either(ik, adversarial_objective(mech, geom, anchor, low, high, th), adversarial)
+
+    iterations = (settings.ik_iterations, settings.adversarial_iterations)
+    ik_samples, adv_samples = minimise_queue(mech, problem, (lane_geoms, lane_goals), zero, rest, iterations, width=QUEUE_WIDTH)
+    residuals = jax.vmap(lambda g, goal, s: output_residual(mech, g, goal, s))(lane_geoms, lane_goals, ik_samples.state)
+    per = lambda a: a.reshape((count, per_design) + a.shape[1:])  # noqa: E731
+    reach = per(0.5 * jnp.sum(residuals**2, axis=1))
+    adv_sing = adv_samples.f_sing
+    adv_culled = per(culled(adv_sing, th))
+    return Evaluation(
+        f_design=jnp.mean(reach + adv_culled, axis=1),
+        reach=jnp.mean(reach, axis=1),
+        singularity=jnp.mean(adv_culled, axis=1),
+        regularizer=jax.vmap(lambda p: regularizer(mech, p))(designs),
+        ik_motors=per(ik_samples.motors),
+        ik_states=per(ik_samples.state),
+        ik_reach=reach,
+        ik_f_sing=per(ik_samples.f_sing),
+        adv_motors=per(adv_samples.motors),
+        adv_states=per(adv_samples.state),
+        adv_f_sing=per(adv_sing),
+        adv_culled=adv_culled,
+    )
+
+
+jax.export.register_namedtuple_serialization(Evaluation, serialized_name="linkopt.Evaluation")
+
+
+def _evaluate(mech: Mechanism, designs, alpha) -> Evaluation:
+    if designs.ndim == 1:
+        return jax.tree_util.tree_map(lambda a: a[0], _evaluate_batch(mech, designs[None], alpha))
+    return _evaluate_batch(mech, designs, alpha)
+
+
+def evaluate(mech: Mechanism, design=None) -> Evaluation:
+    """Evaluate a design ``(n_p,)`` or a batch of designs ``(N, n_p)`` (file units)."""
+    designs = jnp.asarray(design_vector(mech, design), dtype=jnp.float64)
+    alpha = jnp.asarray(alpha_minus(mech), dtype=jnp.float64)
+    return programs.call("evaluate", mech, lambda p, a: _evaluate(mech, p, a), designs, alpha)

@@ -1,0 +1,296 @@
+"""IK samples (paper eq. 4) and adversarial samples (eq. 5) for one design.
+
+Both minimise a function of the motor values ``a`` whose state ``s(a)`` is the forward
+kinematics solution, with exact gradients through the implicit function theorem:
+``ds/da = -(JᵀJ)⁻¹ Jᵀ ∂C_FK/∂a`` (including the singularity terms, where the paper used
+finite differences). Everything is homogenised.
+
+The minimiser (:func:`minimise`) is a damped quasi-Newton method on the 1-3 motor values:
+step ``δ = -(H + λI)⁻¹ g`` with ``‖δ‖ ≤ r``, accepted on an Armijo decrease, else ``λ``
+grows. ``H`` is the Gauss–Newton matrix of the reach residual for IK samples and a BFGS
+estimate for adversarial samples (whose ``f_sing`` has no usable exact Hessian). Every
+trial forward solve starts from the linear prediction ``s + (ds/da) δ``, and a trial is
+rejected when the solved state departs from that prediction by more than half of
+``(ds/da) δ``: that is how a step that crossed a forward singularity onto another
+assembly branch shows up. The paper's BFGS with an unguarded step could cross (its
+Fig. 4); this guard is our addition.
+
+The step bound ``r`` is a trust radius: it starts at the file's ``max_step``, doubles
+after an accepted step that it had to shorten (up to ``RADIUS_GROWTH · max_step``) and
+halves after a rejected one (down to ``max_step``). Samples travel up to about 2 rad
+from the rest pose, which at a fixed 0.1 rad took 20 of the 40 iterations before the
+minimisation proper began. Iteration stops when the gradient is below ``GRADIENT_TOL``,
+or when an accepted step that the radius did not shorten lowered the value by at most
+``VALUE_RTOL`` of it (a converged quasi-Newton step: targets out of reach never get a
+zero gradient), or at the iteration cap.
+
+Under ``vmap`` a ``while_loop`` steps every lane until the last one stops, so a batch
+costs its slowest lane's iterations times its width. :func:`minimise_queue` runs ``L``
+lanes through ``width`` slots instead, each lane's IK minimisation and then its
+adversarial one from the IK result: a slot moves on to its lane's second phase, or to
+the next waiting lane, as soon as a phase stops, and each phase takes the steps it
+takes in :func:`minimise` (the flat batch rounds differently from nested ``vmap``:
+five-bar samples agree to about 1e-10, 3-motor neck samples to 1e-6 after 40 BFGS steps).
+Iteration counts are spread: five-bar IK lanes from the rest pose stop after 5-12
+iterations when their target is reachable and run to the cap of 40 when it is not;
+adversarial lanes stop after 14-40.
+
+Starting a minimisation is a :func:`_step` of length zero (``fresh``), and both phases
+share the step, choosing objective and Hessian model per slot, so the compiled loop
+holds the expensive evaluation (trial solve, ``ds/da``, ``f_sing`` and its gradient)
+once. The earlier program held it four times (IK start and step, adversarial start and
+step): for 10 five-bar designs it took 2.0 s to load from the compilation cache and
+27 s to compile, against 0.6 s and 9 s now.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jax.scipy.linalg import cho_factor, cho_solve
+from jaxtyping import Array, Bool, Float, Int
+
+from .._engine.constraints import fk_residual, output_residual, output_values
+from .._engine.geometry import Geometry
+from .._engine.jacobian import state_jacobian
+from .._engine.kinematics import solve_single
+from .metrics import Thresholds, attractive, barrier, culled
+from .._engine.model import Mechanism
+from .._engine.singularity import f_sing_value
+
+ARMIJO = 1e-4
+GRADIENT_TOL = 1e-9
+VALUE_RTOL = 1e-9
+RADIUS_GROWTH = 4.0
+MAX_DAMPING = 1e8
+BRANCH_TOL = 0.5
+#: Iteration cap of a trial forward solve: from the linear prediction, a step of at most
+#: ``RADIUS_GROWTH · max_step`` converges in 2-4 LM iterations; one that needs more is
+#: rejected, since under ``vmap`` a lane that ran on to a longer cap would hold up every
+#: other sample.
+TRIAL_ITERATIONS = 6
+
+
+class Sample(NamedTuple):
+    motors: Float[Array, " M"]  # homogenised
+    state: Float[Array, " S"]
+    value: Float[Array, ""]
+    f_sing: Float[Array, ""]  # f_sing at ``state``
+    iterations: Int[Array, ""]
+
+
+class _Iterate(NamedTuple):
+    motors: Float[Array, " M"]
+    state: Float[Array, " S"]
+    value: Float[Array, ""]
+    gradient: Float[Array, " M"]
+    hessian: Float[Array, "M M"]
+    ds_da: Float[Array, "S M"]
+    f_sing: Float[Array, ""]
+    damping: Float[Array, ""]
+    radius: Float[Array, ""]
+    iteration: Int[Array, ""]
+    done: Bool[Array, ""]
+
+
+def state_motor_jacobian(mech: Mechanism, geom: Geometry, motors, state) -> Float[Array, "S M"]:
+    """``ds/da`` at a solved state (eq. 2, least-squares form for tall Jacobians)."""
+    jac_s = state_jacobian(mech, geom, "fk", state)
+    jac_a = jax.jacfwd(lambda a: fk_residual(mech, geom, a, state))(motors)
+    return -cho_solve(cho_factor(jac_s.T @ jac_s), jac_s.T @ jac_a)
+
+
+#: An objective maps ``(motors, state, ds/da, f_sing, ∂f_sing/∂s)`` at a solved state to
+#: ``(value, gradient in motors, Gauss–Newton matrix)`` (zeros where it has none). The
+#: caller computes ``f_sing`` and its gradient once per point, since every objective
+#: here uses them and they are most of a step's cost.
+Objective = Callable[..., tuple]
+
+
+def evaluate_point(objective: Objective, mech: Mechanism, geom: Geometry, motors, state):
+    ds_da = state_motor_jacobian(mech, geom, motors, state)
+    f_sing, d_f_sing = jax.value_and_grad(lambda s: f_sing_value(mech, geom, s))(state)
+    value, gradient, model = objective(motors, state, ds_da, f_sing, d_f_sing)
+    return value, gradient, model, ds_da, f_sing
+
+
+def _unevaluated(motors0: Float[Array, " M"], state0: Float[Array, " S"]) -> _Iterate:
+    """An iterate at a start point whose objective is not computed yet: the next
+    :func:`_step` with ``fresh`` evaluates it."""
+    size, zero = motors0.shape[0], jnp.zeros(())
+    return _Iterate(motors0, state0, zero, jnp.zeros(size), jnp.eye(size), jnp.zeros(state0.shape + (size,)), zero, zero, zero, jnp.asarray(0), jnp.asarray(False))
+
+
+def _step(mech: Mechanism, geom: Geometry, objective: Objective, bfgs, it: _Iterate, fresh=False) -> _Iterate:
+    """One damped quasi-Newton step with its trial forward solve (module docstring).
+
+    With ``fresh`` the step has length zero and is accepted: the iterate becomes the
+    start of a minimisation at its (solved) point, with the Gauss–Newton matrix (or the
+    identity with ``bfgs``), the initial damping and radius, and iteration 0. Starting
+    and stepping are one function so that a compiled loop holds the expensive
+    evaluation once. ``bfgs`` and ``fresh`` may be traced booleans.
+    """
+    fresh = jnp.asarray(fresh)
+    size = it.motors.shape[0]
+    max_step = mech.evaluation.max_step
+    system = it.hessian + it.damping * jnp.eye(size)
+    delta = -jnp.linalg.solve(system, it.gradient)
+    norm = jnp.sqrt(delta @ delta)
+    shortened = norm > it.radius
+    delta = jnp.where(fresh, 0.0, delta * jnp.minimum(1.0, it.radius / jnp.maximum(norm, 1e-300)))
+    predicted = jnp.where(fresh, 0.0, it.ds_da @ delta)
+    trial = solve_single(mech, "fk", geom, it.motors + delta, it.state + predicted, TRIAL_ITERATIONS)
+    state = jnp.where(fresh, it.state, trial.state)
+    departure = jnp.sqrt(jnp.sum((trial.state - it.state - predicted) ** 2))
+    on_branch = departure <= BRANCH_TOL * jnp.sqrt(predicted @ predicted) + 1e-10
+    value, gradient, model, ds_da, f_sing = evaluate_point(objective, mech, geom, it.motors + delta, state)
+    decrease = value <= it.value + ARMIJO * (it.gradient @ delta)
+    accept = fresh | (trial.converged & on_branch & decrease & jnp.isfinite(value))
+    y = gradient - it.gradient
+    curvature = y @ delta
+    hb = it.hessian @ delta
+    updated = it.hessian - jnp.outer(hb, hb) / (delta @ hb) + jnp.outer(y, y) / jnp.where(curvature > 0, curvature, 1.0)
+    quasi_newton = jnp.where(curvature > 1e-12, updated, it.hessian)
+    model = jnp.where(bfgs, jnp.where(fresh, jnp.eye(size), quasi_newton), model)
+    pick = lambda new, old: jnp.where(accept, new, old)  # noqa: E731
+    damping = jnp.where(accept, jnp.maximum(it.damping / 3.0, 1e-9), it.damping * 4.0 + 1e-6)
+    radius = jnp.where(accept, jnp.where(shortened, jnp.minimum(2.0 * it.radius, RADIUS_GROWTH * max_step), it.radius), jnp.maximum(it.radius / 2.0, max_step))
+    small = jnp.max(jnp.abs(pick(gradient, it.gradient))) < GRADIENT_TOL
+    stalled = accept & ~shortened & (it.value - value <= VALUE_RTOL * jnp.abs(value))
+    return _Iterate(
+        motors=pick(it.motors + delta, it.motors),
+        state=pick(state, it.state),
+        value=pick(value, it.value),
+        gradient=pick(gradient, it.gradient),
+        hessian=pick(model, it.hessian),
+        ds_da=pick(ds_da, it.ds_da),
+        f_sing=pick(f_sing, it.f_sing),
+        damping=jnp.where(fresh, 1e-6, damping),
+        radius=jnp.where(fresh, max_step, radius),
+        iteration=jnp.where(fresh, 0, it.iteration + 1),
+        done=~fresh & (small | stalled | (damping > MAX_DAMPING)),
+    )
+
+
+def _finished(it: _Iterate, iterations) -> Bool[Array, "..."]:
+    """Whether an iterate stops: converged, stalled or at the iteration cap."""
+    return it.done | (it.iteration >= iterations)
+
+
+def _sample(it: _Iterate) -> Sample:
+    return Sample(it.motors, it.state, it.value, it.f_sing, it.iteration)
+
+
+def minimise(mech: Mechanism, geom: Geometry, objective: Objective, motors0, state0, iterations: int, bfgs: bool) -> Sample:
+    """Minimise ``objective`` over motors from a solved ``(motors0, state0)`` (see module doc)."""
+    it0 = _step(mech, geom, objective, bfgs, _unevaluated(motors0, state0), fresh=True)
+    final = jax.lax.while_loop(lambda it: ~_finished(it, iterations), lambda it: _step(mech, geom, objective, bfgs, it), it0)
+    return _sample(final)
+
+
+def _where(mask: Bool[Array, " W"], new, old):
+    """``new`` where ``mask`` else ``old``, leaf by leaf, ``mask`` on the leading axis."""
+    return jax.tree_util.tree_map(lambda n, o: jnp.where(mask.reshape(mask.shape + (1,) * (n.ndim - 1)), n, o), new, old)
+
+
+def _store(out: Sample, lane: Int[Array, " W"], it: _Iterate) -> Sample:
+    """``out`` with row ``lane[w]`` set to slot ``w``'s sample; lane ``L`` is dropped."""
+    return jax.tree_util.tree_map(lambda o, r: o.at[lane].set(r, mode="drop"), out, _sample(it))
+
+
+def minimise_queue(
+    mech: Mechanism,
+    problem: Callable,
+    lanes,
+    motors0: Float[Array, "L M"],
+    state0: Float[Array, "L S"],
+    iterations: tuple[int, int],
+    width: int,
+) -> tuple[Sample, Sample]:
+    """Two chained minimisations of each of ``L`` lanes through ``width`` slots.
+
+    Each lane first minimises from ``(motors0, state0)`` (phase one, Gauss–Newton model,
+    at most ``iterations[0]`` steps), then from phase one's result (phase two, BFGS, at
+    most ``iterations[1]`` steps). ``problem(lane, second, anchor) -> (geom, objective)``
+    builds a lane's problem from its leaf-wise slice of ``lanes`` (a pytree with leading
+    axis ``L``), ``second`` (traced: phase two) and ``anchor`` (phase one's motors, for
+    phase two). Each phase takes the steps it takes under ``vmap(minimise)``; a slot
+    whose lane has finished phase one starts phase two at once, and one that has
+    finished phase two takes the next waiting lane, so a step costs a batch ``width``
+    wide, not ``L``. Returns both phases' ``L`` samples in lane order.
+    """
+    count = motors0.shape[0]
+    width = min(width, count)
+    take = lambda tree, index: jax.tree_util.tree_map(lambda a: a[index], tree)  # noqa: E731
+    caps = jnp.asarray(iterations)
+
+    blank = jax.vmap(_unevaluated)(motors0, state0)  # each lane's start, to be evaluated
+
+    def step(lane, second, anchor, fresh, it):
+        geom, objective = problem(lane, second, anchor)
+        return _step(mech, geom, objective, second, it, fresh)
+
+    def body(carry):
+        slots, second, anchor, fresh, slot_lanes, owner, upcoming, outs = carry
+        slots = jax.vmap(step)(slot_lanes, second, anchor, fresh, slots)
+        finished = (owner >= 0) & _finished(slots, caps[second.astype(int)])
+        first_done, second_done = finished & ~second, finished & second
+        outs = (_store(outs[0], jnp.where(first_done, owner, count), slots), _store(outs[1], jnp.where(second_done, owner, count), slots))
+        anchor = jnp.where(first_done[:, None], slots.motors, anchor)  # phase two starts where phase one ended
+        second, fresh = second | first_done, first_done
+        free = second_done | (owner < 0)
+        incoming = upcoming + jnp.cumsum(free) - 1
+        fill = free & (incoming < count)
+        source = jnp.minimum(incoming, count - 1)
+        slots = _where(fill, take(blank, source), slots)
+        slot_lanes = _where(fill, take(lanes, source), slot_lanes)
+        second, fresh = second & ~fill, fresh | fill
+        owner = jnp.where(fill, incoming, jnp.where(free, -1, owner))
+        return slots, second, anchor, fresh, slot_lanes, owner, upcoming + jnp.sum(free), outs
+
+    first = jnp.arange(width)
+    out = _sample(blank)
+    no = jnp.zeros(width, bool)
+    carry = (take(blank, first), no, motors0[first], ~no, take(lanes, first), first, jnp.asarray(width), (out, out))
+    carry = jax.lax.while_loop(lambda c: jnp.any(c[5] >= 0), body, carry)
+    return carry[7]
+
+
+def ik_objective(mech: Mechanism, geom: Geometry, target, th: Thresholds) -> Objective:
+    """Eq. 4: ``f_BK(b^t, s(a)) + f_sing^c(s(a))`` with its Gauss–Newton model."""
+
+    def objective(motors, state, ds_da, f_sing, d_f_sing):
+        residual = output_residual(mech, geom, target, state)
+        # ∂r/∂s · ds/da as M forward tangents along the columns of ds/da
+        jac = jax.jacfwd(lambda d: output_residual(mech, geom, target, state + ds_da @ d))(jnp.zeros(ds_da.shape[1]))
+        term, slope = jax.value_and_grad(culled)(f_sing, th)
+        return 0.5 * residual @ residual + term, jac.T @ residual + slope * (d_f_sing @ ds_da), jac.T @ jac
+
+    return objective
+
+
+def adversarial_objective(mech: Mechanism, geom: Geometry, anchor_motors, low, high, th: Thresholds) -> Objective:
+    """Eq. 5: ``f_sing^a(s) + w₁ ½|a - a_IK|² + w₂ R₂(s)``."""
+    w_motion, w_range = mech.evaluation.motion_weight, mech.evaluation.range_weight
+
+    def objective(motors, state, ds_da, f_sing, d_f_sing):
+        term, slope = jax.value_and_grad(attractive)(f_sing, th)
+        wall, d_wall = jax.value_and_grad(lambda s: barrier(output_values(mech, geom, s), low, high))(state)
+        offset = motors - anchor_motors
+        value = term + w_range * wall + 0.5 * w_motion * offset @ offset
+        gradient = (slope * d_f_sing + w_range * d_wall) @ ds_da + w_motion * offset
+        return value, gradient, jnp.zeros((motors.shape[0],) * 2)
+
+    return objective
+
+
+def either(first: Objective, second: Objective, use_second) -> Objective:
+    """The objective ``second`` where the traced ``use_second`` holds, else ``first``
+    (both are computed: the shared ``f_sing`` makes the rest cheap)."""
+
+    def objective(*args):
+        return jax.tree_util.tree_map(lambda a, b: jnp.where(use_second, b, a), first(*args), second(*args))
+
+    return objective

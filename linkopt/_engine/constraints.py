@@ -1,0 +1,173 @@
+"""Assembly of the constraint vectors ``C_FK(a, s)`` and ``C_BK(b, s)`` (paper Sec. II).
+
+Row order (static for a mechanism): one unit-norm row per body quaternion, six rows
+pinning the ground (origin and quaternion vector part), the passive rows of every
+joint grouped by family in :data:`linkopt._engine.model.JOINT_ROWS` order, then one row per
+motor (FK) or per output (BK). Backward kinematics keeps every motor's joint as a
+passive joint and swaps the motor rows for output rows, so with as many motors as
+outputs both Jacobians have the same shape. All inputs are homogenised.
+
+The entry points that the samplers call many times (``fk_residual``,
+``output_residual``, ``output_values``) are jitted with the mechanism (and ``kind``)
+static, so one evaluation traces each once and reuses the jaxpr at every other call
+site: tracing a 20-design evaluation went from 14.5 s to 5 s.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from . import joints as joint_types
+from .geometry import Geometry
+from .model import JOINT_ROWS, Mechanism
+from .quaternion import rotate
+
+
+def body_frames(state: Float[Array, " S"]) -> tuple[Float[Array, "B 3"], Float[Array, "B 4"]]:
+    bodies = state.reshape(-1, 7)
+    return bodies[:, :3], bodies[:, 3:]
+
+
+def _joint_frames(mech: Mechanism, geom: Geometry, state, index: np.ndarray):
+    """Per-joint arguments ``(x_i, q_i, r_i, x_j, q_j, r_j, n, u, n2)`` for joints ``index``."""
+    x, q = body_frames(state)
+    bi, bj = mech.joint_bodies[index, 0], mech.joint_bodies[index, 1]
+    anchor = geom.anchors[index]
+    return (
+        x[bi], q[bi], anchor - geom.origins[bi],
+        x[bj], q[bj], anchor - geom.origins[bj],
+        geom.axes[index], geom.helpers[index], geom.axes2[index],
+    )
+
+
+def passive_residual(mech: Mechanism, geom: Geometry, state: Float[Array, " S"]) -> Float[Array, " R"]:
+    """Quaternion norms, ground pin and every joint's passive rows (no motors, no outputs)."""
+    x, q = body_frames(state)
+    rows = [
+        jnp.sum(q * q, axis=1) - 1.0,
+        x[mech.ground] - geom.origins[mech.ground],
+        q[mech.ground, 1:],
+    ]
+    for kind in JOINT_ROWS:
+        index = mech.joints_of(kind)
+        if index.size:
+            family = jax.vmap(joint_types.FAMILIES[kind])
+            rows.append(family(*_joint_frames(mech, geom, state, index)).ravel())
+    return jnp.concatenate(rows)
+
+
+def _combine(size: int, parts) -> Float[Array, " K"]:
+    """Place each ``(static index, values)`` part into a vector of length ``size``.
+
+    Each family is evaluated only on its own entries, so no branch that is masked out
+    (an angle at a joint without an axis, say) can leak a NaN into a gradient.
+    """
+    out = jnp.zeros((size,))
+    for index, values in parts:
+        if index.size:
+            out = out.at[index].set(values(index))
+    return out
+
+
+def _motor_rows(mech: Mechanism, geom: Geometry, state, motors):
+    linear = np.flatnonzero(mech.motor_linear)
+    rotary = np.flatnonzero(~mech.motor_linear)
+
+    def angles(index):
+        _, qi, _, _, qj, _, n, u, _ = _joint_frames(mech, geom, state, mech.motor_joints[index])
+        if motors is None:
+            return jax.vmap(joint_types.relative_angle)(qi, qj, n, u)
+        return jax.vmap(joint_types.angle_error)(qi, qj, n, u, motors[index])
+
+    def shifts(index):
+        xi, qi, ri, xj, qj, rj, n, _, _ = _joint_frames(mech, geom, state, mech.motor_joints[index])
+        value = jax.vmap(joint_types.slide)(xi, qi, ri, xj, qj, rj, n)
+        return value if motors is None else value - motors[index]
+
+    return _combine(mech.num_motors, [(rotary, angles), (linear, shifts)])
+
+
+def motor_values(mech: Mechanism, geom: Geometry, state: Float[Array, " S"]) -> Float[Array, " M"]:
+    """Motor values read off a state (homogenised; rad for revolute motors)."""
+    return _motor_rows(mech, geom, state, None)
+
+
+def motor_residual(mech: Mechanism, geom: Geometry, motors, state) -> Float[Array, " M"]:
+    """One row per motor: wrapped angle error (revolute) or slide error (linear)."""
+    return _motor_rows(mech, geom, state, motors)
+
+
+def _point_world(mech: Mechanism, geom: Geometry, state) -> Float[Array, "P 3"]:
+    x, q = body_frames(state)
+    body = mech.point_bodies
+    return x[body] + rotate(q[body], geom.points - geom.origins[body])
+
+
+def point_positions(mech: Mechanism, geom: Geometry, state) -> Float[Array, "P 3"]:
+    """World positions of the named points (homogenised)."""
+    return _point_world(mech, geom, state)
+
+
+def joint_positions(mech: Mechanism, geom: Geometry, state) -> Float[Array, "J 3"]:
+    """World position of each joint anchor, as seen from the joint's first body."""
+    x, q = body_frames(state)
+    body = mech.joint_bodies[:, 0]
+    return x[body] + rotate(q[body], geom.anchors - geom.origins[body])
+
+
+def _output_rows(mech: Mechanism, geom: Geometry, state, outputs):
+    positional = np.flatnonzero(mech.output_points >= 0)
+    angular = np.flatnonzero((mech.output_joints >= 0) & (mech.output_coords < 0))
+    tait_bryan = np.flatnonzero((mech.output_joints >= 0) & (mech.output_coords >= 0))
+
+    def coords(index):
+        world = _point_world(mech, geom, state)[mech.output_points[index], mech.output_coords[index]]
+        return world if outputs is None else world - outputs[index]
+
+    def angles(index):
+        _, qi, _, _, qj, _, n, u, _ = _joint_frames(mech, geom, state, mech.output_joints[index])
+        if outputs is None:
+            return jax.vmap(joint_types.relative_angle)(qi, qj, n, u)
+        return jax.vmap(joint_types.angle_error)(qi, qj, n, u, outputs[index])
+
+    def sequence(index):
+        _, qi, _, _, qj, _, n, _, n2 = _joint_frames(mech, geom, state, mech.output_joints[index])
+        every = jax.vmap(joint_types.tait_bryan)(qi, qj, n, n2)
+        value = jnp.stack([every[g, int(k)] for g, k in enumerate(mech.output_coords[index])])
+        return value if outputs is None else joint_types.wrap(value - outputs[index])
+
+    return _combine(mech.num_outputs, [(positional, coords), (angular, angles), (tait_bryan, sequence)])
+
+
+@partial(jax.jit, static_argnums=0)
+def output_values(mech: Mechanism, geom: Geometry, state) -> Float[Array, " K"]:
+    """End-effector variables ``b(s)`` (homogenised; rad for angles)."""
+    return _output_rows(mech, geom, state, None)
+
+
+@partial(jax.jit, static_argnums=0)
+def output_residual(mech: Mechanism, geom: Geometry, outputs, state) -> Float[Array, " K"]:
+    """One row per output: ``b_k(s) - b_k``, angles wrapped to (-π, π]."""
+    return _output_rows(mech, geom, state, outputs)
+
+
+@partial(jax.jit, static_argnums=0)
+def fk_residual(mech: Mechanism, geom: Geometry, motors, state) -> Float[Array, " R"]:
+    """``C_FK(a, s)``: passive rows then one row per motor."""
+    return jnp.concatenate([passive_residual(mech, geom, state), motor_residual(mech, geom, motors, state)])
+
+
+def bk_residual(mech: Mechanism, geom: Geometry, outputs, state) -> Float[Array, " R"]:
+    """``C_BK(b, s)``: passive rows (motors as passive joints) then one row per output."""
+    return jnp.concatenate([passive_residual(mech, geom, state), output_residual(mech, geom, outputs, state)])
+
+
+def constraint_rows(mech: Mechanism) -> dict[str, int]:
+    """Row counts of the passive part and of ``C_FK`` / ``C_BK``."""
+    passive = mech.num_bodies + 6 + sum(JOINT_ROWS[t] for t in mech.joint_types)
+    return {"passive": passive, "fk": passive + mech.num_motors, "bk": passive + mech.num_outputs}

@@ -1,0 +1,81 @@
+"""Design vector -> homogenised rest geometry (anchors, axes, points) and the rest state."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from .model import Mechanism
+
+
+class Geometry(NamedTuple):
+    """Rest geometry of one design, homogenised (lengths divided by ``length_scale``).
+
+    All world-frame, rest pose; body-local quantities follow by subtracting the static
+    body origins since every body has the identity orientation at rest.
+    """
+
+    anchors: Float[Array, "J 3"]
+    axes: Float[Array, "J 3"]  # unit primary axis n
+    helpers: Float[Array, "J 3"]  # unit u ⟂ n; (u, n × u, n) is right-handed
+    axes2: Float[Array, "J 3"]  # unit second axis of universal joints, ⟂ n
+    points: Float[Array, "P 3"]
+    origins: Float[Array, "B 3"]
+
+
+def _unit(v: Float[Array, "... 3"]) -> Float[Array, "... 3"]:
+    norm = jnp.sqrt(jnp.sum(v * v, axis=-1, keepdims=True))
+    return v / jnp.where(norm > 0.0, norm, 1.0)
+
+
+def _reference_directions(axes: np.ndarray) -> np.ndarray:
+    """Per joint, the world coordinate axis least aligned with its initial axis (static)."""
+    index = np.argmin(np.abs(axes), axis=1)
+    return np.eye(3)[index]
+
+
+def _perpendicular(v: Float[Array, "J 3"], n: Float[Array, "J 3"]) -> Float[Array, "J 3"]:
+    return _unit(v - jnp.sum(v * n, axis=-1, keepdims=True) * n)
+
+
+def design_vector(mech: Mechanism, design=None) -> Float[Array, " n_p"]:
+    """The design vector as a float64 array; ``None`` means the file's initial design."""
+    if design is None:
+        return jnp.asarray(mech.design.p0, dtype=jnp.float64)
+    return jnp.asarray(design, dtype=jnp.float64)
+
+
+def geometry(mech: Mechanism, design=None) -> Geometry:
+    """Homogenised rest geometry of the design ``p`` (file units), traceable in ``p``."""
+    p = design_vector(mech, design)
+    joints = mech.anchors.shape[0]
+    flat0 = np.concatenate([mech.anchors.ravel(), mech.axes.ravel()])
+    flat = flat0 + jnp.asarray(mech.design.matrix) @ (p - mech.design.p0)
+    anchors = flat[: 3 * joints].reshape(joints, 3)
+    has_axis = np.linalg.norm(mech.axes, axis=1, keepdims=True) > 0
+    axes = jnp.where(has_axis, _unit(flat[3 * joints :].reshape(joints, 3)), 0.0)
+    helpers = _perpendicular(jnp.asarray(_reference_directions(mech.axes)), axes)
+    axes2 = _perpendicular(jnp.asarray(mech.axes2), axes)
+    follows = mech.point_joints >= 0
+    points = jnp.where(
+        follows[:, None], anchors[np.maximum(mech.point_joints, 0)], mech.point_positions
+    )
+    scale = mech.length_scale
+    return Geometry(
+        anchors=anchors / scale,
+        axes=axes,
+        helpers=helpers,
+        axes2=axes2,
+        points=points / scale,
+        origins=jnp.asarray(mech.body_origins / scale),
+    )
+
+
+def rest_state(mech: Mechanism) -> Float[Array, " S"]:
+    """Homogenised rest state: body origins and identity quaternions, shape ``(7B,)``."""
+    origins = mech.body_origins / mech.length_scale
+    quats = np.tile([1.0, 0.0, 0.0, 0.0], (mech.num_bodies, 1))
+    return jnp.asarray(np.concatenate([origins, quats], axis=1).ravel())

@@ -1,0 +1,171 @@
+"""The one mechanism type: static topology in numpy, design-dependent geometry as arrays.
+
+Conventions (used everywhere in linkopt):
+
+* A body's state is 7 numbers ``(x, y, z, qw, qx, qy, qz)``: the world position of the
+  body frame origin and the unit quaternion (``wxyz``) rotating body-local vectors to
+  world. A mechanism with ``n`` bodies has the state ``s`` of shape ``(7n,)``, bodies in
+  file order.
+* At the rest pose every body has the identity orientation and its origin at the
+  centroid of its joint anchors *in the initial design*. Body origins never move with
+  the design: a design vector moves joint anchors inside the bodies, so the rest state
+  is the same for every design and always assembles.
+* Homogenisation (paper Sec. III): every length inside the solver (state positions,
+  anchors, point-coincidence rows, linear motor values, Cartesian outputs) is divided
+  by ``Mechanism.length_scale``. The state vectors returned by the API are homogenised;
+  motors, outputs, joint and point positions are returned in file units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Residual rows per passive joint family.
+JOINT_ROWS: dict[str, int] = {
+    "revolute": 5,
+    "spherical": 3,
+    "universal": 4,
+    "prismatic": 5,
+    "cylindrical": 4,
+    "fixed": 6,
+}
+#: Joint families that carry a primary axis.
+AXIAL_JOINTS = frozenset({"revolute", "universal", "prismatic", "cylindrical"})
+#: Joint family a motor may drive, and whether that motor is linear.
+MOTOR_JOINTS: dict[str, bool] = {"revolute": False, "prismatic": True}
+#: Design-parameter coordinates: anchor position or primary-axis components.
+COORDINATES = ("x", "y", "z", "axis_x", "axis_y", "axis_z")
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """Levenberg–Marquardt settings; ``tolerance`` bounds ``max |C|`` (homogenised)."""
+
+    max_iterations: int = 60
+    tolerance: float = 1e-12
+    initial_damping: float = 1e-6
+
+
+@dataclass(frozen=True)
+class EvaluationSettings:
+    """Design-evaluation settings (paper Sec. IV, App. A/B), from ``[evaluation]``.
+
+    ``alpha_factor``: α₋ as a multiple of f_sing at the initial design's rest pose (the
+    paper used 1.2-4). ``motion_weight``/``range_weight``: w₁, w₂ of eq. 5.
+    ``regularizer_weight``: weight of ½|p - p₀|² with lengths divided by the reference
+    length. ``max_step``: the starting (and smallest) trust radius of the IK/adversarial
+    minimiser, in rad or reference lengths for linear motors; it grows to 4x after steps
+    it had to shorten (:mod:`linkopt._design.sampling`), and a step that jumps onto another
+    assembly branch is rejected.
+    ``alpha_minus``: an absolute α₋ that overrides ``alpha_factor`` (written into
+    optimised files so that they are judged by the threshold they were optimised for).
+    """
+
+    samples_per_dimension: int = 3
+    interior: bool = True
+    alpha_factor: float = 2.0
+    motion_weight: float = 1.0
+    range_weight: float = 1.0
+    regularizer_weight: float = 1e-2
+    max_step: float = 0.1
+    ik_iterations: int = 40
+    adversarial_iterations: int = 40
+    alpha_minus: float | None = None
+
+
+@dataclass(frozen=True)
+class DesignSpace:
+    """Free design parameters ``p`` (after ties) and their linear map onto the geometry.
+
+    ``geometry_flat(p) = geometry_flat(p0) + matrix @ (p - p0)``, where the flat geometry
+    is ``[anchors (J,3), axes (J,3)]`` raveled, in file units. A parameter drives one
+    coordinate of one joint; a ``mirror`` tie also drives the mirrored joint through the
+    reflection across the mechanism's symmetry plane.
+    """
+
+    names: tuple[str, ...]
+    p0: np.ndarray  # (n_p,)
+    lower: np.ndarray  # (n_p,)
+    upper: np.ndarray  # (n_p,)
+    matrix: np.ndarray  # (6 J, n_p)
+    is_length: np.ndarray  # (n_p,) bool: an anchor coordinate (file units), not an axis component
+
+    @property
+    def size(self) -> int:
+        return len(self.names)
+
+
+@dataclass(frozen=True, eq=False)
+class Mechanism:
+    """A linkage: bodies, joints, motors, named points, outputs and design space.
+
+    Hashed by identity so it can be a static argument of ``jax.jit``; all array fields
+    are numpy and never traced. Shapes: ``J`` joints, ``B`` bodies, ``P`` points,
+    ``M`` motors, ``K`` outputs.
+    """
+
+    name: str
+    source: str
+    body_names: tuple[str, ...]
+    ground: int
+    body_origins: np.ndarray  # (B, 3) file units
+    joint_names: tuple[str, ...]
+    joint_types: tuple[str, ...]
+    joint_bodies: np.ndarray  # (J, 2) int: (i, j); a motor drives j relative to i
+    anchors: np.ndarray  # (J, 3) rest anchors, initial design, file units
+    axes: np.ndarray  # (J, 3) unit primary axes (zero where none)
+    axes2: np.ndarray  # (J, 3) unit second axes of universal joints (zero elsewhere)
+    point_names: tuple[str, ...]
+    point_bodies: np.ndarray  # (P,) int
+    point_joints: np.ndarray  # (P,) int joint whose anchor the point follows, or -1
+    point_positions: np.ndarray  # (P, 3) rest positions, initial design, file units
+    motor_names: tuple[str, ...]
+    motor_joints: np.ndarray  # (M,) int
+    motor_linear: np.ndarray  # (M,) bool
+    output_names: tuple[str, ...]
+    output_kinds: tuple[str, ...]  # "position" | "angle"
+    output_points: np.ndarray  # (K,) int, -1 for angles
+    output_coords: np.ndarray  # (K,) int: x/y/z 0..2 for positions; for angles -1 (revolute,
+    # cylindrical) or the Tait–Bryan angle 0..2 of a universal/spherical joint
+    output_joints: np.ndarray  # (K,) int, -1 for positions
+    output_min: np.ndarray  # (K,) file units
+    output_max: np.ndarray  # (K,)
+    design: DesignSpace
+    length_scale: float
+    solver: SolverSettings = field(default_factory=SolverSettings)
+    evaluation: EvaluationSettings = field(default_factory=EvaluationSettings)
+    symmetry: tuple[np.ndarray, np.ndarray] | None = None  # (normal, point)
+    raw: dict = field(default_factory=dict)  # the parsed file, for writing designs back
+
+    @property
+    def num_bodies(self) -> int:
+        return len(self.body_names)
+
+    @property
+    def state_size(self) -> int:
+        return 7 * self.num_bodies
+
+    @property
+    def num_motors(self) -> int:
+        return len(self.motor_names)
+
+    @property
+    def num_outputs(self) -> int:
+        return len(self.output_names)
+
+    @property
+    def motor_scale(self) -> np.ndarray:
+        """Per-motor divisor from file units to homogenised units, shape ``(M,)``."""
+        return np.where(self.motor_linear, self.length_scale, 1.0)
+
+    @property
+    def output_scale(self) -> np.ndarray:
+        """Per-output divisor from file units to homogenised units, shape ``(K,)``."""
+        positional = np.array([k == "position" for k in self.output_kinds], dtype=bool)
+        return np.where(positional, self.length_scale, 1.0)
+
+    def joints_of(self, kind: str) -> np.ndarray:
+        """Indices of the joints of one family (static)."""
+        return np.array([i for i, t in enumerate(self.joint_types) if t == kind], dtype=int)

@@ -1,0 +1,115 @@
+"""Proximity to forward and backward singularities (paper eq. 3).
+
+``f_sing(s) = 1/σ_min(∂C_FK/∂s) + 1/σ_min(∂C_BK/∂s)`` on the homogenised system. The
+Jacobians are tall when a loop is planar but written in 3-D (redundant rows); σ_min is
+then the smallest of the ``n`` column-rank singular values, ``n = |s|``.
+
+The motor and output rows' Jacobians do not depend on the motor/output *targets*
+(the wrapped difference has unit slope), so both Jacobians are functions of ``s`` only.
+
+σ_min is found by block inverse iteration with a Rayleigh–Ritz step on ``A = JᵀJ``
+(``BLOCK`` vectors, ``ITERATIONS`` sweeps, a fixed seeded start block) instead of a full
+SVD: the LAPACK SVD of a few dozen columns cost 0.2 ms per matrix and was 80 % of a
+design evaluation. For 180 five-bar states (two matrices each, one thread) the SVD
+takes 64 ms and this 26 ms. Against the SVD it agreed to 7e-5 relative with 4 sweeps
+along a five-bar path whose two smallest singular values come within 0.7 % of each
+other (``tests/test_singularity.py`` checks 1e-3). ``A⁻¹ = L⁻ᵀL⁻¹`` is formed once from
+the Cholesky factor (one triangular solve with ``n`` right-hand sides) and each sweep
+is a matrix product: jaxlib's batched triangular solves cost about 2.6 µs per 35 x 35
+matrix and 6-column block, and the two per sweep were most of σ_min's cost (five-bar
+evaluation of 10 designs: 1.06 s → 0.98 s; σ unchanged to 1e-15 relative).
+Close to a singularity the smallest eigenvalue separates and the iteration converges
+faster. The value returned is ``σ = ‖J(s) v‖`` with the Ritz vector ``v`` held fixed,
+an upper bound on σ_min that equals it at convergence, and whose derivative is the
+exact first derivative of σ_min for a simple smallest singular value
+(``dσ = uᵀ dJ v``, ``u = Jv/σ``).
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from . import jacobian
+from .geometry import Geometry, design_vector, geometry
+from .model import Mechanism
+
+
+def stacked_jacobians(mech: Mechanism, geom: Geometry, state) -> Float[Array, "2 m n"]:
+    """``[∂C_FK/∂s, ∂C_BK/∂s]`` at ``state`` (homogenised), from the closed-form
+    block Jacobians of :mod:`linkopt._engine.jacobian` (differentiable in state and design)."""
+    return jacobian.stacked_jacobians(mech, geom, state)
+
+
+BLOCK = 6
+ITERATIONS = 6
+
+
+def _orthonormalise(x: Float[Array, "B n k"]) -> Float[Array, "B n k"]:
+    """Gram–Schmidt, each projection done twice, on the ``k`` columns of each block
+    (inverse iteration makes the columns nearly parallel, so Cholesky QR would fail)."""
+    columns = []
+    for j in range(x.shape[-1]):
+        v = x[:, :, j]
+        for _ in range(2):
+            for q in columns:
+                v = v - jnp.sum(q * v, axis=1, keepdims=True) * q
+        columns.append(v / jnp.sqrt(jnp.sum(v**2, axis=1, keepdims=True) + 1e-300))
+    return jnp.stack(columns, axis=-1)
+
+
+def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
+    """Right singular vectors of the smallest singular values of a stack of matrices
+    (block inverse iteration on ``JᵀJ`` + Rayleigh–Ritz; module docstring)."""
+    a = jnp.einsum("bmi,bmj->bij", jac, jac)
+    n = a.shape[-1]
+    shift = 1e-13 * jnp.trace(a, axis1=1, axis2=2)[:, None, None] * jnp.eye(n)
+    lower = jnp.linalg.cholesky(a + shift)
+    inv_lower = jax.scipy.linalg.solve_triangular(lower, jnp.broadcast_to(jnp.eye(n), a.shape), lower=True)
+    inverse = jnp.einsum("bki,bkj->bij", inv_lower, inv_lower)  # A⁻¹ = L⁻ᵀ L⁻¹
+    start = np.random.default_rng(0).standard_normal((n, min(BLOCK, n)))
+    x = _orthonormalise(jnp.broadcast_to(jnp.asarray(start), (a.shape[0],) + start.shape))
+
+    def sweep(_, x):
+        return _orthonormalise(jnp.einsum("bij,bjk->bik", inverse, x))
+
+    x = jax.lax.fori_loop(0, ITERATIONS, sweep, x)
+    _, ritz = jnp.linalg.eigh(jnp.einsum("bni,bnm,bmj->bij", x, a, x))
+    return jnp.einsum("bnk,bk->bn", x, ritz[:, :, 0])
+
+
+def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, "2"]:
+    """``(σ_min^FK, σ_min^BK)`` at one state, differentiable in ``state`` and ``geom``."""
+    jac = stacked_jacobians(mech, geom, state)
+    v = smallest_right_vectors(jax.lax.stop_gradient(jac))
+    image = jnp.einsum("bij,bj->bi", jac, v)
+    return jnp.sqrt(jnp.sum(image**2, axis=1) + 1e-300)
+
+
+@partial(jax.jit, static_argnums=0)
+def f_sing_value(mech: Mechanism, geom: Geometry, state) -> Float[Array, ""]:
+    """Eq. 3 at one state."""
+    sigma = sigma_min_pair(mech, geom, state)
+    return jnp.sum(1.0 / sigma)
+
+
+@partial(jax.jit, static_argnums=0)
+def _sigmas(mech: Mechanism, state, design):
+    geom = geometry(mech, design_vector(mech, design))
+    state = jnp.asarray(state, dtype=jnp.float64)
+    fn = lambda s: sigma_min_pair(mech, geom, s)  # noqa: E731
+    return fn(state) if state.ndim == 1 else jax.vmap(fn)(state)
+
+
+def singular_values(mech: Mechanism, state, *, design=None) -> Float[Array, "... 2"]:
+    """``(σ_min^FK, σ_min^BK)`` of a homogenised state or a batch ``(N, S)`` of them."""
+    return _sigmas(mech, state, design)
+
+
+def f_sing(mech: Mechanism, state, *, design=None) -> Float[Array, "..."]:
+    """``f_sing`` (eq. 3) of a state or a batch of states."""
+    return jnp.sum(1.0 / singular_values(mech, state, design=design), axis=-1)

@@ -1,0 +1,80 @@
+"""Write a design back as a mechanism file of the same format (TOML).
+
+The file's own tables are kept; joint anchors and axes take the design's values (mirror
+twins included), every parameter's rest value moves with them, and the reference length
+α₋ and body frame origins of the original are written explicitly so that the new file is homogenised and
+judged exactly as the design was during optimisation.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .model import Mechanism
+
+
+def _value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            raise ValueError(f"cannot write {v!r} to TOML")
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{k} = {_value(x)}" for k, x in v.items()) + " }"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def dumps(data: dict) -> str:
+    """TOML text of a parsed definition (tables and arrays of tables, one level deep)."""
+    lines: list[str] = []
+    for key, value in data.items():
+        if isinstance(value, dict):
+            lines.append(f"[{key}]")
+            lines += [f"{k} = {_value(v)}" for k, v in value.items()]
+            lines.append("")
+        elif isinstance(value, list) and value and all(isinstance(x, dict) for x in value):
+            for entry in value:
+                lines.append(f"[[{key}]]")
+                lines += [f"{k} = {_value(v)}" for k, v in entry.items()]
+                lines.append("")
+        else:
+            lines.insert(0, f"{key} = {_value(value)}")
+    return "\n".join(lines)
+
+
+def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
+    """The parsed definition of ``mech`` with ``design`` baked into its rest geometry."""
+    design = np.asarray(design, dtype=float)
+    flat = np.concatenate([mech.anchors.ravel(), mech.axes.ravel()]) + mech.design.matrix @ (design - mech.design.p0)
+    count = len(mech.joint_names)
+    anchors = flat[: 3 * count].reshape(count, 3)
+    axes = flat[3 * count :].reshape(count, 3)
+    data = copy.deepcopy(mech.raw)
+    data["mechanism"]["reference_length"] = float(mech.length_scale)
+    for body, origin in zip(data["bodies"], mech.body_origins):
+        body["origin"] = [float(v) for v in origin]  # same body frames, so the same f_sing
+    data.setdefault("evaluation", {})["alpha_minus"] = float(alpha_minus)
+    for k, joint in enumerate(data["joints"]):
+        joint["anchor"] = [float(v) for v in anchors[k]]
+        if "axis" in joint:
+            joint["axis"] = [float(v) for v in axes[k] / np.linalg.norm(axes[k])]
+    return data
+
+
+def write_design(mech: Mechanism, design, alpha_minus: float, path: str | Path, header: str = "") -> Path:
+    """Write ``design`` as a mechanism file that every command accepts."""
+    path = Path(path)
+    comment = "".join(f"# {line}\n" for line in header.splitlines())
+    path.write_text(comment + dumps(design_definition(mech, design, alpha_minus)), encoding="utf-8")
+    return path
