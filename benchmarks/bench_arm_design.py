@@ -5,7 +5,8 @@ arm 1.8 min mean per solve over 8 random seeds. Here: SLSQP with exact JAX gradi
 one process, one XLA thread. Compilation (once per arm, then kept in the persistent
 cache) is reported separately from the per-seed solve times.
 
-    nice -n 10 .venv/bin/python benchmarks/bench_arm_design.py [backpack|rover ...] [--starts N]
+    nice -n 10 .venv/bin/python benchmarks/bench_arm_design.py [backpack|rover ...]
+    [--starts N]
 
 Writes ``runs/bench_arm_design.json`` and the figures ``figures/arm_<task>.png`` of the
 best solution of each task.
@@ -41,15 +42,31 @@ def bench(name: str, starts: int) -> dict:
     for k in range(starts):
         runs.append(nlp.solve_from(problem, nlp.initial_point(problem, k), start=k))
         r = runs[-1]
-        print(f"{name} seed {k}: {r.seconds:.1f} s, feasible {r.feasible}, objective {r.objective:.4g}", flush=True)
+        print(
+            f"{name} seed {k}: {r.seconds:.1f} s, feasible {r.feasible}, objective {r.objective:.4g}",
+            flush=True,
+        )
     best = nlp.best_of(runs)
-    plot_solution(problem, best, ROOT / "figures" / f"arm_{name}.png", title=f"{task.name}: best of {starts} seeds, objective {best.objective:.4g}")
+    plot_solution(
+        problem,
+        best,
+        ROOT / "figures" / f"arm_{name}.png",
+        title=f"{task.name}: best of {starts} seeds, objective {best.objective:.4g}",
+    )
     mean_min = float(np.mean([r.seconds for r in runs])) / 60
     return {
-        "task": name, "starts": starts, "prepare_s": prepare_s, "compile_s": compile_s,
-        "mean_solve_min": mean_min, "paper_mean_min": PAPER_MINUTES[name], "ratio_paper_over_ours": PAPER_MINUTES[name] / mean_min,
-        "feasible": sum(r.feasible for r in runs), "best_objective": best.objective, "best_feasible": best.feasible,
-        "seconds": [r.seconds for r in runs], "iterations": [r.iterations for r in runs],
+        "task": name,
+        "starts": starts,
+        "prepare_s": prepare_s,
+        "compile_s": compile_s,
+        "mean_solve_min": mean_min,
+        "paper_mean_min": PAPER_MINUTES[name],
+        "ratio_paper_over_ours": PAPER_MINUTES[name] / mean_min,
+        "feasible": sum(r.feasible for r in runs),
+        "best_objective": best.objective,
+        "best_feasible": best.feasible,
+        "seconds": [r.seconds for r in runs],
+        "iterations": [r.iterations for r in runs],
     }
 
 
@@ -63,7 +80,9 @@ def main() -> None:
     out.mkdir(exist_ok=True)
     (out / "bench_arm_design.json").write_text(json.dumps(results, indent=1))
     for r in results:
-        print(f"{r['task']}: mean {r['mean_solve_min']:.2f} min per seed (paper {r['paper_mean_min']} min, ratio {r['ratio_paper_over_ours']:.1f}x), {r['feasible']}/{r['starts']} feasible, compile {r['compile_s']:.0f} s")
+        print(
+            f"{r['task']}: mean {r['mean_solve_min']:.2f} min per seed (paper {r['paper_mean_min']} min, ratio {r['ratio_paper_over_ours']:.1f}x), {r['feasible']}/{r['starts']} feasible, compile {r['compile_s']:.0f} s"
+        )
     print("figures: " + ", ".join(f"figures/arm_{r['task']}.png" for r in results))
 
 

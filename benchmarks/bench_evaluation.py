@@ -1,4 +1,5 @@
-"""Design-evaluation speed (paper Sec. IV): one five-bar design (9 targets) and 20 at once.
+"""Design-evaluation speed (paper Sec. IV): one five-bar design (9 targets) and 20 at
+once.
 
 Run: ``.venv/bin/python benchmarks/bench_evaluation.py``
 
@@ -36,7 +37,13 @@ print(time.perf_counter() - t)
 def first_call_seconds(cache: str, n: int) -> float:
     env = dict(os.environ, LINKOPT_CACHE_DIR=cache)
     code = FIRST_CALL.format(path=str(FILE), n=n)
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     return float(out.stdout.strip().splitlines()[-1])
 
 
@@ -48,7 +55,9 @@ def main() -> None:
     from linkopt._design.evaluation import evaluate
 
     mech = linkopt.load(FILE)
-    designs = np.asarray(mech.design.p0) + np.random.default_rng(0).normal(0, 1.0, (20, mech.design.size))
+    designs = np.asarray(mech.design.p0) + np.random.default_rng(0).normal(
+        0, 1.0, (20, mech.design.size)
+    )
     timings = {}
     for label, arg, repeats in (("one design", None, 5), ("20 designs", designs, 3)):
         jax.block_until_ready(evaluate(mech, arg))
@@ -61,9 +70,15 @@ def main() -> None:
         warm = [first_call_seconds(cache, n) for n in (1, 20)]
     print(f"five-bar design evaluation, 9 targets, {os.cpu_count()} cores")
     print(f"  one design                {timings['one design']:8.3f} s")
-    print(f"  20 designs (one call)     {timings['20 designs']:8.3f} s   target <= {TARGET_BATCH_S} s, prototype baseline {BASELINE_BATCH_S} s (ratio {BASELINE_BATCH_S / timings['20 designs']:.2f}x)")
-    print(f"  first call, one design    cold cache {cold[0]:6.1f} s, warm cache {warm[0]:6.1f} s (includes tracing)")
-    print(f"  first call, 20 designs    cold cache {cold[1]:6.1f} s, warm cache {warm[1]:6.1f} s")
+    print(
+        f"  20 designs (one call)     {timings['20 designs']:8.3f} s   target <= {TARGET_BATCH_S} s, prototype baseline {BASELINE_BATCH_S} s (ratio {BASELINE_BATCH_S / timings['20 designs']:.2f}x)"
+    )
+    print(
+        f"  first call, one design    cold cache {cold[0]:6.1f} s, warm cache {warm[0]:6.1f} s (includes tracing)"
+    )
+    print(
+        f"  first call, 20 designs    cold cache {cold[1]:6.1f} s, warm cache {warm[1]:6.1f} s"
+    )
 
 
 if __name__ == "__main__":

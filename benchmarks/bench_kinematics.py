@@ -1,4 +1,5 @@
-"""Kinematics solve speed: linkopt's LM against scipy and optimistix on the same residual.
+"""Kinematics solve speed: linkopt's LM against scipy and optimistix on the same
+residual.
 
 Run: ``.venv/bin/python benchmarks/bench_kinematics.py [--quick]``
 
@@ -19,7 +20,10 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-MECHANISMS = {"five-bar": ROOT / "mechanisms/five_bar.toml", "jansen": ROOT / "mechanisms/jansen_1dof.toml"}
+MECHANISMS = {
+    "five-bar": ROOT / "mechanisms/five_bar.toml",
+    "jansen": ROOT / "mechanisms/jansen_1dof.toml",
+}
 TARGET_SINGLE_US = 200.0
 TARGET_RATE = 30_000.0
 
@@ -35,7 +39,8 @@ def _timed(fn, repeats: int) -> float:
 
 
 def _pipelined(fn, repeats: int) -> float:
-    """Time per call when calls are issued back to back and synchronised once at the end."""
+    """Time per call when calls are issued back to back and synchronised once at the
+    end."""
     import jax
 
     jax.block_until_ready(fn())
@@ -49,7 +54,10 @@ def _pipelined(fn, repeats: int) -> float:
 def _motor_batch(mech, n: int, seed: int = 0):
     import numpy as np
 
-    return np.random.default_rng(seed).uniform(-0.05, 0.05, size=(n, mech.num_motors)) * mech.motor_scale
+    return (
+        np.random.default_rng(seed).uniform(-0.05, 0.05, size=(n, mech.num_motors))
+        * mech.motor_scale
+    )
 
 
 def bench_linkopt(mech, sizes) -> dict:
@@ -59,10 +67,15 @@ def bench_linkopt(mech, sizes) -> dict:
 
     single = _motor_batch(mech, 1)[0]
     call = lambda: linkopt.solve_fk(mech, single).state  # noqa: E731
-    result = {"single_us": 1e6 * _timed(call, 300), "single_pipelined_us": 1e6 * _pipelined(call, 2000)}
+    result = {
+        "single_us": 1e6 * _timed(call, 300),
+        "single_pipelined_us": 1e6 * _pipelined(call, 2000),
+    }
     for n in sizes:
         batch = _motor_batch(mech, n)
-        seconds = _timed(lambda: linkopt.solve_fk(mech, batch).state, 3 if n >= 100_000 else 20)
+        seconds = _timed(
+            lambda: linkopt.solve_fk(mech, batch).state, 3 if n >= 100_000 else 20
+        )
         converged = float(np.mean(np.asarray(linkopt.solve_fk(mech, batch).converged)))
         result[f"rate_{n}"] = n / seconds
         result[f"converged_{n}"] = converged
@@ -83,13 +96,18 @@ def bench_optimistix(mech, n: int) -> dict:
 
     def solve(a):
         fn = lambda s, args: fk_residual(mech, geom, args / mech.motor_scale, s)  # noqa: E731
-        return optx.least_squares(fn, solver, start, args=a, max_steps=100, throw=False).value
+        return optx.least_squares(
+            fn, solver, start, args=a, max_steps=100, throw=False
+        ).value
 
     single = jax.jit(solve)
     batched = jax.jit(jax.vmap(solve))
     a1 = jnp.asarray(_motor_batch(mech, 1)[0])
     batch = jnp.asarray(_motor_batch(mech, n))
-    return {"single_us": 1e6 * _timed(lambda: single(a1), 100), f"rate_{n}": n / _timed(lambda: batched(batch), 5)}
+    return {
+        "single_us": 1e6 * _timed(lambda: single(a1), 100),
+        f"rate_{n}": n / _timed(lambda: batched(batch), 5),
+    }
 
 
 def bench_scipy(mech) -> dict:
@@ -121,7 +139,13 @@ def compile_seconds(path: Path, cache: str) -> float:
         "print(time.perf_counter()-t)"
     )
     env = dict(os.environ, LINKOPT_CACHE_DIR=cache)
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     return float(out.stdout.strip().splitlines()[-1])
 
 
@@ -147,15 +171,29 @@ def main() -> None:
         optx = bench_optimistix(mech, 1000)
         scipy_ = bench_scipy(mech)
         print(f"\n{name}: |s| = {mech.state_size}")
-        print(f"  single warm-started solve     {ours['single_us']:10.1f} µs   synchronised each call (target <= {TARGET_SINGLE_US:.0f} µs)")
-        print(f"  single, calls pipelined       {ours['single_pipelined_us']:10.1f} µs   per call, synchronised once")
+        print(
+            f"  single warm-started solve     {ours['single_us']:10.1f} µs   synchronised each call (target <= {TARGET_SINGLE_US:.0f} µs)"
+        )
+        print(
+            f"  single, calls pipelined       {ours['single_pipelined_us']:10.1f} µs   per call, synchronised once"
+        )
         for n in sizes:
-            print(f"  batch {n:>7}                 {ours[f'rate_{n}']:10.0f} solves/s (converged {ours[f'converged_{n}']:.3f})")
+            print(
+                f"  batch {n:>7}                 {ours[f'rate_{n}']:10.0f} solves/s (converged {ours[f'converged_{n}']:.3f})"
+            )
         print(f"  target batched rate           {TARGET_RATE:10.0f} solves/s")
-        print(f"  compile (load + 2 kernels)    cold {cold:.1f} s, warm cache {warm:.1f} s")
-        print(f"  optimistix LM single          {optx['single_us']:10.1f} µs   ratio {optx['single_us'] / ours['single_us']:.1f}x slower")
-        print(f"  optimistix LM batch 1000      {optx['rate_1000']:10.0f} solves/s ratio {ours['rate_1000'] / optx['rate_1000']:.1f}x slower")
-        print(f"  scipy least_squares(lm) FD    {scipy_['single_us']:10.1f} µs   ratio {scipy_['single_us'] / ours['single_us']:.0f}x slower")
+        print(
+            f"  compile (load + 2 kernels)    cold {cold:.1f} s, warm cache {warm:.1f} s"
+        )
+        print(
+            f"  optimistix LM single          {optx['single_us']:10.1f} µs   ratio {optx['single_us'] / ours['single_us']:.1f}x slower"
+        )
+        print(
+            f"  optimistix LM batch 1000      {optx['rate_1000']:10.0f} solves/s ratio {ours['rate_1000'] / optx['rate_1000']:.1f}x slower"
+        )
+        print(
+            f"  scipy least_squares(lm) FD    {scipy_['single_us']:10.1f} µs   ratio {scipy_['single_us'] / ours['single_us']:.0f}x slower"
+        )
 
 
 if __name__ == "__main__":

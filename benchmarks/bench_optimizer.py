@@ -1,6 +1,8 @@
-"""End-to-end five-bar optimisation (paper Sec. VI-A, Table I): iterations, time, result.
+"""End-to-end five-bar optimisation (paper Sec. VI-A, Table I): iterations, time,
+result.
 
-Run: ``.venv/bin/python benchmarks/bench_optimizer.py [--seeds 0,1,...,7] [--workers 1,2]``
+Run:
+``.venv/bin/python benchmarks/bench_optimizer.py [--seeds 0,1,...,7] [--workers 1,2]``
 
 For each worker count, with a fresh compilation cache: runs ``linkopt optimize`` for the
 first seed twice (cold cache, then warm) and every other seed once (warm), each in a
@@ -12,8 +14,8 @@ and whether ``linkopt verify`` passes on the result, then the median over the wa
 Baseline: the paper's Table I, five-bar: 8 iterations, about 15 min (C++, 4 cores).
 
 The number of swarm iterations a seed needs varies a lot (8 to 24 over seeds 0-7 in our
-runs, median 12), and a change anywhere in the evaluation can move every seed's count, so
-compare medians over many seeds, not one seed's time. Our last run (2 workers, warm
+runs, median 12), and a change anywhere in the evaluation can move every seed's count,
+so compare medians over many seeds, not one seed's time. Our last run (2 workers, warm
 cache) gave a median of 11.3 s in the optimiser, 80x the paper (seed 0, 8 iterations as
 in the paper: 8.9 s, 102x), with all eight results verified; the whole command took
 21.8-35.0 s.
@@ -42,29 +44,69 @@ PAPER_SECONDS = 15 * 60
 def run(seed: int, workers: int, cache: Path) -> dict:
     with tempfile.TemporaryDirectory() as out:
         began = time.perf_counter()
-        cmd = [sys.executable, "-m", "linkopt", "optimize", str(FILE), "--out", out, "--seed", str(seed), "--workers", str(workers)]
+        cmd = [
+            sys.executable,
+            "-m",
+            "linkopt",
+            "optimize",
+            str(FILE),
+            "--out",
+            out,
+            "--seed",
+            str(seed),
+            "--workers",
+            str(workers),
+        ]
         env = {**os.environ, "LINKOPT_CACHE_DIR": str(cache)}
-        subprocess.run(cmd, cwd=ROOT, check=True, capture_output=True, text=True, env=env)
+        subprocess.run(
+            cmd, cwd=ROOT, check=True, capture_output=True, text=True, env=env
+        )
         seconds = time.perf_counter() - began
         summary = json.loads((Path(out) / "summary.json").read_text())
         with open(Path(out) / "history.csv") as f:
             times = [float(row["wall_time"]) for row in csv.DictReader(f)]
     # iteration 0 carries the start-up (worker processes, loading executables)
-    per_iteration = (times[-1] - times[0]) / (len(times) - 1) if len(times) > 1 else float("nan")
-    return {"seed": seed, "seconds": seconds, "first": times[0], "per_iteration": per_iteration, **{k: summary[k] for k in ("iterations", "evaluations", "f_design", "regularizer", "verified", "wall_time")}}
+    per_iteration = (
+        (times[-1] - times[0]) / (len(times) - 1) if len(times) > 1 else float("nan")
+    )
+    return {
+        "seed": seed,
+        "seconds": seconds,
+        "first": times[0],
+        "per_iteration": per_iteration,
+        **{
+            k: summary[k]
+            for k in (
+                "iterations",
+                "evaluations",
+                "f_design",
+                "regularizer",
+                "verified",
+                "wall_time",
+            )
+        },
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--seeds", default="0,1,2,3,4,5,6,7")
-    parser.add_argument("--workers", default="1,2", help="comma-separated worker counts to compare")
+    parser.add_argument(
+        "--workers", default="1,2", help="comma-separated worker counts to compare"
+    )
     args = parser.parse_args()
-    print(f"five-bar optimisation; paper: {PAPER_ITERATIONS} iterations, {PAPER_SECONDS / 60:.0f} min")
+    print(
+        f"five-bar optimisation; paper: {PAPER_ITERATIONS} iterations, {PAPER_SECONDS / 60:.0f} min"
+    )
     for workers in (int(w) for w in args.workers.split(",")):
         warm = []
         with tempfile.TemporaryDirectory() as cache:
             for seed in (int(s) for s in args.seeds.split(",")):
-                for label in ("cold", "warm") if seed == int(args.seeds.split(",")[0]) else ("warm",):
+                for label in (
+                    ("cold", "warm")
+                    if seed == int(args.seeds.split(",")[0])
+                    else ("warm",)
+                ):
                     r = run(seed, workers, Path(cache))
                     if label == "warm":
                         warm.append(r)

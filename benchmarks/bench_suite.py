@@ -1,6 +1,7 @@
 """The paper's mechanism suite (paper 001, Sec. VI, Table I): sizes, iterations, time.
 
-Run: ``.venv/bin/python benchmarks/bench_suite.py [--runs runs/suite] [--only finger,neck_2dof]``
+Run:
+``.venv/bin/python benchmarks/bench_suite.py [--runs runs/suite] [--only finger,neck_2dof]``
 
 For each mechanism, runs ``linkopt optimize FILE --out RUNS/NAME --resume`` in a fresh
 process (default settings: 20 particles, hybrid PSO + partial gradient, seed 0), so a
@@ -41,7 +42,15 @@ def run(name: str, runs: Path) -> dict:
     seconds = None
     if not summary.exists():
         began = time.perf_counter()
-        cmd = [sys.executable, "-m", "linkopt", "optimize", str(ROOT / "mechanisms" / f"{name}.toml"), "--out", str(out)]
+        cmd = [
+            sys.executable,
+            "-m",
+            "linkopt",
+            "optimize",
+            str(ROOT / "mechanisms" / f"{name}.toml"),
+            "--out",
+            str(out),
+        ]
         if (out / "checkpoint.json").exists():
             cmd.append("--resume")
         subprocess.run(cmd, cwd=ROOT, check=True)
@@ -51,15 +60,23 @@ def run(name: str, runs: Path) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--runs", default=str(ROOT / "runs" / "suite"), help="directory of the run directories")
-    parser.add_argument("--only", default=",".join(PAPER), help="comma-separated mechanism names")
+    parser.add_argument(
+        "--runs",
+        default=str(ROOT / "runs" / "suite"),
+        help="directory of the run directories",
+    )
+    parser.add_argument(
+        "--only", default=",".join(PAPER), help="comma-separated mechanism names"
+    )
     args = parser.parse_args()
     rows = []
     for name in args.only.split(","):
         mech = linkopt.load(ROOT / "mechanisms" / f"{name}.toml")
         result = run(name, Path(args.runs))
         rows.append((name, mech, result))
-    print(f"{'mechanism':12} {'|s|':>8} {'|p|':>6} {'targets':>8} {'iterations':>11} {'optimiser':>10} {'command':>9} {'paper':>8} {'ratio':>7}  verified")
+    print(
+        f"{'mechanism':12} {'|s|':>8} {'|p|':>6} {'targets':>8} {'iterations':>11} {'optimiser':>10} {'command':>9} {'paper':>8} {'ratio':>7}  verified"
+    )
     for name, mech, r in rows:
         s, p, t, iterations, seconds = PAPER[name]
         command = "-" if r["seconds"] is None else f"{r['seconds']:.0f} s"
@@ -68,7 +85,9 @@ def main() -> None:
             f" {r['iterations']:>4} ({iterations:>2}) {r['wall_time']:>8.0f} s {command:>9} {seconds / 60:>6.0f} min"
             f" {seconds / r['wall_time']:>6.0f}x  {r['verified']}"
         )
-    print("(paper's Table I values in parentheses; ratio = paper's time / our optimiser wall time)")
+    print(
+        "(paper's Table I values in parentheses; ratio = paper's time / our optimiser wall time)"
+    )
 
 
 if __name__ == "__main__":

@@ -19,7 +19,13 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-PAPER_MIN = {"rose_over": 0.5, "rose_app": 2.7, "wipe_table": 9.6, "clean_table": 7.5, "rose_discretised": 6.8}
+PAPER_MIN = {
+    "rose_over": 0.5,
+    "rose_app": 2.7,
+    "wipe_table": 9.6,
+    "clean_table": 7.5,
+    "rose_discretised": 6.8,
+}
 
 CASE = r"""
 import json, sys, time
@@ -68,10 +74,22 @@ print("RESULT " + json.dumps(out))
 
 
 def run_case(name: str, seed: int, figures: bool) -> dict:
-    proc = subprocess.run([sys.executable, "-c", CASE, name, str(seed), "1" if figures else "0", str(ROOT)],
-                          capture_output=True, text=True, check=True)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            CASE,
+            name,
+            str(seed),
+            "1" if figures else "0",
+            str(ROOT),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     line = [x for x in proc.stdout.splitlines() if x.startswith("RESULT ")][-1]
-    return json.loads(line[len("RESULT "):])
+    return json.loads(line[len("RESULT ") :])
 
 
 def main() -> None:
@@ -79,19 +97,28 @@ def main() -> None:
     ap.add_argument("--figures", action="store_true")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
-    print(f"{'case':<17} {'wall s':>7} {'cpu s':>7} {'paper min':>9} {'ratio':>6}  result")
+    print(
+        f"{'case':<17} {'wall s':>7} {'cpu s':>7} {'paper min':>9} {'ratio':>6}  result"
+    )
     for name, paper in PAPER_MIN.items():
         r = run_case(name, args.seed, args.figures)
         ratio = r["wall_s"] / (60 * paper)
         if name == "rose_discretised":
-            what = (f"2 links {', '.join(f'{x:.4g}' for x in r['lengths'])}; curve up to {r['excursion']:.2g} outside the RS "
-                    f"({100 * r['fraction_outside']:.1f} %), continuous check {'passes' if r['verified'] else 'fails: ' + r['failure']}")
+            what = (
+                f"2 links {', '.join(f'{x:.4g}' for x in r['lengths'])}; curve up to {r['excursion']:.2g} outside the RS "
+                f"({100 * r['fraction_outside']:.1f} %), continuous check {'passes' if r['verified'] else 'fails: ' + r['failure']}"
+            )
         elif r["success"]:
-            what = (f"{r['links']} links (SV^{r['swept']}) {', '.join(f'{x:.4g}' for x in r['lengths'])} = {r['total']:.4g}, "
-                    f"verified on {r['samples']} samples, clearance {r['clearance']:.3g}, {r['solves']} NLP solves")
+            what = (
+                f"{r['links']} links (SV^{r['swept']}) {', '.join(f'{x:.4g}' for x in r['lengths'])} = {r['total']:.4g}, "
+                f"verified on {r['samples']} samples, clearance {r['clearance']:.3g}, {r['solves']} NLP solves"
+            )
         else:
             what = f"no verified design in {r['solves']} NLP solves"
-        print(f"{name:<17} {r['wall_s']:7.1f} {r['cpu_s']:7.1f} {paper:9.1f} {ratio:6.3f}  {what}", flush=True)
+        print(
+            f"{name:<17} {r['wall_s']:7.1f} {r['cpu_s']:7.1f} {paper:9.1f} {ratio:6.3f}  {what}",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -1,7 +1,8 @@
 """linkopt: singularity-aware design of closed-loop spatial linkages.
 
 The public API; everything else is internal. States are homogenised (positions divided
-by ``Mechanism.length_scale``); motors, outputs, positions and designs are in file units.
+by ``Mechanism.length_scale``); motors, outputs, positions and designs are in file
+units.
 """
 
 from typing import TYPE_CHECKING
@@ -95,32 +96,82 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # the eager imports, for type checkers and editors
-    from ._engine.constraints import constraint_rows
-    from ._errors import InputError, LinkoptError, MechanismFileError
+    from ._arms.codesign.elimination import eliminate, simplify
+    from ._arms.codesign.model import Arm
+    from ._arms.codesign.nlp import (
+        ArmSolution,
+    )
+    from ._arms.codesign.nlp import (
+        prepare as prepare_arm,
+    )
+    from ._arms.codesign.nlp import (
+        solve as solve_arm,
+    )
+    from ._arms.codesign.task import (
+        Task as ArmTask,
+    )
+    from ._arms.codesign.task import (
+        load_task as load_arm_task,
+    )
+    from ._arms.codesign.task import (
+        loads_task as loads_arm_task,
+    )
+    from ._arms.dh.synthesis import DHSynthesis, DHSynthesisSettings, synthesize_dh
+    from ._arms.dh.table import DHTable
+    from ._arms.dh.table import to_mechanism as dh_mechanism
+    from ._arms.trace.discrete import (
+        DiscreteComparison,
+        discretised_design,
+    )
+    from ._arms.trace.discrete import (
+        compare as compare_discretised,
+    )
+    from ._arms.trace.synthesis import (
+        TraceResult,
+        TraceSettings,
+    )
+    from ._arms.trace.synthesis import (
+        synthesize as synthesize_trace,
+    )
+    from ._arms.trace.task import (
+        TraceTask,
+    )
+    from ._arms.trace.task import (
+        load_task as load_trace_task,
+    )
+    from ._arms.trace.task import (
+        loads_task as loads_trace_task,
+    )
+    from ._arms.trace.verify import PlanarArm, TraceVerification
+    from ._arms.trace.verify import verify as verify_trace
     from ._design.evaluation import Evaluation, evaluate
-    from ._engine.geometry import geometry, rest_state
-    from ._engine.kinematics import Solution, sensitivity, solve_bk, solve_bk_path, solve_fk, solve_fk_path
-    from ._engine.loader import load, loads
-    from ._engine.mobility import mobility
-    from ._engine.model import Mechanism
     from ._design.optimizer import OptimizerSettings
     from ._design.partial import partial_gradient
-    from ._engine.readout import joint_positions, motor_values, output_values, point_positions
     from ._design.run import optimize, write_outputs
-    from ._engine.singularity import f_sing, singular_values
     from ._design.verify import Verification, verify
-    from ._engine.writer import write_design
-    from ._arms.codesign.nlp import ArmSolution, prepare as prepare_arm, solve as solve_arm
-    from ._arms.codesign.model import Arm
-    from ._arms.codesign.task import Task as ArmTask, load_task as load_arm_task, loads_task as loads_arm_task
-    from ._arms.dh.table import DHTable, to_mechanism as dh_mechanism
-    from ._arms.dh.synthesis import DHSynthesis, DHSynthesisSettings, synthesize_dh
-    from ._arms.codesign.elimination import eliminate, simplify
+    from ._engine.constraints import constraint_rows
+    from ._engine.geometry import geometry, rest_state
+    from ._engine.kinematics import (
+        Solution,
+        sensitivity,
+        solve_bk,
+        solve_bk_path,
+        solve_fk,
+        solve_fk_path,
+    )
+    from ._engine.loader import load, loads
     from ._engine.manipulability import manipulability, point_jacobian
+    from ._engine.mobility import mobility
+    from ._engine.model import Mechanism
+    from ._engine.readout import (
+        joint_positions,
+        motor_values,
+        output_values,
+        point_positions,
+    )
+    from ._engine.singularity import f_sing, singular_values
     from ._engine.statics import static_torques
-    from ._arms.trace.discrete import DiscreteComparison, compare as compare_discretised, discretised_design
-    from ._arms.trace.synthesis import TraceResult, TraceSettings, synthesize as synthesize_trace
-    from ._arms.trace.task import TraceTask, load_task as load_trace_task, loads_task as loads_trace_task
-    from ._arms.trace.verify import PlanarArm, TraceVerification, verify as verify_trace
+    from ._engine.writer import write_design
+    from ._errors import InputError, LinkoptError, MechanismFileError
 
 __all__ = sorted(_EXPORTS)

@@ -1,10 +1,11 @@
-"""The tiny 2-joint arm shared by the arm tests: a base that slides in z, a joint, a link
-of free length, a second joint and a tool; and the targets it reaches for a known design."""
+"""The tiny 2-joint arm shared by the arm tests: a base that slides in z, a joint, a
+link of free length, a second joint and a tool; and the targets it reaches for a known
+design."""
 
 import jax.numpy as jnp
 import numpy as np
 
-from linkopt._arms.codesign.model import rotation_matrix, chain
+from linkopt._arms.codesign.model import chain, rotation_matrix
 from linkopt._arms.codesign.task import loads_task
 
 TINY_ARM = """
@@ -35,14 +36,22 @@ mass = 0.1
 
 
 def reached_targets(text: str, design, poses, *, axis: bool = False) -> str:
-    """``[[targets]]`` tables at the tool of ``text``'s arm for ``design`` at joint ``poses``
-    (with the tool's z axis as tip axis when ``axis``)."""
-    skeleton = loads_task(text + "[[targets]]\nposition = [0.0, 0.0, 0.0]\n", "skeleton.toml")
+    """``[[targets]]`` tables at the tool of ``text``'s arm for ``design`` at joint
+    ``poses`` (with the tool's z axis as tip axis when ``axis``)."""
+    skeleton = loads_task(
+        text + "[[targets]]\nposition = [0.0, 0.0, 0.0]\n", "skeleton.toml"
+    )
     tables = ""
     for theta in poses:
-        ends, _ = chain(skeleton.arm.modules, jnp.asarray(theta, dtype=float), jnp.asarray(design, dtype=float))
+        ends, _ = chain(
+            skeleton.arm.modules,
+            jnp.asarray(theta, dtype=float),
+            jnp.asarray(design, dtype=float),
+        )
         q, p = ends[-1]
         tables += f"[[targets]]\nposition = {[float(v) for v in p]}\n"
         if axis:
-            tables += f"axis = {[float(v) for v in np.asarray(rotation_matrix(q))[:, 2]]}\n"
+            tables += (
+                f"axis = {[float(v) for v in np.asarray(rotation_matrix(q))[:, 2]]}\n"
+            )
     return tables

@@ -1,4 +1,5 @@
-"""Shared fixtures. Mechanisms are loaded once per session (loading compiles a kernel)."""
+"""Shared fixtures. Mechanisms are loaded once per session (loading compiles a
+kernel)."""
 
 from pathlib import Path
 

@@ -1,4 +1,5 @@
-"""Closed-form kinematics of the shipped planar five-bar, written independently of linkopt.
+"""Closed-form kinematics of the shipped planar five-bar, written independently of
+linkopt.
 
 Geometry is read from the file's rest anchors; branches are those of the rest pose
 (tip to the left of the elbow-to-elbow vector, each elbow on the rest side of its
@@ -32,8 +33,12 @@ def circles(c0, r0, c1, r1, side):
 
 def elbows(motors):
     motors = np.atleast_2d(motors)
-    e_l = B_L + L1 * np.stack([np.cos(PHI_L0 + motors[:, 0]), np.sin(PHI_L0 + motors[:, 0])], -1)
-    e_r = B_R + L1 * np.stack([np.cos(PHI_R0 + motors[:, 1]), np.sin(PHI_R0 + motors[:, 1])], -1)
+    e_l = B_L + L1 * np.stack(
+        [np.cos(PHI_L0 + motors[:, 0]), np.sin(PHI_L0 + motors[:, 0])], -1
+    )
+    e_r = B_R + L1 * np.stack(
+        [np.cos(PHI_R0 + motors[:, 1]), np.sin(PHI_R0 + motors[:, 1])], -1
+    )
     return e_l, e_r
 
 

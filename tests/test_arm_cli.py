@@ -1,24 +1,26 @@
-"""``linkopt arm ...`` on the command line, in-process: ``arm design`` exits 0 exactly when
-the returned arm is feasible (else 1) and writes a ``design.toml`` the loader accepts; bad
-arguments exit 2 with one ``linkopt: error:`` line before any solving."""
+"""``linkopt arm ...`` on the command line, in-process: ``arm design`` exits 0 exactly
+when the returned arm is feasible (else 1) and writes a ``design.toml`` the loader
+accepts; bad arguments exit 2 with one ``linkopt: error:`` line before any solving."""
 
 import json
 
 import numpy as np
 import pytest
-
-import linkopt
-from linkopt._cli.trace import file_stem
-from linkopt._cli.main import main
-
 from arm_tasks import TINY_ARM, reached_targets
 
-ARM = TINY_ARM + """
+import linkopt
+from linkopt._cli.main import main
+from linkopt._cli.trace import file_stem
+
+ARM = (
+    TINY_ARM
+    + """
 [solver]
 starts = 3
 max_iterations = 100
 waypoints_per_target = 2
 """
+)
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +32,9 @@ def task_file(tmp_path_factory):
     return path
 
 
-def test_arm_design_exit_status_follows_feasibility_and_writes_a_loadable_file(task_file, tmp_path, capsys):
+def test_arm_design_exit_status_follows_feasibility_and_writes_a_loadable_file(
+    task_file, tmp_path, capsys
+):
     out = tmp_path / "run"
     status = main(["arm", "design", str(task_file), "--out", str(out), "--starts", "1"])
     summary = json.loads((out / "summary.json").read_text())
@@ -51,7 +55,16 @@ def test_arm_design_exit_status_follows_feasibility_and_writes_a_loadable_file(t
     ],
 )
 def test_arm_design_bad_arguments_exit_2_with_one_line(extra, words, tmp_path, capsys):
-    status = main(["arm", "design", str(tmp_path / "never_read.toml"), "--out", str(tmp_path / "run")] + extra)
+    status = main(
+        [
+            "arm",
+            "design",
+            str(tmp_path / "never_read.toml"),
+            "--out",
+            str(tmp_path / "run"),
+        ]
+        + extra
+    )
     err = capsys.readouterr().err
     assert status == 2 and err == f"linkopt: error: {words}\n"
     assert not (tmp_path / "run").exists()
@@ -62,17 +75,27 @@ def test_arm_design_out_is_a_file_exits_2(task_file, tmp_path, capsys):
     clash.write_text("a file, not a directory")
     assert main(["arm", "design", str(task_file), "--out", str(clash)]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("linkopt: error: --out: cannot create the output directory") and err.count("\n") == 1
+    assert (
+        err.startswith("linkopt: error: --out: cannot create the output directory")
+        and err.count("\n") == 1
+    )
 
 
-@pytest.mark.parametrize("command", [["manipulability", "points.csv"], ["trace", "task.toml"]])
+@pytest.mark.parametrize(
+    "command", [["manipulability", "points.csv"], ["trace", "task.toml"]]
+)
 def test_other_arm_commands_reject_a_negative_seed(command, tmp_path, capsys):
     assert main(["arm", *command, "--out", str(tmp_path / "run"), "--seed", "-1"]) == 2
-    assert capsys.readouterr().err == "linkopt: error: --seed: expected a non-negative integer, got -1\n"
+    assert (
+        capsys.readouterr().err
+        == "linkopt: error: --seed: expected a non-negative integer, got -1\n"
+    )
 
 
 def test_trace_file_names_are_safe_whatever_the_task_name():
     assert file_stem("rose") == "rose"
     assert file_stem("../a/b c") == "_a_b_c"
     assert file_stem("..") == "task"
-    assert "/" not in file_stem("x/y") and np.all([c not in file_stem("a:b*?") for c in ":*?"])
+    assert "/" not in file_stem("x/y") and np.all(
+        [c not in file_stem("a:b*?") for c in ":*?"]
+    )

@@ -1,16 +1,16 @@
-"""Joint elimination (paper 000, Algorithm 1) on a small case: a 3-joint arm whose middle
-link is short is merged into a 2-joint arm. With two position targets the merged arm's
-stacked Jacobian (6 rows; 2 x 2 joint angles and 2 design columns) is square, so the
-algorithm can keep both tools on their targets while the segment shrinks, and its δ is far
-below that of merging without compensation."""
+"""Joint elimination (paper 000, Algorithm 1) on a small case: a 3-joint arm whose
+middle link is short is merged into a 2-joint arm. With two position targets the merged
+arm's stacked Jacobian (6 rows; 2 x 2 joint angles and 2 design columns) is square, so
+the algorithm can keep both tools on their targets while the segment shrinks, and its δ
+is far below that of merging without compensation."""
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import linkopt  # noqa: F401  (float64)
-from linkopt._arms.codesign import nlp
 from linkopt._arms.codesign import elimination as elim
+from linkopt._arms.codesign import nlp
 from linkopt._arms.codesign.model import chain
 from linkopt._arms.codesign.task import loads_task
 
@@ -52,7 +52,9 @@ POSES = np.array([[0.2, -0.6, 0.5], [0.7, -0.3, 0.9]])
 
 @pytest.fixture(scope="module")
 def case():
-    skeleton = loads_task(ARM + "[[targets]]\nposition = [0.0, 0.0, 0.0]\n", "small.toml")
+    skeleton = loads_task(
+        ARM + "[[targets]]\nposition = [0.0, 0.0, 0.0]\n", "small.toml"
+    )
     d0 = skeleton.arm.d0
     text = ARM
     for theta in POSES:
@@ -64,12 +66,20 @@ def case():
 
 def test_elimination_reaches_small_delta(case):
     problem, d0 = case
-    assert elim.delta_error(problem, problem.arm, POSES, d0) < 1e-20  # the start is exact
-    settings = elim.EliminationSettings(alpha=0.02, iterations=250)  # half the paper's 500 steps
+    assert (
+        elim.delta_error(problem, problem.arm, POSES, d0) < 1e-20
+    )  # the start is exact
+    settings = elim.EliminationSettings(
+        alpha=0.02, iterations=250
+    )  # half the paper's 500 steps
     result = elim.eliminate(problem, POSES, d0, 1, settings)
     _, _, d_j = elim.segment_arm(problem.arm, 1, d0)
     assert result.iterations == settings.iterations
-    np.testing.assert_allclose(result.segment, np.linalg.norm(d_j) * (1 - settings.alpha) ** settings.iterations, rtol=1e-9)
+    np.testing.assert_allclose(
+        result.segment,
+        np.linalg.norm(d_j) * (1 - settings.alpha) ** settings.iterations,
+        rtol=1e-9,
+    )
     assert result.arm.num_joints == 2 and result.theta.shape == (2, 2)
     assert result.delta < 1e-4
     # Merging the same joints without Algorithm 1 (drop the link, add the angles):

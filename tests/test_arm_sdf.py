@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 
 import linkopt  # noqa: F401  (float64)
-from linkopt._arms.codesign.sdf import Obstacle, box_distance, build_field, chomp_cost, field_distance, sphere_distance
+from linkopt._arms.codesign.sdf import (
+    Obstacle,
+    box_distance,
+    build_field,
+    chomp_cost,
+    field_distance,
+    sphere_distance,
+)
 
 H = 0.02
 LOWER, UPPER = [-0.5, -0.5, -0.5], [0.5, 0.5, 0.5]
@@ -28,10 +35,18 @@ def _box_gradient(p):
     outside = np.maximum(q, 0.0)
     norm = np.linalg.norm(outside, axis=1, keepdims=True)
     face = np.eye(3)[np.argmax(q, axis=1)]
-    return np.sign(rel) * np.where(norm > 0, outside / np.where(norm > 0, norm, 1.0), face)
+    return np.sign(rel) * np.where(
+        norm > 0, outside / np.where(norm > 0, norm, 1.0), face
+    )
 
 
-@pytest.mark.parametrize("obstacle, exact", [(BOX, lambda p: box_distance(p, BOX.center, BOX.size)), (SPHERE, lambda p: sphere_distance(p, SPHERE.center, SPHERE.radius))])
+@pytest.mark.parametrize(
+    "obstacle, exact",
+    [
+        (BOX, lambda p: box_distance(p, BOX.center, BOX.size)),
+        (SPHERE, lambda p: sphere_distance(p, SPHERE.center, SPHERE.radius)),
+    ],
+)
 def test_values_match_analytic_distance(obstacle, exact):
     field = build_field((obstacle,), LOWER, UPPER, H)
     p = _points(0)
@@ -49,11 +64,20 @@ def test_gradients_match_analytic_normals():
     # sphere's centre, where the SDF is smooth.
     q = np.abs(p - np.array(BOX.center)) - 0.5 * np.array(BOX.size)
     gaps = np.sort(q, axis=1)
-    clean_box = (d_box < d_sph - 3 * H) & (gaps[:, 2] - gaps[:, 1] > 3 * H) & (gaps[:, 1] < -2 * H) & (np.abs(d_box) > 2 * H)
+    clean_box = (
+        (d_box < d_sph - 3 * H)
+        & (gaps[:, 2] - gaps[:, 1] > 3 * H)
+        & (gaps[:, 1] < -2 * H)
+        & (np.abs(d_box) > 2 * H)
+    )
     clean_sph = (d_sph < d_box - 3 * H) & (np.abs(d_sph + SPHERE.radius) > 3 * H)
-    grad = np.asarray(jax.vmap(jax.grad(lambda x: field_distance(field, x[None])[0]))(jnp.asarray(p)))
+    grad = np.asarray(
+        jax.vmap(jax.grad(lambda x: field_distance(field, x[None])[0]))(jnp.asarray(p))
+    )
     np.testing.assert_allclose(grad[clean_box], _box_gradient(p[clean_box]), atol=0.05)
-    normal = (p - np.array(SPHERE.center)) / np.linalg.norm(p - np.array(SPHERE.center), axis=1, keepdims=True)
+    normal = (p - np.array(SPHERE.center)) / np.linalg.norm(
+        p - np.array(SPHERE.center), axis=1, keepdims=True
+    )
     np.testing.assert_allclose(grad[clean_sph], normal[clean_sph], atol=0.1)
     assert clean_box.sum() > 100 and clean_sph.sum() > 50
 
@@ -63,7 +87,9 @@ def test_mesh_obstacle_matches_box(tmp_path):
 
     path = tmp_path / "box.stl"
     trimesh.creation.box(extents=BOX.size).export(path)
-    field = build_field((Obstacle("mesh", center=BOX.center, path=str(path)),), LOWER, UPPER, H)
+    field = build_field(
+        (Obstacle("mesh", center=BOX.center, path=str(path)),), LOWER, UPPER, H
+    )
     p = _points(2)
     got = np.asarray(field_distance(field, jnp.asarray(p)))
     np.testing.assert_allclose(got, box_distance(p, BOX.center, BOX.size), atol=1.5 * H)
@@ -87,10 +113,14 @@ def test_millimetre_task_far_from_obstacles_has_no_obstacle_cost():
     field = build_field((ball,), (-500.0,) * 3, (500.0,) * 3, 20.0)
     far = np.array([[400.0, 0.0, 0.0], [0.0, -300.0, 300.0], [150.0, 150.0, -150.0]])
     distance = field_distance(field, jnp.asarray(far))
-    np.testing.assert_allclose(np.asarray(distance), sphere_distance(far, ball.center, ball.radius), atol=5.0)
+    np.testing.assert_allclose(
+        np.asarray(distance), sphere_distance(far, ball.center, ball.radius), atol=5.0
+    )
     assert float(jnp.sum(chomp_cost(distance, 40.0))) == 0.0
     empty = build_field((), (-500.0,) * 3, (500.0,) * 3, 100.0)
-    assert float(jnp.sum(chomp_cost(field_distance(empty, jnp.asarray(far)), 40.0))) == 0.0
+    assert (
+        float(jnp.sum(chomp_cost(field_distance(empty, jnp.asarray(far)), 40.0))) == 0.0
+    )
 
 
 def test_rotated_box_matches_the_box_in_its_own_frame():
@@ -103,15 +133,23 @@ def test_rotated_box_matches_the_box_in_its_own_frame():
     c, s = np.cos(np.radians(20)), np.sin(np.radians(20))
     rx = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
     rot = rz @ rx
-    box = Obstacle("box", center=BOX.center, size=BOX.size, orientation=tuple(map(tuple, rot)))
+    box = Obstacle(
+        "box", center=BOX.center, size=BOX.size, orientation=tuple(map(tuple, rot))
+    )
     p = _points(2)
     local = (p - np.array(BOX.center)) @ rot  # rows: Rᵀ (p - c)
     exact = box_distance(local, (0.0, 0.0, 0.0), BOX.size)
-    np.testing.assert_allclose(box_distance(p, box.center, box.size, box.orientation), exact, atol=1e-12)
+    np.testing.assert_allclose(
+        box_distance(p, box.center, box.size, box.orientation), exact, atol=1e-12
+    )
     field = build_field((box,), LOWER, UPPER, H)
-    np.testing.assert_allclose(np.asarray(field_distance(field, jnp.asarray(p))), exact, atol=0.25 * H)
+    np.testing.assert_allclose(
+        np.asarray(field_distance(field, jnp.asarray(p))), exact, atol=0.25 * H
+    )
     face_point = np.array(BOX.center) + rot[:, 0] * (0.5 * BOX.size[0] + 0.05)
-    assert box_distance(face_point[None], box.center, box.size, box.orientation)[0] == pytest.approx(0.05)
+    assert box_distance(face_point[None], box.center, box.size, box.orientation)[
+        0
+    ] == pytest.approx(0.05)
 
 
 def test_rotated_box_is_drawn_with_its_turned_edges():
@@ -123,11 +161,15 @@ def test_rotated_box_is_drawn_with_its_turned_edges():
     from linkopt._arms.codesign.plots import draw_obstacle
 
     quarter = ((0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0))  # 90° about z
-    box = Obstacle("box", center=(0.0, 0.0, 0.0), size=(0.4, 0.1, 0.2), orientation=quarter)
+    box = Obstacle(
+        "box", center=(0.0, 0.0, 0.0), size=(0.4, 0.1, 0.2), orientation=quarter
+    )
     ax = plt.figure().add_subplot(projection="3d")
     draw_obstacle(ax, box, (np.full(3, -1.0), np.full(3, 1.0)))
     ends = np.array([np.array(line.get_data_3d()).T for line in ax.lines])  # (12, 2, 3)
     plt.close("all")
     assert ends.shape == (12, 2, 3)
     # the 0.4 m edges now run along world y, the 0.1 m ones along x
-    np.testing.assert_allclose(np.abs(ends[..., :2]).max(axis=(0, 1)), [0.05, 0.2], atol=1e-12)
+    np.testing.assert_allclose(
+        np.abs(ends[..., :2]).max(axis=(0, 1)), [0.05, 0.2], atol=1e-12
+    )

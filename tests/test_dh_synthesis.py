@@ -15,19 +15,36 @@ import numpy as np
 import pytest
 
 import linkopt
-from linkopt._arms.dh import table as _dh
 from linkopt._arms.dh import synthesis as syn
+from linkopt._arms.dh import table as _dh
+from linkopt._cli.main import main
 from linkopt._cli.manipulability import read_points
 from linkopt._engine.manipulability import manipulability, point_jacobian, yoshikawa
-from linkopt._cli.main import main
 
 # The paper's DH table (Sec. VI) and its Fig. 3 targets, joint vectors, residuals and volumes.
-PAPER = _dh.table_from_arrays("RRR", [1.62611, 1.56317, 1.56376], [-1.56998, -0.000493347, 0.0], [-0.0403649, -0.00121933, 0.000180823])
+PAPER = _dh.table_from_arrays(
+    "RRR",
+    [1.62611, 1.56317, 1.56376],
+    [-1.56998, -0.000493347, 0.0],
+    [-0.0403649, -0.00121933, 0.000180823],
+)
 FIG3 = [
-    ((1.0, 0.0, 0.0), (0.0001335, 4.5756, -2.7249), (-0.019091, -0.00063247, 0.0053021), 0.97052),
-    ((0.28366, 0.14112, 0.84147), (6.7515, 2.7115, 2.14), (0.094132, 0.047255, 0.015007), 0.86919),
+    (
+        (1.0, 0.0, 0.0),
+        (0.0001335, 4.5756, -2.7249),
+        (-0.019091, -0.00063247, 0.0053021),
+        0.97052,
+    ),
+    (
+        (0.28366, 0.14112, 0.84147),
+        (6.7515, 2.7115, 2.14),
+        (0.094132, 0.047255, 0.015007),
+        0.86919,
+    ),
 ]
-RPR = _dh.table_from_arrays("RPR", [0.4, 0.1, 0.5], [np.pi / 2, -np.pi / 2, 0.3], [0.2, 0.4, -0.1])  # d1, θ2, d3
+RPR = _dh.table_from_arrays(
+    "RPR", [0.4, 0.1, 0.5], [np.pi / 2, -np.pi / 2, 0.3], [0.2, 0.4, -0.1]
+)  # d1, θ2, d3
 
 
 def test_link_transform_is_the_distal_product():
@@ -38,18 +55,22 @@ def test_link_transform_is_the_distal_product():
     rx[1:3, 1:3] = [[np.cos(alpha), -np.sin(alpha)], [np.sin(alpha), np.cos(alpha)]]
     tz, tx = np.eye(4), np.eye(4)
     tz[2, 3], tx[0, 3] = d, a
-    np.testing.assert_allclose(_dh.link_transform(theta, d, a, alpha), rz @ tz @ tx @ rx, atol=1e-15)
+    np.testing.assert_allclose(
+        _dh.link_transform(theta, d, a, alpha), rz @ tz @ tx @ rx, atol=1e-15
+    )
 
 
 @pytest.mark.parametrize("target, q, residual, volume", FIG3)
 def test_paper_figure3_residual_and_volume(target, q, residual, volume):
     """The paper's printed residual (tip − target) and "ellipsoid volume" (= w, eq. 2).
 
-    The joint values are printed to 1e-4 rad; with links of ~1.6 that moves the tip by up
-    to ~2e-4, hence the tolerance (a wrong convention is off by 1e-1 or more).
+    The joint values are printed to 1e-4 rad; with links of ~1.6 that moves the tip by
+    up to ~2e-4, hence the tolerance (a wrong convention is off by 1e-1 or more).
     """
     q = jnp.array(q)
-    np.testing.assert_allclose(_dh.tip_position("RRR", PAPER, q) - np.array(target), residual, atol=2e-4)
+    np.testing.assert_allclose(
+        _dh.tip_position("RRR", PAPER, q) - np.array(target), residual, atol=2e-4
+    )
     w = yoshikawa(_dh.tip_jacobian("RRR", PAPER, q))
     assert abs(float(w) - volume) < 1e-4
 
@@ -71,7 +92,9 @@ def test_mechanism_fk_matches_closed_form_from_rest(rpr_arm):
     tip = np.asarray(linkopt.point_positions(mech, solution.state))[:, 0]
     expected = np.stack([_dh.tip_position("RPR", RPR, v) for v in q])
     np.testing.assert_allclose(tip, expected, atol=1e-9)
-    np.testing.assert_allclose(linkopt.motor_values(mech, solution.state), offsets, atol=1e-9)
+    np.testing.assert_allclose(
+        linkopt.motor_values(mech, solution.state), offsets, atol=1e-9
+    )
 
 
 def test_closed_form_state_satisfies_the_engine(rpr_arm):
@@ -100,22 +123,35 @@ def test_planar_two_link_manipulability_is_l1_l2_sin_q2():
     np.testing.assert_allclose(closed, expected, rtol=1e-12, atol=1e-12)
     start = _dh.engine_states("RR", table, q, q_rest, float(mech.length_scale))
     states = linkopt.solve_fk(mech, _dh.motor_values(q, q_rest), start=start).state
-    np.testing.assert_allclose(manipulability(mech, states), expected, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(
+        manipulability(mech, states), expected, rtol=1e-9, atol=1e-12
+    )
 
 
 def test_five_bar_manipulability_matches_finite_differences(five_bar):
-    """Closed loop: w from the engine's sensitivities = |det| of FD of the end effector."""
+    """Closed loop: w from the engine's sensitivities = |det| of FD of the end
+    effector."""
     motors = np.array([0.3, -0.2])
     state = linkopt.solve_fk(five_bar, motors).state
     ee = five_bar.point_names.index("ee")
 
     def xy(a):
-        return np.asarray(linkopt.point_positions(five_bar, linkopt.solve_fk(five_bar, a, start=state).state))[ee, :2]
+        return np.asarray(
+            linkopt.point_positions(
+                five_bar, linkopt.solve_fk(five_bar, a, start=state).state
+            )
+        )[ee, :2]
 
     h = 1e-5
-    fd = np.stack([(xy(motors + h * e) - xy(motors - h * e)) / (2 * h) for e in np.eye(2)], axis=1)
-    np.testing.assert_allclose(point_jacobian(five_bar, state), fd, rtol=1e-7, atol=1e-6)
-    assert float(manipulability(five_bar, state)) == pytest.approx(abs(np.linalg.det(fd)), rel=1e-7)
+    fd = np.stack(
+        [(xy(motors + h * e) - xy(motors - h * e)) / (2 * h) for e in np.eye(2)], axis=1
+    )
+    np.testing.assert_allclose(
+        point_jacobian(five_bar, state), fd, rtol=1e-7, atol=1e-6
+    )
+    assert float(manipulability(five_bar, state)) == pytest.approx(
+        abs(np.linalg.det(fd)), rel=1e-7
+    )
 
 
 def test_eq10_gradient_matches_finite_differences():
@@ -124,11 +160,20 @@ def test_eq10_gradient_matches_finite_differences():
     weights = jnp.array([12.0, 25.0, 1e-10, 1e-4])
     _, grad = syn._value_and_grad("RPR", jnp.asarray(x), jnp.asarray(targets), weights)
     h = 1e-6
-    fd = [(syn.cost("RPR", jnp.asarray(x + h * e), targets, weights) - syn.cost("RPR", jnp.asarray(x - h * e), targets, weights)) / (2 * h) for e in np.eye(x.size)]
+    fd = [
+        (
+            syn.cost("RPR", jnp.asarray(x + h * e), targets, weights)
+            - syn.cost("RPR", jnp.asarray(x - h * e), targets, weights)
+        )
+        / (2 * h)
+        for e in np.eye(x.size)
+    ]
     np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-5)
 
 
-TASK = np.array([[np.cos(5 * t), np.sin(3 * t), np.sin(t)] for t in np.arange(0.0, 0.6, 0.1)])
+TASK = np.array(
+    [[np.cos(5 * t), np.sin(3 * t), np.sin(t)] for t in np.arange(0.0, 0.6, 0.1)]
+)
 SMALL = syn.DHSynthesisSettings(starts=2, seed=1, max_iterations=300)
 
 
@@ -142,29 +187,63 @@ def test_small_synthesis_reaches_its_targets(small_synthesis):
     assert s.q.shape == (6, 3) and s.residual.max() <= SMALL.reach_tolerance
     assert s.manipulability.min() > 0.1
     assert s.stage1["cost"] == min(s.starts)
-    assert s.size == pytest.approx(float(np.sum(np.abs(s.table.a)) + np.sum(np.abs(s.table.offset))))
+    assert s.size == pytest.approx(
+        float(np.sum(np.abs(s.table.a)) + np.sum(np.abs(s.table.offset)))
+    )
 
 
 def test_enumeration_keeps_the_best_mean_manipulability():
-    assert sorted(syn.all_configurations(3)) == sorted(["PPP", "PPR", "PRP", "RPP", "PRR", "RPR", "RRP", "RRR"])
-    best, results = syn.synthesize_dh(TASK[:2], 1, syn.DHSynthesisSettings(starts=1, max_iterations=50))
+    assert sorted(syn.all_configurations(3)) == sorted(
+        ["PPP", "PPR", "PRP", "RPP", "PRR", "RPR", "RRP", "RRR"]
+    )
+    best, results = syn.synthesize_dh(
+        TASK[:2], 1, syn.DHSynthesisSettings(starts=1, max_iterations=50)
+    )
     assert set(results) == {"P", "R"}
-    assert np.mean(best.manipulability) == max(np.mean(r.manipulability) for r in results.values())
+    assert np.mean(best.manipulability) == max(
+        np.mean(r.manipulability) for r in results.values()
+    )
 
 
-def test_cli_reports_engine_measures_and_writes_a_mechanism_file(tmp_path, small_synthesis):
+def test_cli_reports_engine_measures_and_writes_a_mechanism_file(
+    tmp_path, small_synthesis
+):
     """The command (same task and settings as ``small_synthesis``) writes the table; its
-    residuals and w, measured on the engine, equal the closed form; arm.toml's FK reaches."""
+    residuals and w, measured on the engine, equal the closed form; arm.toml's FK
+    reaches."""
     points = tmp_path / "task.txt"
-    points.write_text("# x y z\n" + "\n".join(" ".join(repr(float(v)) for v in p) for p in TASK) + "\n")
+    points.write_text(
+        "# x y z\n"
+        + "\n".join(" ".join(repr(float(v)) for v in p) for p in TASK)
+        + "\n"
+    )
     out = tmp_path / "out"
-    args = ["--joints", "RRR", "--out", str(out), "--starts", "2", "--seed", "1", "--iterations", "300"]
+    args = [
+        "--joints",
+        "RRR",
+        "--out",
+        str(out),
+        "--starts",
+        "2",
+        "--seed",
+        "1",
+        "--iterations",
+        "300",
+    ]
     assert main(["arm", "manipulability", str(points), *args]) == 0
     data = json.loads((out / "dh.json").read_text())
     assert data["joints"] == "RRR" and data["theta"] == [None] * 3
-    np.testing.assert_allclose([t["q"] for t in data["targets"]], small_synthesis.q, atol=1e-9)
-    np.testing.assert_allclose([t["residual"] for t in data["targets"]], small_synthesis.residual, atol=1e-9)
-    np.testing.assert_allclose([t["manipulability"] for t in data["targets"]], small_synthesis.manipulability, rtol=1e-8)
+    np.testing.assert_allclose(
+        [t["q"] for t in data["targets"]], small_synthesis.q, atol=1e-9
+    )
+    np.testing.assert_allclose(
+        [t["residual"] for t in data["targets"]], small_synthesis.residual, atol=1e-9
+    )
+    np.testing.assert_allclose(
+        [t["manipulability"] for t in data["targets"]],
+        small_synthesis.manipulability,
+        rtol=1e-8,
+    )
     assert data["summary"]["reached"] == len(TASK)
     mech = linkopt.load(out / "arm.toml")
     target = data["targets"][2]
@@ -174,12 +253,15 @@ def test_cli_reports_engine_measures_and_writes_a_mechanism_file(tmp_path, small
     assert (out / "manipulability.png").stat().st_size > 10_000
 
 
-@pytest.mark.parametrize("text, message", [
-    ("1, 2, 3\n4, 5\n", "line 2: expected 3 finite numbers"),
-    ("x, y, z\n1, 2, nan\n", "line 2: expected 3 finite numbers"),
-    ("x, y, z\n", "no task points"),
-    ("1, 2, 3\n1, two, 3\n", "line 2: expected 3 finite numbers"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("1, 2, 3\n4, 5\n", "line 2: expected 3 finite numbers"),
+        ("x, y, z\n1, 2, nan\n", "line 2: expected 3 finite numbers"),
+        ("x, y, z\n", "no task points"),
+        ("1, 2, 3\n1, two, 3\n", "line 2: expected 3 finite numbers"),
+    ],
+)
 def test_bad_point_files(tmp_path, text, message):
     path = tmp_path / "points.csv"
     path.write_text(text)
@@ -191,10 +273,34 @@ def test_bad_point_files(tmp_path, text, message):
 def test_bad_input_gives_one_line_errors(tmp_path, capsys):
     points = tmp_path / "points.csv"
     points.write_text("1, 0, 0\n")
-    assert main(["arm", "manipulability", str(points), "--joints", "RXR", "--out", str(tmp_path / "o")]) == 2
+    assert (
+        main(
+            [
+                "arm",
+                "manipulability",
+                str(points),
+                "--joints",
+                "RXR",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("linkopt: error: --joints:") and "'R'" in err[-1]
-    assert main(["arm", "manipulability", str(tmp_path / "missing.csv"), "--out", str(tmp_path / "o")]) == 2
+    assert (
+        main(
+            [
+                "arm",
+                "manipulability",
+                str(tmp_path / "missing.csv"),
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 2
+    )
     assert "missing.csv: cannot read" in capsys.readouterr().err
     with pytest.raises(linkopt.InputError, match="joints: expected a number of joints"):
         syn.all_configurations(0)
@@ -208,9 +314,15 @@ def test_enumeration_skips_strings_without_an_engine_model():
     """Regression: ``--joints 4`` failed in engine_report after the whole enumeration
     when the best string had fewer than N - 3 revolute joints."""
     four = syn.configurations(4)
-    assert "PPPP" not in four and len(four) == 15 and all(t.count("R") >= 1 for t in four)
+    assert (
+        "PPPP" not in four and len(four) == 15 and all(t.count("R") >= 1 for t in four)
+    )
     assert syn.configurations(3) == syn.all_configurations(3)
-    with pytest.raises(linkopt.InputError, match="'PPPPR': a 5-joint arm needs at least 2 revolute"):
+    with pytest.raises(
+        linkopt.InputError, match="'PPPPR': a 5-joint arm needs at least 2 revolute"
+    ):
         syn.configurations("PPPPR")
-    with pytest.raises(linkopt.InputError, match="seed: expected a non-negative integer"):
+    with pytest.raises(
+        linkopt.InputError, match="seed: expected a non-negative integer"
+    ):
         syn.synthesize_config("RR", TASK[:2], syn.DHSynthesisSettings(seed=-1))

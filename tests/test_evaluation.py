@@ -1,24 +1,44 @@
-"""Design evaluation on the five-bar against its closed-form workspace and singularities."""
+"""Design evaluation on the five-bar against its closed-form workspace and
+singularities."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import MECHANISMS
+from five_bar_closed_form import (
+    B_L,
+    B_R,
+    L1,
+    L2,
+    cross,
+    elbows,
+    forward_singular_height,
+    inverse,
+)
 
 import linkopt
-from conftest import MECHANISMS
-from five_bar_closed_form import B_L, B_R, L1, L2, cross, elbows, forward_singular_height, inverse
 from linkopt._design.evaluation import alpha_minus, evaluate, targets
-from linkopt._engine.constraints import output_values
 from linkopt._design.metrics import thresholds
+from linkopt._design.sampling import (
+    adversarial_objective,
+    either,
+    evaluate_point,
+    ik_objective,
+    minimise,
+    minimise_queue,
+)
+from linkopt._engine.constraints import output_values
 from linkopt._engine.geometry import rest_state
-from linkopt._design.sampling import evaluate_point, adversarial_objective, either, ik_objective, minimise, minimise_queue
 
 
 def reachable_on_rest_branch(tips):
-    """Closed form: both dyads reach the tip, and the tip is in the rest working mode."""
+    """Closed form: both dyads reach the tip, and the tip is in the rest working
+    mode."""
     tips = np.atleast_2d(tips)
-    within = (np.linalg.norm(tips - B_L, axis=1) <= L1 + L2) & (np.linalg.norm(tips - B_R, axis=1) <= L1 + L2)
+    within = (np.linalg.norm(tips - B_L, axis=1) <= L1 + L2) & (
+        np.linalg.norm(tips - B_R, axis=1) <= L1 + L2
+    )
     with np.errstate(invalid="ignore"):
         e_l, e_r = elbows(inverse(tips))
     return within & (cross(e_r - e_l, tips - e_l) > 0)
@@ -33,7 +53,9 @@ def test_closed_form_confirms_the_initial_defects(five_bar):
     assert five_bar.output_min[1] < forward_singular_height() < five_bar.output_max[1]
 
 
-def test_ik_samples_reach_exactly_the_closed_form_reachable_targets(five_bar, five_bar_evaluation):
+def test_ik_samples_reach_exactly_the_closed_form_reachable_targets(
+    five_bar, five_bar_evaluation
+):
     ev = five_bar_evaluation
     expected = reachable_on_rest_branch(targets(five_bar))
     reach = np.asarray(ev.ik_reach)
@@ -42,14 +64,20 @@ def test_ik_samples_reach_exactly_the_closed_form_reachable_targets(five_bar, fi
     assert float(ev.reach) > 1e-4
 
 
-def test_adversarial_samples_find_the_forward_singularity(five_bar, five_bar_evaluation):
+def test_adversarial_samples_find_the_forward_singularity(
+    five_bar, five_bar_evaluation
+):
     ev = five_bar_evaluation
     assert np.any(np.asarray(ev.adv_culled) > 0)
-    assert float(ev.singularity) > 0 and float(ev.f_design) == pytest.approx(float(ev.reach + ev.singularity))
+    assert float(ev.singularity) > 0 and float(ev.f_design) == pytest.approx(
+        float(ev.reach + ev.singularity)
+    )
     # every sample keeps its loop closed
     for states in (ev.ik_states, ev.adv_states):
         motors = linkopt.motor_values(five_bar, states)
-        assert np.all(np.asarray(linkopt.solve_fk(five_bar, motors, start=states).iterations) <= 1)
+        assert np.all(
+            np.asarray(linkopt.solve_fk(five_bar, motors, start=states).iterations) <= 1
+        )
 
 
 def _near_forward_singularity(five_bar, th):
@@ -69,11 +97,18 @@ def test_objective_gradients_match_finite_differences(five_bar, kind):
     th = thresholds(alpha_minus(five_bar))
     motors, state = _near_forward_singularity(five_bar, th)
     if kind == "ik":
-        objective = ik_objective(five_bar, geom, jnp.asarray(np.array([0.0, 15.0]) / five_bar.length_scale), th)
+        objective = ik_objective(
+            five_bar,
+            geom,
+            jnp.asarray(np.array([0.0, 15.0]) / five_bar.length_scale),
+            th,
+        )
     else:  # the box's lower edge brought to the pose, so that the range barrier counts
         outputs = output_values(five_bar, geom, state)  # homogenised
         low = outputs - jnp.array([0.5, 0.01])
-        objective = adversarial_objective(five_bar, geom, motors + 0.05, low, low + 2.0, th)
+        objective = adversarial_objective(
+            five_bar, geom, motors + 0.05, low, low + 2.0, th
+        )
     value, gradient, *_ = evaluate_point(objective, five_bar, geom, motors, state)
 
     def value_at(a):
@@ -81,43 +116,82 @@ def test_objective_gradients_match_finite_differences(five_bar, kind):
         return float(evaluate_point(objective, five_bar, geom, a, s)[0])
 
     h = 1e-6
-    fd = [(value_at(motors + h * e) - value_at(motors - h * e)) / (2 * h) for e in np.eye(2)]
+    fd = [
+        (value_at(motors + h * e) - value_at(motors - h * e)) / (2 * h)
+        for e in np.eye(2)
+    ]
     np.testing.assert_allclose(gradient, fd, rtol=1e-5)
 
 
 def test_queued_lanes_take_the_same_steps_as_vmapped_lanes(five_bar):
     """IK then adversarial minimisation of the lanes of two designs through 5 slots end
-    where ``vmap(minimise)`` of each phase ends them, after as many iterations (IK counts
-    spread from a few to the cap)."""
+    where ``vmap(minimise)`` of each phase ends them, after as many iterations (IK
+    counts spread from a few to the cap)."""
     th = thresholds(alpha_minus(five_bar))
     goals = jnp.asarray(targets(five_bar) / five_bar.output_scale)
     low = jnp.asarray(five_bar.output_min / five_bar.output_scale)
     high = jnp.asarray(five_bar.output_max / five_bar.output_scale)
-    geoms = [linkopt.geometry(five_bar), linkopt.geometry(five_bar, five_bar.design.p0 * 1.02)]
-    lane_geoms = jax.tree_util.tree_map(lambda *g: jnp.repeat(jnp.stack(g), len(goals), axis=0), *geoms)
+    geoms = [
+        linkopt.geometry(five_bar),
+        linkopt.geometry(five_bar, five_bar.design.p0 * 1.02),
+    ]
+    lane_geoms = jax.tree_util.tree_map(
+        lambda *g: jnp.repeat(jnp.stack(g), len(goals), axis=0), *geoms
+    )
     lane_goals = jnp.tile(goals, (2, 1))
     lanes = len(lane_goals)
-    caps = (five_bar.evaluation.ik_iterations, five_bar.evaluation.adversarial_iterations)
+    caps = (
+        five_bar.evaluation.ik_iterations,
+        five_bar.evaluation.adversarial_iterations,
+    )
     zero = jnp.zeros((lanes, five_bar.num_motors))
     rest = jnp.broadcast_to(rest_state(five_bar), (lanes,) + rest_state(five_bar).shape)
 
     def ik(geom, goal, motors, state):
-        return minimise(five_bar, geom, ik_objective(five_bar, geom, goal, th), motors, state, caps[0], bfgs=False)
+        return minimise(
+            five_bar,
+            geom,
+            ik_objective(five_bar, geom, goal, th),
+            motors,
+            state,
+            caps[0],
+            bfgs=False,
+        )
 
     def adversarial(geom, motors, state):
-        return minimise(five_bar, geom, adversarial_objective(five_bar, geom, motors, low, high, th), motors, state, caps[1], bfgs=True)
+        return minimise(
+            five_bar,
+            geom,
+            adversarial_objective(five_bar, geom, motors, low, high, th),
+            motors,
+            state,
+            caps[1],
+            bfgs=True,
+        )
 
     def problem(lane, second, anchor):
         geom, goal = lane
-        return geom, either(ik_objective(five_bar, geom, goal, th), adversarial_objective(five_bar, geom, anchor, low, high, th), second)
+        return geom, either(
+            ik_objective(five_bar, geom, goal, th),
+            adversarial_objective(five_bar, geom, anchor, low, high, th),
+            second,
+        )
 
     expected_ik = jax.jit(jax.vmap(ik))(lane_geoms, lane_goals, zero, rest)
-    expected_adv = jax.jit(jax.vmap(adversarial))(lane_geoms, expected_ik.motors, expected_ik.state)
-    queued = jax.jit(lambda *a: minimise_queue(five_bar, problem, (a[0], a[1]), a[2], a[3], caps, 5))(lane_geoms, lane_goals, zero, rest)
+    expected_adv = jax.jit(jax.vmap(adversarial))(
+        lane_geoms, expected_ik.motors, expected_ik.state
+    )
+    queued = jax.jit(
+        lambda *a: minimise_queue(five_bar, problem, (a[0], a[1]), a[2], a[3], caps, 5)
+    )(lane_geoms, lane_goals, zero, rest)
     iterations = np.asarray(expected_ik.iterations)
-    assert iterations.min() < 15 and iterations.max() == caps[0]  # a spread worth queueing
+    assert (
+        iterations.min() < 15 and iterations.max() == caps[0]
+    )  # a spread worth queueing
     for got, expected in zip(queued, (expected_ik, expected_adv)):
-        np.testing.assert_array_equal(np.asarray(got.iterations), np.asarray(expected.iterations))
+        np.testing.assert_array_equal(
+            np.asarray(got.iterations), np.asarray(expected.iterations)
+        )
         np.testing.assert_allclose(got.motors, expected.motors, rtol=0, atol=1e-8)
         np.testing.assert_allclose(got.value, expected.value, rtol=1e-8, atol=1e-14)
         np.testing.assert_allclose(got.f_sing, expected.f_sing, rtol=1e-8)
@@ -125,12 +199,18 @@ def test_queued_lanes_take_the_same_steps_as_vmapped_lanes(five_bar):
 
 def test_a_design_far_from_singularities_scores_zero():
     text = (MECHANISMS / "five_bar.toml").read_text()
-    text = text.replace("min = -40.0\nmax = 40.0", "min = -10.0\nmax = 10.0").replace("min = 15.0\nmax = 80.0", "min = 58.0\nmax = 72.0")
+    text = text.replace("min = -40.0\nmax = 40.0", "min = -10.0\nmax = 10.0").replace(
+        "min = 15.0\nmax = 80.0", "min = 58.0\nmax = 72.0"
+    )
     mech = linkopt.loads(text, "small_box.toml")
-    tips = np.stack(np.meshgrid(np.linspace(-10, 10, 21), np.linspace(58, 72, 15)), -1).reshape(-1, 2)
+    tips = np.stack(
+        np.meshgrid(np.linspace(-10, 10, 21), np.linspace(58, 72, 15)), -1
+    ).reshape(-1, 2)
     solved = linkopt.solve_bk(mech, tips)
     assert np.all(solved.converged)
-    assert float(np.max(linkopt.f_sing(mech, solved.state))) < 0.6 * alpha_minus(mech)  # far from α₋
+    assert float(np.max(linkopt.f_sing(mech, solved.state))) < 0.6 * alpha_minus(
+        mech
+    )  # far from α₋
     ev = evaluate(mech)
     assert float(ev.f_design) < 1e-6
     assert float(np.max(ev.adv_culled)) == 0.0

@@ -7,14 +7,18 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import MECHANISMS, ROOT
 
 import linkopt
-from conftest import MECHANISMS, ROOT
 from linkopt._engine import jacobian as _jacobian
 from linkopt._engine import loader as _loader
 from linkopt._engine.constraints import bk_residual, fk_residual
 
-FILES = [MECHANISMS / "five_bar.toml", MECHANISMS / "jansen_1dof.toml", ROOT / "tests/data/all_families.toml"]
+FILES = [
+    MECHANISMS / "five_bar.toml",
+    MECHANISMS / "jansen_1dof.toml",
+    ROOT / "tests/data/all_families.toml",
+]
 
 
 def _tait_bryan_variant(data: dict) -> dict:
@@ -30,21 +34,34 @@ def _tait_bryan_variant(data: dict) -> dict:
 VARIANTS = [(path, None) for path in FILES] + [(FILES[-1], _tait_bryan_variant)]
 
 
-@pytest.mark.parametrize("path, variant", VARIANTS, ids=[p.stem for p in FILES] + ["tait_bryan_outputs"])
+@pytest.mark.parametrize(
+    "path, variant", VARIANTS, ids=[p.stem for p in FILES] + ["tait_bryan_outputs"]
+)
 def test_linearise_matches_jacfwd(path, variant):
     # the all-families file is arbitrary geometry, not an assemblable linkage: no mobility check
     data = tomllib.loads(path.read_text())
     mech = _loader.build(variant(data) if variant else data, str(path), check=False)
     rng = np.random.default_rng(3)
-    design = mech.design.p0 + rng.normal(0, 0.01, mech.design.size) * (mech.design.upper - mech.design.lower)
+    design = mech.design.p0 + rng.normal(0, 0.01, mech.design.size) * (
+        mech.design.upper - mech.design.lower
+    )
     geom = linkopt.geometry(mech, design)
     for _ in range(3):
         state = linkopt.rest_state(mech) + rng.normal(0, 0.05, mech.state_size)
-        for kind, residual, size in (("fk", fk_residual, mech.num_motors), ("bk", bk_residual, mech.num_outputs)):
+        for kind, residual, size in (
+            ("fk", fk_residual, mech.num_motors),
+            ("bk", bk_residual, mech.num_outputs),
+        ):
             values = jnp.asarray(rng.normal(0, 0.1, size))
             value, jac = _jacobian.linearise(mech, geom, kind, values, state)
-            np.testing.assert_allclose(value, residual(mech, geom, values, state), atol=1e-13)
-            np.testing.assert_allclose(jac, jax.jacfwd(lambda s: residual(mech, geom, values, s))(state), atol=1e-12)
+            np.testing.assert_allclose(
+                value, residual(mech, geom, values, state), atol=1e-13
+            )
+            np.testing.assert_allclose(
+                jac,
+                jax.jacfwd(lambda s: residual(mech, geom, values, s))(state),
+                atol=1e-12,
+            )
             c, jtj, jtc = _jacobian.normal_equations(mech, geom, kind, values, state)
             np.testing.assert_allclose(jtj, jac.T @ jac, atol=1e-11)
             np.testing.assert_allclose(jtc, jac.T @ value, atol=1e-11)
@@ -55,12 +72,16 @@ def test_jacobian_is_differentiable_in_design():
     state = linkopt.solve_fk(mech, np.array([0.2, -0.1])).state
 
     def probe(p):
-        return jnp.sum(_jacobian.state_jacobian(mech, linkopt.geometry(mech, p), "fk", state) ** 2)
+        return jnp.sum(
+            _jacobian.state_jacobian(mech, linkopt.geometry(mech, p), "fk", state) ** 2
+        )
 
     def reference(p):
         geom = linkopt.geometry(mech, p)
         motors = jnp.zeros(2)
-        return jnp.sum(jax.jacfwd(lambda s: fk_residual(mech, geom, motors, s))(state) ** 2)
+        return jnp.sum(
+            jax.jacfwd(lambda s: fk_residual(mech, geom, motors, s))(state) ** 2
+        )
 
     p0 = jnp.asarray(mech.design.p0)
     np.testing.assert_allclose(jax.grad(probe)(p0), jax.grad(reference)(p0), rtol=1e-10)

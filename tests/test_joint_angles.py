@@ -24,9 +24,16 @@ def test_tait_bryan_recovers_the_angles_of_a_composed_rotation():
         angles = rng.uniform(-1.4, 1.4, 3)
         qi = rng.normal(size=4)
         qi /= np.linalg.norm(qi)
-        relative = multiply(multiply(from_axis_angle(e1, angles[0]), from_axis_angle(e2, angles[1])), from_axis_angle(e3, angles[2]))
+        relative = multiply(
+            multiply(from_axis_angle(e1, angles[0]), from_axis_angle(e2, angles[1])),
+            from_axis_angle(e3, angles[2]),
+        )
         qj = multiply(qi, relative)  # R_j = R_i Rot(e1) Rot(e2) Rot(e3)
-        np.testing.assert_allclose(_joints.tait_bryan(qi, qj, jnp.asarray(e1), jnp.asarray(e2)), angles, atol=1e-12)
+        np.testing.assert_allclose(
+            _joints.tait_bryan(qi, qj, jnp.asarray(e1), jnp.asarray(e2)),
+            angles,
+            atol=1e-12,
+        )
 
 
 def test_universal_joint_angles_are_its_two_rotations_and_the_third_is_zero():
@@ -36,9 +43,15 @@ def test_universal_joint_angles_are_its_two_rotations_and_the_third_is_zero():
     qj = multiply(from_axis_angle(e1, a), from_axis_angle(e2, b))
     qi = jnp.array([1.0, 0.0, 0.0, 0.0])
     # the universal joint's own row: axis on body i stays perpendicular to axis2 on body j
-    row = _joints.universal(jnp.zeros(3), qi, jnp.zeros(3), jnp.zeros(3), qj, jnp.zeros(3), e1, e2, e2)[3]
+    row = _joints.universal(
+        jnp.zeros(3), qi, jnp.zeros(3), jnp.zeros(3), qj, jnp.zeros(3), e1, e2, e2
+    )[3]
     assert abs(row) < 1e-12
-    np.testing.assert_allclose(_joints.tait_bryan(qi, qj, jnp.asarray(e1), jnp.asarray(e2)), [a, b, 0.0], atol=1e-12)
+    np.testing.assert_allclose(
+        _joints.tait_bryan(qi, qj, jnp.asarray(e1), jnp.asarray(e2)),
+        [a, b, 0.0],
+        atol=1e-12,
+    )
 
 
 def test_wrapped_error_is_smooth_across_pi():

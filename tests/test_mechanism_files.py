@@ -1,4 +1,5 @@
-"""Every shipped mechanism loads and closes its loops; broken files give clear errors."""
+"""Every shipped mechanism loads and closes its loops; broken files give clear
+errors."""
 
 import ast
 import importlib
@@ -7,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MECHANISMS
 
 import linkopt
 from linkopt._cli import main as cli
-from conftest import MECHANISMS
 
 SHIPPED = sorted(MECHANISMS.glob("*.toml"))
 FIVE_BAR = (MECHANISMS / "five_bar.toml").read_text()
@@ -24,7 +25,11 @@ def test_shipped_file_assembles_and_closes_loops(path):
     assert bool(rest.converged) and float(rest.residual) <= 1e-10
     nudged = linkopt.solve_fk(mech, np.full(mech.num_motors, 0.05) * mech.motor_scale)
     assert bool(nudged.converged) and float(nudged.residual) <= 1e-10
-    np.testing.assert_allclose(linkopt.motor_values(mech, nudged.state), np.full(mech.num_motors, 0.05) * mech.motor_scale, atol=1e-10)
+    np.testing.assert_allclose(
+        linkopt.motor_values(mech, nudged.state),
+        np.full(mech.num_motors, 0.05) * mech.motor_scale,
+        atol=1e-10,
+    )
 
 
 def test_five_bar_sizes(five_bar):
@@ -40,33 +45,130 @@ def edit(old, new, count=1):
 
 
 BROKEN = {
-    "malformed_toml": (edit('name = "five-bar"', 'name = "five-bar'), "invalid TOML", "line 11"),
-    "unknown_body": (edit('bodies = ["ground", "crank_left"]', 'bodies = ["ground", "crank_lft"]'), "joints[0].bodies", "unknown body 'crank_lft'"),
-    "unknown_joint_type": (edit('type = "revolute"', 'type = "hinge"'), "joints[0].type", "unknown joint type 'hinge'; expected one of ['revolute', 'spherical', 'universal', 'prismatic', 'cylindrical', 'fixed']"),
-    "missing_anchor": (edit("anchor = [-20.0, 0.0, 0.0]\n", ""), "joints[0].anchor", "missing required field"),
-    "zero_axis": (edit("axis = [0.0, 0.0, 1.0]", "axis = [0.0, 0.0, 0.0]"), "joints[0].axis", "zero-length axis"),
-    "duplicate_body": (edit('name = "crank_right"', 'name = "crank_left"'), "bodies[2].name", "duplicated name 'crank_left'"),
-    "empty_range": (edit("min = -40.0\nmax = 40.0", "min = 40.0\nmax = 40.0"), "outputs[0].min", "min < max"),
-    "one_motor": (edit('[[motors]]\nname = "right"\njoint = "base_right"\n', ""), "[[motors]]", "mobility 2 at the rest pose but 1 motor(s)"),
-    "typo_field": (edit("anchor = [0.0, 70.0, 0.0]", "anchr = [0.0, 70.0, 0.0]"), "joints[4].anchr", "unknown field"),
-    "bad_vector": (edit("anchor = [0.0, 70.0, 0.0]", "anchor = [0.0, 70.0]"), "joints[4].anchor", "expected a list of 3 finite numbers"),
-    "motor_on_unknown_joint": (edit('joint = "base_right"\n\n[[points]]', 'joint = "base_rite"\n\n[[points]]'), "motors[1].joint", "unknown joint 'base_rite'"),
-    "not_a_mirror": (edit("anchor = [-37.0, 36.0, 0.0]", "anchor = [-37.0, 35.0, 0.0]"), "parameters[1].mirror", "not the mirror image"),
-    "rest_outside_bounds": (edit("min = 5.0\nmax = 45.0", "min = 25.0\nmax = 45.0"), "parameters[0].min", "outside [25, 45]"),
-    "unknown_table": (FIVE_BAR + "\n[optimiser]\nparticles = 3\n", "optimiser", "unknown table"),
-    "bad_coordinate": (edit('coordinate = "x"\nmin = -40.0', 'coordinate = "w"\nmin = -40.0'), "outputs[0].coordinate", "expected 'x', 'y' or 'z'"),
-    "floating_body": (FIVE_BAR.replace('[[bodies]]\nname = "ground"', '[[bodies]]\nname = "ground"\n[[bodies]]\nname = "loose"'), "bodies[1]", "has no joint"),
-    "singular_rest": (edit("anchor = [0.0, 70.0, 0.0]", "anchor = [0.0, 36.0, 0.0]"), "", "singularity"),
+    "malformed_toml": (
+        edit('name = "five-bar"', 'name = "five-bar'),
+        "invalid TOML",
+        "line 11",
+    ),
+    "unknown_body": (
+        edit('bodies = ["ground", "crank_left"]', 'bodies = ["ground", "crank_lft"]'),
+        "joints[0].bodies",
+        "unknown body 'crank_lft'",
+    ),
+    "unknown_joint_type": (
+        edit('type = "revolute"', 'type = "hinge"'),
+        "joints[0].type",
+        "unknown joint type 'hinge'; expected one of ['revolute', 'spherical', 'universal', 'prismatic', 'cylindrical', 'fixed']",
+    ),
+    "missing_anchor": (
+        edit("anchor = [-20.0, 0.0, 0.0]\n", ""),
+        "joints[0].anchor",
+        "missing required field",
+    ),
+    "zero_axis": (
+        edit("axis = [0.0, 0.0, 1.0]", "axis = [0.0, 0.0, 0.0]"),
+        "joints[0].axis",
+        "zero-length axis",
+    ),
+    "duplicate_body": (
+        edit('name = "crank_right"', 'name = "crank_left"'),
+        "bodies[2].name",
+        "duplicated name 'crank_left'",
+    ),
+    "empty_range": (
+        edit("min = -40.0\nmax = 40.0", "min = 40.0\nmax = 40.0"),
+        "outputs[0].min",
+        "min < max",
+    ),
+    "one_motor": (
+        edit('[[motors]]\nname = "right"\njoint = "base_right"\n', ""),
+        "[[motors]]",
+        "mobility 2 at the rest pose but 1 motor(s)",
+    ),
+    "typo_field": (
+        edit("anchor = [0.0, 70.0, 0.0]", "anchr = [0.0, 70.0, 0.0]"),
+        "joints[4].anchr",
+        "unknown field",
+    ),
+    "bad_vector": (
+        edit("anchor = [0.0, 70.0, 0.0]", "anchor = [0.0, 70.0]"),
+        "joints[4].anchor",
+        "expected a list of 3 finite numbers",
+    ),
+    "motor_on_unknown_joint": (
+        edit('joint = "base_right"\n\n[[points]]', 'joint = "base_rite"\n\n[[points]]'),
+        "motors[1].joint",
+        "unknown joint 'base_rite'",
+    ),
+    "not_a_mirror": (
+        edit("anchor = [-37.0, 36.0, 0.0]", "anchor = [-37.0, 35.0, 0.0]"),
+        "parameters[1].mirror",
+        "not the mirror image",
+    ),
+    "rest_outside_bounds": (
+        edit("min = 5.0\nmax = 45.0", "min = 25.0\nmax = 45.0"),
+        "parameters[0].min",
+        "outside [25, 45]",
+    ),
+    "unknown_table": (
+        FIVE_BAR + "\n[optimiser]\nparticles = 3\n",
+        "optimiser",
+        "unknown table",
+    ),
+    "bad_coordinate": (
+        edit('coordinate = "x"\nmin = -40.0', 'coordinate = "w"\nmin = -40.0'),
+        "outputs[0].coordinate",
+        "expected 'x', 'y' or 'z'",
+    ),
+    "floating_body": (
+        FIVE_BAR.replace(
+            '[[bodies]]\nname = "ground"',
+            '[[bodies]]\nname = "ground"\n[[bodies]]\nname = "loose"',
+        ),
+        "bodies[1]",
+        "has no joint",
+    ),
+    "singular_rest": (
+        edit("anchor = [0.0, 70.0, 0.0]", "anchor = [0.0, 36.0, 0.0]"),
+        "",
+        "singularity",
+    ),
 }
 
 NECK_2 = (MECHANISMS / "neck_2dof.toml").read_text()
 NECK_3 = (MECHANISMS / "neck_3dof.toml").read_text()
 BROKEN |= {
-    "universal_angle_missing": (NECK_2.replace('joint = "neck"\nangle = 1\n', 'joint = "neck"\n'), "outputs[0].angle", "missing required field for an angle of a universal joint"),
-    "universal_has_two_angles": (NECK_2.replace('joint = "neck"\nangle = 2\n', 'joint = "neck"\nangle = 3\n'), "outputs[1].angle", "expected an integer from 1 to 2, got 3"),
-    "revolute_angle_index": (NECK_2.replace('joint = "neck"\nangle = 1\n', 'joint = "motor_left"\nangle = 1\n'), "outputs[0].angle", "it has one angle"),
-    "spherical_without_frame": (NECK_3.replace("axis = [0.0, 0.0, 1.0]\naxis2 = [1.0, 0.0, 0.0]\n", "", 1), "outputs[0].joint", "needs axis and axis2"),
-    "spherical_half_frame": (NECK_3.replace("axis = [0.0, 0.0, 1.0]\naxis2 = [1.0, 0.0, 0.0]\n", "axis = [0.0, 0.0, 1.0]\n", 1), "joints[0].axis2", "needs both axis and axis2"),
+    "universal_angle_missing": (
+        NECK_2.replace('joint = "neck"\nangle = 1\n', 'joint = "neck"\n'),
+        "outputs[0].angle",
+        "missing required field for an angle of a universal joint",
+    ),
+    "universal_has_two_angles": (
+        NECK_2.replace('joint = "neck"\nangle = 2\n', 'joint = "neck"\nangle = 3\n'),
+        "outputs[1].angle",
+        "expected an integer from 1 to 2, got 3",
+    ),
+    "revolute_angle_index": (
+        NECK_2.replace(
+            'joint = "neck"\nangle = 1\n', 'joint = "motor_left"\nangle = 1\n'
+        ),
+        "outputs[0].angle",
+        "it has one angle",
+    ),
+    "spherical_without_frame": (
+        NECK_3.replace("axis = [0.0, 0.0, 1.0]\naxis2 = [1.0, 0.0, 0.0]\n", "", 1),
+        "outputs[0].joint",
+        "needs axis and axis2",
+    ),
+    "spherical_half_frame": (
+        NECK_3.replace(
+            "axis = [0.0, 0.0, 1.0]\naxis2 = [1.0, 0.0, 0.0]\n",
+            "axis = [0.0, 0.0, 1.0]\n",
+            1,
+        ),
+        "joints[0].axis2",
+        "needs both axis and axis2",
+    ),
 }
 
 
@@ -78,7 +180,9 @@ def test_broken_file_reports_file_field_and_expectation(name, tmp_path, capsys):
     with pytest.raises(linkopt.MechanismFileError) as info:
         linkopt.load(path)
     rendered = str(info.value)
-    assert rendered.startswith(str(path)) and where in rendered and message in rendered, rendered
+    assert (
+        rendered.startswith(str(path)) and where in rendered and message in rendered
+    ), rendered
     assert "\n" not in rendered
     assert cli.main(["check", str(path)]) == 2
     err = capsys.readouterr().err.strip()
@@ -93,9 +197,18 @@ def test_missing_file_is_a_clear_error(tmp_path, capsys):
 def test_check_json_reports_required_keys(capsys):
     assert cli.main(["check", str(MECHANISMS / "five_bar.toml"), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
-    assert info["state_size"] == 35 and info["mobility"] == 2 and info["design_parameters"] == 3
-    assert info["constraint_rows"]["fk"] == 38 and info["reference_length"] == pytest.approx(74.0)
-    assert set(info["motors"]) == {"left", "right"} and set(info["outputs"]) == {"x", "y"}
+    assert (
+        info["state_size"] == 35
+        and info["mobility"] == 2
+        and info["design_parameters"] == 3
+    )
+    assert info["constraint_rows"]["fk"] == 38 and info[
+        "reference_length"
+    ] == pytest.approx(74.0)
+    assert set(info["motors"]) == {"left", "right"} and set(info["outputs"]) == {
+        "x",
+        "y",
+    }
     assert info["joints"]["tip"]["anchor"] == [0.0, 70.0, 0.0]
 
 
@@ -103,21 +216,46 @@ def test_fk_json_and_bk_round_trip_via_cli(capsys):
     path = str(MECHANISMS / "five_bar.toml")
     assert cli.main(["fk", path, "--motors", "0.2,-0.1", "--json"]) == 0
     fk = json.loads(capsys.readouterr().out)
-    for key in ("converged", "residual", "motors", "outputs", "joints", "points", "f_sing", "sigma_min_fk", "sigma_min_bk"):
+    for key in (
+        "converged",
+        "residual",
+        "motors",
+        "outputs",
+        "joints",
+        "points",
+        "f_sing",
+        "sigma_min_fk",
+        "sigma_min_bk",
+    ):
         assert key in fk
     assert fk["converged"] and fk["residual"] <= 1e-10
-    assert fk["f_sing"] == pytest.approx(1 / fk["sigma_min_fk"] + 1 / fk["sigma_min_bk"])
+    assert fk["f_sing"] == pytest.approx(
+        1 / fk["sigma_min_fk"] + 1 / fk["sigma_min_bk"]
+    )
     outputs = f"{fk['outputs']['x']!r},{fk['outputs']['y']!r}"
     assert cli.main(["bk", path, "--outputs", outputs, "--json"]) == 0
     bk = json.loads(capsys.readouterr().out)
-    assert bk["motors"]["left"] == pytest.approx(0.2, abs=1e-9) and bk["motors"]["right"] == pytest.approx(-0.1, abs=1e-9)
+    assert bk["motors"]["left"] == pytest.approx(0.2, abs=1e-9) and bk["motors"][
+        "right"
+    ] == pytest.approx(-0.1, abs=1e-9)
     np.testing.assert_allclose(bk["points"]["ee"], fk["points"]["ee"], atol=1e-9)
 
 
 def test_fk_csv_path_via_cli(tmp_path, capsys):
     csv_path = tmp_path / "motors.csv"
     csv_path.write_text("left,right\n0,0\n0.1,-0.05\n0.2,-0.1\n")
-    assert cli.main(["fk", str(MECHANISMS / "five_bar.toml"), "--motors", str(csv_path), "--json"]) == 0
+    assert (
+        cli.main(
+            [
+                "fk",
+                str(MECHANISMS / "five_bar.toml"),
+                "--motors",
+                str(csv_path),
+                "--json",
+            ]
+        )
+        == 0
+    )
     result = json.loads(capsys.readouterr().out)
     assert result["converged"] and len(result["path"]) == 3
     assert result["path"][2]["motors"]["left"] == pytest.approx(0.2)
@@ -138,17 +276,27 @@ def test_bad_values_are_rejected(args, message, capsys):
 def test_bad_csv_header_names_file_and_line(tmp_path, capsys):
     csv_path = tmp_path / "m.csv"
     csv_path.write_text("a,b\n0,0\n")
-    assert cli.main(["fk", str(MECHANISMS / "five_bar.toml"), "--motors", str(csv_path)]) == 2
+    assert (
+        cli.main(["fk", str(MECHANISMS / "five_bar.toml"), "--motors", str(csv_path)])
+        == 2
+    )
     assert f"{csv_path}: line 1: header" in capsys.readouterr().err
 
 
 def test_negative_values_are_not_taken_for_options(capsys):
-    assert cli.main(["fk", str(MECHANISMS / "five_bar.toml"), "--motors", "-0.1,0.1", "--json"]) == 0
+    assert (
+        cli.main(
+            ["fk", str(MECHANISMS / "five_bar.toml"), "--motors", "-0.1,0.1", "--json"]
+        )
+        == 0
+    )
     assert json.loads(capsys.readouterr().out)["motors"]["left"] == pytest.approx(-0.1)
 
 
 def test_failed_solve_exits_one(capsys):
-    assert cli.main(["bk", str(MECHANISMS / "five_bar.toml"), "--outputs", "0,200"]) == 1
+    assert (
+        cli.main(["bk", str(MECHANISMS / "five_bar.toml"), "--outputs", "0,200"]) == 1
+    )
     assert "BK solve failed" in capsys.readouterr().err
 
 
@@ -168,19 +316,32 @@ def test_parameter_moves_coincident_joints_together(tmp_path):
     path.write_text(JANSEN + PIVOT_A.format(joints='["A_triangle", "A_c"]'))
     mech = linkopt.load(path)
     design = np.array([-40.0])
-    joints = np.asarray(linkopt.joint_positions(mech, linkopt.rest_state(mech), design=design))
+    joints = np.asarray(
+        linkopt.joint_positions(mech, linkopt.rest_state(mech), design=design)
+    )
     for name in ("A_triangle", "A_c"):
         np.testing.assert_allclose(joints[mech.joint_names.index(name)][0], -40.0)
-    path_solution = linkopt.solve_fk_path(mech, np.linspace(0, 1.0, 11)[:, None], design=design)
+    path_solution = linkopt.solve_fk_path(
+        mech, np.linspace(0, 1.0, 11)[:, None], design=design
+    )
     assert np.all(path_solution.converged)
-    moved = np.asarray(linkopt.joint_positions(mech, path_solution.state[-1], design=design))
-    np.testing.assert_allclose(moved[mech.joint_names.index("A_triangle")], moved[mech.joint_names.index("A_c")], atol=1e-9)
+    moved = np.asarray(
+        linkopt.joint_positions(mech, path_solution.state[-1], design=design)
+    )
+    np.testing.assert_allclose(
+        moved[mech.joint_names.index("A_triangle")],
+        moved[mech.joint_names.index("A_c")],
+        atol=1e-9,
+    )
 
 
 def test_parameter_on_non_coincident_joints_is_rejected(tmp_path):
     path = tmp_path / "jansen_bad.toml"
     path.write_text(JANSEN + PIVOT_A.format(joints='["A_triangle", "O"]'))
-    with pytest.raises(linkopt.MechanismFileError, match="parameters\\[0\\].joint: joints moved together must share their anchor"):
+    with pytest.raises(
+        linkopt.MechanismFileError,
+        match="parameters\\[0\\].joint: joints moved together must share their anchor",
+    ):
         linkopt.load(path)
 
 
@@ -189,10 +350,20 @@ def test_public_names_resolve_and_match_the_type_checking_imports():
     kept for type checkers must name the same objects, or the two lists have drifted."""
     init = Path(linkopt.__file__)
     tree = ast.parse(init.read_text())
-    block = next(node for node in tree.body if isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING")
-    eager = {(alias.asname or alias.name): (stmt.module, alias.name) for stmt in block.body for alias in stmt.names}
+    block = next(
+        node
+        for node in tree.body
+        if isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING"
+    )
+    eager = {
+        (alias.asname or alias.name): (stmt.module, alias.name)
+        for stmt in block.body
+        for alias in stmt.names
+    }
     assert eager == linkopt._EXPORTS
     assert linkopt.__all__ == sorted(eager)
     for name in linkopt.__all__:
         module, attribute = linkopt._EXPORTS[name]
-        assert getattr(linkopt, name) is getattr(importlib.import_module(f"linkopt.{module}"), attribute)
+        assert getattr(linkopt, name) is getattr(
+            importlib.import_module(f"linkopt.{module}"), attribute
+        )

@@ -23,12 +23,18 @@ def test_thresholds_follow_the_paper():
 
 def test_step_values_and_c2_joins():
     phi = lambda x: step(x, TH)  # noqa: E731
-    assert float(phi(6.0)) == 0.0 and float(phi(11.0)) == 1.0 and float(phi(8.5)) == pytest.approx(0.5)
+    assert (
+        float(phi(6.0)) == 0.0
+        and float(phi(11.0)) == 1.0
+        and float(phi(8.5)) == pytest.approx(0.5)
+    )
     for join in (7.0, 10.0):
         left = np.array(derivatives(phi, join - 1e-7))
         right = np.array(derivatives(phi, join + 1e-7))
         np.testing.assert_allclose(left, right, atol=1e-5)
-    assert float(derivatives(phi, 8.5)[1]) == pytest.approx(15.0 / 8.0 / 3.0)  # 30 X²(1-X)²/Δ at X = ½
+    assert float(derivatives(phi, 8.5)[1]) == pytest.approx(
+        15.0 / 8.0 / 3.0
+    )  # 30 X²(1-X)²/Δ at X = ½
 
 
 def test_culled_is_zero_below_and_identity_above():
@@ -42,7 +48,9 @@ def test_attractive_cubic_matches_the_papers_coefficients():
     gap2 = (au - at) ** 2
     a, b, c, d = -1 / (3 * gap2), au / gap2, 1 - au**2 / gap2, au**3 / (3 * gap2)
     for x in (0.0, 3.0, 8.5, 9.9):
-        assert float(attractive(x, TH)) == pytest.approx(a * x**3 + b * x**2 + c * x + d, rel=1e-12)
+        assert float(attractive(x, TH)) == pytest.approx(
+            a * x**3 + b * x**2 + c * x + d, rel=1e-12
+        )
     assert float(attractive(12.0, TH)) == 12.0
 
 

@@ -17,7 +17,13 @@ import pytest
 import linkopt
 from linkopt import InputError
 from linkopt._design.evaluation import alpha_minus, evaluate
-from linkopt._design.optimizer import OptimizerSettings, SwarmRun, best_design, start, step, swarm_moves
+from linkopt._design.optimizer import (
+    OptimizerSettings,
+    best_design,
+    start,
+    step,
+    swarm_moves,
+)
 from linkopt._design.partial import frozen_objective, partial_gradient
 from linkopt._design.run import CHECKPOINT, optimize, prepare, write_outputs
 from linkopt._design.verify import verify
@@ -28,7 +34,7 @@ from linkopt._design.workers import Workers
 SMALL = OptimizerSettings(particles=4, iterations=3, seed=0)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def frozen(mech):
     """``frozen_objective`` jitted once per mechanism, the evaluation as an argument."""
     return jax.jit(lambda p, ev: frozen_objective(mech, p, ev, alpha_minus(mech)))
@@ -40,18 +46,25 @@ def swarm_evaluation(five_bar):
     return run, jax.tree_util.tree_map(np.asarray, evaluate(five_bar, run.position))
 
 
-def test_batched_evaluation_matches_single(five_bar, five_bar_evaluation, swarm_evaluation):
-    """The swarm's batch (particle 0 is exactly p0) agrees with the single-design kernel."""
+def test_batched_evaluation_matches_single(
+    five_bar, five_bar_evaluation, swarm_evaluation
+):
+    """The swarm's batch (particle 0 is exactly p0) agrees with the single-design
+    kernel."""
     run, ev = swarm_evaluation
     assert ev.f_design.shape == (SMALL.particles,)
     np.testing.assert_array_equal(run.position[0], five_bar.design.p0)
     np.testing.assert_allclose(ev.f_design[0], five_bar_evaluation.f_design, rtol=1e-9)
     # the vmapped kernel orders floating-point sums differently; BFGS carries that to ~3e-7 rad
-    np.testing.assert_allclose(ev.adv_motors[0], five_bar_evaluation.adv_motors, atol=1e-5)
+    np.testing.assert_allclose(
+        ev.adv_motors[0], five_bar_evaluation.adv_motors, atol=1e-5
+    )
     assert float(ev.regularizer[0]) == 0.0 and np.all(ev.regularizer[1:] > 0)
 
 
-def test_partial_gradient_matches_finite_differences_of_the_frozen_objective(five_bar, swarm_evaluation):
+def test_partial_gradient_matches_finite_differences_of_the_frozen_objective(
+    five_bar, swarm_evaluation
+):
     run, ev = swarm_evaluation
     alpha = alpha_minus(five_bar)
     gradients = np.asarray(partial_gradient(five_bar, run.position, ev, alpha))
@@ -60,12 +73,18 @@ def test_partial_gradient_matches_finite_differences_of_the_frozen_objective(fiv
     objective = functools.partial(frozen(five_bar), ev=one)
     p = run.position[i]
     # the frozen objective at the evaluated design is the evaluation itself
-    assert np.isclose(float(objective(p)), ev.f_design[i] + ev.regularizer[i], rtol=1e-8)
+    assert np.isclose(
+        float(objective(p)), ev.f_design[i] + ev.regularizer[i], rtol=1e-8
+    )
     h = 1e-5
-    fd = [(objective(p + h * e) - objective(p - h * e)) / (2 * h) for e in np.eye(p.size)]
+    fd = [
+        (objective(p + h * e) - objective(p - h * e)) / (2 * h) for e in np.eye(p.size)
+    ]
     # σ_min comes from a Ritz vector converged to ~1e-5 (linkopt._engine.singularity), which
     # bounds the agreement relative to the gradient's size
-    np.testing.assert_allclose(gradients[i], fd, rtol=1e-4, atol=2e-5 * np.max(np.abs(fd)))
+    np.testing.assert_allclose(
+        gradients[i], fd, rtol=1e-4, atol=2e-5 * np.max(np.abs(fd))
+    )
 
 
 def test_inertia_falls_linearly_from_0_9_to_0_4_at_iteration_100():
@@ -90,7 +109,11 @@ def test_swarm_moves_half_gradient_and_the_velocity_rule(five_bar):
     replay = np.random.default_rng(5)
     replay.random(2000)
     r1, r2 = replay.random(run.position.shape), replay.random(run.position.shape)
-    expected = 0.8 * run.velocity + 2 * r1 * (run.pbest_pos - run.position) + 2 * r2 * (run.best_pos - run.position)
+    expected = (
+        0.8 * run.velocity
+        + 2 * r1 * (run.pbest_pos - run.position)
+        + 2 * r2 * (run.best_pos - run.position)
+    )
     np.testing.assert_allclose(velocity, expected, rtol=1e-12)
     gradient_only = dataclasses.replace(settings, mode="gradient")
     assert swarm_moves(np.random.default_rng(5), run, gradient_only)[0].all()
@@ -100,7 +123,9 @@ def test_particles_start_around_p0_and_stay_in_bounds(five_bar):
     d = five_bar.design
     run = start(five_bar, SMALL)
     np.testing.assert_array_equal(run.position[0], d.p0)
-    assert np.all(np.abs(run.position - d.p0) <= SMALL.spread * (d.upper - d.lower) + 1e-12)
+    assert np.all(
+        np.abs(run.position - d.p0) <= SMALL.spread * (d.upper - d.lower) + 1e-12
+    )
     # a huge swarm step is clipped to the bounds by pyswarms' 'nearest' handler
     run.velocity[:] = 0.0
     far = dataclasses.replace(SMALL, gradient_probability=0.0)
@@ -108,7 +133,9 @@ def test_particles_start_around_p0_and_stay_in_bounds(five_bar):
     run.pbest_pos = run.pbest_pos + 1e3
     run.pbest_cost[:] = -np.inf  # never replaced, so every pull points far outside
     run = step(five_bar, run, far)
-    assert np.all(run.position >= d.lower - 1e-12) and np.all(run.position <= d.upper + 1e-12)
+    assert np.all(run.position >= d.lower - 1e-12) and np.all(
+        run.position <= d.upper + 1e-12
+    )
     assert np.any(np.isclose(run.position, d.upper))
 
 
@@ -118,11 +145,17 @@ def test_a_partial_gradient_step_goes_downhill(five_bar, swarm_evaluation):
     run, ev = swarm_evaluation
     settings = dataclasses.replace(SMALL, mode="gradient")
     moved = step(five_bar, dataclasses.replace(run, history=[]), settings)
-    gradients = np.asarray(partial_gradient(five_bar, run.position, ev, alpha_minus(five_bar)))
+    gradients = np.asarray(
+        partial_gradient(five_bar, run.position, ev, alpha_minus(five_bar))
+    )
     scale = np.where(five_bar.design.is_length, five_bar.length_scale, 1.0)
     delta = (moved.position - run.position) / scale
     g = gradients * scale
-    cosine = np.sum(delta * g, axis=1) / np.linalg.norm(delta, axis=1) / np.linalg.norm(g, axis=1)
+    cosine = (
+        np.sum(delta * g, axis=1)
+        / np.linalg.norm(delta, axis=1)
+        / np.linalg.norm(g, axis=1)
+    )
     np.testing.assert_allclose(cosine, -1.0, atol=1e-9)
     assert np.all(np.linalg.norm(delta, axis=1) <= settings.gradient_step + 1e-12)
     for i in range(len(run.position)):
@@ -149,33 +182,50 @@ def test_interrupted_run_resumes_to_the_same_result(five_bar, tmp_path):
     assert resumed.iteration == whole.iteration == SMALL.iterations
     np.testing.assert_array_equal(resumed.pbest_pos, whole.pbest_pos)
     np.testing.assert_array_equal(resumed.position, whole.position)
-    assert [h["best_total"] for h in resumed.history] == [h["best_total"] for h in whole.history]
+    assert [h["best_total"] for h in resumed.history] == [
+        h["best_total"] for h in whole.history
+    ]
     # the swarm's best never gets worse, and three iterations measurably lower it
     best = [h["swarm_best_total"] for h in whole.history]
     assert all(b <= a for a, b in zip(best, best[1:]))
     assert best[-1] < 0.95 * best[0], best
 
 
-def test_resume_is_refused_with_other_settings_or_without_a_checkpoint(five_bar, tmp_path):
+def test_resume_is_refused_with_other_settings_or_without_a_checkpoint(
+    five_bar, tmp_path
+):
     with pytest.raises(InputError, match="no checkpoint"):
         prepare(tmp_path / "empty", five_bar, SMALL, resume=True)
     optimize(five_bar, tmp_path / "run", dataclasses.replace(SMALL, iterations=1))
     with pytest.raises(InputError, match="already holds a run"):
         prepare(tmp_path / "run", five_bar, SMALL, resume=False)
     with pytest.raises(InputError, match="seed"):
-        prepare(tmp_path / "run", five_bar, dataclasses.replace(SMALL, iterations=1, seed=8), resume=True)
+        prepare(
+            tmp_path / "run",
+            five_bar,
+            dataclasses.replace(SMALL, iterations=1, seed=8),
+            resume=True,
+        )
 
 
-def test_particles_split_over_two_worker_processes_give_the_same_numbers(five_bar, swarm_evaluation):
-    """Eight particles in two chunks of four: the batch shape this process has compiled, so
-    the workers load their kernels from the persistent cache instead of compiling them."""
+def test_particles_split_over_two_worker_processes_give_the_same_numbers(
+    five_bar, swarm_evaluation
+):
+    """Eight particles in two chunks of four: the batch shape this process has compiled,
+    so the workers load their kernels from the persistent cache instead of compiling
+    them."""
     run, ev = swarm_evaluation
     alpha = alpha_minus(five_bar)
     d = five_bar.design
     other = np.clip(run.position[::-1] + 0.02 * (d.upper - d.lower), d.lower, d.upper)
     ev_other = jax.tree_util.tree_map(np.asarray, evaluate(five_bar, other))
     expected = [np.concatenate(pair) for pair in zip(ev, ev_other)]
-    expected_gradients = np.concatenate([partial_gradient(five_bar, run.position, ev, alpha), partial_gradient(five_bar, other, ev_other, alpha)])
+    expected_gradients = np.concatenate(
+        [
+            partial_gradient(five_bar, run.position, ev, alpha),
+            partial_gradient(five_bar, other, ev_other, alpha),
+        ]
+    )
     designs = np.concatenate([run.position, other])
     with Workers(five_bar, 2) as workers:
         split = workers.evaluate(designs)
@@ -187,8 +237,8 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(five_ba
 
 def test_blas_limit_reaches_the_openblas_that_jax_loads_later():
     """In a fresh interpreter (nothing else imported): jaxlib loads scipy's OpenBLAS at
-    its first LAPACK call, and ``threadpoolctl`` only limits loaded libraries; unlimited,
-    its spinning threads doubled the time of two worker processes."""
+    its first LAPACK call, and ``threadpoolctl`` only limits loaded libraries;
+    unlimited, its spinning threads doubled the time of two worker processes."""
     code = (
         "import linkopt._config as b, jax.numpy as jnp\n"
         "from threadpoolctl import threadpool_info\n"
@@ -196,35 +246,79 @@ def test_blas_limit_reaches_the_openblas_that_jax_loads_later():
         "    jnp.linalg.cholesky(jnp.eye(3)).block_until_ready()\n"
         "    print([i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas'])\n"
     )
-    threads = json.loads(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout)
+    threads = json.loads(
+        subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, check=True
+        ).stdout
+    )
     assert len(threads) >= 1 and set(threads) == {1}, threads
 
 
-def test_run_outputs_hold_the_optimised_file_verifications_and_figures(five_bar, tmp_path):
+def test_run_outputs_hold_the_optimised_file_verifications_and_figures(
+    five_bar, tmp_path
+):
     """With two workers the initial design is verified and plotted in a second process:
     every output is written, the optimised file loads with the returned design, and the
     other process's verification equals this one's."""
     settings = dataclasses.replace(SMALL, iterations=1)
     run = optimize(five_bar, tmp_path, settings)
-    summary = write_outputs(five_bar, tmp_path, run, settings, resolution=8, verify_resolution=7, workers=2)
-    for name in ("optimized.toml", "history.csv", "verification.json", "summary.json", "spaces_initial.png", "spaces_optimized.png", "convergence.png", "mechanism.png"):
+    summary = write_outputs(
+        five_bar, tmp_path, run, settings, resolution=8, verify_resolution=7, workers=2
+    )
+    for name in (
+        "optimized.toml",
+        "history.csv",
+        "verification.json",
+        "summary.json",
+        "spaces_initial.png",
+        "spaces_optimized.png",
+        "convergence.png",
+        "mechanism.png",
+    ):
         assert (tmp_path / name).stat().st_size > 0, name
     checks = json.loads((tmp_path / "verification.json").read_text())
     here = verify(five_bar, None, 7)
-    assert checks["initial"]["coverage"] == here.coverage and checks["initial"]["max_f_sing"] == pytest.approx(here.max_f_sing, rel=1e-12)
-    assert checks["initial"]["passed"] is False and summary["initial_verified"] is False  # the shipped five-bar's defects
+    assert checks["initial"]["coverage"] == here.coverage and checks["initial"][
+        "max_f_sing"
+    ] == pytest.approx(here.max_f_sing, rel=1e-12)
+    assert (
+        checks["initial"]["passed"] is False and summary["initial_verified"] is False
+    )  # the shipped five-bar's defects
     design = best_design(run)
-    np.testing.assert_allclose(linkopt.load(tmp_path / "optimized.toml").design.p0, design, rtol=1e-12)
-    assert summary["f_design"] == pytest.approx(float(evaluate(five_bar, design).f_design), rel=1e-9, abs=1e-30)
+    np.testing.assert_allclose(
+        linkopt.load(tmp_path / "optimized.toml").design.p0, design, rtol=1e-12
+    )
+    assert summary["f_design"] == pytest.approx(
+        float(evaluate(five_bar, design).f_design), rel=1e-9, abs=1e-30
+    )
 
 
-@pytest.mark.parametrize("flags", [["--seed", "-1"], ["--particles", "0"], ["--tolerance", "0"], ["--improvement", "1"]])
+@pytest.mark.parametrize(
+    "flags",
+    [
+        ["--seed", "-1"],
+        ["--particles", "0"],
+        ["--tolerance", "0"],
+        ["--improvement", "1"],
+    ],
+)
 def test_optimize_command_rejects_bad_settings_with_one_line(flags, tmp_path, capsys):
-    from linkopt._cli import main as cli
-
     from conftest import MECHANISMS
 
-    assert cli.main(["optimize", str(MECHANISMS / "five_bar.toml"), "--out", str(tmp_path / "run"), *flags]) == 2
+    from linkopt._cli import main as cli
+
+    assert (
+        cli.main(
+            [
+                "optimize",
+                str(MECHANISMS / "five_bar.toml"),
+                "--out",
+                str(tmp_path / "run"),
+                *flags,
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("linkopt: error: --"), err
     assert not (tmp_path / "run").exists()

@@ -6,9 +6,9 @@ the defects, which span a good part of each range, at test-suite cost.
 """
 
 import pytest
+from conftest import MECHANISMS
 
 import linkopt
-from conftest import MECHANISMS
 from linkopt._design.evaluation import alpha_minus, targets
 from linkopt._design.verify import verify
 
@@ -42,9 +42,9 @@ DEFECTS = {
 
 @pytest.mark.parametrize("name", sorted(DEFECTS))
 def test_initial_design_fails_verify_for_the_stated_reason(name):
-    """A singularity's side of f_sing = 1/σ_FK + 1/σ_BK alone exceeds α₋ exactly where the
-    file's header says the design has that singularity; coverage below 1 where it says
-    part of the range is out of reach."""
+    """A singularity's side of f_sing = 1/σ_FK + 1/σ_BK alone exceeds α₋ exactly where
+    the file's header says the design has that singularity; coverage below 1 where it
+    says part of the range is out of reach."""
     mech = linkopt.load(MECHANISMS / f"{name}.toml")
     forward, backward, unreachable = DEFECTS[name]
     result = verify(mech, resolution=13 if mech.num_outputs == 2 else 7)

@@ -1,4 +1,5 @@
-"""Implicit-function sensitivities ds/da, ds/db, ds/dp against 64-bit finite differences."""
+"""Implicit-function sensitivities ds/da, ds/db, ds/dp against 64-bit finite
+differences."""
 
 import numpy as np
 import pytest
@@ -13,7 +14,10 @@ H_LENGTH = 1e-3
 
 def central(fn, x, h):
     x = np.asarray(x, dtype=float)
-    cols = [(np.asarray(fn(x + h * e)) - np.asarray(fn(x - h * e))) / (2 * h) for e in np.eye(x.size)]
+    cols = [
+        (np.asarray(fn(x + h * e)) - np.asarray(fn(x - h * e))) / (2 * h)
+        for e in np.eye(x.size)
+    ]
     return np.stack(cols, axis=-1)
 
 
@@ -25,7 +29,9 @@ def solved(five_bar):
 def test_ds_da(five_bar, solved):
     motors = np.asarray(linkopt.motor_values(five_bar, solved))
     exact = np.asarray(linkopt.sensitivity(five_bar, solved, "motors"))
-    fd = central(lambda a: linkopt.solve_fk(five_bar, a, start=solved).state, motors, H_ANGLE)
+    fd = central(
+        lambda a: linkopt.solve_fk(five_bar, a, start=solved).state, motors, H_ANGLE
+    )
     assert exact.shape == (35, 2)
     np.testing.assert_allclose(exact, fd, atol=1e-8)
     assert np.abs(exact).max() > 0.1
@@ -34,7 +40,9 @@ def test_ds_da(five_bar, solved):
 def test_ds_db(five_bar, solved):
     outputs = np.asarray(linkopt.output_values(five_bar, solved))
     exact = np.asarray(linkopt.sensitivity(five_bar, solved, "outputs"))
-    fd = central(lambda b: linkopt.solve_bk(five_bar, b, start=solved).state, outputs, H_LENGTH)
+    fd = central(
+        lambda b: linkopt.solve_bk(five_bar, b, start=solved).state, outputs, H_LENGTH
+    )
     np.testing.assert_allclose(exact, fd, atol=1e-8)
     assert np.abs(exact).max() > 1e-3
 

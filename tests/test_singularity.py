@@ -8,15 +8,16 @@ import textwrap
 import jax
 import jax.numpy as jnp
 import numpy as np
+from five_bar_closed_form import backward_singular_height, forward_singular_height
 
 import linkopt
-from five_bar_closed_form import backward_singular_height, forward_singular_height
 
 GAPS = np.array([1.0, 1e-1, 1e-2, 1e-3])
 
 
 def sigmas_along(mech, heights, start_height):
-    """Solve BK along the symmetry axis from ``start_height`` to each height (continuation)."""
+    """Solve BK along the symmetry axis from ``start_height`` to each height
+    (continuation)."""
     ys = np.concatenate([np.linspace(start_height, heights[0], 30), heights])
     path = linkopt.solve_bk_path(mech, np.stack([np.zeros_like(ys), ys], -1))
     assert np.all(path.converged)
@@ -44,7 +45,9 @@ def test_backward_sigma_vanishes_as_crank_and_link_align(five_bar):
 def test_f_sing_is_sum_of_inverse_sigmas(five_bar):
     state = linkopt.solve_fk(five_bar, np.array([0.2, -0.1])).state
     sigma = np.asarray(linkopt.singular_values(five_bar, state))
-    assert np.isclose(float(linkopt.f_sing(five_bar, state)), np.sum(1 / sigma), rtol=1e-12)
+    assert np.isclose(
+        float(linkopt.f_sing(five_bar, state)), np.sum(1 / sigma), rtol=1e-12
+    )
     # against numpy's SVD of the stacked Jacobians (homogenised)
     from linkopt._engine.singularity import stacked_jacobians
 
@@ -54,8 +57,9 @@ def test_f_sing_is_sum_of_inverse_sigmas(five_bar):
 
 
 def test_sigma_min_matches_svd_where_the_smallest_values_cluster(five_bar):
-    """Block inverse iteration vs LAPACK along a path through the motor square, where the
-    two smallest singular values come within 2 % of each other and near singularities."""
+    """Block inverse iteration vs LAPACK along a path through the motor square, where
+    the two smallest singular values come within 2 % of each other and near
+    singularities."""
     from linkopt._engine.singularity import stacked_jacobians
 
     motors = np.stack([np.linspace(-1.5, 1.5, 60), np.linspace(1.0, -1.0, 60)], 1)
@@ -64,7 +68,9 @@ def test_sigma_min_matches_svd_where_the_smallest_values_cluster(five_bar):
     geom = linkopt.geometry(five_bar)
     jac = np.asarray(jax.vmap(lambda s: stacked_jacobians(five_bar, geom, s))(states))
     exact = np.linalg.svd(jac, compute_uv=False)
-    assert np.min(exact[..., -2] / exact[..., -1]) < 1.02  # the hard case is in the path
+    assert (
+        np.min(exact[..., -2] / exact[..., -1]) < 1.02
+    )  # the hard case is in the path
     sigma = np.asarray(linkopt.singular_values(five_bar, states))
     np.testing.assert_allclose(sigma, exact[..., -1], rtol=1e-3)
     assert np.all(sigma >= exact[..., -1] * (1 - 1e-12))  # ‖Jv‖ bounds σ_min from above
@@ -79,8 +85,16 @@ def test_f_sing_gradient_through_fk_matches_finite_differences(five_bar):
     design = jnp.asarray(five_bar.design.p0)
     grad_a, grad_p = jax.grad(objective, argnums=(0, 1))(motors, design)
     h = 1e-6
-    fd_a = [(objective(motors + h * e, design) - objective(motors - h * e, design)) / (2 * h) for e in np.eye(2)]
-    fd_p = [(objective(motors, design + h * e) - objective(motors, design - h * e)) / (2 * h) for e in np.eye(3)]
+    fd_a = [
+        (objective(motors + h * e, design) - objective(motors - h * e, design))
+        / (2 * h)
+        for e in np.eye(2)
+    ]
+    fd_p = [
+        (objective(motors, design + h * e) - objective(motors, design - h * e))
+        / (2 * h)
+        for e in np.eye(3)
+    ]
     # σ_min comes from a converged-to-1e-5 Ritz vector (linkopt._engine.singularity), so the
     # analytic derivative and the finite difference of the computed σ differ at that level
     np.testing.assert_allclose(grad_a, fd_a, rtol=3e-4, atol=1e-7)
@@ -89,7 +103,8 @@ def test_f_sing_gradient_through_fk_matches_finite_differences(five_bar):
 
 def test_batched_svd_gradient_does_not_hang():
     """Regression: vmap(grad(f_sing ∘ FK)) deadlocked XLA's 2-thread pool in batched
-    LAPACK kernels (jax 0.10.2, 2 cores); linkopt._config now runs it with one thread."""
+    LAPACK kernels (jax 0.10.2, 2 cores); linkopt._config now runs it with one
+    thread."""
     script = textwrap.dedent(
         """
         import jax, jax.numpy as jnp, numpy as np, linkopt
@@ -106,6 +121,12 @@ def test_batched_svd_gradient_does_not_hang():
     )
     from conftest import ROOT
 
-    done = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-c", script],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip().endswith("ok")

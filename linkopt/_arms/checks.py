@@ -22,7 +22,11 @@ def seed(value, where: str = "seed") -> int:
 
 def count(value, where: str, minimum: int = 1) -> int:
     """An integer of at least ``minimum`` (starts, workers, restarts ...)."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, np.integer))
+        or value < minimum
+    ):
         what = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
         raise InputError(f"{where}: expected {what}, got {value!r}")
     return int(value)
@@ -35,5 +39,7 @@ def output_directory(text: str, where: str = "--out") -> Path:
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
-        raise InputError(f"{where}: cannot create the output directory {text!r} ({err.strerror or err})") from None
+        raise InputError(
+            f"{where}: cannot create the output directory {text!r} ({err.strerror or err})"
+        ) from None
     return out

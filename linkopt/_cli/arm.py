@@ -1,11 +1,13 @@
-"""``linkopt arm design`` and ``linkopt arm simplify``: solve an arm task file, write the results.
+"""``linkopt arm design`` and ``linkopt arm simplify``: solve an arm task file, write
+the results.
 
-``DIR`` receives, per solved arm (prefix ``""`` for ``design``, ``stage<k>_`` for ``simplify``):
-``design.toml`` (the arm at its optimised design, a mechanism file every command accepts),
-``waypoints.csv`` (joint angles, tool position and tip axis per waypoint, target marks),
-``torques.csv`` (static torques per waypoint), ``constraints.json`` (every constraint
-value ``g``, ≤ 0 is satisfied), ``summary.json`` and the figures (``arm.png``, and for
-``simplify`` ``elimination.png``). Progress lines go to stderr.
+``DIR`` receives, per solved arm (prefix ``""`` for ``design``, ``stage<k>_`` for
+``simplify``): ``design.toml`` (the arm at its optimised design, a mechanism file every
+command accepts), ``waypoints.csv`` (joint angles, tool position and tip axis per
+waypoint, target marks), ``torques.csv`` (static torques per waypoint),
+``constraints.json`` (every constraint value ``g``, ≤ 0 is satisfied), ``summary.json``
+and the figures (``arm.png``, and for ``simplify`` ``elimination.png``). Progress lines
+go to stderr.
 
 Exit status: 0 when the returned arm is feasible (``design``: the best start;
 ``simplify``: the smallest feasible stage), 1 when it is not (the files are still
@@ -21,41 +23,98 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arms.codesign import nlp
 from .._arms import checks
+from .._arms.codesign import nlp
 from .._arms.codesign.model import mechanism_definition
 from .._engine.writer import dumps
 
 
 def _progress(solution: nlp.ArmSolution) -> None:
-    state = "feasible" if solution.feasible else f"infeasible (max g {solution.max_violation:.2e})"
-    print(f"start {solution.start}: {state}, objective {solution.objective:.4g}, {solution.iterations} iterations, {solution.seconds:.1f} s", file=sys.stderr, flush=True)
+    state = (
+        "feasible"
+        if solution.feasible
+        else f"infeasible (max g {solution.max_violation:.2e})"
+    )
+    print(
+        f"start {solution.start}: {state}, objective {solution.objective:.4g}, {solution.iterations} iterations, {solution.seconds:.1f} s",
+        file=sys.stderr,
+        flush=True,
+    )
 
 
 def _rows_table(header: list[str], rows: np.ndarray) -> str:
-    return ",".join(header) + "\n" + "\n".join(",".join(f"{v:.9g}" for v in row) for row in rows) + "\n"
+    return (
+        ",".join(header)
+        + "\n"
+        + "\n".join(",".join(f"{v:.9g}" for v in row) for row in rows)
+        + "\n"
+    )
 
 
-def write_solution(problem: nlp.Problem, solution: nlp.ArmSolution, out: Path, prefix: str = "") -> dict:
+def write_solution(
+    problem: nlp.Problem, solution: nlp.ArmSolution, out: Path, prefix: str = ""
+) -> dict:
     """Write one solved arm (module docstring); returns its summary dictionary."""
     from .._arms.codesign.plots import plot_solution
 
     arm = problem.arm
     z = np.concatenate([solution.theta.ravel(), solution.design])
     report = nlp.waypoint_report(problem, z)
-    header = f"{arm.name}: optimised by linkopt arm (paper 000), feasible = {solution.feasible}\n" + "\n".join(f"{n} = {v:.9g}" for n, v in zip(arm.design_names, solution.design))
-    text = "".join(f"# {line}\n" for line in header.splitlines()) + dumps(mechanism_definition(arm, solution.design))
+    header = (
+        f"{arm.name}: optimised by linkopt arm (paper 000), feasible = {solution.feasible}\n"
+        + "\n".join(f"{n} = {v:.9g}" for n, v in zip(arm.design_names, solution.design))
+    )
+    text = "".join(f"# {line}\n" for line in header.splitlines()) + dumps(
+        mechanism_definition(arm, solution.design)
+    )
     (out / f"{prefix}design.toml").write_text(text, encoding="utf-8")
     joints = [f"theta{k + 1}" for k in range(arm.num_joints)]
     target = np.full(problem.num_waypoints, -1.0)
     target[problem.target_waypoints] = np.arange(len(problem.target_waypoints))
-    table = np.column_stack([np.arange(problem.num_waypoints), target, solution.theta, report["tip"], report["axis"]])
-    (out / f"{prefix}waypoints.csv").write_text(_rows_table(["waypoint", "target"] + joints + ["x", "y", "z", "axis_x", "axis_y", "axis_z"], table), encoding="utf-8")
+    table = np.column_stack(
+        [
+            np.arange(problem.num_waypoints),
+            target,
+            solution.theta,
+            report["tip"],
+            report["axis"],
+        ]
+    )
+    (out / f"{prefix}waypoints.csv").write_text(
+        _rows_table(
+            ["waypoint", "target"]
+            + joints
+            + ["x", "y", "z", "axis_x", "axis_y", "axis_z"],
+            table,
+        ),
+        encoding="utf-8",
+    )
     torques = np.column_stack([np.arange(problem.num_waypoints), report["torque"]])
-    (out / f"{prefix}torques.csv").write_text(_rows_table(["waypoint"] + [f"tau{k + 1}" for k in range(arm.num_joints)], torques), encoding="utf-8")
+    (out / f"{prefix}torques.csv").write_text(
+        _rows_table(
+            ["waypoint"] + [f"tau{k + 1}" for k in range(arm.num_joints)], torques
+        ),
+        encoding="utf-8",
+    )
     _, _, g, _ = nlp.evaluate(problem, z)
-    (out / f"{prefix}constraints.json").write_text(json.dumps({"max_g": solution.max_violation, "g": g.tolist(), "torque_limit": arm.torque_limit, "max_abs_torque": float(np.abs(report["torque"]).max())}, indent=1), encoding="utf-8")
-    plot_solution(problem, solution, out / f"{prefix}arm.png", title=f"{arm.name}: objective {solution.objective:.4g}, {'feasible' if solution.feasible else 'infeasible'}")
+    (out / f"{prefix}constraints.json").write_text(
+        json.dumps(
+            {
+                "max_g": solution.max_violation,
+                "g": g.tolist(),
+                "torque_limit": arm.torque_limit,
+                "max_abs_torque": float(np.abs(report["torque"]).max()),
+            },
+            indent=1,
+        ),
+        encoding="utf-8",
+    )
+    plot_solution(
+        problem,
+        solution,
+        out / f"{prefix}arm.png",
+        title=f"{arm.name}: objective {solution.objective:.4g}, {'feasible' if solution.feasible else 'infeasible'}",
+    )
     return {
         "joints": arm.num_joints,
         "design": dict(zip(arm.design_names, map(float, solution.design))),
@@ -86,22 +145,51 @@ def _solve(args):
     task = load_task(args.task)
     out = checks.output_directory(args.out)
     problem = nlp.prepare(task)
-    print(f"{task.name}: {task.arm.num_joints} joints, {task.arm.num_design} design parameters, {len(task.targets)} targets, {problem.num_waypoints} waypoints", file=sys.stderr, flush=True)
+    print(
+        f"{task.name}: {task.arm.num_joints} joints, {task.arm.num_design} design parameters, {len(task.targets)} targets, {problem.num_waypoints} waypoints",
+        file=sys.stderr,
+        flush=True,
+    )
     started = time.perf_counter()
-    best, runs = nlp.solve(problem, starts=args.starts, seed=args.seed, workers=args.workers, progress=_progress)
+    best, runs = nlp.solve(
+        problem,
+        starts=args.starts,
+        seed=args.seed,
+        workers=args.workers,
+        progress=_progress,
+    )
     return task, problem, out, best, runs, time.perf_counter() - started
 
 
 def _starts_summary(runs) -> list[dict]:
-    return [{"start": r.start, "feasible": r.feasible, "objective": r.objective, "max_violation": r.max_violation, "seconds": r.seconds, "message": r.message} for r in runs]
+    return [
+        {
+            "start": r.start,
+            "feasible": r.feasible,
+            "objective": r.objective,
+            "max_violation": r.max_violation,
+            "seconds": r.seconds,
+            "message": r.message,
+        }
+        for r in runs
+    ]
 
 
 def run_design(args) -> int:
     task, problem, out, best, runs, seconds = _solve(args)
     summary = write_solution(problem, best, out)
-    summary.update({"task": str(args.task), "best_start": best.start, "wall_seconds": seconds, "starts": _starts_summary(runs)})
+    summary.update(
+        {
+            "task": str(args.task),
+            "best_start": best.start,
+            "wall_seconds": seconds,
+            "starts": _starts_summary(runs),
+        }
+    )
     (out / "summary.json").write_text(json.dumps(summary, indent=1), encoding="utf-8")
-    print(f"best: start {best.start}, {'feasible' if best.feasible else 'INFEASIBLE'}, objective {best.objective:.4g}; {sum(r.feasible for r in runs)}/{len(runs)} starts feasible; {seconds:.0f} s; written to {out}")
+    print(
+        f"best: start {best.start}, {'feasible' if best.feasible else 'INFEASIBLE'}, objective {best.objective:.4g}; {sum(r.feasible for r in runs)}/{len(runs)} starts feasible; {seconds:.0f} s; written to {out}"
+    )
     return 0 if best.feasible else 1
 
 
@@ -113,36 +201,85 @@ def run_simplify(args) -> int:
 
     def report(stage) -> None:
         e = stage.elimination
-        print(f"merged joints {e.candidate + 1}+{e.candidate + 2} (δ of candidates: {', '.join(f'{d:.3g}' for d in stage.deltas)}); re-optimised {stage.problem.arm.num_joints}-joint arm: {'feasible' if stage.solution.feasible else 'infeasible'}", file=sys.stderr, flush=True)
+        print(
+            f"merged joints {e.candidate + 1}+{e.candidate + 2} (δ of candidates: {', '.join(f'{d:.3g}' for d in stage.deltas)}); re-optimised {stage.problem.arm.num_joints}-joint arm: {'feasible' if stage.solution.feasible else 'infeasible'}",
+            file=sys.stderr,
+            flush=True,
+        )
 
-    stages = elimination.simplify(problem, best, min_joints=args.min_joints, progress=report) if best.feasible else [elimination.Stage(problem, best, None)]
+    stages = (
+        elimination.simplify(problem, best, min_joints=args.min_joints, progress=report)
+        if best.feasible
+        else [elimination.Stage(problem, best, None)]
+    )
     summaries = []
     for k, stage in enumerate(stages):
         entry = write_solution(stage.problem, stage.solution, out, f"stage{k}_")
         if stage.elimination is not None:
-            entry.update({"merged": [stage.elimination.candidate + 1, stage.elimination.candidate + 2], "delta": stage.elimination.delta, "candidate_deltas": list(stage.deltas)})
+            entry.update(
+                {
+                    "merged": [
+                        stage.elimination.candidate + 1,
+                        stage.elimination.candidate + 2,
+                    ],
+                    "delta": stage.elimination.delta,
+                    "candidate_deltas": list(stage.deltas),
+                }
+            )
         summaries.append(entry)
     plot_stages(stages, out / "elimination.png")
     final = max((k for k, s in enumerate(stages) if s.solution.feasible), default=0)
-    (out / "summary.json").write_text(json.dumps({"task": str(args.task), "stages": summaries, "final_stage": final, "starts": _starts_summary(runs)}, indent=1), encoding="utf-8")
-    print(f"joints: {' -> '.join(str(s.problem.arm.num_joints) for s in stages)}; smallest feasible arm: {stages[final].problem.arm.num_joints} joints (stage {final}); written to {out}")
+    (out / "summary.json").write_text(
+        json.dumps(
+            {
+                "task": str(args.task),
+                "stages": summaries,
+                "final_stage": final,
+                "starts": _starts_summary(runs),
+            },
+            indent=1,
+        ),
+        encoding="utf-8",
+    )
+    print(
+        f"joints: {' -> '.join(str(s.problem.arm.num_joints) for s in stages)}; smallest feasible arm: {stages[final].problem.arm.num_joints} joints (stage {final}); written to {out}"
+    )
     return 0 if stages[final].solution.feasible else 1
 
 
 def _common(parser) -> None:
     parser.add_argument("task", help="arm task file (TOML)")
     parser.add_argument("--out", required=True, help="output directory")
-    parser.add_argument("--starts", type=int, default=None, help="random initial seeds (default: the task's [solver] starts)")
-    parser.add_argument("--seed", type=int, default=None, help="seed of the first start (default: the task's [solver] seed)")
-    parser.add_argument("--workers", type=int, default=1, help="processes solving starts in parallel")
+    parser.add_argument(
+        "--starts",
+        type=int,
+        default=None,
+        help="random initial seeds (default: the task's [solver] starts)",
+    )
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help="seed of the first start (default: the task's [solver] seed)",
+    )
+    parser.add_argument(
+        "--workers", type=int, default=1, help="processes solving starts in parallel"
+    )
 
 
 def register(arm_subparsers) -> None:
     """Add ``design`` and ``simplify`` to the ``linkopt arm`` sub-commands."""
-    design = arm_subparsers.add_parser("design", help="co-design an arm and its trajectory for a task (paper 000, eq. 1-8)")
+    design = arm_subparsers.add_parser(
+        "design",
+        help="co-design an arm and its trajectory for a task (paper 000, eq. 1-8)",
+    )
     _common(design)
     design.set_defaults(run=run_design)
-    simplify = arm_subparsers.add_parser("simplify", help="design, then eliminate joints and re-optimise (Algorithm 1)")
+    simplify = arm_subparsers.add_parser(
+        "simplify", help="design, then eliminate joints and re-optimise (Algorithm 1)"
+    )
     _common(simplify)
-    simplify.add_argument("--min-joints", type=int, default=1, help="stop at this many joints")
+    simplify.add_argument(
+        "--min-joints", type=int, default=1, help="stop at this many joints"
+    )
     simplify.set_defaults(run=run_simplify)

@@ -1,4 +1,5 @@
-"""Plain-data summaries of a mechanism and of solved configurations (for JSON and text)."""
+"""Plain-data summaries of a mechanism and of solved configurations (for JSON and
+text)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,12 @@ import numpy as np
 from .._engine.constraints import constraint_rows
 from .._engine.mobility import mobility
 from .._engine.model import Mechanism
-from .._engine.readout import joint_positions, motor_values, output_values, point_positions
+from .._engine.readout import (
+    joint_positions,
+    motor_values,
+    output_values,
+    point_positions,
+)
 from .._engine.singularity import singular_values
 
 
@@ -16,7 +22,8 @@ def _named(names, rows) -> dict[str, list[float]]:
 
 
 def summary(mech: Mechanism) -> dict:
-    """What ``linkopt check`` reports: sizes, mobility, motors, outputs, design space."""
+    """What ``linkopt check`` reports: sizes, mobility, motors, outputs, design
+    space."""
     rows = constraint_rows(mech)
     return {
         "name": mech.name,
@@ -24,31 +31,59 @@ def summary(mech: Mechanism) -> dict:
         "bodies": list(mech.body_names),
         "ground": mech.body_names[mech.ground],
         "state_size": mech.state_size,
-        "constraint_rows": {"fk": rows["fk"], "bk": rows["bk"], "passive": rows["passive"]},
+        "constraint_rows": {
+            "fk": rows["fk"],
+            "bk": rows["bk"],
+            "passive": rows["passive"],
+        },
         "mobility": mobility(mech),
-        "motors": {n: {"joint": mech.joint_names[j], "kind": "linear" if lin else "revolute"} for n, j, lin in zip(mech.motor_names, mech.motor_joints, mech.motor_linear)},
+        "motors": {
+            n: {"joint": mech.joint_names[j], "kind": "linear" if lin else "revolute"}
+            for n, j, lin in zip(mech.motor_names, mech.motor_joints, mech.motor_linear)
+        },
         "outputs": {
             n: {"kind": k, "min": float(lo), "max": float(hi)}
-            for n, k, lo, hi in zip(mech.output_names, mech.output_kinds, mech.output_min, mech.output_max)
+            for n, k, lo, hi in zip(
+                mech.output_names, mech.output_kinds, mech.output_min, mech.output_max
+            )
         },
         "design_parameters": mech.design.size,
         "parameters": {
             n: {"initial": float(v), "min": float(lo), "max": float(hi)}
-            for n, v, lo, hi in zip(mech.design.names, mech.design.p0, mech.design.lower, mech.design.upper)
+            for n, v, lo, hi in zip(
+                mech.design.names, mech.design.p0, mech.design.lower, mech.design.upper
+            )
         },
         "reference_length": mech.length_scale,
-        "joints": {n: {"type": t, "anchor": [float(v) for v in a]} for n, t, a in zip(mech.joint_names, mech.joint_types, mech.anchors)},
+        "joints": {
+            n: {"type": t, "anchor": [float(v) for v in a]}
+            for n, t, a in zip(mech.joint_names, mech.joint_types, mech.anchors)
+        },
     }
 
 
-def configuration(mech: Mechanism, state, converged: bool, residual: float, design=None) -> dict:
+def configuration(
+    mech: Mechanism, state, converged: bool, residual: float, design=None
+) -> dict:
     """What ``linkopt fk``/``bk`` report for one solved state."""
-    sigma_fk, sigma_bk = (float(v) for v in np.asarray(singular_values(mech, state, design=design)))
+    sigma_fk, sigma_bk = (
+        float(v) for v in np.asarray(singular_values(mech, state, design=design))
+    )
     return {
         "converged": bool(converged),
         "residual": float(residual),
-        "motors": dict(zip(mech.motor_names, map(float, np.asarray(motor_values(mech, state, design=design))))),
-        "outputs": dict(zip(mech.output_names, map(float, np.asarray(output_values(mech, state, design=design))))),
+        "motors": dict(
+            zip(
+                mech.motor_names,
+                map(float, np.asarray(motor_values(mech, state, design=design))),
+            )
+        ),
+        "outputs": dict(
+            zip(
+                mech.output_names,
+                map(float, np.asarray(output_values(mech, state, design=design))),
+            )
+        ),
         "joints": _named(mech.joint_names, joint_positions(mech, state, design=design)),
         "points": _named(mech.point_names, point_positions(mech, state, design=design)),
         "f_sing": 1.0 / sigma_fk + 1.0 / sigma_bk,

@@ -1,4 +1,5 @@
-"""``linkopt arm trace TASK --out DIR``: continuous-path synthesis of a planar arm (paper 002).
+"""``linkopt arm trace TASK --out DIR``: continuous-path synthesis of a planar arm
+(paper 002).
 
 Writes ``DIR/result.json`` (design, per-primitive critical states and joint-angle
 trajectories, verification figures, every NLP attempt), ``DIR/arm.toml`` (the arm as a
@@ -6,10 +7,10 @@ mechanism file that ``linkopt check`` accepts), ``DIR/<task>_task.png``,
 ``<task>_solution.png``, ``<task>_swept.png``, ``<task>.gif`` and, with
 ``--discretised N``, the comparison with an N-point discretisation. ``<task>`` is the
 task's name with every character other than letters, digits, ``.``, ``_`` and ``-``
-replaced by ``_`` (leading dots dropped). When no design is found only ``result.json`` and ``<task>_task.png``
-(the task alone) are written, plus the discretised comparison if one was asked for and
-found. Progress goes to stderr; exit status 0 with a verified design, 1 when none was
-found, 2 on bad input.
+replaced by ``_`` (leading dots dropped). When no design is found only ``result.json``
+and ``<task>_task.png`` (the task alone) are written, plus the discretised comparison if
+one was asked for and found. Progress goes to stderr; exit status 0 with a verified
+design, 1 when none was found, 2 on bad input.
 """
 
 from __future__ import annotations
@@ -24,15 +25,35 @@ from .._errors import InputError
 
 
 def register(arm_subparsers) -> None:
-    p = arm_subparsers.add_parser("trace", help="synthesise a 2-/3-link planar arm tracing a continuous path around obstacles")
-    p.add_argument("task", help="task file (TOML: primitives, obstacles, base_regions, link diameter)")
+    p = arm_subparsers.add_parser(
+        "trace",
+        help="synthesise a 2-/3-link planar arm tracing a continuous path around obstacles",
+    )
+    p.add_argument(
+        "task",
+        help="task file (TOML: primitives, obstacles, base_regions, link diameter)",
+    )
     p.add_argument("--out", required=True, help="output directory")
-    p.add_argument("--seed", type=int, default=0, help="seed of the initial guesses (default 0)")
-    p.add_argument("--restarts", type=int, default=6, help="initial guesses per stage (default 6)")
-    p.add_argument("--best-of", type=int, default=1, metavar="K",
-                   help="collect K verified designs in the first successful stage and keep the shortest (default 1)")
-    p.add_argument("--discretised", type=int, default=0, metavar="N",
-                   help="also synthesise from N equidistant points and show where the curve leaves its reachable space")
+    p.add_argument(
+        "--seed", type=int, default=0, help="seed of the initial guesses (default 0)"
+    )
+    p.add_argument(
+        "--restarts", type=int, default=6, help="initial guesses per stage (default 6)"
+    )
+    p.add_argument(
+        "--best-of",
+        type=int,
+        default=1,
+        metavar="K",
+        help="collect K verified designs in the first successful stage and keep the shortest (default 1)",
+    )
+    p.add_argument(
+        "--discretised",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also synthesise from N equidistant points and show where the curve leaves its reachable space",
+    )
     p.add_argument("--no-gif", action="store_true", help="skip the animation")
     p.set_defaults(run=run)
 
@@ -50,10 +71,17 @@ def run(args) -> int:
     checks.count(args.restarts, "--restarts")
     checks.count(args.best_of, "--best-of")
     if args.discretised < 0 or args.discretised == 1:
-        raise InputError(f"--discretised: expected 0 (off) or at least 2 points, got {args.discretised}")
+        raise InputError(
+            f"--discretised: expected 0 (off) or at least 2 points, got {args.discretised}"
+        )
     task = load_task(args.task)
     out = checks.output_directory(args.out)
-    result = synthesize(task, seed=args.seed, settings=TraceSettings(restarts=args.restarts, best_of=args.best_of), progress=_say)
+    result = synthesize(
+        task,
+        seed=args.seed,
+        settings=TraceSettings(restarts=args.restarts, best_of=args.best_of),
+        progress=_say,
+    )
     payload = result_dict(result)
     figures = _figures(task, result, out, not args.no_gif)
     if args.discretised:
@@ -73,7 +101,8 @@ def file_stem(name: str) -> str:
 
 
 def _figures(task, result, out: Path, gif: bool) -> list[str]:
-    """The task figure always; the solution, swept-area figures and GIF with a design."""
+    """The task figure always; the solution, swept-area figures and GIF with a
+    design."""
     import matplotlib.pyplot as plt
 
     from .._arms.trace import plots as tp
@@ -85,8 +114,18 @@ def _figures(task, result, out: Path, gif: bool) -> list[str]:
     ax.set_title(f"task {task.name}")
     figures = [("task", lambda: fig)]
     if result.success:
-        figures += [("solution", lambda: tp.solution_figure(task, result.design, result.verification)),
-                    ("swept", lambda: tp.swept_figure(task, result.design, result.verification, result.swept))]
+        figures += [
+            (
+                "solution",
+                lambda: tp.solution_figure(task, result.design, result.verification),
+            ),
+            (
+                "swept",
+                lambda: tp.swept_figure(
+                    task, result.design, result.verification, result.swept
+                ),
+            ),
+        ]
     for name, make in figures:
         figure = make()
         figure.savefig(out / f"{stem}_{name}.png", dpi=110, bbox_inches="tight")
@@ -106,26 +145,42 @@ def _discretised(task, args, out: Path, figures: list[str]) -> dict:
     from .._arms.trace.export import design_dict
 
     _say(f"discretised approach: {args.discretised} equidistant points")
-    design = discretised_design(task, args.discretised, seed=args.seed, restarts=args.restarts)
+    design = discretised_design(
+        task, args.discretised, seed=args.seed, restarts=args.restarts
+    )
     if design is None:
         return {"points": args.discretised, "found": False}
     cmp = compare(task, design, args.discretised)
     fig = tp.discretised_figure(task, cmp)
-    fig.savefig(out / f"{file_stem(task.name)}_discretised.png", dpi=110, bbox_inches="tight")
+    fig.savefig(
+        out / f"{file_stem(task.name)}_discretised.png", dpi=110, bbox_inches="tight"
+    )
     plt.close(fig)
     figures.append(f"{file_stem(task.name)}_discretised.png")
-    return {"points": args.discretised, "found": True, **design_dict(design), "max_excursion": cmp.excursion,
-            "fraction_outside": cmp.fraction_outside, "continuous_verification_passed": cmp.verification.passed,
-            "continuous_verification_failures": cmp.verification.failures[:10]}
+    return {
+        "points": args.discretised,
+        "found": True,
+        **design_dict(design),
+        "max_excursion": cmp.excursion,
+        "fraction_outside": cmp.fraction_outside,
+        "continuous_verification_passed": cmp.verification.passed,
+        "continuous_verification_failures": cmp.verification.failures[:10],
+    }
 
 
 def _summary(result, out: Path) -> None:
     if not result.success:
-        print(f"{result.task.name}: no verified design after {len(result.attempts)} NLP solves ({result.seconds:.1f} s); see {out / 'result.json'}")
+        print(
+            f"{result.task.name}: no verified design after {len(result.attempts)} NLP solves ({result.seconds:.1f} s); see {out / 'result.json'}"
+        )
         return
     d, v = result.design, result.verification
-    print(f"{result.task.name}: {d.n_links} links (SV^{result.swept}), lengths {', '.join(f'{r:.4g}' for r in d.lengths)}, "
-          f"total {d.lengths.sum():.4g}, elbow {'up' if d.sigma > 0 else 'down'}, base ({d.base[0]:.4g}, {d.base[1]:.4g})")
-    print(f"  verified: min clearance {v.min_clearance:.3g}, min self-distance {v.min_self_distance:.3g}, "
-          f"reach margin {v.min_reach_margin:.3g}, {sum(len(s.states) for s in v.segments)} samples; {result.seconds:.1f} s")
+    print(
+        f"{result.task.name}: {d.n_links} links (SV^{result.swept}), lengths {', '.join(f'{r:.4g}' for r in d.lengths)}, "
+        f"total {d.lengths.sum():.4g}, elbow {'up' if d.sigma > 0 else 'down'}, base ({d.base[0]:.4g}, {d.base[1]:.4g})"
+    )
+    print(
+        f"  verified: min clearance {v.min_clearance:.3g}, min self-distance {v.min_self_distance:.3g}, "
+        f"reach margin {v.min_reach_margin:.3g}, {sum(len(s.states) for s in v.segments)} samples; {result.seconds:.1f} s"
+    )
     print(f"  wrote {out / 'result.json'}, {out / 'arm.toml'}")

@@ -1,4 +1,5 @@
-"""Design evaluation: IK and adversarial samples over the target range, and ``f_design``.
+"""Design evaluation: IK and adversarial samples over the target range, and
+``f_design``.
 
 ``f_design`` (eq. 6) is the mean over targets ``t`` of
 ``f_BK(b^t, s_IK^t) + f_sing^c(s_adv^t)``: its first part (*reach*) is zero iff every
@@ -28,7 +29,7 @@ design, fixed for the whole optimisation so that a design cannot move its own th
 from __future__ import annotations
 
 import itertools
-from functools import lru_cache
+from functools import cache
 from typing import NamedTuple
 
 import jax
@@ -37,12 +38,12 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._engine import programs
-from .._engine.constraints import output_residual, output_values
+from .._engine.constraints import output_residual
 from .._engine.geometry import design_vector, geometry, rest_state
-from .metrics import culled, thresholds
 from .._engine.model import Mechanism
-from .sampling import adversarial_objective, either, ik_objective, minimise_queue
 from .._engine.singularity import f_sing_value
+from .metrics import culled, thresholds
+from .sampling import adversarial_objective, either, ik_objective, minimise_queue
 
 QUEUE_WIDTH = 12  # slots of the sample queue (module docstring)
 
@@ -71,13 +72,20 @@ class Evaluation(NamedTuple):
 def targets(mech: Mechanism) -> np.ndarray:
     """IK target points ``b^t`` in file units, shape ``(T, K)``."""
     settings = mech.evaluation
-    axes = [np.linspace(lo, hi, settings.samples_per_dimension) for lo, hi in zip(mech.output_min, mech.output_max)]
-    grid = np.array(list(itertools.product(*axes)), dtype=float).reshape(-1, mech.num_outputs)
-    on_boundary = np.any(np.isclose(grid, mech.output_min) | np.isclose(grid, mech.output_max), axis=1)
+    axes = [
+        np.linspace(lo, hi, settings.samples_per_dimension)
+        for lo, hi in zip(mech.output_min, mech.output_max)
+    ]
+    grid = np.array(list(itertools.product(*axes)), dtype=float).reshape(
+        -1, mech.num_outputs
+    )
+    on_boundary = np.any(
+        np.isclose(grid, mech.output_min) | np.isclose(grid, mech.output_max), axis=1
+    )
     return grid if settings.interior else grid[on_boundary]
 
 
-@lru_cache(maxsize=None)
+@cache
 def alpha_minus(mech: Mechanism) -> float:
     """``α₋ = alpha_factor · f_sing(rest pose of the initial design)``, unless the file
     gives ``alpha_minus`` itself."""
@@ -94,8 +102,11 @@ def regularizer(mech: Mechanism, design) -> Float[Array, ""]:
     return 0.5 * mech.evaluation.regularizer_weight * offset @ offset
 
 
-def _evaluate_batch(mech: Mechanism, designs: Float[Array, "D n_p"], alpha) -> Evaluation:
-    """The evaluations of ``D`` designs (homogenised), every field with leading axis ``D``."""
+def _evaluate_batch(
+    mech: Mechanism, designs: Float[Array, "D n_p"], alpha
+) -> Evaluation:
+    """The evaluations of ``D`` designs (homogenised), every field with leading axis
+    ``D``."""
     th = thresholds(alpha)
     goals = jnp.asarray(targets(mech) / mech.output_scale)
     low = jnp.asarray(mech.output_min / mech.output_scale)
@@ -103,7 +114,9 @@ def _evaluate_batch(mech: Mechanism, designs: Float[Array, "D n_p"], alpha) -> E
     count, per_design = designs.shape[0], goals.shape[0]
     lanes = count * per_design
     geoms = jax.vmap(lambda p: geometry(mech, p))(designs)
-    lane_geoms = jax.tree_util.tree_map(lambda g: jnp.repeat(g, per_design, axis=0), geoms)
+    lane_geoms = jax.tree_util.tree_map(
+        lambda g: jnp.repeat(g, per_design, axis=0), geoms
+    )
     lane_goals = jnp.tile(goals, (count, 1))
     rest = rest_state(mech)
     rest = jnp.broadcast_to(rest, (lanes,) + rest.shape)
@@ -113,11 +126,23 @@ def _evaluate_batch(mech: Mechanism, designs: Float[Array, "D n_p"], alpha) -> E
     def problem(lane, adversarial, anchor):
         geom, goal = lane
         ik = ik_objective(mech, geom, goal, th)
-        return geom, either(ik, adversarial_objective(mech, geom, anchor, low, high, th), adversarial)
+        return geom, either(
+            ik, adversarial_objective(mech, geom, anchor, low, high, th), adversarial
+        )
 
     iterations = (settings.ik_iterations, settings.adversarial_iterations)
-    ik_samples, adv_samples = minimise_queue(mech, problem, (lane_geoms, lane_goals), zero, rest, iterations, width=QUEUE_WIDTH)
-    residuals = jax.vmap(lambda g, goal, s: output_residual(mech, g, goal, s))(lane_geoms, lane_goals, ik_samples.state)
+    ik_samples, adv_samples = minimise_queue(
+        mech,
+        problem,
+        (lane_geoms, lane_goals),
+        zero,
+        rest,
+        iterations,
+        width=QUEUE_WIDTH,
+    )
+    residuals = jax.vmap(lambda g, goal, s: output_residual(mech, g, goal, s))(
+        lane_geoms, lane_goals, ik_samples.state
+    )
     per = lambda a: a.reshape((count, per_design) + a.shape[1:])  # noqa: E731
     reach = per(0.5 * jnp.sum(residuals**2, axis=1))
     adv_sing = adv_samples.f_sing
@@ -138,12 +163,16 @@ def _evaluate_batch(mech: Mechanism, designs: Float[Array, "D n_p"], alpha) -> E
     )
 
 
-jax.export.register_namedtuple_serialization(Evaluation, serialized_name="linkopt.Evaluation")
+jax.export.register_namedtuple_serialization(
+    Evaluation, serialized_name="linkopt.Evaluation"
+)
 
 
 def _evaluate(mech: Mechanism, designs, alpha) -> Evaluation:
     if designs.ndim == 1:
-        return jax.tree_util.tree_map(lambda a: a[0], _evaluate_batch(mech, designs[None], alpha))
+        return jax.tree_util.tree_map(
+            lambda a: a[0], _evaluate_batch(mech, designs[None], alpha)
+        )
     return _evaluate_batch(mech, designs, alpha)
 
 
@@ -151,4 +180,6 @@ def evaluate(mech: Mechanism, design=None) -> Evaluation:
     """Evaluate a design ``(n_p,)`` or a batch of designs ``(N, n_p)`` (file units)."""
     designs = jnp.asarray(design_vector(mech, design), dtype=jnp.float64)
     alpha = jnp.asarray(alpha_minus(mech), dtype=jnp.float64)
-    return programs.call("evaluate", mech, lambda p, a: _evaluate(mech, p, a), designs, alpha)
+    return programs.call(
+        "evaluate", mech, lambda p, a: _evaluate(mech, p, a), designs, alpha
+    )

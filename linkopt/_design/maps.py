@@ -30,7 +30,8 @@ MAX_JUMP = 0.25
 
 
 class Map2D(NamedTuple):
-    """A solved 2-D grid: ``values[i, j]`` at ``(axis0[i], axis1[j])``; NaN = infeasible."""
+    """A solved 2-D grid: ``values[i, j]`` at ``(axis0[i], axis1[j])``; NaN =
+    infeasible."""
 
     axis0: np.ndarray  # (N,)
     axis1: np.ndarray  # (N,)
@@ -49,11 +50,17 @@ def _neighbours(cell: tuple[int, ...], shape: tuple[int, ...]):
                 yield tuple(n)
 
 
-def continuation_grid(solve, values: np.ndarray, start_cell: tuple[int, ...], start_state: np.ndarray, chunk: int):
+def continuation_grid(
+    solve,
+    values: np.ndarray,
+    start_cell: tuple[int, ...],
+    start_state: np.ndarray,
+    chunk: int,
+):
     """Breadth-first continuation over a grid of input values ``grid_shape + (D,)``.
 
-    ``solve(inputs (n, D), starts (n, S))`` is a batched solver; returns the states and a
-    feasibility mask over the grid.
+    ``solve(inputs (n, D), starts (n, S))`` is a batched solver; returns the states and
+    a feasibility mask over the grid.
     """
     shape = values.shape[:-1]
     states = np.zeros(shape + start_state.shape)
@@ -69,9 +76,14 @@ def continuation_grid(solve, values: np.ndarray, start_cell: tuple[int, ...], st
         while size < len(cells):
             size *= 2
         padded = size - len(cells)
-        sol = solve(np.concatenate([inputs, np.repeat(inputs[-1:], padded, 0)]), np.concatenate([starts, np.repeat(starts[-1:], padded, 0)]))
+        sol = solve(
+            np.concatenate([inputs, np.repeat(inputs[-1:], padded, 0)]),
+            np.concatenate([starts, np.repeat(starts[-1:], padded, 0)]),
+        )
         new_states = np.asarray(sol.state)[: len(cells)]
-        ok = np.asarray(sol.converged)[: len(cells)] & (np.max(np.abs(new_states - starts), axis=1) <= MAX_JUMP)
+        ok = np.asarray(sol.converged)[: len(cells)] & (
+            np.max(np.abs(new_states - starts), axis=1) <= MAX_JUMP
+        )
         status[index] = np.where(ok, 1, -1)
         states[index] = new_states
         frontier = []
@@ -92,14 +104,35 @@ def _finish(mech, axes, states, feasible, design) -> Map2D:
     shape = feasible.shape
     fs = np.asarray(f_sing(mech, flat, design=design)).reshape(shape)
     motors = np.asarray(motor_values(mech, flat, design=design)).reshape(shape + (-1,))
-    outputs = np.asarray(output_values(mech, flat, design=design)).reshape(shape + (-1,))
+    outputs = np.asarray(output_values(mech, flat, design=design)).reshape(
+        shape + (-1,)
+    )
     nan = np.where(feasible, 1.0, np.nan)
-    return Map2D(axes[0], axes[1], fs * nan, motors * nan[..., None], outputs * nan[..., None], feasible)
+    return Map2D(
+        axes[0],
+        axes[1],
+        fs * nan,
+        motors * nan[..., None],
+        outputs * nan[..., None],
+        feasible,
+    )
 
 
-def sections(mech: Mechanism, kind: str, low, high, resolution: int, cuts, *, start_state, start_values, design=None, depth: int = 9) -> list[Map2D]:
-    """2-D sections of a 3-D motor (``kind="fk"``) or output (``"bk"``) space at the given
-    values ``cuts`` of the third variable.
+def sections(
+    mech: Mechanism,
+    kind: str,
+    low,
+    high,
+    resolution: int,
+    cuts,
+    *,
+    start_state,
+    start_values,
+    design=None,
+    depth: int = 9,
+) -> list[Map2D]:
+    """2-D sections of a 3-D motor (``kind="fk"``) or output (``"bk"``) space at the
+    given values ``cuts`` of the third variable.
 
     One 3-D continuation grid is solved (``resolution² × n3`` cells, the third axis
     ``depth`` even steps over ``[low[2], high[2]]`` merged with the cuts and the start
@@ -108,7 +141,15 @@ def sections(mech: Mechanism, kind: str, low, high, resolution: int, cuts, *, st
     """
     if len(low) != 3:
         raise ValueError("sections need exactly three motors or outputs")
-    third = np.unique(np.concatenate([np.linspace(low[2], high[2], depth), np.asarray(cuts, float), [start_values[2]]]))
+    third = np.unique(
+        np.concatenate(
+            [
+                np.linspace(low[2], high[2], depth),
+                np.asarray(cuts, float),
+                [start_values[2]],
+            ]
+        )
+    )
     axes = _axes(low[:2], high[:2], resolution) + [third]
     states, feasible = _solve_from(mech, kind, axes, start_values, start_state, design)
     out = []
@@ -119,23 +160,46 @@ def sections(mech: Mechanism, kind: str, low, high, resolution: int, cuts, *, st
 
 
 def _solve_from(mech: Mechanism, kind: str, axes, start_values, start_state, design):
-    """Continuation over the grid spanned by ``axes``, from the cell nearest ``start_values``."""
+    """Continuation over the grid spanned by ``axes``, from the cell nearest
+    ``start_values``."""
     values = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
     cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_values))
     solver = solve_fk if kind == "fk" else solve_bk
     solve = lambda v, s: solver(mech, v, start=s, design=design)  # noqa: E731
-    return continuation_grid(solve, values, cell, np.asarray(start_state), chunk=len(axes[0]))
+    return continuation_grid(
+        solve, values, cell, np.asarray(start_state), chunk=len(axes[0])
+    )
 
 
-def motor_map(mech: Mechanism, low, high, resolution: int, *, start_state, start_motors, design=None) -> Map2D:
-    """FK over a motor-space box ``[low, high]`` (2 motors), from a solved start state."""
+def motor_map(
+    mech: Mechanism,
+    low,
+    high,
+    resolution: int,
+    *,
+    start_state,
+    start_motors,
+    design=None,
+) -> Map2D:
+    """FK over a motor-space box ``[low, high]`` (2 motors), from a solved start
+    state."""
     axes = _axes(low, high, resolution)
     states, feasible = _solve_from(mech, "fk", axes, start_motors, start_state, design)
     return _finish(mech, axes, states, feasible, design)
 
 
-def output_map(mech: Mechanism, low, high, resolution: int, *, start_state, start_outputs, design=None) -> Map2D:
-    """BK over an end-effector-space box ``[low, high]`` (2 outputs), from a solved start state."""
+def output_map(
+    mech: Mechanism,
+    low,
+    high,
+    resolution: int,
+    *,
+    start_state,
+    start_outputs,
+    design=None,
+) -> Map2D:
+    """BK over an end-effector-space box ``[low, high]`` (2 outputs), from a solved
+    start state."""
     axes = _axes(low, high, resolution)
     states, feasible = _solve_from(mech, "bk", axes, start_outputs, start_state, design)
     return _finish(mech, axes, states, feasible, design)

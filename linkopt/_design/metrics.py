@@ -1,4 +1,5 @@
-"""Culled and attractive singularity metrics and the adversarial barrier (paper App. A, B).
+"""Culled and attractive singularity metrics and the adversarial barrier (paper App. A,
+B).
 
 * ``φ`` (eq. 7): C² quintic step from 0 at ``α₋`` to 1 at ``α₊``; culled
   ``f_sing^c = f_sing · φ(f_sing)``.
@@ -38,18 +39,18 @@ def thresholds(alpha_minus) -> Thresholds:
     return Thresholds(alpha_minus, 0.5 * (alpha_minus + upper), upper)
 
 
-def step(x: Float[Array, "..."], th: Thresholds) -> Float[Array, "..."]:
+def step(x: Float[Array, ...], th: Thresholds) -> Float[Array, ...]:
     """``φ(x)`` of eq. 7."""
     t = jnp.clip((x - th.lower) / (th.upper - th.lower), 0.0, 1.0)
     return t * t * t * (t * (6.0 * t - 15.0) + 10.0)
 
 
-def culled(f_sing: Float[Array, "..."], th: Thresholds) -> Float[Array, "..."]:
+def culled(f_sing: Float[Array, ...], th: Thresholds) -> Float[Array, ...]:
     """``f_sing^c = f_sing · φ(f_sing)``: zero below ``α₋``, ``f_sing`` above ``α₊``."""
     return f_sing * step(f_sing, th)
 
 
-def attractive(f_sing: Float[Array, "..."], th: Thresholds) -> Float[Array, "..."]:
+def attractive(f_sing: Float[Array, ...], th: Thresholds) -> Float[Array, ...]:
     """``f_sing^a = ψ(f_sing)`` of eq. 8."""
     gap2 = (th.upper - th.target) ** 2
     a = -1.0 / (3.0 * gap2)
@@ -61,7 +62,9 @@ def attractive(f_sing: Float[Array, "..."], th: Thresholds) -> Float[Array, "...
     return jnp.where(f_sing < th.upper, cubic, f_sing)
 
 
-def barrier(values: Float[Array, " K"], low: Float[Array, " K"], high: Float[Array, " K"]) -> Float[Array, ""]:
+def barrier(
+    values: Float[Array, " K"], low: Float[Array, " K"], high: Float[Array, " K"]
+) -> Float[Array, ""]:
     """``R₂`` of eq. 9-10 with ``m = 0.1``, ``M = 5``, ``ε = 0.03 (max - min)``."""
     width = BARRIER_WIDTH * (high - low)
     rate = jnp.log(BARRIER_LOW / BARRIER_HIGH) / width

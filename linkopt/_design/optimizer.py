@@ -18,9 +18,9 @@ Partial-gradient step: in scaled parameters (lengths divided by the reference le
 is capped at ``gradient_step`` reference lengths; the particle's velocity is unchanged.
 
 The design a run returns is the best one it evaluated, ranked first by whether its
-``f_design`` is at most ``tolerance`` (the whole range reached with no singularity, up to
-solver noise) and then by total (``f_design`` + regulariser). The swarm itself follows
-pyswarms' global best by total, which may be a design with a tiny but non-zero
+``f_design`` is at most ``tolerance`` (the whole range reached with no singularity, up
+to solver noise) and then by total (``f_design`` + regulariser). The swarm itself
+follows pyswarms' global best by total, which may be a design with a tiny but non-zero
 ``f_design`` and a smaller regulariser; ranking feasibility first keeps such a design
 from being returned or from holding the run open. ``tolerance`` = 1e-12 is our choice:
 feasible five-bar, finger, neck and Jansen designs score 1e-27 to 1e-18 (reach residuals
@@ -29,11 +29,11 @@ the way from ``α₋`` to ``α₊`` adds about ``10 t³ α₋ / T`` to ``f_desig
 earlier 1e-6, a five-bar run (seed 2) returned a design at 7e-8, a sample 0.06 % above
 ``α₋``, and ``linkopt verify`` found ``f_sing`` 0.6 % above ``α₋`` on its grid; 1e-12
 admits ``t ≈ 3e-5`` on the five-bar (0.0014 % above ``α₋``) or a reach miss of 4e-6
-(homogenised output units). The run stops once the returned
-design is feasible and its total has not dropped by more than ``improvement``
-(relative) for ``patience`` iterations, or at ``iterations``. ``improvement`` = 1e-3 is
-our choice: the paper says only that it stops when the objective stops improving, and
-regulariser gains below 0.1 % do not change a design in any way a user would notice.
+(homogenised output units). The run stops once the returned design is feasible and its
+total has not dropped by more than ``improvement`` (relative) for ``patience``
+iterations, or at ``iterations``. ``improvement`` = 1e-3 is our choice: the paper says
+only that it stops when the objective stops improving, and regulariser gains below 0.1 %
+do not change a design in any way a user would notice.
 """
 
 from __future__ import annotations
@@ -42,8 +42,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .evaluation import Evaluation, alpha_minus
 from .._engine.model import Mechanism
+from .evaluation import Evaluation, alpha_minus
 from .swarm import BoundaryHandler, Star, compute_pbest, compute_position, create_swarm
 from .workers import Workers
 
@@ -78,7 +78,8 @@ class OptimizerSettings:
 
 @dataclass
 class SwarmRun:
-    """Everything needed to continue a run exactly: the swarm, the RNG and the history."""
+    """Everything needed to continue a run exactly: the swarm, the RNG and the
+    history."""
 
     iteration: int
     position: np.ndarray  # (N, n_p)
@@ -91,24 +92,45 @@ class SwarmRun:
     history: list[dict]
     stalled: int = 0  # iterations since the returned design last improved
     finished: bool = False
-    result_pos: np.ndarray | None = None  # the design the run returns (module docstring)
+    result_pos: np.ndarray | None = (
+        None  # the design the run returns (module docstring)
+    )
     result_total: float = float("inf")
     result_feasible: bool = False
 
 
 def start(mech: Mechanism, settings: OptimizerSettings) -> SwarmRun:
-    """Particles uniformly around ``p₀`` (the first one exactly ``p₀``), zero velocity."""
+    """Particles uniformly around ``p₀`` (the first one exactly ``p₀``), zero
+    velocity."""
     rng = np.random.default_rng(settings.seed)
     d = mech.design
-    offsets = rng.uniform(-1.0, 1.0, size=(settings.particles, d.size)) * settings.spread * (d.upper - d.lower)
+    offsets = (
+        rng.uniform(-1.0, 1.0, size=(settings.particles, d.size))
+        * settings.spread
+        * (d.upper - d.lower)
+    )
     offsets[0] = 0.0
     position = np.clip(d.p0 + offsets, d.lower, d.upper)
     n = settings.particles
-    return SwarmRun(0, position, np.zeros_like(position), position.copy(), np.full(n, np.inf), d.p0.copy(), float("inf"), rng.bit_generator.state, [])
+    return SwarmRun(
+        0,
+        position,
+        np.zeros_like(position),
+        position.copy(),
+        np.full(n, np.inf),
+        d.p0.copy(),
+        float("inf"),
+        rng.bit_generator.state,
+        [],
+    )
 
 
 def _swarm(run: SwarmRun, settings: OptimizerSettings, inertia: float):
-    swarm = create_swarm(n_particles=run.position.shape[0], dimensions=run.position.shape[1], options={"c1": settings.cognitive, "c2": settings.social, "w": inertia})
+    swarm = create_swarm(
+        n_particles=run.position.shape[0],
+        dimensions=run.position.shape[1],
+        options={"c1": settings.cognitive, "c2": settings.social, "w": inertia},
+    )
     swarm.position = run.position.copy()
     swarm.velocity = run.velocity.copy()
     swarm.pbest_pos = run.pbest_pos.copy()
@@ -118,11 +140,15 @@ def _swarm(run: SwarmRun, settings: OptimizerSettings, inertia: float):
     return swarm
 
 
-def _gradient_moves(mech: Mechanism, gradients: np.ndarray, settings: OptimizerSettings) -> np.ndarray:
+def _gradient_moves(
+    mech: Mechanism, gradients: np.ndarray, settings: OptimizerSettings
+) -> np.ndarray:
     scale = np.where(mech.design.is_length, mech.length_scale, 1.0)
     scaled = gradients * scale
     norm = np.linalg.norm(scaled, axis=1, keepdims=True)
-    factor = np.minimum(settings.gradient_rate, settings.gradient_step / np.maximum(norm, 1e-300))
+    factor = np.minimum(
+        settings.gradient_rate, settings.gradient_step / np.maximum(norm, 1e-300)
+    )
     return -scaled * factor * scale
 
 
@@ -140,7 +166,12 @@ def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray, best: int) -> dict
     }
 
 
-def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings, workers: Workers | None = None) -> SwarmRun:
+def step(
+    mech: Mechanism,
+    run: SwarmRun,
+    settings: OptimizerSettings,
+    workers: Workers | None = None,
+) -> SwarmRun:
     """One iteration: evaluate, update bests, record, then move every particle.
 
     ``workers`` splits the batched evaluation and gradients over processes (default:
@@ -154,27 +185,50 @@ def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings, workers: W
     swarm.current_cost = costs
     swarm.pbest_pos, swarm.pbest_cost = compute_pbest(swarm)
     swarm.best_pos, swarm.best_cost = Star().compute_gbest(swarm)
-    run = SwarmRun(run.iteration, run.position, run.velocity, swarm.pbest_pos, swarm.pbest_cost, np.asarray(swarm.best_pos), float(swarm.best_cost), run.rng_state, list(run.history), run.stalled, False, run.result_pos, run.result_total, run.result_feasible)
+    run = SwarmRun(
+        run.iteration,
+        run.position,
+        run.velocity,
+        swarm.pbest_pos,
+        swarm.pbest_cost,
+        np.asarray(swarm.best_pos),
+        float(swarm.best_cost),
+        run.rng_state,
+        list(run.history),
+        run.stalled,
+        False,
+        run.result_pos,
+        run.result_total,
+        run.result_feasible,
+    )
     _update_result(run, np.asarray(ev.f_design) <= settings.tolerance, costs, settings)
     best = int(np.argmin(costs))
     record = _record(run, ev, costs, best)
     record["best_design"] = [float(v) for v in run.result_pos]
-    record["best_f_design_overall"] = float(min(h["best_f_design"] for h in run.history + [record]))
+    record["best_f_design_overall"] = float(
+        min(h["best_f_design"] for h in run.history + [record])
+    )
     run.history.append(record)
-    if (run.result_feasible and run.stalled >= settings.patience) or run.iteration + 1 >= settings.iterations:
+    if (
+        run.result_feasible and run.stalled >= settings.patience
+    ) or run.iteration + 1 >= settings.iterations:
         run.finished = True
         run.iteration += 1
         return run
     rng = np.random.default_rng()
     rng.bit_generator.state = run.rng_state
     use_gradient, velocity = swarm_moves(rng, run, settings)
-    swarm.velocity = np.where(use_gradient[:, None], run.velocity, settings.learning_rate * velocity)
+    swarm.velocity = np.where(
+        use_gradient[:, None], run.velocity, settings.learning_rate * velocity
+    )
     bounds = (mech.design.lower, mech.design.upper)
     moved = compute_position(swarm, bounds, BoundaryHandler(strategy="nearest"))
     if use_gradient.any():
         gradients = workers.partial_gradient(run.position, ev, alpha)
         gradients = np.where(np.isfinite(gradients), gradients, 0.0)
-        stepped = np.clip(run.position + _gradient_moves(mech, gradients, settings), *bounds)
+        stepped = np.clip(
+            run.position + _gradient_moves(mech, gradients, settings), *bounds
+        )
         moved = np.where(use_gradient[:, None], stepped, moved)
     run.position = np.asarray(moved)
     run.velocity = np.where(use_gradient[:, None], run.velocity, swarm.velocity)
@@ -183,31 +237,52 @@ def step(mech: Mechanism, run: SwarmRun, settings: OptimizerSettings, workers: W
     return run
 
 
-def _update_result(run: SwarmRun, feasible: np.ndarray, costs: np.ndarray, settings: OptimizerSettings) -> None:
-    """Keep the best design seen (feasible first, then by total) and count stalled iterations."""
+def _update_result(
+    run: SwarmRun, feasible: np.ndarray, costs: np.ndarray, settings: OptimizerSettings
+) -> None:
+    """Keep the best design seen (feasible first, then by total) and count stalled
+    iterations."""
     if not feasible.any():
         if not run.result_feasible:  # nothing feasible yet: the swarm's best
-            run.result_pos, run.result_total = np.asarray(run.best_pos).copy(), run.best_cost
+            run.result_pos, run.result_total = (
+                np.asarray(run.best_pos).copy(),
+                run.best_cost,
+            )
         run.stalled += 1
         return
     k = int(np.argmin(np.where(feasible, costs, np.inf)))
-    improved = not run.result_feasible or costs[k] < run.result_total * (1.0 - settings.improvement)
+    improved = not run.result_feasible or costs[k] < run.result_total * (
+        1.0 - settings.improvement
+    )
     if not run.result_feasible or costs[k] < run.result_total:
-        run.result_pos, run.result_total, run.result_feasible = run.position[k].copy(), float(costs[k]), True
+        run.result_pos, run.result_total, run.result_feasible = (
+            run.position[k].copy(),
+            float(costs[k]),
+            True,
+        )
     run.stalled = 0 if improved else run.stalled + 1
 
 
 def swarm_moves(rng: np.random.Generator, run: SwarmRun, settings: OptimizerSettings):
     """Which particles take a gradient step, and everyone's swarm velocity (Sec. V)."""
     n = run.position.shape[0]
-    use_gradient = np.ones(n, bool) if settings.mode == "gradient" else rng.random(n) < settings.gradient_probability
+    use_gradient = (
+        np.ones(n, bool)
+        if settings.mode == "gradient"
+        else rng.random(n) < settings.gradient_probability
+    )
     r1 = rng.random(run.position.shape)
     r2 = rng.random(run.position.shape)
     inertia = settings.inertia(run.iteration)
-    velocity = inertia * run.velocity + settings.cognitive * r1 * (run.pbest_pos - run.position) + settings.social * r2 * (run.best_pos - run.position)
+    velocity = (
+        inertia * run.velocity
+        + settings.cognitive * r1 * (run.pbest_pos - run.position)
+        + settings.social * r2 * (run.best_pos - run.position)
+    )
     return use_gradient, velocity
 
 
 def best_design(run: SwarmRun) -> np.ndarray:
-    """The design the run returns: the best seen so far, feasible first (module docstring)."""
+    """The design the run returns: the best seen so far, feasible first (module
+    docstring)."""
     return run.result_pos

@@ -1,8 +1,8 @@
 """Partial gradient of the design objective (paper Sec. V).
 
-``∂/∂p [f_design + regulariser]`` with the IK and adversarial motor values *frozen*: each
-sample's state ``s(p)`` solves ``C_FK(s, p; a) = 0`` at its frozen motors ``a``, so by the
-implicit function theorem ``ds/dp = -(JᵀJ)⁻¹ Jᵀ ∂C/∂p`` with ``J = ∂C/∂s``.
+``∂/∂p [f_design + regulariser]`` with the IK and adversarial motor values *frozen*:
+each sample's state ``s(p)`` solves ``C_FK(s, p; a) = 0`` at its frozen motors ``a``, so
+by the implicit function theorem ``ds/dp = -(JᵀJ)⁻¹ Jᵀ ∂C/∂p`` with ``J = ∂C/∂s``.
 
 We never differentiate through a solve. For a sample term ``g(s, p)`` the chain rule
 ``dg/dp = ∂g/∂p + ∂g/∂s · ds/dp`` is the adjoint form
@@ -24,13 +24,13 @@ from jax.scipy.linalg import cho_factor, cho_solve
 
 from .._engine import programs
 from .._engine.constraints import fk_residual, output_residual
-from .evaluation import Evaluation, regularizer, targets
 from .._engine.geometry import geometry
 from .._engine.jacobian import state_jacobian
 from .._engine.kinematics import solve_single
-from .metrics import culled, thresholds
 from .._engine.model import Mechanism
 from .._engine.singularity import f_sing_value
+from .evaluation import Evaluation, regularizer, targets
+from .metrics import culled, thresholds
 
 
 def _reach_term(mech: Mechanism, goal):
@@ -45,7 +45,9 @@ def _singular_term(mech: Mechanism, th):
     return lambda state, geom: culled(f_sing_value(mech, geom, state), th)
 
 
-def frozen_objective(mech: Mechanism, design, evaluation: Evaluation, alpha) -> jax.Array:
+def frozen_objective(
+    mech: Mechanism, design, evaluation: Evaluation, alpha
+) -> jax.Array:
     """``f_design + regulariser`` at ``design`` with the samples' motors held fixed
     (re-solving each sample's forward kinematics at ``design``)."""
     geom = geometry(mech, design)
@@ -53,10 +55,20 @@ def frozen_objective(mech: Mechanism, design, evaluation: Evaluation, alpha) -> 
     goals = jnp.asarray(targets(mech) / mech.output_scale)
 
     def solved(motors, start):
-        return solve_single(mech, "fk", geom, jax.lax.stop_gradient(motors), jax.lax.stop_gradient(start)).state
+        return solve_single(
+            mech,
+            "fk",
+            geom,
+            jax.lax.stop_gradient(motors),
+            jax.lax.stop_gradient(start),
+        ).state
 
-    f_reach = jax.vmap(lambda g, a, s: _reach_term(mech, g)(solved(a, s), geom))(goals, evaluation.ik_motors, evaluation.ik_states)
-    f_sing = jax.vmap(lambda a, s: _singular_term(mech, th)(solved(a, s), geom))(evaluation.adv_motors, evaluation.adv_states)
+    f_reach = jax.vmap(lambda g, a, s: _reach_term(mech, g)(solved(a, s), geom))(
+        goals, evaluation.ik_motors, evaluation.ik_states
+    )
+    f_sing = jax.vmap(lambda a, s: _singular_term(mech, th)(solved(a, s), geom))(
+        evaluation.adv_motors, evaluation.adv_states
+    )
     return jnp.mean(f_reach + f_sing) + regularizer(mech, design)
 
 
@@ -68,16 +80,25 @@ def _adjoint_term(mech: Mechanism, term, design, motors, state):
     fixed = jax.lax.stop_gradient(geom)
     d_state = jax.grad(term)(state, fixed)
     jac = state_jacobian(mech, fixed, "fk", state)
-    mu = jac @ cho_solve(cho_factor(jac.T @ jac), d_state)  # built from `fixed`: no gradient
+    mu = jac @ cho_solve(
+        cho_factor(jac.T @ jac), d_state
+    )  # built from `fixed`: no gradient
     return term(state, geom) - mu @ fk_residual(mech, geom, motors, state)
 
 
-def frozen_lagrangian(mech: Mechanism, design, evaluation: Evaluation, alpha) -> jax.Array:
-    """Scalar whose gradient in ``design`` is the partial gradient (module docstring)."""
+def frozen_lagrangian(
+    mech: Mechanism, design, evaluation: Evaluation, alpha
+) -> jax.Array:
+    """Scalar whose gradient in ``design`` is the partial gradient (module
+    docstring)."""
     th = thresholds(alpha)
     goals = jnp.asarray(targets(mech) / mech.output_scale)
-    reach = jax.vmap(lambda g, a, s: _adjoint_term(mech, _reach_term(mech, g), design, a, s))
-    sing = jax.vmap(lambda a, s: _adjoint_term(mech, _singular_term(mech, th), design, a, s))
+    reach = jax.vmap(
+        lambda g, a, s: _adjoint_term(mech, _reach_term(mech, g), design, a, s)
+    )
+    sing = jax.vmap(
+        lambda a, s: _adjoint_term(mech, _singular_term(mech, th), design, a, s)
+    )
     f_reach = reach(goals, evaluation.ik_motors, evaluation.ik_states)
     f_sing = sing(evaluation.adv_motors, evaluation.adv_states)
     return jnp.mean(f_reach + f_sing) + regularizer(mech, design)
@@ -91,9 +112,16 @@ def _gradients(mech: Mechanism, designs, evaluation: Evaluation, alpha):
 
 
 def partial_gradient(mech: Mechanism, designs, evaluation: Evaluation, alpha: float):
-    """Partial gradients ``(n_p,)`` or ``(N, n_p)`` for designs evaluated as ``evaluation``
-    (file units: per unit of each design parameter)."""
+    """Partial gradients ``(n_p,)`` or ``(N, n_p)`` for designs evaluated as
+    ``evaluation`` (file units: per unit of each design parameter)."""
     designs = jnp.asarray(designs, dtype=jnp.float64)
     evaluation = Evaluation(*(jnp.asarray(v, dtype=jnp.float64) for v in evaluation))
     alpha = jnp.asarray(alpha, dtype=jnp.float64)
-    return programs.call("partial_gradient", mech, lambda p, ev, a: _gradients(mech, p, ev, a), designs, evaluation, alpha)
+    return programs.call(
+        "partial_gradient",
+        mech,
+        lambda p, ev, a: _gradients(mech, p, ev, a),
+        designs,
+        evaluation,
+        alpha,
+    )

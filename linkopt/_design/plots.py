@@ -1,4 +1,5 @@
-"""Headless figures (matplotlib Agg): motor/end-effector space maps and mechanism drawings.
+"""Headless figures (matplotlib Agg): motor/end-effector space maps and mechanism
+drawings.
 
 Depends on the core, never the reverse. Colours follow the paper's Fig. 2, 4 and 6:
 brighter = closer to a singularity (``f_sing``, log scale, colour bar), black =
@@ -18,11 +19,15 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
-from .evaluation import Evaluation  # noqa: E402
 from .._engine.geometry import rest_state  # noqa: E402
-from .maps import Map2D, motor_map, output_map  # noqa: E402
 from .._engine.model import Mechanism  # noqa: E402
-from .._engine.readout import joint_positions, motor_values, output_values, point_positions  # noqa: E402
+from .._engine.readout import (
+    joint_positions,
+    output_values,
+    point_positions,
+)  # noqa: E402
+from .evaluation import Evaluation  # noqa: E402
+from .maps import Map2D, motor_map, output_map  # noqa: E402
 
 MAGENTA = "#ff00ff"
 PADDING = 0.35
@@ -35,17 +40,45 @@ def _window(points: np.ndarray, low, high, pad: float):
     return low - pad * span, high + pad * span
 
 
-def space_maps(mech: Mechanism, evaluation: Evaluation, resolution: int, design=None) -> tuple[Map2D, Map2D]:
-    """Continuation maps around the target range and the samples (two motors, two outputs)."""
+def space_maps(
+    mech: Mechanism, evaluation: Evaluation, resolution: int, design=None
+) -> tuple[Map2D, Map2D]:
+    """Continuation maps around the target range and the samples (two motors, two
+    outputs)."""
     if mech.num_motors != 2 or mech.num_outputs != 2:
         raise ValueError("space maps need exactly two motors and two outputs")
     rest = rest_state(mech)
-    sample_motors = np.concatenate([evaluation.ik_motors, evaluation.adv_motors]) * mech.motor_scale
-    m_low, m_high = _window(np.vstack([sample_motors, np.zeros((1, 2))]), -0.3, 0.3, PADDING)
+    sample_motors = (
+        np.concatenate([evaluation.ik_motors, evaluation.adv_motors]) * mech.motor_scale
+    )
+    m_low, m_high = _window(
+        np.vstack([sample_motors, np.zeros((1, 2))]), -0.3, 0.3, PADDING
+    )
     rest_out = np.asarray(output_values(mech, rest, design=design))
-    o_low, o_high = _window(np.vstack([rest_out, mech.output_min, mech.output_max]), mech.output_min, mech.output_max, 0.2)
-    motors = motor_map(mech, m_low, m_high, resolution, start_state=rest, start_motors=np.zeros(2), design=design)
-    outputs = output_map(mech, o_low, o_high, resolution, start_state=rest, start_outputs=rest_out, design=design)
+    o_low, o_high = _window(
+        np.vstack([rest_out, mech.output_min, mech.output_max]),
+        mech.output_min,
+        mech.output_max,
+        0.2,
+    )
+    motors = motor_map(
+        mech,
+        m_low,
+        m_high,
+        resolution,
+        start_state=rest,
+        start_motors=np.zeros(2),
+        design=design,
+    )
+    outputs = output_map(
+        mech,
+        o_low,
+        o_high,
+        resolution,
+        start_state=rest,
+        start_outputs=rest_out,
+        design=design,
+    )
     return motors, outputs
 
 
@@ -53,7 +86,15 @@ def _panel(ax, grid: Map2D, norm, title: str, labels):
     extent = [grid.axis0[0], grid.axis0[-1], grid.axis1[0], grid.axis1[-1]]
     ax.set_facecolor("black")
     cmap = plt.get_cmap("viridis").with_extremes(bad="black")
-    image = ax.imshow(grid.f_sing.T, origin="lower", extent=extent, aspect="auto", cmap=cmap, norm=norm, interpolation="nearest")
+    image = ax.imshow(
+        grid.f_sing.T,
+        origin="lower",
+        extent=extent,
+        aspect="auto",
+        cmap=cmap,
+        norm=norm,
+        interpolation="nearest",
+    )
     ax.set_title(title)
     ax.set_xlabel(labels[0])
     ax.set_ylabel(labels[1])
@@ -61,29 +102,64 @@ def _panel(ax, grid: Map2D, norm, title: str, labels):
 
 
 def _inside(mech: Mechanism, outputs: np.ndarray) -> np.ndarray:
-    inside = np.all((outputs >= mech.output_min) & (outputs <= mech.output_max), axis=-1)
+    inside = np.all(
+        (outputs >= mech.output_min) & (outputs <= mech.output_max), axis=-1
+    )
     return np.where(np.isnan(outputs[..., 0]), 0.0, inside.astype(float))
 
 
 def section_maps(mech: Mechanism, evaluation: Evaluation, resolution: int, design=None):
-    """Three motors and three outputs: 2-D sections of both spaces at three values of the
-    third variable (output: the range's ends and middle; motor: the smallest, median and
-    largest third motor value of the IK samples). Returns ``[(motor_map, output_map,
-    motor_cut, output_cut)]``, one per section."""
+    """Three motors and three outputs: 2-D sections of both spaces at three values of
+    the third variable (output: the range's ends and middle; motor: the smallest, median
+    and largest third motor value of the IK samples). Returns
+    ``[(motor_map, output_map, motor_cut, output_cut)]``, one per section."""
     from .maps import sections
 
     if mech.num_motors != 3 or mech.num_outputs != 3:
         raise ValueError("sections need exactly three motors and three outputs")
     rest = rest_state(mech)
     ik_motors = np.asarray(evaluation.ik_motors) * mech.motor_scale
-    sample_motors = np.concatenate([ik_motors, np.asarray(evaluation.adv_motors) * mech.motor_scale])
-    m_low, m_high = _window(np.vstack([sample_motors, np.zeros((1, 3))]), -0.3, 0.3, PADDING)
+    sample_motors = np.concatenate(
+        [ik_motors, np.asarray(evaluation.adv_motors) * mech.motor_scale]
+    )
+    m_low, m_high = _window(
+        np.vstack([sample_motors, np.zeros((1, 3))]), -0.3, 0.3, PADDING
+    )
     rest_out = np.asarray(output_values(mech, rest, design=design))
-    o_low, o_high = _window(np.vstack([rest_out, mech.output_min, mech.output_max]), mech.output_min, mech.output_max, 0.2)
-    b_cuts = [mech.output_min[2], 0.5 * (mech.output_min[2] + mech.output_max[2]), mech.output_max[2]]
+    o_low, o_high = _window(
+        np.vstack([rest_out, mech.output_min, mech.output_max]),
+        mech.output_min,
+        mech.output_max,
+        0.2,
+    )
+    b_cuts = [
+        mech.output_min[2],
+        0.5 * (mech.output_min[2] + mech.output_max[2]),
+        mech.output_max[2],
+    ]
     a_cuts = list(np.quantile(ik_motors[:, 2], [0.0, 0.5, 1.0]))
-    motors = sections(mech, "fk", m_low, m_high, resolution, a_cuts, start_state=rest, start_values=np.zeros(3), design=design)
-    outputs = sections(mech, "bk", o_low, o_high, resolution, b_cuts, start_state=rest, start_values=rest_out, design=design)
+    motors = sections(
+        mech,
+        "fk",
+        m_low,
+        m_high,
+        resolution,
+        a_cuts,
+        start_state=rest,
+        start_values=np.zeros(3),
+        design=design,
+    )
+    outputs = sections(
+        mech,
+        "bk",
+        o_low,
+        o_high,
+        resolution,
+        b_cuts,
+        start_state=rest,
+        start_values=rest_out,
+        design=design,
+    )
     return list(zip(motors, outputs, a_cuts, b_cuts))
 
 
@@ -92,45 +168,135 @@ def _nearest(values: np.ndarray, cuts) -> np.ndarray:
     return np.argmin(np.abs(values[:, None] - np.asarray(cuts)[None, :]), axis=1)
 
 
-def plot_spaces(mech: Mechanism, evaluation: Evaluation, path: str | Path, *, resolution: int = 60, design=None, title: str = "") -> Path:
+def plot_spaces(
+    mech: Mechanism,
+    evaluation: Evaluation,
+    path: str | Path,
+    *,
+    resolution: int = 60,
+    design=None,
+    title: str = "",
+) -> Path:
     """Motor space (left) and end-effector space (right), as the paper's Fig. 2/4/6; for
-    three motors and outputs, one row per 2-D section (:func:`section_maps`), each showing
-    the samples whose third coordinate is nearest to that section."""
+    three motors and outputs, one row per 2-D section (:func:`section_maps`), each
+    showing the samples whose third coordinate is nearest to that section."""
     ik_a = np.asarray(evaluation.ik_motors) * mech.motor_scale
     adv_a = np.asarray(evaluation.adv_motors) * mech.motor_scale
     ik_b = np.asarray(output_values(mech, evaluation.ik_states, design=design))
     adv_b = np.asarray(output_values(mech, evaluation.adv_states, design=design))
     if mech.num_motors == 2 and mech.num_outputs == 2:
         motors, outputs = space_maps(mech, evaluation, resolution, design)
-        rows = [(motors, outputs, "", "", np.ones(len(ik_a), bool), np.ones(len(adv_a), bool))]
+        rows = [
+            (
+                motors,
+                outputs,
+                "",
+                "",
+                np.ones(len(ik_a), bool),
+                np.ones(len(adv_a), bool),
+            )
+        ]
     elif mech.num_motors == 3 and mech.num_outputs == 3:
         rows = []
         cuts = section_maps(mech, evaluation, resolution, design)
         b_cuts = [c[3] for c in cuts]
         for k, (motors, outputs, a_cut, b_cut) in enumerate(cuts):
-            at_a, at_b = f" at {mech.motor_names[2]} = {a_cut:.3g}", f" at {mech.output_names[2]} = {b_cut:.3g}"
-            rows.append((motors, outputs, at_a, at_b, _nearest(ik_b[:, 2], b_cuts) == k, _nearest(adv_b[:, 2], b_cuts) == k))
+            at_a, at_b = (
+                f" at {mech.motor_names[2]} = {a_cut:.3g}",
+                f" at {mech.output_names[2]} = {b_cut:.3g}",
+            )
+            rows.append(
+                (
+                    motors,
+                    outputs,
+                    at_a,
+                    at_b,
+                    _nearest(ik_b[:, 2], b_cuts) == k,
+                    _nearest(adv_b[:, 2], b_cuts) == k,
+                )
+            )
     else:
-        raise ValueError(f"space plots need 2 or 3 motors and as many outputs, not {mech.num_motors} and {mech.num_outputs}")
-    values = np.concatenate([np.concatenate([m.f_sing[m.feasible], o.f_sing[o.feasible]]) for m, o, *_ in rows])
-    norm = LogNorm(vmin=max(np.min(values), 1e-3), vmax=max(np.percentile(values, 99), np.min(values) * 10))
-    fig, axes = plt.subplots(len(rows), 2, figsize=(12, 5.2 * len(rows)), constrained_layout=True, squeeze=False)
-    motor_labels = [f"motor {n} ({'rad' if not lin else 'length'})" for n, lin in zip(mech.motor_names, mech.motor_linear)]
+        raise ValueError(
+            f"space plots need 2 or 3 motors and as many outputs, not {mech.num_motors} and {mech.num_outputs}"
+        )
+    values = np.concatenate(
+        [
+            np.concatenate([m.f_sing[m.feasible], o.f_sing[o.feasible]])
+            for m, o, *_ in rows
+        ]
+    )
+    norm = LogNorm(
+        vmin=max(np.min(values), 1e-3),
+        vmax=max(np.percentile(values, 99), np.min(values) * 10),
+    )
+    fig, axes = plt.subplots(
+        len(rows),
+        2,
+        figsize=(12, 5.2 * len(rows)),
+        constrained_layout=True,
+        squeeze=False,
+    )
+    motor_labels = [
+        f"motor {n} ({'rad' if not lin else 'length'})"
+        for n, lin in zip(mech.motor_names, mech.motor_linear)
+    ]
     output_labels = [f"output {n}" for n in mech.output_names]
     lo, hi = mech.output_min, mech.output_max
-    for (left, right), (motors, outputs, at_a, at_b, ik_rows, adv_rows) in zip(axes, rows):
+    for (left, right), (motors, outputs, at_a, at_b, ik_rows, adv_rows) in zip(
+        axes, rows
+    ):
         _panel(left, motors, norm, "motor space" + at_a, motor_labels)
         image = _panel(right, outputs, norm, "end-effector space" + at_b, output_labels)
         inside = _inside(mech, motors.outputs)
         if 0.0 < inside.max():
-            left.contour(motors.axis0, motors.axis1, inside.T, levels=[0.5], colors=MAGENTA, linewidths=2)
-        right.plot([lo[0], hi[0], hi[0], lo[0], lo[0]], [lo[1], lo[1], hi[1], hi[1], lo[1]], color=MAGENTA, lw=2)
-        for ax, ik, adv in ((left, ik_a[ik_rows], adv_a[adv_rows]), (right, ik_b[ik_rows], adv_b[adv_rows])):
-            ax.scatter(ik[:, 0], ik[:, 1], s=40, facecolors="none", edgecolors="white", linewidths=1.5, label="IK samples", zorder=3)
-            ax.scatter(adv[:, 0], adv[:, 1], s=40, marker="x", color=MAGENTA, linewidths=1.8, label="adversarial samples", zorder=4)
+            left.contour(
+                motors.axis0,
+                motors.axis1,
+                inside.T,
+                levels=[0.5],
+                colors=MAGENTA,
+                linewidths=2,
+            )
+        right.plot(
+            [lo[0], hi[0], hi[0], lo[0], lo[0]],
+            [lo[1], lo[1], hi[1], hi[1], lo[1]],
+            color=MAGENTA,
+            lw=2,
+        )
+        for ax, ik, adv in (
+            (left, ik_a[ik_rows], adv_a[adv_rows]),
+            (right, ik_b[ik_rows], adv_b[adv_rows]),
+        ):
+            ax.scatter(
+                ik[:, 0],
+                ik[:, 1],
+                s=40,
+                facecolors="none",
+                edgecolors="white",
+                linewidths=1.5,
+                label="IK samples",
+                zorder=3,
+            )
+            ax.scatter(
+                adv[:, 0],
+                adv[:, 1],
+                s=40,
+                marker="x",
+                color=MAGENTA,
+                linewidths=1.8,
+                label="adversarial samples",
+                zorder=4,
+            )
         right.legend(loc="upper right", fontsize=8, facecolor="0.85")
-    fig.colorbar(image, ax=axes.ravel().tolist(), label="f_sing (brighter = closer to a singularity)")
-    fig.suptitle(title or f"{mech.name}: f_design = {float(evaluation.f_design):.3g} (reach {float(evaluation.reach):.3g}, singularity {float(evaluation.singularity):.3g})")
+    fig.colorbar(
+        image,
+        ax=axes.ravel().tolist(),
+        label="f_sing (brighter = closer to a singularity)",
+    )
+    fig.suptitle(
+        title
+        or f"{mech.name}: f_design = {float(evaluation.f_design):.3g} (reach {float(evaluation.reach):.3g}, singularity {float(evaluation.singularity):.3g})"
+    )
     path = Path(path)
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -150,25 +316,63 @@ def _draw(ax, mech: Mechanism, design, colour: str, label: str, alpha: float, pl
     points = np.asarray(point_positions(mech, state, design=design))
     u, v = plane
     for b in range(mech.num_bodies):
-        members = [joints[k] for k in range(len(mech.joint_names)) if b in mech.joint_bodies[k]]
-        members += [points[k] for k in range(len(mech.point_names)) if mech.point_bodies[k] == b]
+        members = [
+            joints[k] for k in range(len(mech.joint_names)) if b in mech.joint_bodies[k]
+        ]
+        members += [
+            points[k] for k in range(len(mech.point_names)) if mech.point_bodies[k] == b
+        ]
         coords = np.array(members)[:, [u, v]]
         if b == mech.ground:
-            ax.scatter(coords[:, 0], coords[:, 1], marker="^", s=120, color=colour, alpha=alpha)
+            ax.scatter(
+                coords[:, 0], coords[:, 1], marker="^", s=120, color=colour, alpha=alpha
+            )
             continue
         centre = coords.mean(axis=0)
-        order = np.argsort(np.arctan2(coords[:, 1] - centre[1], coords[:, 0] - centre[0]))
+        order = np.argsort(
+            np.arctan2(coords[:, 1] - centre[1], coords[:, 0] - centre[0])
+        )
         ring = coords[np.append(order, order[0])]
         ax.plot(ring[:, 0], ring[:, 1], "-", color=colour, lw=3, alpha=alpha)
-    ax.scatter(joints[:, u], joints[:, v], s=30, color="white", edgecolors=colour, zorder=3, alpha=alpha)
+    ax.scatter(
+        joints[:, u],
+        joints[:, v],
+        s=30,
+        color="white",
+        edgecolors=colour,
+        zorder=3,
+        alpha=alpha,
+    )
     motor_xy = joints[mech.motor_joints][:, [u, v]]
-    ax.scatter(motor_xy[:, 0], motor_xy[:, 1], marker="s", s=90, facecolors="none", edgecolors=colour, lw=2, alpha=alpha)
-    ax.scatter(points[:, u], points[:, v], marker="*", s=120, color=colour, alpha=alpha, label=label)
+    ax.scatter(
+        motor_xy[:, 0],
+        motor_xy[:, 1],
+        marker="s",
+        s=90,
+        facecolors="none",
+        edgecolors=colour,
+        lw=2,
+        alpha=alpha,
+    )
+    ax.scatter(
+        points[:, u],
+        points[:, v],
+        marker="*",
+        s=120,
+        color=colour,
+        alpha=alpha,
+        label=label,
+    )
 
 
-def plot_mechanism(mech: Mechanism, path: str | Path, *, designs: dict[str, np.ndarray | None] | None = None) -> Path:
-    """The mechanism at rest (joint circles, motor squares, ground triangles, point stars);
-    several designs are overlaid, the first in grey."""
+def plot_mechanism(
+    mech: Mechanism,
+    path: str | Path,
+    *,
+    designs: dict[str, np.ndarray | None] | None = None,
+) -> Path:
+    """The mechanism at rest (joint circles, motor squares, ground triangles, point
+    stars); several designs are overlaid, the first in grey."""
     designs = designs or {"initial": None}
     plane = _plane(mech)
     fig, ax = plt.subplots(figsize=(6.5, 6.5), constrained_layout=True)
@@ -180,7 +384,13 @@ def plot_mechanism(mech: Mechanism, path: str | Path, *, designs: dict[str, np.n
     if kinds == {"position"} and mech.num_outputs == 2:
         idx = [int(c) for c in mech.output_coords]
         if sorted(idx) == list(plane):
-            ax.plot([lo[0], hi[0], hi[0], lo[0], lo[0]], [lo[1], lo[1], hi[1], hi[1], lo[1]], color=MAGENTA, lw=1.5, label="target range")
+            ax.plot(
+                [lo[0], hi[0], hi[0], lo[0], lo[0]],
+                [lo[1], lo[1], hi[1], hi[1], lo[1]],
+                color=MAGENTA,
+                lw=1.5,
+                label="target range",
+            )
     ax.set_aspect("equal")
     ax.set_xlabel("xyz"[plane[0]])
     ax.set_ylabel("xyz"[plane[1]])
@@ -197,8 +407,19 @@ def plot_convergence(history: list[dict], path: str | Path, *, title: str = "") 
     it = [h["iteration"] for h in history]
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
     floor = 1e-16
-    for key, style in (("best_total", "k-"), ("best_f_design", "b-"), ("reach", "g--"), ("singularity", "m--"), ("regularizer", "0.5")):
-        ax.semilogy(it, [max(h[key], floor) for h in history], style, label=key.replace("_", " "))
+    for key, style in (
+        ("best_total", "k-"),
+        ("best_f_design", "b-"),
+        ("reach", "g--"),
+        ("singularity", "m--"),
+        ("regularizer", "0.5"),
+    ):
+        ax.semilogy(
+            it,
+            [max(h[key], floor) for h in history],
+            style,
+            label=key.replace("_", " "),
+        )
     ax.set_xlabel("iteration")
     ax.set_ylabel("value (best particle)")
     ax.set_title(title)

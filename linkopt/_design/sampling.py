@@ -5,15 +5,15 @@ kinematics solution, with exact gradients through the implicit function theorem:
 ``ds/da = -(JᵀJ)⁻¹ Jᵀ ∂C_FK/∂a`` (including the singularity terms, where the paper used
 finite differences). Everything is homogenised.
 
-The minimiser (:func:`minimise`) is a damped quasi-Newton method on the 1-3 motor values:
-step ``δ = -(H + λI)⁻¹ g`` with ``‖δ‖ ≤ r``, accepted on an Armijo decrease, else ``λ``
-grows. ``H`` is the Gauss–Newton matrix of the reach residual for IK samples and a BFGS
-estimate for adversarial samples (whose ``f_sing`` has no usable exact Hessian). Every
-trial forward solve starts from the linear prediction ``s + (ds/da) δ``, and a trial is
-rejected when the solved state departs from that prediction by more than half of
-``(ds/da) δ``: that is how a step that crossed a forward singularity onto another
-assembly branch shows up. The paper's BFGS with an unguarded step could cross (its
-Fig. 4); this guard is our addition.
+The minimiser (:func:`minimise`) is a damped quasi-Newton method on the 1-3 motor
+values: step ``δ = -(H + λI)⁻¹ g`` with ``‖δ‖ ≤ r``, accepted on an Armijo decrease,
+else ``λ`` grows. ``H`` is the Gauss–Newton matrix of the reach residual for IK samples
+and a BFGS estimate for adversarial samples (whose ``f_sing`` has no usable exact
+Hessian). Every trial forward solve starts from the linear prediction ``s + (ds/da) δ``,
+and a trial is rejected when the solved state departs from that prediction by more than
+half of ``(ds/da) δ``: that is how a step that crossed a forward singularity onto
+another assembly branch shows up. The paper's BFGS with an unguarded step could cross
+(its Fig. 4); this guard is our addition.
 
 The step bound ``r`` is a trust radius: it starts at the file's ``max_step``, doubles
 after an accepted step that it had to shorten (up to ``RADIUS_GROWTH · max_step``) and
@@ -28,9 +28,9 @@ Under ``vmap`` a ``while_loop`` steps every lane until the last one stops, so a 
 costs its slowest lane's iterations times its width. :func:`minimise_queue` runs ``L``
 lanes through ``width`` slots instead, each lane's IK minimisation and then its
 adversarial one from the IK result: a slot moves on to its lane's second phase, or to
-the next waiting lane, as soon as a phase stops, and each phase takes the steps it
-takes in :func:`minimise` (the flat batch rounds differently from nested ``vmap``:
-five-bar samples agree to about 1e-10, 3-motor neck samples to 1e-6 after 40 BFGS steps).
+the next waiting lane, as soon as a phase stops, and each phase takes the steps it takes
+in :func:`minimise` (the flat batch rounds differently from nested ``vmap``: five-bar
+samples agree to about 1e-10, 3-motor neck samples to 1e-6 after 40 BFGS steps).
 Iteration counts are spread: five-bar IK lanes from the rest pose stop after 5-12
 iterations when their target is reachable and run to the cap of 40 when it is not;
 adversarial lanes stop after 14-40.
@@ -45,7 +45,8 @@ step): for 10 five-bar designs it took 2.0 s to load from the compilation cache 
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -56,9 +57,9 @@ from .._engine.constraints import fk_residual, output_residual, output_values
 from .._engine.geometry import Geometry
 from .._engine.jacobian import state_jacobian
 from .._engine.kinematics import solve_single
-from .metrics import Thresholds, attractive, barrier, culled
 from .._engine.model import Mechanism
 from .._engine.singularity import f_sing_value
+from .metrics import Thresholds, attractive, barrier, culled
 
 ARMIJO = 1e-4
 GRADIENT_TOL = 1e-9
@@ -95,7 +96,9 @@ class _Iterate(NamedTuple):
     done: Bool[Array, ""]
 
 
-def state_motor_jacobian(mech: Mechanism, geom: Geometry, motors, state) -> Float[Array, "S M"]:
+def state_motor_jacobian(
+    mech: Mechanism, geom: Geometry, motors, state
+) -> Float[Array, "S M"]:
     """``ds/da`` at a solved state (eq. 2, least-squares form for tall Jacobians)."""
     jac_s = state_jacobian(mech, geom, "fk", state)
     jac_a = jax.jacfwd(lambda a: fk_residual(mech, geom, a, state))(motors)
@@ -109,7 +112,9 @@ def state_motor_jacobian(mech: Mechanism, geom: Geometry, motors, state) -> Floa
 Objective = Callable[..., tuple]
 
 
-def evaluate_point(objective: Objective, mech: Mechanism, geom: Geometry, motors, state):
+def evaluate_point(
+    objective: Objective, mech: Mechanism, geom: Geometry, motors, state
+):
     ds_da = state_motor_jacobian(mech, geom, motors, state)
     f_sing, d_f_sing = jax.value_and_grad(lambda s: f_sing_value(mech, geom, s))(state)
     value, gradient, model = objective(motors, state, ds_da, f_sing, d_f_sing)
@@ -120,10 +125,29 @@ def _unevaluated(motors0: Float[Array, " M"], state0: Float[Array, " S"]) -> _It
     """An iterate at a start point whose objective is not computed yet: the next
     :func:`_step` with ``fresh`` evaluates it."""
     size, zero = motors0.shape[0], jnp.zeros(())
-    return _Iterate(motors0, state0, zero, jnp.zeros(size), jnp.eye(size), jnp.zeros(state0.shape + (size,)), zero, zero, zero, jnp.asarray(0), jnp.asarray(False))
+    return _Iterate(
+        motors0,
+        state0,
+        zero,
+        jnp.zeros(size),
+        jnp.eye(size),
+        jnp.zeros(state0.shape + (size,)),
+        zero,
+        zero,
+        zero,
+        jnp.asarray(0),
+        jnp.asarray(False),
+    )
 
 
-def _step(mech: Mechanism, geom: Geometry, objective: Objective, bfgs, it: _Iterate, fresh=False) -> _Iterate:
+def _step(
+    mech: Mechanism,
+    geom: Geometry,
+    objective: Objective,
+    bfgs,
+    it: _Iterate,
+    fresh=False,
+) -> _Iterate:
     """One damped quasi-Newton step with its trial forward solve (module docstring).
 
     With ``fresh`` the step has length zero and is accepted: the iterate becomes the
@@ -139,24 +163,42 @@ def _step(mech: Mechanism, geom: Geometry, objective: Objective, bfgs, it: _Iter
     delta = -jnp.linalg.solve(system, it.gradient)
     norm = jnp.sqrt(delta @ delta)
     shortened = norm > it.radius
-    delta = jnp.where(fresh, 0.0, delta * jnp.minimum(1.0, it.radius / jnp.maximum(norm, 1e-300)))
+    delta = jnp.where(
+        fresh, 0.0, delta * jnp.minimum(1.0, it.radius / jnp.maximum(norm, 1e-300))
+    )
     predicted = jnp.where(fresh, 0.0, it.ds_da @ delta)
-    trial = solve_single(mech, "fk", geom, it.motors + delta, it.state + predicted, TRIAL_ITERATIONS)
+    trial = solve_single(
+        mech, "fk", geom, it.motors + delta, it.state + predicted, TRIAL_ITERATIONS
+    )
     state = jnp.where(fresh, it.state, trial.state)
     departure = jnp.sqrt(jnp.sum((trial.state - it.state - predicted) ** 2))
     on_branch = departure <= BRANCH_TOL * jnp.sqrt(predicted @ predicted) + 1e-10
-    value, gradient, model, ds_da, f_sing = evaluate_point(objective, mech, geom, it.motors + delta, state)
+    value, gradient, model, ds_da, f_sing = evaluate_point(
+        objective, mech, geom, it.motors + delta, state
+    )
     decrease = value <= it.value + ARMIJO * (it.gradient @ delta)
     accept = fresh | (trial.converged & on_branch & decrease & jnp.isfinite(value))
     y = gradient - it.gradient
     curvature = y @ delta
     hb = it.hessian @ delta
-    updated = it.hessian - jnp.outer(hb, hb) / (delta @ hb) + jnp.outer(y, y) / jnp.where(curvature > 0, curvature, 1.0)
+    updated = (
+        it.hessian
+        - jnp.outer(hb, hb) / (delta @ hb)
+        + jnp.outer(y, y) / jnp.where(curvature > 0, curvature, 1.0)
+    )
     quasi_newton = jnp.where(curvature > 1e-12, updated, it.hessian)
     model = jnp.where(bfgs, jnp.where(fresh, jnp.eye(size), quasi_newton), model)
     pick = lambda new, old: jnp.where(accept, new, old)  # noqa: E731
-    damping = jnp.where(accept, jnp.maximum(it.damping / 3.0, 1e-9), it.damping * 4.0 + 1e-6)
-    radius = jnp.where(accept, jnp.where(shortened, jnp.minimum(2.0 * it.radius, RADIUS_GROWTH * max_step), it.radius), jnp.maximum(it.radius / 2.0, max_step))
+    damping = jnp.where(
+        accept, jnp.maximum(it.damping / 3.0, 1e-9), it.damping * 4.0 + 1e-6
+    )
+    radius = jnp.where(
+        accept,
+        jnp.where(
+            shortened, jnp.minimum(2.0 * it.radius, RADIUS_GROWTH * max_step), it.radius
+        ),
+        jnp.maximum(it.radius / 2.0, max_step),
+    )
     small = jnp.max(jnp.abs(pick(gradient, it.gradient))) < GRADIENT_TOL
     stalled = accept & ~shortened & (it.value - value <= VALUE_RTOL * jnp.abs(value))
     return _Iterate(
@@ -174,7 +216,7 @@ def _step(mech: Mechanism, geom: Geometry, objective: Objective, bfgs, it: _Iter
     )
 
 
-def _finished(it: _Iterate, iterations) -> Bool[Array, "..."]:
+def _finished(it: _Iterate, iterations) -> Bool[Array, ...]:
     """Whether an iterate stops: converged, stalled or at the iteration cap."""
     return it.done | (it.iteration >= iterations)
 
@@ -183,21 +225,42 @@ def _sample(it: _Iterate) -> Sample:
     return Sample(it.motors, it.state, it.value, it.f_sing, it.iteration)
 
 
-def minimise(mech: Mechanism, geom: Geometry, objective: Objective, motors0, state0, iterations: int, bfgs: bool) -> Sample:
-    """Minimise ``objective`` over motors from a solved ``(motors0, state0)`` (see module doc)."""
+def minimise(
+    mech: Mechanism,
+    geom: Geometry,
+    objective: Objective,
+    motors0,
+    state0,
+    iterations: int,
+    bfgs: bool,
+) -> Sample:
+    """Minimise ``objective`` over motors from a solved ``(motors0, state0)`` (see
+    module doc)."""
     it0 = _step(mech, geom, objective, bfgs, _unevaluated(motors0, state0), fresh=True)
-    final = jax.lax.while_loop(lambda it: ~_finished(it, iterations), lambda it: _step(mech, geom, objective, bfgs, it), it0)
+    final = jax.lax.while_loop(
+        lambda it: ~_finished(it, iterations),
+        lambda it: _step(mech, geom, objective, bfgs, it),
+        it0,
+    )
     return _sample(final)
 
 
 def _where(mask: Bool[Array, " W"], new, old):
-    """``new`` where ``mask`` else ``old``, leaf by leaf, ``mask`` on the leading axis."""
-    return jax.tree_util.tree_map(lambda n, o: jnp.where(mask.reshape(mask.shape + (1,) * (n.ndim - 1)), n, o), new, old)
+    """``new`` where ``mask`` else ``old``, leaf by leaf, ``mask`` on the leading
+    axis."""
+    return jax.tree_util.tree_map(
+        lambda n, o: jnp.where(mask.reshape(mask.shape + (1,) * (n.ndim - 1)), n, o),
+        new,
+        old,
+    )
 
 
 def _store(out: Sample, lane: Int[Array, " W"], it: _Iterate) -> Sample:
-    """``out`` with row ``lane[w]`` set to slot ``w``'s sample; lane ``L`` is dropped."""
-    return jax.tree_util.tree_map(lambda o, r: o.at[lane].set(r, mode="drop"), out, _sample(it))
+    """``out`` with row ``lane[w]`` set to slot ``w``'s sample; lane ``L`` is
+    dropped."""
+    return jax.tree_util.tree_map(
+        lambda o, r: o.at[lane].set(r, mode="drop"), out, _sample(it)
+    )
 
 
 def minimise_queue(
@@ -213,20 +276,23 @@ def minimise_queue(
 
     Each lane first minimises from ``(motors0, state0)`` (phase one, Gauss–Newton model,
     at most ``iterations[0]`` steps), then from phase one's result (phase two, BFGS, at
-    most ``iterations[1]`` steps). ``problem(lane, second, anchor) -> (geom, objective)``
-    builds a lane's problem from its leaf-wise slice of ``lanes`` (a pytree with leading
-    axis ``L``), ``second`` (traced: phase two) and ``anchor`` (phase one's motors, for
-    phase two). Each phase takes the steps it takes under ``vmap(minimise)``; a slot
-    whose lane has finished phase one starts phase two at once, and one that has
-    finished phase two takes the next waiting lane, so a step costs a batch ``width``
-    wide, not ``L``. Returns both phases' ``L`` samples in lane order.
+    most ``iterations[1]`` steps).
+    ``problem(lane, second, anchor) -> (geom, objective)`` builds a lane's problem from
+    its leaf-wise slice of ``lanes`` (a pytree with leading axis ``L``), ``second``
+    (traced: phase two) and ``anchor`` (phase one's motors, for phase two). Each phase
+    takes the steps it takes under ``vmap(minimise)``; a slot whose lane has finished
+    phase one starts phase two at once, and one that has finished phase two takes the
+    next waiting lane, so a step costs a batch ``width`` wide, not ``L``. Returns both
+    phases' ``L`` samples in lane order.
     """
     count = motors0.shape[0]
     width = min(width, count)
     take = lambda tree, index: jax.tree_util.tree_map(lambda a: a[index], tree)  # noqa: E731
     caps = jnp.asarray(iterations)
 
-    blank = jax.vmap(_unevaluated)(motors0, state0)  # each lane's start, to be evaluated
+    blank = jax.vmap(_unevaluated)(
+        motors0, state0
+    )  # each lane's start, to be evaluated
 
     def step(lane, second, anchor, fresh, it):
         geom, objective = problem(lane, second, anchor)
@@ -237,8 +303,13 @@ def minimise_queue(
         slots = jax.vmap(step)(slot_lanes, second, anchor, fresh, slots)
         finished = (owner >= 0) & _finished(slots, caps[second.astype(int)])
         first_done, second_done = finished & ~second, finished & second
-        outs = (_store(outs[0], jnp.where(first_done, owner, count), slots), _store(outs[1], jnp.where(second_done, owner, count), slots))
-        anchor = jnp.where(first_done[:, None], slots.motors, anchor)  # phase two starts where phase one ended
+        outs = (
+            _store(outs[0], jnp.where(first_done, owner, count), slots),
+            _store(outs[1], jnp.where(second_done, owner, count), slots),
+        )
+        anchor = jnp.where(
+            first_done[:, None], slots.motors, anchor
+        )  # phase two starts where phase one ended
         second, fresh = second | first_done, first_done
         free = second_done | (owner < 0)
         incoming = upcoming + jnp.cumsum(free) - 1
@@ -248,12 +319,30 @@ def minimise_queue(
         slot_lanes = _where(fill, take(lanes, source), slot_lanes)
         second, fresh = second & ~fill, fresh | fill
         owner = jnp.where(fill, incoming, jnp.where(free, -1, owner))
-        return slots, second, anchor, fresh, slot_lanes, owner, upcoming + jnp.sum(free), outs
+        return (
+            slots,
+            second,
+            anchor,
+            fresh,
+            slot_lanes,
+            owner,
+            upcoming + jnp.sum(free),
+            outs,
+        )
 
     first = jnp.arange(width)
     out = _sample(blank)
     no = jnp.zeros(width, bool)
-    carry = (take(blank, first), no, motors0[first], ~no, take(lanes, first), first, jnp.asarray(width), (out, out))
+    carry = (
+        take(blank, first),
+        no,
+        motors0[first],
+        ~no,
+        take(lanes, first),
+        first,
+        jnp.asarray(width),
+        (out, out),
+    )
     carry = jax.lax.while_loop(lambda c: jnp.any(c[5] >= 0), body, carry)
     return carry[7]
 
@@ -264,20 +353,30 @@ def ik_objective(mech: Mechanism, geom: Geometry, target, th: Thresholds) -> Obj
     def objective(motors, state, ds_da, f_sing, d_f_sing):
         residual = output_residual(mech, geom, target, state)
         # ∂r/∂s · ds/da as M forward tangents along the columns of ds/da
-        jac = jax.jacfwd(lambda d: output_residual(mech, geom, target, state + ds_da @ d))(jnp.zeros(ds_da.shape[1]))
+        jac = jax.jacfwd(
+            lambda d: output_residual(mech, geom, target, state + ds_da @ d)
+        )(jnp.zeros(ds_da.shape[1]))
         term, slope = jax.value_and_grad(culled)(f_sing, th)
-        return 0.5 * residual @ residual + term, jac.T @ residual + slope * (d_f_sing @ ds_da), jac.T @ jac
+        return (
+            0.5 * residual @ residual + term,
+            jac.T @ residual + slope * (d_f_sing @ ds_da),
+            jac.T @ jac,
+        )
 
     return objective
 
 
-def adversarial_objective(mech: Mechanism, geom: Geometry, anchor_motors, low, high, th: Thresholds) -> Objective:
+def adversarial_objective(
+    mech: Mechanism, geom: Geometry, anchor_motors, low, high, th: Thresholds
+) -> Objective:
     """Eq. 5: ``f_sing^a(s) + w₁ ½|a - a_IK|² + w₂ R₂(s)``."""
     w_motion, w_range = mech.evaluation.motion_weight, mech.evaluation.range_weight
 
     def objective(motors, state, ds_da, f_sing, d_f_sing):
         term, slope = jax.value_and_grad(attractive)(f_sing, th)
-        wall, d_wall = jax.value_and_grad(lambda s: barrier(output_values(mech, geom, s), low, high))(state)
+        wall, d_wall = jax.value_and_grad(
+            lambda s: barrier(output_values(mech, geom, s), low, high)
+        )(state)
         offset = motors - anchor_motors
         value = term + w_range * wall + 0.5 * w_motion * offset @ offset
         gradient = (slope * d_f_sing + w_range * d_wall) @ ds_da + w_motion * offset
@@ -291,6 +390,8 @@ def either(first: Objective, second: Objective, use_second) -> Objective:
     (both are computed: the shared ``f_sing`` makes the rest cheap)."""
 
     def objective(*args):
-        return jax.tree_util.tree_map(lambda a, b: jnp.where(use_second, b, a), first(*args), second(*args))
+        return jax.tree_util.tree_map(
+            lambda a, b: jnp.where(use_second, b, a), first(*args), second(*args)
+        )
 
     return objective

@@ -19,4 +19,10 @@ from pyswarms.backend.handlers import BoundaryHandler  # noqa: E402
 from pyswarms.backend.operators import compute_pbest, compute_position  # noqa: E402
 from pyswarms.backend.topology import Star  # noqa: E402
 
-__all__ = ["BoundaryHandler", "Star", "compute_pbest", "compute_position", "create_swarm"]
+__all__ = [
+    "BoundaryHandler",
+    "Star",
+    "compute_pbest",
+    "compute_position",
+    "create_swarm",
+]

@@ -2,9 +2,9 @@
 
 The paper's sparse samples carry no guarantee (its Sec. VII). Here the target box is
 gridded (``resolution`` points per output) and solved by backward-kinematics
-continuation from the rest pose (:func:`linkopt._design.maps.continuation_grid`, batched). A
-design passes when every cell is reached on the rest branch (coverage 1) and every cell
-has ``f_sing < α₋``, the threshold below which the culled metric is zero.
+continuation from the rest pose (:func:`linkopt._design.maps.continuation_grid`,
+batched). A design passes when every cell is reached on the rest branch (coverage 1) and
+every cell has ``f_sing < α₋``, the threshold below which the culled metric is zero.
 """
 
 from __future__ import annotations
@@ -13,13 +13,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .evaluation import alpha_minus
 from .._engine.geometry import rest_state
 from .._engine.kinematics import solve_bk, solve_bk_path
-from .maps import continuation_grid
 from .._engine.model import Mechanism
 from .._engine.readout import output_values
 from .._engine.singularity import singular_values
+from .evaluation import alpha_minus
+from .maps import continuation_grid
 
 ENTRY_STEPS = 40
 
@@ -47,10 +47,14 @@ def _entry_state(mech: Mechanism, design, box_point: np.ndarray):
 
 
 def verify(mech: Mechanism, design=None, resolution: int | None = None) -> Verification:
-    """Grid the target range and check coverage and singularity distance (see module doc)."""
+    """Grid the target range and check coverage and singularity distance (see module
+    doc)."""
     k = mech.num_outputs
     resolution = resolution or (41 if k <= 2 else 13)
-    axes = [np.linspace(lo, hi, resolution) for lo, hi in zip(mech.output_min, mech.output_max)]
+    axes = [
+        np.linspace(lo, hi, resolution)
+        for lo, hi in zip(mech.output_min, mech.output_max)
+    ]
     values = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
     rest_out = np.asarray(output_values(mech, rest_state(mech), design=design))
     cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, rest_out))
@@ -58,7 +62,9 @@ def verify(mech: Mechanism, design=None, resolution: int | None = None) -> Verif
     shape = values.shape[:-1]
     if entered:
         solve = lambda v, s: solve_bk(mech, v, start=s, design=design)  # noqa: E731
-        states, feasible = continuation_grid(solve, values, cell, state, chunk=max(64, 2 * resolution ** max(k - 1, 1)))
+        states, feasible = continuation_grid(
+            solve, values, cell, state, chunk=max(64, 2 * resolution ** max(k - 1, 1))
+        )
     else:
         states, feasible = np.zeros(shape + state.shape), np.zeros(shape, dtype=bool)
     threshold = alpha_minus(mech)
@@ -67,7 +73,11 @@ def verify(mech: Mechanism, design=None, resolution: int | None = None) -> Verif
         sigmas = np.asarray(singular_values(mech, states[feasible], design=design))
         f = np.sum(1.0 / sigmas, axis=1)
         worst = reached[int(np.argmax(f))]
-        max_f, min_fk, min_bk = float(np.max(f)), float(np.min(sigmas[:, 0])), float(np.min(sigmas[:, 1]))
+        max_f, min_fk, min_bk = (
+            float(np.max(f)),
+            float(np.min(sigmas[:, 0])),
+            float(np.min(sigmas[:, 1])),
+        )
     else:
         worst, max_f, min_fk, min_bk = np.full(k, np.nan), float("inf"), 0.0, 0.0
     coverage = float(np.mean(feasible))

@@ -34,8 +34,8 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import one_blas_thread
-from .evaluation import Evaluation, alpha_minus, evaluate
 from .._engine.model import Mechanism
+from .evaluation import Evaluation, alpha_minus, evaluate
 from .partial import partial_gradient
 
 _MECHANISM: Mechanism | None = None  # set in each worker process by _initialise
@@ -61,43 +61,84 @@ class Workers:
 
     def __init__(self, mech: Mechanism, count: int = 1):
         if count < 1:
-            raise ValueError(f"count must be a positive number of processes, got {count}")
+            raise ValueError(
+                f"count must be a positive number of processes, got {count}"
+            )
         self.mech = mech
         self.count = count
         self._pool = None
-        self._early: tuple | None = None  # (designs, evaluation, alpha, gradient) of a first chunk
+        self._early: tuple | None = (
+            None  # (designs, evaluation, alpha, gradient) of a first chunk
+        )
         if count > 1:
-            context = multiprocessing.get_context("spawn")  # fork would copy JAX's threads
-            self._pool = context.Pool(count - 1, initializer=_initialise, initargs=(mech,))
+            context = multiprocessing.get_context(
+                "spawn"
+            )  # fork would copy JAX's threads
+            self._pool = context.Pool(
+                count - 1, initializer=_initialise, initargs=(mech,)
+            )
 
     def _chunks(self, n: int) -> list[slice]:
         bounds = np.linspace(0, n, min(self.count, n) + 1).round().astype(int)
         return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
     def evaluate(self, designs: Float[Array, "N n_p"]) -> Evaluation:
-        """:func:`linkopt._design.evaluation.evaluate` of a batch of designs, as numpy arrays."""
+        """:func:`linkopt._design.evaluation.evaluate` of a batch of designs, as numpy
+        arrays."""
         designs = np.asarray(designs, dtype=float)
         chunks = [designs[c] for c in self._chunks(len(designs))]
-        pending = self._pool.map_async(_evaluate_chunk, chunks[1:]) if self._pool is not None and len(chunks) > 1 else None
+        pending = (
+            self._pool.map_async(_evaluate_chunk, chunks[1:])
+            if self._pool is not None and len(chunks) > 1
+            else None
+        )
         with one_blas_thread():
             first = jax.tree_util.tree_map(np.asarray, evaluate(self.mech, chunks[0]))
-            if pending is not None and not pending.ready():  # idle until the workers answer
+            if (
+                pending is not None and not pending.ready()
+            ):  # idle until the workers answer
                 alpha = alpha_minus(self.mech)
-                self._early = (chunks[0], first, alpha, self._gradient(chunks[0], first, alpha))
+                self._early = (
+                    chunks[0],
+                    first,
+                    alpha,
+                    self._gradient(chunks[0], first, alpha),
+                )
         return _concatenate([first] + (pending.get() if pending is not None else []))
 
-    def _gradient(self, designs: np.ndarray, evaluation: Evaluation, alpha: float) -> np.ndarray:
+    def _gradient(
+        self, designs: np.ndarray, evaluation: Evaluation, alpha: float
+    ) -> np.ndarray:
         early = self._early
-        if early is not None and early[2] == alpha and np.array_equal(early[0], designs) and all(np.array_equal(a, b, equal_nan=True) for a, b in zip(early[1], evaluation)):
+        if (
+            early is not None
+            and early[2] == alpha
+            and np.array_equal(early[0], designs)
+            and all(
+                np.array_equal(a, b, equal_nan=True)
+                for a, b in zip(early[1], evaluation)
+            )
+        ):
             return early[3]
         return np.asarray(partial_gradient(self.mech, designs, evaluation, alpha))
 
-    def partial_gradient(self, designs: Float[Array, "N n_p"], evaluation: Evaluation, alpha: float) -> np.ndarray:
-        """:func:`linkopt._design.partial.partial_gradient` of a batch, shape ``(N, n_p)``, chunk
-        by chunk in this process (module docstring)."""
+    def partial_gradient(
+        self, designs: Float[Array, "N n_p"], evaluation: Evaluation, alpha: float
+    ) -> np.ndarray:
+        """:func:`linkopt._design.partial.partial_gradient` of a batch, shape
+        ``(N, n_p)``, chunk by chunk in this process (module docstring)."""
         designs = np.asarray(designs, dtype=float)
         with one_blas_thread():
-            return np.concatenate([self._gradient(designs[c], jax.tree_util.tree_map(lambda a, c=c: a[c], evaluation), alpha) for c in self._chunks(len(designs))])
+            return np.concatenate(
+                [
+                    self._gradient(
+                        designs[c],
+                        jax.tree_util.tree_map(lambda a, c=c: a[c], evaluation),
+                        alpha,
+                    )
+                    for c in self._chunks(len(designs))
+                ]
+            )
 
     def close(self) -> None:
         if self._pool is not None:

@@ -1,8 +1,8 @@
 """Assembly of the constraint vectors ``C_FK(a, s)`` and ``C_BK(b, s)`` (paper Sec. II).
 
 Row order (static for a mechanism): one unit-norm row per body quaternion, six rows
-pinning the ground (origin and quaternion vector part), the passive rows of every
-joint grouped by family in :data:`linkopt._engine.model.JOINT_ROWS` order, then one row per
+pinning the ground (origin and quaternion vector part), the passive rows of every joint
+grouped by family in :data:`linkopt._engine.model.JOINT_ROWS` order, then one row per
 motor (FK) or per output (BK). Backward kinematics keeps every motor's joint as a
 passive joint and swaps the motor rows for output rows, so with as many motors as
 outputs both Jacobians have the same shape. All inputs are homogenised.
@@ -28,25 +28,37 @@ from .model import JOINT_ROWS, Mechanism
 from .quaternion import rotate
 
 
-def body_frames(state: Float[Array, " S"]) -> tuple[Float[Array, "B 3"], Float[Array, "B 4"]]:
+def body_frames(
+    state: Float[Array, " S"],
+) -> tuple[Float[Array, "B 3"], Float[Array, "B 4"]]:
     bodies = state.reshape(-1, 7)
     return bodies[:, :3], bodies[:, 3:]
 
 
 def _joint_frames(mech: Mechanism, geom: Geometry, state, index: np.ndarray):
-    """Per-joint arguments ``(x_i, q_i, r_i, x_j, q_j, r_j, n, u, n2)`` for joints ``index``."""
+    """Per-joint arguments ``(x_i, q_i, r_i, x_j, q_j, r_j, n, u, n2)`` for joints
+    ``index``."""
     x, q = body_frames(state)
     bi, bj = mech.joint_bodies[index, 0], mech.joint_bodies[index, 1]
     anchor = geom.anchors[index]
     return (
-        x[bi], q[bi], anchor - geom.origins[bi],
-        x[bj], q[bj], anchor - geom.origins[bj],
-        geom.axes[index], geom.helpers[index], geom.axes2[index],
+        x[bi],
+        q[bi],
+        anchor - geom.origins[bi],
+        x[bj],
+        q[bj],
+        anchor - geom.origins[bj],
+        geom.axes[index],
+        geom.helpers[index],
+        geom.axes2[index],
     )
 
 
-def passive_residual(mech: Mechanism, geom: Geometry, state: Float[Array, " S"]) -> Float[Array, " R"]:
-    """Quaternion norms, ground pin and every joint's passive rows (no motors, no outputs)."""
+def passive_residual(
+    mech: Mechanism, geom: Geometry, state: Float[Array, " S"]
+) -> Float[Array, " R"]:
+    """Quaternion norms, ground pin and every joint's passive rows (no motors, no
+    outputs)."""
     x, q = body_frames(state)
     rows = [
         jnp.sum(q * q, axis=1) - 1.0,
@@ -79,25 +91,33 @@ def _motor_rows(mech: Mechanism, geom: Geometry, state, motors):
     rotary = np.flatnonzero(~mech.motor_linear)
 
     def angles(index):
-        _, qi, _, _, qj, _, n, u, _ = _joint_frames(mech, geom, state, mech.motor_joints[index])
+        _, qi, _, _, qj, _, n, u, _ = _joint_frames(
+            mech, geom, state, mech.motor_joints[index]
+        )
         if motors is None:
             return jax.vmap(joint_types.relative_angle)(qi, qj, n, u)
         return jax.vmap(joint_types.angle_error)(qi, qj, n, u, motors[index])
 
     def shifts(index):
-        xi, qi, ri, xj, qj, rj, n, _, _ = _joint_frames(mech, geom, state, mech.motor_joints[index])
+        xi, qi, ri, xj, qj, rj, n, _, _ = _joint_frames(
+            mech, geom, state, mech.motor_joints[index]
+        )
         value = jax.vmap(joint_types.slide)(xi, qi, ri, xj, qj, rj, n)
         return value if motors is None else value - motors[index]
 
     return _combine(mech.num_motors, [(rotary, angles), (linear, shifts)])
 
 
-def motor_values(mech: Mechanism, geom: Geometry, state: Float[Array, " S"]) -> Float[Array, " M"]:
+def motor_values(
+    mech: Mechanism, geom: Geometry, state: Float[Array, " S"]
+) -> Float[Array, " M"]:
     """Motor values read off a state (homogenised; rad for revolute motors)."""
     return _motor_rows(mech, geom, state, None)
 
 
-def motor_residual(mech: Mechanism, geom: Geometry, motors, state) -> Float[Array, " M"]:
+def motor_residual(
+    mech: Mechanism, geom: Geometry, motors, state
+) -> Float[Array, " M"]:
     """One row per motor: wrapped angle error (revolute) or slide error (linear)."""
     return _motor_rows(mech, geom, state, motors)
 
@@ -126,22 +146,33 @@ def _output_rows(mech: Mechanism, geom: Geometry, state, outputs):
     tait_bryan = np.flatnonzero((mech.output_joints >= 0) & (mech.output_coords >= 0))
 
     def coords(index):
-        world = _point_world(mech, geom, state)[mech.output_points[index], mech.output_coords[index]]
+        world = _point_world(mech, geom, state)[
+            mech.output_points[index], mech.output_coords[index]
+        ]
         return world if outputs is None else world - outputs[index]
 
     def angles(index):
-        _, qi, _, _, qj, _, n, u, _ = _joint_frames(mech, geom, state, mech.output_joints[index])
+        _, qi, _, _, qj, _, n, u, _ = _joint_frames(
+            mech, geom, state, mech.output_joints[index]
+        )
         if outputs is None:
             return jax.vmap(joint_types.relative_angle)(qi, qj, n, u)
         return jax.vmap(joint_types.angle_error)(qi, qj, n, u, outputs[index])
 
     def sequence(index):
-        _, qi, _, _, qj, _, n, _, n2 = _joint_frames(mech, geom, state, mech.output_joints[index])
+        _, qi, _, _, qj, _, n, _, n2 = _joint_frames(
+            mech, geom, state, mech.output_joints[index]
+        )
         every = jax.vmap(joint_types.tait_bryan)(qi, qj, n, n2)
-        value = jnp.stack([every[g, int(k)] for g, k in enumerate(mech.output_coords[index])])
+        value = jnp.stack(
+            [every[g, int(k)] for g, k in enumerate(mech.output_coords[index])]
+        )
         return value if outputs is None else joint_types.wrap(value - outputs[index])
 
-    return _combine(mech.num_outputs, [(positional, coords), (angular, angles), (tait_bryan, sequence)])
+    return _combine(
+        mech.num_outputs,
+        [(positional, coords), (angular, angles), (tait_bryan, sequence)],
+    )
 
 
 @partial(jax.jit, static_argnums=0)
@@ -151,7 +182,9 @@ def output_values(mech: Mechanism, geom: Geometry, state) -> Float[Array, " K"]:
 
 
 @partial(jax.jit, static_argnums=0)
-def output_residual(mech: Mechanism, geom: Geometry, outputs, state) -> Float[Array, " K"]:
+def output_residual(
+    mech: Mechanism, geom: Geometry, outputs, state
+) -> Float[Array, " K"]:
     """One row per output: ``b_k(s) - b_k``, angles wrapped to (-π, π]."""
     return _output_rows(mech, geom, state, outputs)
 
@@ -159,15 +192,27 @@ def output_residual(mech: Mechanism, geom: Geometry, outputs, state) -> Float[Ar
 @partial(jax.jit, static_argnums=0)
 def fk_residual(mech: Mechanism, geom: Geometry, motors, state) -> Float[Array, " R"]:
     """``C_FK(a, s)``: passive rows then one row per motor."""
-    return jnp.concatenate([passive_residual(mech, geom, state), motor_residual(mech, geom, motors, state)])
+    return jnp.concatenate(
+        [passive_residual(mech, geom, state), motor_residual(mech, geom, motors, state)]
+    )
 
 
 def bk_residual(mech: Mechanism, geom: Geometry, outputs, state) -> Float[Array, " R"]:
-    """``C_BK(b, s)``: passive rows (motors as passive joints) then one row per output."""
-    return jnp.concatenate([passive_residual(mech, geom, state), output_residual(mech, geom, outputs, state)])
+    """``C_BK(b, s)``: passive rows (motors as passive joints) then one row per
+    output."""
+    return jnp.concatenate(
+        [
+            passive_residual(mech, geom, state),
+            output_residual(mech, geom, outputs, state),
+        ]
+    )
 
 
 def constraint_rows(mech: Mechanism) -> dict[str, int]:
     """Row counts of the passive part and of ``C_FK`` / ``C_BK``."""
     passive = mech.num_bodies + 6 + sum(JOINT_ROWS[t] for t in mech.joint_types)
-    return {"passive": passive, "fk": passive + mech.num_motors, "bk": passive + mech.num_outputs}
+    return {
+        "passive": passive,
+        "fk": passive + mech.num_motors,
+        "bk": passive + mech.num_outputs,
+    }

@@ -1,4 +1,5 @@
-"""Design vector -> homogenised rest geometry (anchors, axes, points) and the rest state."""
+"""Design vector -> homogenised rest geometry (anchors, axes, points) and the rest
+state."""
 
 from __future__ import annotations
 
@@ -32,24 +33,29 @@ def _unit(v: Float[Array, "... 3"]) -> Float[Array, "... 3"]:
 
 
 def _reference_directions(axes: np.ndarray) -> np.ndarray:
-    """Per joint, the world coordinate axis least aligned with its initial axis (static)."""
+    """Per joint, the world coordinate axis least aligned with its initial axis
+    (static)."""
     index = np.argmin(np.abs(axes), axis=1)
     return np.eye(3)[index]
 
 
-def _perpendicular(v: Float[Array, "J 3"], n: Float[Array, "J 3"]) -> Float[Array, "J 3"]:
+def _perpendicular(
+    v: Float[Array, "J 3"], n: Float[Array, "J 3"]
+) -> Float[Array, "J 3"]:
     return _unit(v - jnp.sum(v * n, axis=-1, keepdims=True) * n)
 
 
 def design_vector(mech: Mechanism, design=None) -> Float[Array, " n_p"]:
-    """The design vector as a float64 array; ``None`` means the file's initial design."""
+    """The design vector as a float64 array; ``None`` means the file's initial
+    design."""
     if design is None:
         return jnp.asarray(mech.design.p0, dtype=jnp.float64)
     return jnp.asarray(design, dtype=jnp.float64)
 
 
 def geometry(mech: Mechanism, design=None) -> Geometry:
-    """Homogenised rest geometry of the design ``p`` (file units), traceable in ``p``."""
+    """Homogenised rest geometry of the design ``p`` (file units), traceable in
+    ``p``."""
     p = design_vector(mech, design)
     joints = mech.anchors.shape[0]
     flat0 = np.concatenate([mech.anchors.ravel(), mech.axes.ravel()])
@@ -61,7 +67,9 @@ def geometry(mech: Mechanism, design=None) -> Geometry:
     axes2 = _perpendicular(jnp.asarray(mech.axes2), axes)
     follows = mech.point_joints >= 0
     points = jnp.where(
-        follows[:, None], anchors[np.maximum(mech.point_joints, 0)], mech.point_positions
+        follows[:, None],
+        anchors[np.maximum(mech.point_joints, 0)],
+        mech.point_positions,
     )
     scale = mech.length_scale
     return Geometry(
@@ -75,7 +83,8 @@ def geometry(mech: Mechanism, design=None) -> Geometry:
 
 
 def rest_state(mech: Mechanism) -> Float[Array, " S"]:
-    """Homogenised rest state: body origins and identity quaternions, shape ``(7B,)``."""
+    """Homogenised rest state: body origins and identity quaternions, shape
+    ``(7B,)``."""
     origins = mech.body_origins / mech.length_scale
     quats = np.tile([1.0, 0.0, 0.0, 0.0], (mech.num_bodies, 1))
     return jnp.asarray(np.concatenate([origins, quats], axis=1).ravel())

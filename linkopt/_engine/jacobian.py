@@ -3,12 +3,13 @@
 Every row of the constraint system touches at most two bodies (14 of the ``7B`` state
 entries), so instead of ``jax.jacfwd`` over the whole state (``7B`` tangent directions
 through the full residual) each row group is differentiated analytically in its local
-variables. The rows are polynomial in the state (see :mod:`linkopt._engine.joints`), so with
-``R(q) v`` the quadratic form of :func:`linkopt._engine.quaternion.rotate`
+variables. The rows are polynomial in the state (see :mod:`linkopt._engine.joints`), so
+with ``R(q) v`` the quadratic form of :func:`linkopt._engine.quaternion.rotate`
 
 * ``∂(R(q) v)/∂q = 2 [w v + u × v,  (u·v) I + u vᵀ - v uᵀ - w [v]×]`` for ``q = (w, u)``;
 * ``∂(a · R(q) v)/∂q = 2 (w (a·v) + a·(u × v),  -(a·v) u + (u·a) v + (u·v) a + w (v × a))``;
-* a wrapped angle ``atan2(s, c)`` (any target) has the gradient ``(c ∇s - s ∇c) / (c² + s²)``.
+* a wrapped angle ``atan2(s, c)`` (any target) has the gradient
+  ``(c ∇s - s ∇c) / (c² + s²)``.
 
 A row group is a :class:`_Rows`: its values ``(G, m)`` and, per touched body, the static
 body index of each of its ``G`` members and the ``(G, m, 7)`` block of the Jacobian.
@@ -17,7 +18,8 @@ From these come the dense Jacobian (:func:`linearise`, :func:`state_jacobian`,
 ``JᵀJ`` and ``Jᵀr`` assembled from ``7 x 7`` body blocks (:func:`normal_equations`),
 never forming the mostly-zero dense ``J``. Everything is plain ``jax.numpy`` without
 gathers or scatters (static indices become slices), so it is jit/vmap friendly and
-differentiable again in the state and the geometry (``f_sing`` needs ``∂J/∂s``, ``∂J/∂p``).
+differentiable again in the state and the geometry (``f_sing`` needs ``∂J/∂s``,
+``∂J/∂p``).
 
 The row order and values are those of :func:`linkopt._engine.constraints.fk_residual` /
 ``bk_residual`` (same formulas, so equal up to rounding), and the Jacobians equal
@@ -63,7 +65,8 @@ def _take(a, index: np.ndarray):
 
 
 def _dot(a, b):
-    """Dot product over a short last axis, unrolled: reductions would end XLA fusions."""
+    """Dot product over a short last axis, unrolled: reductions would end XLA
+    fusions."""
     out = a[..., 0] * b[..., 0]
     for k in range(1, a.shape[-1]):
         out = out + a[..., k] * b[..., k]
@@ -93,7 +96,12 @@ def _rotate_grad(q, v):
     uv = _dot(u, v)[..., None, None]
     eye = jnp.eye(3)
     ekv = jnp.swapaxes(jnp.cross(eye, v[..., None, :]), -1, -2)  # column k: e_k x v
-    du = 2.0 * (uv * eye + u[..., :, None] * v[..., None, :] - v[..., :, None] * u[..., None, :] + w[..., None] * ekv)
+    du = 2.0 * (
+        uv * eye
+        + u[..., :, None] * v[..., None, :]
+        - v[..., :, None] * u[..., None, :]
+        + w[..., None] * ekv
+    )
     return jnp.concatenate([dw[..., :, None], du], axis=-1)
 
 
@@ -102,7 +110,12 @@ def _dot_grad(q, v, a):
     w, u = q[..., :1], q[..., 1:]
     av = _dot(a, v)[..., None]
     dw = 2.0 * (w * av + _dot(a, jnp.cross(u, v))[..., None])
-    du = 2.0 * (-av * u + _dot(u, a)[..., None] * v + _dot(u, v)[..., None] * a + w * jnp.cross(v, a))
+    du = 2.0 * (
+        -av * u
+        + _dot(u, a)[..., None] * v
+        + _dot(u, v)[..., None] * a
+        + w * jnp.cross(v, a)
+    )
     return jnp.concatenate([dw, du], axis=-1)
 
 
@@ -116,7 +129,8 @@ def _xq_block(dx, dq):
 
 
 def _stack_rows(*rows):
-    """Stack ``(value, jac_i, jac_j)`` rows into ``values (G, m)``, two ``(G, m, 7)`` blocks."""
+    """Stack ``(value, jac_i, jac_j)`` rows into ``values (G, m)``, two ``(G, m, 7)``
+    blocks."""
     values = jnp.stack([r[0] for r in rows], axis=1)
     ji = jnp.stack([r[1] for r in rows], axis=1)
     jj = jnp.stack([r[2] for r in rows], axis=1)
@@ -139,9 +153,15 @@ def _frames(mech: Mechanism, geom: Geometry, x, q, index: np.ndarray) -> _Frames
     bi, bj = mech.joint_bodies[index, 0], mech.joint_bodies[index, 1]
     anchor = _take(geom.anchors, index)
     return _Frames(
-        _take(x, bi), _take(q, bi), anchor - _take(geom.origins, bi),
-        _take(x, bj), _take(q, bj), anchor - _take(geom.origins, bj),
-        _take(geom.axes, index), _take(geom.helpers, index), _take(geom.axes2, index),
+        _take(x, bi),
+        _take(q, bi),
+        anchor - _take(geom.origins, bi),
+        _take(x, bj),
+        _take(q, bj),
+        anchor - _take(geom.origins, bj),
+        _take(geom.axes, index),
+        _take(geom.helpers, index),
+        _take(geom.axes2, index),
     )
 
 
@@ -169,7 +189,8 @@ def _slide_row(f: _Frames, d, v):
 
 
 def _angle_row(qi, qj, n, u, target):
-    """Wrapped ``relative_angle - target`` (or the angle when ``target`` is None) and blocks."""
+    """Wrapped ``relative_angle - target`` (or the angle when ``target`` is None) and
+    blocks."""
     w = jnp.cross(n, u)
     uj = rotate(qj, u)
     ui, wi = rotate(qi, u), rotate(qi, w)
@@ -187,16 +208,26 @@ def _angle_row(qi, qj, n, u, target):
 
 
 def _family_rows(kind: str, f: _Frames):
-    """Rows ``(G, m)`` and blocks ``(G, m, 7)`` of one joint family, row order of ``_joints``."""
+    """Rows ``(G, m)`` and blocks ``(G, m, 7)`` of one joint family, row order of
+    ``_joints``."""
     w = jnp.cross(f.n, f.u)
     parts = []  # each: (values (G, k), ji (G, k, 7), jj (G, k, 7))
     d = None
-    if kind in ("revolute", "spherical", "universal", "fixed", "prismatic", "cylindrical"):
+    if kind in (
+        "revolute",
+        "spherical",
+        "universal",
+        "fixed",
+        "prismatic",
+        "cylindrical",
+    ):
         d, di, dj = _point_rows(f)
         if kind in ("revolute", "spherical", "universal", "fixed"):
             parts.append((d, di, dj))
     if kind in ("revolute", "prismatic", "cylindrical", "fixed"):
-        parts.append(_stack_rows(_pair_row(f.qi, f.n, f.qj, f.u), _pair_row(f.qi, f.n, f.qj, w)))
+        parts.append(
+            _stack_rows(_pair_row(f.qi, f.n, f.qj, f.u), _pair_row(f.qi, f.n, f.qj, w))
+        )
     if kind == "universal":
         parts.append(_stack_rows(_pair_row(f.qi, f.n, f.qj, f.n2)))
     if kind in ("prismatic", "fixed"):
@@ -215,7 +246,9 @@ def _family_rows(kind: str, f: _Frames):
 
 def _passive_groups(mech: Mechanism, geom: Geometry, x, q) -> list[_Rows]:
     bodies = np.arange(mech.num_bodies)
-    groups = [_Rows(_dot(q, q)[:, None] - 1.0, ((bodies, _q_block(2.0 * q)[:, None, :]),))]
+    groups = [
+        _Rows(_dot(q, q)[:, None] - 1.0, ((bodies, _q_block(2.0 * q)[:, None, :]),))
+    ]
     g = mech.ground
     ground = jnp.concatenate([x[g] - geom.origins[g], q[g, 1:]])
     pin = np.zeros((6, 7))
@@ -226,7 +259,15 @@ def _passive_groups(mech: Mechanism, geom: Geometry, x, q) -> list[_Rows]:
         index = mech.joints_of(kind)
         if index.size:
             values, ji, jj = _family_rows(kind, _frames(mech, geom, x, q, index))
-            groups.append(_Rows(values, ((mech.joint_bodies[index, 0], ji), (mech.joint_bodies[index, 1], jj))))
+            groups.append(
+                _Rows(
+                    values,
+                    (
+                        (mech.joint_bodies[index, 0], ji),
+                        (mech.joint_bodies[index, 1], jj),
+                    ),
+                )
+            )
     return groups
 
 
@@ -248,7 +289,15 @@ def _motor_groups(mech: Mechanism, geom: Geometry, x, q, motors):
                 value = value - target
         else:
             value, ji, jj = _angle_row(f.qi, f.qj, f.n, f.u, target)
-        groups.append(_Rows(value[:, None], ((mech.joint_bodies[joints, 0], ji[:, None]), (mech.joint_bodies[joints, 1], jj[:, None]))))
+        groups.append(
+            _Rows(
+                value[:, None],
+                (
+                    (mech.joint_bodies[joints, 0], ji[:, None]),
+                    (mech.joint_bodies[joints, 1], jj[:, None]),
+                ),
+            )
+        )
         order.append(index)
     return groups, order
 
@@ -278,23 +327,43 @@ def _output_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
         f = _frames(mech, geom, x, q, joints)
         target = None if outputs is None else _take(outputs, angular)
         value, ji, jj = _angle_row(f.qi, f.qj, f.n, f.u, target)
-        groups.append(_Rows(value[:, None], ((mech.joint_bodies[joints, 0], ji[:, None]), (mech.joint_bodies[joints, 1], jj[:, None]))))
+        groups.append(
+            _Rows(
+                value[:, None],
+                (
+                    (mech.joint_bodies[joints, 0], ji[:, None]),
+                    (mech.joint_bodies[joints, 1], jj[:, None]),
+                ),
+            )
+        )
         order.append(angular)
     if tait_bryan.size:
         joints = mech.output_joints[tait_bryan]
         f = _frames(mech, geom, x, q, joints)
         target = None if outputs is None else _take(outputs, tait_bryan)
-        value, ji, jj = _tait_bryan_row(f.qi, f.qj, f.n, f.n2, mech.output_coords[tait_bryan], target)
-        groups.append(_Rows(value[:, None], ((mech.joint_bodies[joints, 0], ji[:, None]), (mech.joint_bodies[joints, 1], jj[:, None]))))
+        value, ji, jj = _tait_bryan_row(
+            f.qi, f.qj, f.n, f.n2, mech.output_coords[tait_bryan], target
+        )
+        groups.append(
+            _Rows(
+                value[:, None],
+                (
+                    (mech.joint_bodies[joints, 0], ji[:, None]),
+                    (mech.joint_bodies[joints, 1], jj[:, None]),
+                ),
+            )
+        )
         order.append(tait_bryan)
     return groups, order
 
 
 def _tait_bryan_row(qi, qj, e1, e2, which: np.ndarray, target):
-    """One Tait–Bryan angle per member (``which``: static 0..2), wrapped against ``target``.
+    """One Tait–Bryan angle per member (``which``: static 0..2), wrapped against
+    ``target``.
 
     Differentiated by forward mode in the 8 local quaternion entries: the three nested
-    ``atan2`` of :func:`linkopt._engine.joints.tait_bryan` have no short closed form worth keeping.
+    ``atan2`` of :func:`linkopt._engine.joints.tait_bryan` have no short closed form
+    worth keeping.
     """
     select = jnp.asarray(np.eye(3)[which])  # (G, 3) one-hot
 
@@ -307,7 +376,9 @@ def _tait_bryan_row(qi, qj, e1, e2, which: np.ndarray, target):
         da, db = jax.jacfwd(angle, argnums=(0, 1))(a, b, n, n2, pick, goal)
         return value, da, db
 
-    value, dqi, dqj = jax.vmap(local)(qi, qj, e1, e2, select, target)  # target None: no leaves
+    value, dqi, dqj = jax.vmap(local)(
+        qi, qj, e1, e2, select, target
+    )  # target None: no leaves
     return value, _q_block(dqi), _q_block(dqj)
 
 
@@ -336,7 +407,9 @@ def _dense(groups: list[_Rows], num_bodies: int):
         values.append(group.values.reshape(-1))
         out = jnp.zeros((count, m, num_bodies, 7))
         for bodies, jac in group.blocks:
-            onehot = jnp.asarray(np.eye(num_bodies, dtype=bool)[bodies])[:, None, :, None]
+            onehot = jnp.asarray(np.eye(num_bodies, dtype=bool)[bodies])[
+                :, None, :, None
+            ]
             out = out + jnp.where(onehot, jac[:, :, None, :], 0.0)
         rows.append(out.reshape(count * m, 7 * num_bodies))
     return jnp.concatenate(values), jnp.concatenate(rows, axis=0)
@@ -353,11 +426,13 @@ def _permute_tail(residual, jacobian, head: int, order: list[np.ndarray]):
     return _take(residual, index), _take(jacobian, index)
 
 
-def linearise(mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]):
+def linearise(
+    mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]
+):
     """``(C, ∂C/∂s)`` of ``C_FK`` (``kind="fk"``, ``values`` the motors) or ``C_BK``
     (``"bk"``, the outputs), homogenised, equal to ``fk_residual``/``bk_residual`` and
-    ``jax.jacfwd`` of it. ``values=None`` gives the motor/output values instead of errors
-    in the last rows (the Jacobian does not depend on the targets)."""
+    ``jax.jacfwd`` of it. ``values=None`` gives the motor/output values instead of
+    errors in the last rows (the Jacobian does not depend on the targets)."""
     x, q = _split(state)
     passive = _passive_groups(mech, geom, x, q)
     tail, order = _tail_groups(mech, geom, kind, x, q, values)
@@ -367,14 +442,20 @@ def linearise(mech: Mechanism, geom: Geometry, kind: str, values, state: Float[A
 
 
 @partial(jax.jit, static_argnums=(0, 2))
-def state_jacobian(mech: Mechanism, geom: Geometry, kind: str, state: Float[Array, " S"]) -> Float[Array, "m S"]:
-    """``∂C_FK/∂s`` (``kind="fk"``) or ``∂C_BK/∂s`` (``"bk"``) at ``state``; targets play no part."""
+def state_jacobian(
+    mech: Mechanism, geom: Geometry, kind: str, state: Float[Array, " S"]
+) -> Float[Array, "m S"]:
+    """``∂C_FK/∂s`` (``kind="fk"``) or ``∂C_BK/∂s`` (``"bk"``) at ``state``; targets
+    play no part."""
     return linearise(mech, geom, kind, None, state)[1]
 
 
 @partial(jax.jit, static_argnums=0)
-def stacked_jacobians(mech: Mechanism, geom: Geometry, state: Float[Array, " S"]) -> Float[Array, "2 m S"]:
-    """``[∂C_FK/∂s, ∂C_BK/∂s]``, the passive rows computed once (as in ``_singularity``)."""
+def stacked_jacobians(
+    mech: Mechanism, geom: Geometry, state: Float[Array, " S"]
+) -> Float[Array, "2 m S"]:
+    """``[∂C_FK/∂s, ∂C_BK/∂s]``, the passive rows computed once (as in
+    ``_singularity``)."""
     x, q = _split(state)
     _, passive = _dense(_passive_groups(mech, geom, x, q), mech.num_bodies)
     out = []
@@ -391,7 +472,9 @@ def stacked_jacobians(mech: Mechanism, geom: Geometry, state: Float[Array, " S"]
 
 
 @partial(jax.jit, static_argnums=(0, 2))
-def normal_equations(mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]):
+def normal_equations(
+    mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]
+):
     """``(C, JᵀJ, JᵀC)`` with ``J = ∂C/∂s``, assembled from ``7 x 7`` body blocks.
 
     ``C`` is in the row order of ``fk_residual``/``bk_residual``; ``JᵀJ`` and ``JᵀC``
@@ -419,9 +502,17 @@ def normal_equations(mech: Mechanism, geom: Geometry, kind: str, values, state: 
                     if not same:
                         hess.setdefault((j, i), []).append(prod[k].T)
     zero = jnp.zeros((7, 7))
-    blocks = [[sum(hess[(i, j)][1:], hess[(i, j)][0]) if (i, j) in hess else zero for j in range(nb)] for i in range(nb)]
+    blocks = [
+        [
+            sum(hess[(i, j)][1:], hess[(i, j)][0]) if (i, j) in hess else zero
+            for j in range(nb)
+        ]
+        for i in range(nb)
+    ]
     hessian = jnp.block(blocks)
-    gradient = jnp.concatenate([sum(grad[i][1:], grad[i][0]) if i in grad else jnp.zeros(7) for i in range(nb)])
+    gradient = jnp.concatenate(
+        [sum(grad[i][1:], grad[i][0]) if i in grad else jnp.zeros(7) for i in range(nb)]
+    )
     residual = jnp.concatenate([g.values.reshape(-1) for g in groups])
     head = sum(int(np.prod(g.values.shape)) for g in groups[: len(groups) - len(tail)])
     if order:

@@ -28,50 +28,53 @@ def anchor_separation(xi: Vec, qi: Quat, ri: Vec, xj: Vec, qj: Quat, rj: Vec) ->
     return (xj + rotate(qj, rj)) - (xi + rotate(qi, ri))
 
 
-def _axis_rows(qi: Quat, qj: Quat, n: Vec, u: Vec) -> Float[Array, "2"]:
+def _axis_rows(qi: Quat, qj: Quat, n: Vec, u: Vec) -> Float[Array, 2]:
     ni = rotate(qi, n)
     w = jnp.cross(n, u)
     return jnp.stack([ni @ rotate(qj, u), ni @ rotate(qj, w)])
 
 
-def _twist_row(qi: Quat, qj: Quat, n: Vec, u: Vec) -> Float[Array, "1"]:
+def _twist_row(qi: Quat, qj: Quat, n: Vec, u: Vec) -> Float[Array, 1]:
     return jnp.stack([rotate(qi, u) @ rotate(qj, jnp.cross(n, u))])
 
 
-def _slide_rows(d: Vec, qi: Quat, n: Vec, u: Vec) -> Float[Array, "2"]:
+def _slide_rows(d: Vec, qi: Quat, n: Vec, u: Vec) -> Float[Array, 2]:
     return jnp.stack([d @ rotate(qi, u), d @ rotate(qi, jnp.cross(n, u))])
 
 
-def revolute(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, "5"]:
+def revolute(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, 5]:
     """Revolute: common point and common axis ``n`` (5 rows)."""
     d = anchor_separation(xi, qi, ri, xj, qj, rj)
     return jnp.concatenate([d, _axis_rows(qi, qj, n, u)])
 
 
-def spherical(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, "3"]:
+def spherical(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, 3]:
     """Spherical (ball): common point (3 rows)."""
     return anchor_separation(xi, qi, ri, xj, qj, rj)
 
 
-def universal(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, "4"]:
-    """Universal: common point, axis ``n`` on body i stays ⟂ to axis ``n2`` on body j (4)."""
+def universal(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, 4]:
+    """Universal: common point, axis ``n`` on body i stays ⟂ to axis ``n2`` on body j
+    (4)."""
     d = anchor_separation(xi, qi, ri, xj, qj, rj)
     return jnp.concatenate([d, jnp.stack([rotate(qi, n) @ rotate(qj, n2)])])
 
 
-def prismatic(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, "5"]:
+def prismatic(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, 5]:
     """Prismatic: no relative rotation, translation only along ``n`` (5 rows)."""
     d = anchor_separation(xi, qi, ri, xj, qj, rj)
-    return jnp.concatenate([_axis_rows(qi, qj, n, u), _twist_row(qi, qj, n, u), _slide_rows(d, qi, n, u)])
+    return jnp.concatenate(
+        [_axis_rows(qi, qj, n, u), _twist_row(qi, qj, n, u), _slide_rows(d, qi, n, u)]
+    )
 
 
-def cylindrical(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, "4"]:
+def cylindrical(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, 4]:
     """Cylindrical: rotation about and translation along ``n`` only (4 rows)."""
     d = anchor_separation(xi, qi, ri, xj, qj, rj)
     return jnp.concatenate([_axis_rows(qi, qj, n, u), _slide_rows(d, qi, n, u)])
 
 
-def fixed(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, "6"]:
+def fixed(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, 6]:
     """Fixed (weld): common point and no relative rotation (6 rows).
 
     Fixed joints need a reference frame: their ``n``/``u`` come from the file's axis if
@@ -82,16 +85,21 @@ def fixed(xi, qi, ri, xj, qj, rj, n, u, n2) -> Float[Array, "6"]:
 
 
 def relative_angle(qi: Quat, qj: Quat, n: Vec, u: Vec) -> Float[Array, ""]:
-    """Rotation of body j relative to body i about ``n`` (rad, right-hand rule), in (-π, π].
+    """Rotation of body j relative to body i about ``n`` (rad, right-hand rule), in (-π,
+    π].
 
-    The angle of ``R_j u`` in the plane spanned by ``R_i u`` and ``R_i (n × u)``; zero at rest.
+    The angle of ``R_j u`` in the plane spanned by ``R_i u`` and ``R_i (n × u)``; zero
+    at rest.
     """
     uj = rotate(qj, u)
     return jnp.arctan2(uj @ rotate(qi, jnp.cross(n, u)), uj @ rotate(qi, u))
 
 
-def angle_error(qi: Quat, qj: Quat, n: Vec, u: Vec, target: Float[Array, ""]) -> Float[Array, ""]:
-    """``relative_angle - target`` wrapped to (-π, π] (paper footnote 1), smooth near 0."""
+def angle_error(
+    qi: Quat, qj: Quat, n: Vec, u: Vec, target: Float[Array, ""]
+) -> Float[Array, ""]:
+    """``relative_angle - target`` wrapped to (-π, π] (paper footnote 1), smooth near
+    0."""
     uj = rotate(qj, u)
     c = uj @ rotate(qi, u)
     s = uj @ rotate(qi, jnp.cross(n, u))
@@ -99,15 +107,16 @@ def angle_error(qi: Quat, qj: Quat, n: Vec, u: Vec, target: Float[Array, ""]) ->
     return jnp.arctan2(s * ct - c * st, c * ct + s * st)
 
 
-def tait_bryan(qi: Quat, qj: Quat, e1: Vec, e2: Vec) -> Float[Array, "3"]:
+def tait_bryan(qi: Quat, qj: Quat, e1: Vec, e2: Vec) -> Float[Array, 3]:
     """Intrinsic angles ``(θ1, θ2, θ3)`` of body j relative to body i with
-    ``R_iᵀ R_j = Rot(e1, θ1) Rot(e2, θ2) Rot(e1 × e2, θ3)`` (rest axes, ``e1 ⟂ e2``); zero at rest.
+    ``R_iᵀ R_j = Rot(e1, θ1) Rot(e2, θ2) Rot(e1 × e2, θ3)`` (rest axes, ``e1 ⟂ e2``);
+    zero at rest.
 
     With ``M_ab = (R_i e_a)·(R_j e_b)`` the relative rotation in the joint's frame,
-    ``θ1 = atan2(-M₂₃, M₃₃)``, ``θ2 = atan2(M₁₃, √(M₁₁² + M₁₂²))``, ``θ3 = atan2(-M₁₂, M₁₁)``;
-    the angles are defined for ``|θ2| < π/2`` (gimbal lock at ``±π/2``). For a universal
-    joint with ``e1 = n`` on body i and ``e2 = n2`` on body j, ``θ3 ≡ 0`` and ``θ1``, ``θ2``
-    are its two joint angles.
+    ``θ1 = atan2(-M₂₃, M₃₃)``, ``θ2 = atan2(M₁₃, √(M₁₁² + M₁₂²))``,
+    ``θ3 = atan2(-M₁₂, M₁₁)``; the angles are defined for ``|θ2| < π/2`` (gimbal lock at
+    ``±π/2``). For a universal joint with ``e1 = n`` on body i and ``e2 = n2`` on body
+    j, ``θ3 ≡ 0`` and ``θ1``, ``θ2`` are its two joint angles.
     """
     e3 = jnp.cross(e1, e2)
     i1, i2, i3 = rotate(qi, e1), rotate(qi, e2), rotate(qi, e3)
@@ -119,13 +128,14 @@ def tait_bryan(qi: Quat, qj: Quat, e1: Vec, e2: Vec) -> Float[Array, "3"]:
     return jnp.stack([first, second, third])
 
 
-def wrap(angle: Float[Array, "..."]) -> Float[Array, "..."]:
+def wrap(angle: Float[Array, ...]) -> Float[Array, ...]:
     """``angle`` wrapped to (-π, π], smooth away from ±π."""
     return jnp.arctan2(jnp.sin(angle), jnp.cos(angle))
 
 
 def slide(xi, qi, ri, xj, qj, rj, n) -> Float[Array, ""]:
-    """Translation of the anchor on body j relative to body i along ``R_i n``; zero at rest."""
+    """Translation of the anchor on body j relative to body i along ``R_i n``; zero at
+    rest."""
     return anchor_separation(xi, qi, ri, xj, qj, rj) @ rotate(qi, n)
 
 

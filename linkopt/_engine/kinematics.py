@@ -1,4 +1,5 @@
-"""Forward and backward kinematics solves, continuation paths and implicit sensitivities.
+"""Forward and backward kinematics solves, continuation paths and implicit
+sensitivities.
 
 Public functions take motor values ``a`` and outputs ``b`` in file units (rad for
 angles) and return homogenised states. Every solve is jitted with the mechanism as a
@@ -7,9 +8,9 @@ is vmapped, so a batch never recompiles for a new design vector.
 
 Derivatives (paper eq. 2): the solved state is attached to its inputs by
 :func:`implicit_state`, whose JVP is the implicit-function-theorem tangent
-``ṡ = -(JᵀJ)⁻¹ Jᵀ (∂C/∂a ȧ + ∂C/∂p ṗ)`` with ``J = ∂C/∂s``. For ``f_FK = 0`` this is eq. 2
-(the Gauss–Newton Hessian is exact there); with redundant rows ``J`` is tall and the
-formula is the least-squares tangent. Both forward and reverse mode work through it.
+``ṡ = -(JᵀJ)⁻¹ Jᵀ (∂C/∂a ȧ + ∂C/∂p ṗ)`` with ``J = ∂C/∂s``. For ``f_FK = 0`` this is
+eq. 2 (the Gauss–Newton Hessian is exact there); with redundant rows ``J`` is tall and
+the formula is the least-squares tangent. Both forward and reverse mode work through it.
 """
 
 from __future__ import annotations
@@ -22,9 +23,7 @@ import jax.numpy as jnp
 from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, Bool, Float, Int
 
-from . import jacobian
-
-from . import lm
+from . import jacobian, lm
 from .constraints import bk_residual, fk_residual
 from .geometry import Geometry, design_vector, geometry, rest_state
 from .model import Mechanism
@@ -36,14 +35,15 @@ class Solution(NamedTuple):
     """A kinematics solve; leading axes follow the batch/path of the inputs."""
 
     state: Float[Array, "... S"]  # homogenised state
-    converged: Bool[Array, "..."]
-    residual: Float[Array, "..."]  # max |C| at state (homogenised)
-    iterations: Int[Array, "..."]
+    converged: Bool[Array, ...]
+    residual: Float[Array, ...]  # max |C| at state (homogenised)
+    iterations: Int[Array, ...]
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1))
 def implicit_state(mech: Mechanism, kind: str, geom: Geometry, values, state):
-    """Identity on ``state``; carries the implicit-function derivative (module docstring)."""
+    """Identity on ``state``; carries the implicit-function derivative (module
+    docstring)."""
     return state
 
 
@@ -52,15 +52,24 @@ def _implicit_state_jvp(mech, kind, primals, tangents):
     geom, values, state = primals
     d_geom, d_values, _ = tangents
     residual = _RESIDUALS[kind]
-    _, rhs = jax.jvp(lambda g, v: residual(mech, g, v, state), (geom, values), (d_geom, d_values))
+    _, rhs = jax.jvp(
+        lambda g, v: residual(mech, g, v, state), (geom, values), (d_geom, d_values)
+    )
     jac = jacobian.state_jacobian(mech, geom, kind, state)
     d_state = -cho_solve(cho_factor(jac.T @ jac), jac.T @ rhs)
     return state, d_state
 
 
-def solve_single(mech: Mechanism, kind: str, geom: Geometry, values, start, max_iterations: int | None = None) -> Solution:
-    """One LM solve of ``C(values, s) = 0`` from ``start`` (all homogenised); the iteration
-    cap defaults to the file's ``[solver] max_iterations``."""
+def solve_single(
+    mech: Mechanism,
+    kind: str,
+    geom: Geometry,
+    values,
+    start,
+    max_iterations: int | None = None,
+) -> Solution:
+    """One LM solve of ``C(values, s) = 0`` from ``start`` (all homogenised); the
+    iteration cap defaults to the file's ``[solver] max_iterations``."""
     fixed_geom = jax.lax.stop_gradient(geom)
     fixed_values = jax.lax.stop_gradient(values)
     settings = mech.solver
@@ -70,7 +79,9 @@ def solve_single(mech: Mechanism, kind: str, geom: Geometry, values, start, max_
         tolerance=settings.tolerance,
         max_iterations=max_iterations or settings.max_iterations,
         initial_damping=settings.initial_damping,
-        linearise=lambda s: jacobian.normal_equations(mech, fixed_geom, kind, fixed_values, s),
+        linearise=lambda s: jacobian.normal_equations(
+            mech, fixed_geom, kind, fixed_values, s
+        ),
     )
     state = implicit_state(mech, kind, geom, values, result.x)
     return Solution(state, result.converged, result.residual, result.iterations)
@@ -92,7 +103,9 @@ def _solve(mech: Mechanism, kind: str, values, start, design) -> Solution:
     if values.ndim == 1:
         return solve_single(mech, kind, geom, values, start)
     in_start = 0 if start.ndim == 2 else None
-    return jax.vmap(lambda v, s0: solve_single(mech, kind, geom, v, s0), in_axes=(0, in_start))(values, start)
+    return jax.vmap(
+        lambda v, s0: solve_single(mech, kind, geom, v, s0), in_axes=(0, in_start)
+    )(values, start)
 
 
 @partial(jax.jit, static_argnums=(0, 1))
@@ -110,15 +123,16 @@ def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
 def solve_fk(mech: Mechanism, motors, *, start=None, design=None) -> Solution:
     """Forward kinematics: motors ``(M,)`` or a batch ``(N, M)`` -> states.
 
-    ``start`` is the warm start (homogenised state ``(S,)`` or ``(N, S)``; default the rest
-    state); ``design`` the design vector (default the file's). Differentiable in
+    ``start`` is the warm start (homogenised state ``(S,)`` or ``(N, S)``; default the
+    rest state); ``design`` the design vector (default the file's). Differentiable in
     ``motors`` and ``design`` through the implicit function theorem.
     """
     return _solve(mech, "fk", motors, start, design)
 
 
 def solve_bk(mech: Mechanism, outputs, *, start=None, design=None) -> Solution:
-    """Backward kinematics: outputs ``(K,)`` or ``(N, K)`` -> states (motors read off them)."""
+    """Backward kinematics: outputs ``(K,)`` or ``(N, K)`` -> states (motors read off
+    them)."""
     return _solve(mech, "bk", outputs, start, design)
 
 
@@ -133,9 +147,12 @@ def solve_bk_path(mech: Mechanism, outputs, *, start=None, design=None) -> Solut
     return _solve_path(mech, "bk", outputs, start, design)
 
 
-def sensitivity(mech: Mechanism, state, wrt: str, *, design=None) -> Float[Array, "S n"]:
-    """``ds/da`` (``wrt="motors"``), ``ds/db`` (``"outputs"``), or ``ds/dp`` at fixed motors
-    (``"design"``) or fixed outputs (``"design_bk"``), at a solved homogenised state.
+def sensitivity(
+    mech: Mechanism, state, wrt: str, *, design=None
+) -> Float[Array, "S n"]:
+    """``ds/da`` (``wrt="motors"``), ``ds/db`` (``"outputs"``), or ``ds/dp`` at fixed
+    motors (``"design"``) or fixed outputs (``"design_bk"``), at a solved homogenised
+    state.
 
     Motors, outputs and design are in file units, so e.g. ``ds/da`` of a linear motor is
     per file length unit.
@@ -156,4 +173,6 @@ def sensitivity(mech: Mechanism, state, wrt: str, *, design=None) -> Float[Array
     if wrt == "design_bk":
         b = output_values(mech, state, design=p)
         return jax.jacfwd(lambda q: solve_bk(mech, b, start=state, design=q).state)(p)
-    raise ValueError(f"wrt must be 'motors', 'outputs', 'design' or 'design_bk', not {wrt!r}")
+    raise ValueError(
+        f"wrt must be 'motors', 'outputs', 'design' or 'design_bk', not {wrt!r}"
+    )

@@ -17,7 +17,8 @@ with ``converged = False``.
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -26,7 +27,10 @@ from jaxtyping import Array, Bool, Float, Int
 
 Residual = Callable[[Float[Array, " n"]], Float[Array, " m"]]
 #: ``x -> (C(x), J(x)ᵀJ(x), J(x)ᵀC(x))``: the residual and its Gauss–Newton normal equations.
-Linearisation = Callable[[Float[Array, " n"]], tuple[Float[Array, " m"], Float[Array, "n n"], Float[Array, " n"]]]
+Linearisation = Callable[
+    [Float[Array, " n"]],
+    tuple[Float[Array, " m"], Float[Array, "n n"], Float[Array, " n"]],
+]
 
 MAX_DAMPING = 1e12
 MIN_STEP = 1e-15
@@ -58,20 +62,39 @@ def _jacfwd_linearisation(fn: Residual, x):
 
 
 def _linearise(fn: Residual, x, linearise: Linearisation | None = None):
-    """``(C(x), JᵀJ, JᵀC)``: from ``linearise`` if given, else by ``jax.jacfwd`` of ``fn``."""
+    """``(C(x), JᵀJ, JᵀC)``: from ``linearise`` if given, else by ``jax.jacfwd`` of
+    ``fn``."""
     if linearise is not None:
         return linearise(x)
     return _jacfwd_linearisation(fn, x)
 
 
-def init(fn: Residual, x0, initial_damping: float, linearise: Linearisation | None = None) -> LMState:
+def init(
+    fn: Residual, x0, initial_damping: float, linearise: Linearisation | None = None
+) -> LMState:
     residual, hessian, gradient = _linearise(fn, x0, linearise)
-    return LMState(x0, residual, hessian, gradient, jnp.asarray(initial_damping), jnp.asarray(2.0), jnp.asarray(0), jnp.asarray(False))
+    return LMState(
+        x0,
+        residual,
+        hessian,
+        gradient,
+        jnp.asarray(initial_damping),
+        jnp.asarray(2.0),
+        jnp.asarray(0),
+        jnp.asarray(False),
+    )
 
 
-def step(fn: Residual, state: LMState, linearise: Linearisation | None = None) -> LMState:
+def step(
+    fn: Residual, state: LMState, linearise: Linearisation | None = None
+) -> LMState:
     """One damped Gauss–Newton step with Nielsen's damping update."""
-    hessian, gradient, r, lam = state.hessian, state.gradient, state.residual, state.damping
+    hessian, gradient, r, lam = (
+        state.hessian,
+        state.gradient,
+        state.residual,
+        state.damping,
+    )
     system = hessian + lam * jnp.eye(hessian.shape[0])
     delta = -cho_solve(cho_factor(system), gradient)
     new_residual, new_hessian, new_gradient = _linearise(fn, state.x + delta, linearise)
@@ -110,12 +133,20 @@ def solve(
     """Minimise ``½|fn(x)|²`` from ``x0``; jit- and vmap-friendly, no NaN on failure.
 
     ``linearise`` (optional) gives ``(fn(x), JᵀJ, Jᵀfn(x))`` directly (the constraint
-    solves pass :func:`linkopt._engine.jacobian.normal_equations`); without it ``jax.jacfwd``.
+    solves pass :func:`linkopt._engine.jacobian.normal_equations`); without it
+    ``jax.jacfwd``.
     """
     state = init(fn, x0, initial_damping, linearise)
     state = jax.lax.while_loop(
-        lambda st: ~terminate(st, tolerance, max_iterations), lambda st: step(fn, st, linearise), state
+        lambda st: ~terminate(st, tolerance, max_iterations),
+        lambda st: step(fn, st, linearise),
+        state,
     )
     error = jnp.max(jnp.abs(state.residual))
     converged = error <= tolerance
-    return LMResult(state.x, converged, jnp.where(jnp.isfinite(error), error, jnp.inf), state.iteration)
+    return LMResult(
+        state.x,
+        converged,
+        jnp.where(jnp.isfinite(error), error, jnp.inf),
+        state.iteration,
+    )

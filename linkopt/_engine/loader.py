@@ -27,7 +27,18 @@ from .model import (
     SolverSettings,
 )
 
-TOP_LEVEL = {"mechanism", "bodies", "joints", "motors", "points", "outputs", "symmetry", "parameters", "solver", "evaluation"}
+TOP_LEVEL = {
+    "mechanism",
+    "bodies",
+    "joints",
+    "motors",
+    "points",
+    "outputs",
+    "symmetry",
+    "parameters",
+    "solver",
+    "evaluation",
+}
 ORTHOGONAL_TOL = 1e-9
 MIRROR_TOL = 1e-9
 
@@ -41,10 +52,15 @@ class Reader:
     def fail(self, where: str, message: str) -> MechanismFileError:
         return MechanismFileError(self.source, where, message)
 
-    def table(self, data: dict, key: str, where: str, allowed: set[str], required: set[str]) -> dict:
+    def table(
+        self, data: dict, key: str, where: str, allowed: set[str], required: set[str]
+    ) -> dict:
         unknown = sorted(set(data) - allowed)
         if unknown:
-            raise self.fail(f"{where}.{unknown[0]}", f"unknown field; expected one of {sorted(allowed)}")
+            raise self.fail(
+                f"{where}.{unknown[0]}",
+                f"unknown field; expected one of {sorted(allowed)}",
+            )
         missing = sorted(required - set(data))
         if missing:
             raise self.fail(f"{where}.{missing[0]}", "missing required field")
@@ -53,34 +69,51 @@ class Reader:
     def string(self, data: dict, key: str, where: str) -> str:
         value = data[key]
         if not isinstance(value, str) or not value:
-            raise self.fail(f"{where}.{key}", f"expected a non-empty string, got {value!r}")
+            raise self.fail(
+                f"{where}.{key}", f"expected a non-empty string, got {value!r}"
+            )
         return value
 
     def number(self, data: dict, key: str, where: str) -> float:
         value = data[key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.fail(f"{where}.{key}", f"expected a finite number, got {value!r}")
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not math.isfinite(value)
+        ):
+            raise self.fail(
+                f"{where}.{key}", f"expected a finite number, got {value!r}"
+            )
         return float(value)
 
     def positive(self, data: dict, key: str, where: str) -> float:
         value = self.number(data, key, where)
         if value <= 0:
-            raise self.fail(f"{where}.{key}", f"expected a positive number, got {value!r}")
+            raise self.fail(
+                f"{where}.{key}", f"expected a positive number, got {value!r}"
+            )
         return value
 
     def vector(self, data: dict, key: str, where: str) -> np.ndarray:
         value = data[key]
         ok = isinstance(value, list) and len(value) == 3
-        ok = ok and all(not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) for v in value)
+        ok = ok and all(
+            not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+            for v in value
+        )
         if not ok:
-            raise self.fail(f"{where}.{key}", f"expected a list of 3 finite numbers, got {value!r}")
+            raise self.fail(
+                f"{where}.{key}", f"expected a list of 3 finite numbers, got {value!r}"
+            )
         return np.asarray(value, dtype=float)
 
     def direction(self, data: dict, key: str, where: str) -> np.ndarray:
         vec = self.vector(data, key, where)
         norm = np.linalg.norm(vec)
         if norm < 1e-12:
-            raise self.fail(f"{where}.{key}", "zero-length axis; expected a non-zero direction")
+            raise self.fail(
+                f"{where}.{key}", "zero-length axis; expected a non-zero direction"
+            )
         return vec / norm
 
     def entries(self, data: dict, key: str, required: bool) -> list[dict]:
@@ -103,13 +136,18 @@ class Reader:
                 raise self.fail(f"{where}.name", "missing required field")
             name = self.string(item, "name", where)
             if name in index:
-                raise self.fail(f"{where}.name", f"duplicated name {name!r} (also {table}[{index[name]}])")
+                raise self.fail(
+                    f"{where}.name",
+                    f"duplicated name {name!r} (also {table}[{index[name]}])",
+                )
             index[name] = k
         return index
 
     def lookup(self, names: dict[str, int], value, where: str, kind: str) -> int:
         if not isinstance(value, str) or value not in names:
-            raise self.fail(where, f"unknown {kind} {value!r}; expected one of {sorted(names)}")
+            raise self.fail(
+                where, f"unknown {kind} {value!r}; expected one of {sorted(names)}"
+            )
         return names[value]
 
 
@@ -152,7 +190,13 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
         raise rd.fail(unknown[0], f"unknown table; expected one of {sorted(TOP_LEVEL)}")
     if "mechanism" not in data or not isinstance(data["mechanism"], dict):
         raise rd.fail("[mechanism]", "missing table")
-    head = rd.table(data["mechanism"], "mechanism", "[mechanism]", {"name", "ground", "reference_length", "units"}, {"name", "ground"})
+    head = rd.table(
+        data["mechanism"],
+        "mechanism",
+        "[mechanism]",
+        {"name", "ground", "reference_length", "units"},
+        {"name", "ground"},
+    )
     bodies = rd.entries(data, "bodies", required=True)
     body_index = rd.names(bodies, "bodies")
     for k, body in enumerate(bodies):
@@ -215,51 +259,103 @@ def _read_joints(rd: Reader, data: dict, body_index: dict[str, int]) -> list[dic
     joints = []
     for k, item in enumerate(items):
         where = f"joints[{k}]"
-        rd.table(item, "joints", where, {"name", "type", "bodies", "anchor", "axis", "axis2"}, {"name", "type", "bodies", "anchor"})
+        rd.table(
+            item,
+            "joints",
+            where,
+            {"name", "type", "bodies", "anchor", "axis", "axis2"},
+            {"name", "type", "bodies", "anchor"},
+        )
         kind = item["type"]
         if kind not in JOINT_ROWS:
-            raise rd.fail(f"{where}.type", f"unknown joint type {kind!r}; expected one of {list(JOINT_ROWS)}")
+            raise rd.fail(
+                f"{where}.type",
+                f"unknown joint type {kind!r}; expected one of {list(JOINT_ROWS)}",
+            )
         pair = item["bodies"]
         if not isinstance(pair, list) or len(pair) != 2:
-            raise rd.fail(f"{where}.bodies", f"expected a list of two body names, got {pair!r}")
+            raise rd.fail(
+                f"{where}.bodies", f"expected a list of two body names, got {pair!r}"
+            )
         bi = rd.lookup(body_index, pair[0], f"{where}.bodies", "body")
         bj = rd.lookup(body_index, pair[1], f"{where}.bodies", "body")
         if bi == bj:
-            raise rd.fail(f"{where}.bodies", f"a joint must connect two different bodies, got {pair!r}")
+            raise rd.fail(
+                f"{where}.bodies",
+                f"a joint must connect two different bodies, got {pair!r}",
+            )
         axis = np.zeros(3)
         axis2 = np.zeros(3)
         if kind in AXIAL_JOINTS:
             if "axis" not in item:
-                raise rd.fail(f"{where}.axis", f"missing required field for a {kind} joint")
+                raise rd.fail(
+                    f"{where}.axis", f"missing required field for a {kind} joint"
+                )
             axis = rd.direction(item, "axis", where)
         elif kind == "fixed":
-            axis = rd.direction(item, "axis", where) if "axis" in item else np.array([0.0, 0.0, 1.0])
-        elif "axis" in item or "axis2" in item:  # spherical: an optional frame for angle outputs
+            axis = (
+                rd.direction(item, "axis", where)
+                if "axis" in item
+                else np.array([0.0, 0.0, 1.0])
+            )
+        elif (
+            "axis" in item or "axis2" in item
+        ):  # spherical: an optional frame for angle outputs
             for key in ("axis", "axis2"):
                 if key not in item:
-                    raise rd.fail(f"{where}.{key}", "a spherical joint's frame for angle outputs needs both axis and axis2")
+                    raise rd.fail(
+                        f"{where}.{key}",
+                        "a spherical joint's frame for angle outputs needs both axis and axis2",
+                    )
             axis = rd.direction(item, "axis", where)
-        if kind in ("universal", "spherical") and (kind == "universal" or "axis2" in item):
+        if kind in ("universal", "spherical") and (
+            kind == "universal" or "axis2" in item
+        ):
             if "axis2" not in item:
-                raise rd.fail(f"{where}.axis2", "missing required field for a universal joint")
+                raise rd.fail(
+                    f"{where}.axis2", "missing required field for a universal joint"
+                )
             axis2 = rd.direction(item, "axis2", where)
             if abs(axis @ axis2) > ORTHOGONAL_TOL:
-                raise rd.fail(f"{where}.axis2", "must be perpendicular to axis at the rest pose")
+                raise rd.fail(
+                    f"{where}.axis2", "must be perpendicular to axis at the rest pose"
+                )
         elif "axis2" in item:
-            raise rd.fail(f"{where}.axis2", "only universal and spherical joints have a second axis")
-        joints.append({"name": item["name"], "type": kind, "bodies": (bi, bj), "anchor": rd.vector(item, "anchor", where), "axis": axis, "axis2": axis2})
+            raise rd.fail(
+                f"{where}.axis2",
+                "only universal and spherical joints have a second axis",
+            )
+        joints.append(
+            {
+                "name": item["name"],
+                "type": kind,
+                "bodies": (bi, bj),
+                "anchor": rd.vector(item, "anchor", where),
+                "axis": axis,
+                "axis2": axis2,
+            }
+        )
     return joints
 
 
-def _body_origins(rd: Reader, bodies: list[dict], joints: list[dict], ground: int) -> np.ndarray:
+def _body_origins(
+    rd: Reader, bodies: list[dict], joints: list[dict], ground: int
+) -> np.ndarray:
     """Each body's frame origin at rest: ``origin`` if given, else the centroid of its
     joint anchors. Every body must reach the ground through joints."""
     origins = np.zeros((len(bodies), 3))
     for b, body in enumerate(bodies):
         anchors = [j["anchor"] for j in joints if b in j["bodies"]]
         if not anchors:
-            raise rd.fail(f"bodies[{b}]", f"body {body['name']!r} has no joint; every body must be connected")
-        origins[b] = rd.vector(body, "origin", f"bodies[{b}]") if "origin" in body else np.mean(anchors, axis=0)
+            raise rd.fail(
+                f"bodies[{b}]",
+                f"body {body['name']!r} has no joint; every body must be connected",
+            )
+        origins[b] = (
+            rd.vector(body, "origin", f"bodies[{b}]")
+            if "origin" in body
+            else np.mean(anchors, axis=0)
+        )
     reached = {ground}
     grew = True
     while grew:
@@ -271,29 +367,48 @@ def _body_origins(rd: Reader, bodies: list[dict], joints: list[dict], ground: in
                 grew = True
     for b, body in enumerate(bodies):
         if b not in reached:
-            raise rd.fail(f"bodies[{b}]", f"body {body['name']!r} is not connected to the ground through joints")
+            raise rd.fail(
+                f"bodies[{b}]",
+                f"body {body['name']!r} is not connected to the ground through joints",
+            )
     return origins
 
 
-def _read_points(rd: Reader, data: dict, body_index: dict[str, int], joints: list[dict]) -> list[dict]:
+def _read_points(
+    rd: Reader, data: dict, body_index: dict[str, int], joints: list[dict]
+) -> list[dict]:
     items = rd.entries(data, "points", required=False)
     rd.names(items, "points")
     joint_index = {j["name"]: k for k, j in enumerate(joints)}
     points = []
     for k, item in enumerate(items):
         where = f"points[{k}]"
-        rd.table(item, "points", where, {"name", "body", "position", "joint"}, {"name", "body"})
+        rd.table(
+            item,
+            "points",
+            where,
+            {"name", "body", "position", "joint"},
+            {"name", "body"},
+        )
         body = rd.lookup(body_index, item["body"], f"{where}.body", "body")
         if ("position" in item) == ("joint" in item):
-            raise rd.fail(where, "give exactly one of 'position' (a rest position) or 'joint' (follow that joint's anchor)")
+            raise rd.fail(
+                where,
+                "give exactly one of 'position' (a rest position) or 'joint' (follow that joint's anchor)",
+            )
         if "joint" in item:
             joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
             if body not in joints[joint]["bodies"]:
-                raise rd.fail(f"{where}.joint", f"joint {item['joint']!r} does not touch body {item['body']!r}")
+                raise rd.fail(
+                    f"{where}.joint",
+                    f"joint {item['joint']!r} does not touch body {item['body']!r}",
+                )
             position = joints[joint]["anchor"]
         else:
             joint, position = -1, rd.vector(item, "position", where)
-        points.append({"name": item["name"], "body": body, "joint": joint, "position": position})
+        points.append(
+            {"name": item["name"], "body": body, "joint": joint, "position": position}
+        )
     return points
 
 
@@ -308,15 +423,25 @@ def _read_motors(rd: Reader, data: dict, joints: list[dict]) -> list[dict]:
         joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
         kind = joints[joint]["type"]
         if kind not in MOTOR_JOINTS:
-            raise rd.fail(f"{where}.joint", f"joint {item['joint']!r} is {kind}; a motor drives a {' or '.join(MOTOR_JOINTS)} joint")
+            raise rd.fail(
+                f"{where}.joint",
+                f"joint {item['joint']!r} is {kind}; a motor drives a {' or '.join(MOTOR_JOINTS)} joint",
+            )
         if joint in used:
-            raise rd.fail(f"{where}.joint", f"joint {item['joint']!r} already driven by motors[{used[joint]}]")
+            raise rd.fail(
+                f"{where}.joint",
+                f"joint {item['joint']!r} already driven by motors[{used[joint]}]",
+            )
         used[joint] = k
-        motors.append({"name": item["name"], "joint": joint, "linear": MOTOR_JOINTS[kind]})
+        motors.append(
+            {"name": item["name"], "joint": joint, "linear": MOTOR_JOINTS[kind]}
+        )
     return motors
 
 
-def _read_outputs(rd: Reader, data: dict, points: list[dict], joints: list[dict]) -> list[dict]:
+def _read_outputs(
+    rd: Reader, data: dict, points: list[dict], joints: list[dict]
+) -> list[dict]:
     items = rd.entries(data, "outputs", required=True)
     rd.names(items, "outputs")
     point_index = {p["name"]: k for k, p in enumerate(points)}
@@ -324,24 +449,59 @@ def _read_outputs(rd: Reader, data: dict, points: list[dict], joints: list[dict]
     outputs = []
     for k, item in enumerate(items):
         where = f"outputs[{k}]"
-        rd.table(item, "outputs", where, {"name", "point", "coordinate", "joint", "angle", "min", "max"}, {"name", "min", "max"})
+        rd.table(
+            item,
+            "outputs",
+            where,
+            {"name", "point", "coordinate", "joint", "angle", "min", "max"},
+            {"name", "min", "max"},
+        )
         low, high = rd.number(item, "min", where), rd.number(item, "max", where)
         if low >= high:
-            raise rd.fail(f"{where}.min", f"target range needs min < max, got min={low} and max={high}")
-        entry = {"name": item["name"], "min": low, "max": high, "point": -1, "coord": -1, "joint": -1}
+            raise rd.fail(
+                f"{where}.min",
+                f"target range needs min < max, got min={low} and max={high}",
+            )
+        entry = {
+            "name": item["name"],
+            "min": low,
+            "max": high,
+            "point": -1,
+            "coord": -1,
+            "joint": -1,
+        }
         if "point" in item and "joint" not in item:
             if "coordinate" not in item:
-                raise rd.fail(f"{where}.coordinate", "missing required field for a point output (x, y or z)")
+                raise rd.fail(
+                    f"{where}.coordinate",
+                    "missing required field for a point output (x, y or z)",
+                )
             if item["coordinate"] not in ("x", "y", "z"):
-                raise rd.fail(f"{where}.coordinate", f"expected 'x', 'y' or 'z', got {item['coordinate']!r}")
-            entry.update(kind="position", point=rd.lookup(point_index, item["point"], f"{where}.point", "point"), coord="xyz".index(item["coordinate"]))
+                raise rd.fail(
+                    f"{where}.coordinate",
+                    f"expected 'x', 'y' or 'z', got {item['coordinate']!r}",
+                )
+            entry.update(
+                kind="position",
+                point=rd.lookup(point_index, item["point"], f"{where}.point", "point"),
+                coord="xyz".index(item["coordinate"]),
+            )
         elif "joint" in item and "point" not in item:
             if "coordinate" in item:
-                raise rd.fail(f"{where}.coordinate", "an angle output has no coordinate")
+                raise rd.fail(
+                    f"{where}.coordinate", "an angle output has no coordinate"
+                )
             joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
-            entry.update(kind="angle", joint=joint, coord=_angle_index(rd, item, where, joints[joint]))
+            entry.update(
+                kind="angle",
+                joint=joint,
+                coord=_angle_index(rd, item, where, joints[joint]),
+            )
         else:
-            raise rd.fail(where, "give either 'point' and 'coordinate' (a Cartesian output) or 'joint' (an angle output)")
+            raise rd.fail(
+                where,
+                "give either 'point' and 'coordinate' (a Cartesian output) or 'joint' (an angle output)",
+            )
         outputs.append(entry)
     return outputs
 
@@ -353,18 +513,33 @@ def _angle_index(rd: Reader, item: dict, where: str, joint: dict) -> int:
     kind, name = joint["type"], joint["name"]
     if kind in ("revolute", "cylindrical"):
         if "angle" in item:
-            raise rd.fail(f"{where}.angle", f"{name!r} is {kind}: it has one angle, so give no 'angle'")
+            raise rd.fail(
+                f"{where}.angle",
+                f"{name!r} is {kind}: it has one angle, so give no 'angle'",
+            )
         return -1
     if kind not in ("universal", "spherical"):
-        raise rd.fail(f"{where}.joint", f"an angle output needs a revolute, cylindrical, universal or spherical joint, {name!r} is {kind}")
+        raise rd.fail(
+            f"{where}.joint",
+            f"an angle output needs a revolute, cylindrical, universal or spherical joint, {name!r} is {kind}",
+        )
     if kind == "spherical" and not np.any(joint["axis2"]):
-        raise rd.fail(f"{where}.joint", f"spherical joint {name!r} needs axis and axis2 (the frame its angles are measured in) for an angle output")
+        raise rd.fail(
+            f"{where}.joint",
+            f"spherical joint {name!r} needs axis and axis2 (the frame its angles are measured in) for an angle output",
+        )
     count = 2 if kind == "universal" else 3
     if "angle" not in item:
-        raise rd.fail(f"{where}.angle", f"missing required field for an angle of a {kind} joint: 1 (about axis), 2 (about axis2)" + (", 3 (about axis x axis2)" if count == 3 else ""))
+        raise rd.fail(
+            f"{where}.angle",
+            f"missing required field for an angle of a {kind} joint: 1 (about axis), 2 (about axis2)"
+            + (", 3 (about axis x axis2)" if count == 3 else ""),
+        )
     value = item["angle"]
     if isinstance(value, bool) or value not in range(1, count + 1):
-        raise rd.fail(f"{where}.angle", f"expected an integer from 1 to {count}, got {value!r}")
+        raise rd.fail(
+            f"{where}.angle", f"expected an integer from 1 to {count}, got {value!r}"
+        )
     return int(value) - 1
 
 
@@ -380,15 +555,26 @@ def _reference_length(rd: Reader, head: dict, anchors: np.ndarray) -> float:
         return rd.positive(head, "reference_length", "[mechanism]")
     span = diameter(anchors)
     if span <= 0:
-        raise rd.fail("[mechanism].reference_length", "all joint anchors coincide; give a positive reference_length")
+        raise rd.fail(
+            "[mechanism].reference_length",
+            "all joint anchors coincide; give a positive reference_length",
+        )
     return span
 
 
 def _read_symmetry(rd: Reader, data: dict):
     if "symmetry" not in data:
         return None
-    table = rd.table(data["symmetry"], "symmetry", "[symmetry]", {"normal", "point"}, {"normal", "point"})
-    return rd.direction(table, "normal", "[symmetry]"), rd.vector(table, "point", "[symmetry]")
+    table = rd.table(
+        data["symmetry"],
+        "symmetry",
+        "[symmetry]",
+        {"normal", "point"},
+        {"normal", "point"},
+    )
+    return rd.direction(table, "normal", "[symmetry]"), rd.vector(
+        table, "point", "[symmetry]"
+    )
 
 
 def _reflect(point: np.ndarray, symmetry) -> np.ndarray:
@@ -396,7 +582,15 @@ def _reflect(point: np.ndarray, symmetry) -> np.ndarray:
     return point - 2.0 * ((point - origin) @ normal) * normal
 
 
-def _joint_group(rd: Reader, value, where: str, joint_index: dict[str, int], joints: list[dict], is_axis: bool, scale: float) -> list[int]:
+def _joint_group(
+    rd: Reader,
+    value,
+    where: str,
+    joint_index: dict[str, int],
+    joints: list[dict],
+    is_axis: bool,
+    scale: float,
+) -> list[int]:
     """A joint name, or a list of joints that coincide at rest and move as one."""
     names = value if isinstance(value, list) and value else [value]
     group = [rd.lookup(joint_index, name, where, "joint") for name in names]
@@ -404,14 +598,20 @@ def _joint_group(rd: Reader, value, where: str, joint_index: dict[str, int], joi
     tolerance = MIRROR_TOL if is_axis else MIRROR_TOL * scale
     for name, index in zip(names[1:], group[1:]):
         if np.linalg.norm(joints[index][key] - joints[group[0]][key]) > tolerance:
-            raise rd.fail(where, f"joints moved together must share their {key} at rest; {name!r} differs from {names[0]!r}")
+            raise rd.fail(
+                where,
+                f"joints moved together must share their {key} at rest; {name!r} differs from {names[0]!r}",
+            )
     if len(set(group)) != len(group):
         raise rd.fail(where, "a joint is listed twice")
     return group
 
 
-def _read_design(rd: Reader, data: dict, joints: list[dict], symmetry, scale: float) -> DesignSpace:
-    """Free parameters; each drives one coordinate of a joint (or of coincident joints)."""
+def _read_design(
+    rd: Reader, data: dict, joints: list[dict], symmetry, scale: float
+) -> DesignSpace:
+    """Free parameters; each drives one coordinate of a joint (or of coincident
+    joints)."""
     items = rd.entries(data, "parameters", required=False)
     rd.names(items, "parameters")
     joint_index = {j["name"]: k for k, j in enumerate(joints)}
@@ -420,45 +620,89 @@ def _read_design(rd: Reader, data: dict, joints: list[dict], symmetry, scale: fl
     p0, lower, upper, owner = [], [], [], {}
     for k, item in enumerate(items):
         where = f"parameters[{k}]"
-        rd.table(item, "parameters", where, {"name", "joint", "coordinate", "min", "max", "mirror"}, {"name", "joint", "coordinate", "min", "max"})
+        rd.table(
+            item,
+            "parameters",
+            where,
+            {"name", "joint", "coordinate", "min", "max", "mirror"},
+            {"name", "joint", "coordinate", "min", "max"},
+        )
         coord = item["coordinate"]
         if coord not in COORDINATES:
-            raise rd.fail(f"{where}.coordinate", f"expected one of {list(COORDINATES)}, got {coord!r}")
+            raise rd.fail(
+                f"{where}.coordinate",
+                f"expected one of {list(COORDINATES)}, got {coord!r}",
+            )
         is_axis = coord.startswith("axis_")
         c = "xyz".index(coord[-1])
-        group = _joint_group(rd, item["joint"], f"{where}.joint", joint_index, joints, is_axis, scale)
+        group = _joint_group(
+            rd, item["joint"], f"{where}.joint", joint_index, joints, is_axis, scale
+        )
         joint = group[0]
         if is_axis and any(joints[g]["type"] not in AXIAL_JOINTS for g in group):
-            raise rd.fail(f"{where}.coordinate", f"{item['joint']!r}: only revolute, universal, prismatic and cylindrical joints have a movable axis")
+            raise rd.fail(
+                f"{where}.coordinate",
+                f"{item['joint']!r}: only revolute, universal, prismatic and cylindrical joints have a movable axis",
+            )
         value = (joints[joint]["axis"] if is_axis else joints[joint]["anchor"])[c]
         low, high = rd.number(item, "min", where), rd.number(item, "max", where)
         if not low < high:
-            raise rd.fail(f"{where}.min", f"bounds need min < max, got min={low} and max={high}")
+            raise rd.fail(
+                f"{where}.min", f"bounds need min < max, got min={low} and max={high}"
+            )
         if not low <= value <= high:
-            raise rd.fail(f"{where}.min", f"the rest value {value:g} of {joints[joint]['name']}.{coord} lies outside [{low:g}, {high:g}]")
+            raise rd.fail(
+                f"{where}.min",
+                f"the rest value {value:g} of {joints[joint]['name']}.{coord} lies outside [{low:g}, {high:g}]",
+            )
         base = 3 * count if is_axis else 0
         driven = [(base + 3 * g + c, 1.0) for g in group]
         if "mirror" in item:
-            mirrors = _joint_group(rd, item["mirror"], f"{where}.mirror", joint_index, joints, is_axis, scale)
+            mirrors = _joint_group(
+                rd,
+                item["mirror"],
+                f"{where}.mirror",
+                joint_index,
+                joints,
+                is_axis,
+                scale,
+            )
             for mirror in mirrors:
-                driven += _mirror_rows(rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, group)
+                driven += _mirror_rows(
+                    rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, group
+                )
         for row, _ in driven:
             if row in owner:
-                raise rd.fail(where, f"drives a coordinate already driven by parameters[{owner[row]}]")
+                raise rd.fail(
+                    where,
+                    f"drives a coordinate already driven by parameters[{owner[row]}]",
+                )
         for row, weight in driven:
             owner[row] = k
             matrix[row, k] = weight
         p0.append(value)
         lower.append(low)
         upper.append(high)
-    is_length = np.array([not str(i["coordinate"]).startswith("axis_") for i in items], dtype=bool)
-    return DesignSpace(tuple(i["name"] for i in items), np.array(p0, dtype=float), np.array(lower, dtype=float), np.array(upper, dtype=float), matrix, is_length)
+    is_length = np.array(
+        [not str(i["coordinate"]).startswith("axis_") for i in items], dtype=bool
+    )
+    return DesignSpace(
+        tuple(i["name"] for i in items),
+        np.array(p0, dtype=float),
+        np.array(lower, dtype=float),
+        np.array(upper, dtype=float),
+        matrix,
+        is_length,
+    )
 
 
 def _mirror_rows(rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, group):
     """Rows and weights through which a parameter moves its mirror-image joint."""
     if symmetry is None:
-        raise rd.fail(f"{where}.mirror", "a mirror tie needs a [symmetry] table (normal and point)")
+        raise rd.fail(
+            f"{where}.mirror",
+            "a mirror tie needs a [symmetry] table (normal and point)",
+        )
     if mirror in group:
         raise rd.fail(f"{where}.mirror", "a joint cannot mirror itself")
     name, twin = joints[joint]["name"], joints[mirror]["name"]
@@ -468,12 +712,18 @@ def _mirror_rows(rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, 
         image = joints[joint]["axis"] - 2.0 * (joints[joint]["axis"] @ normal) * normal
         sign = 1.0 if image @ joints[mirror]["axis"] > 0 else -1.0
         if np.linalg.norm(sign * image - joints[mirror]["axis"]) > MIRROR_TOL:
-            raise rd.fail(f"{where}.mirror", f"axis of {twin!r} is not the mirror image of the axis of {name!r}")
+            raise rd.fail(
+                f"{where}.mirror",
+                f"axis of {twin!r} is not the mirror image of the axis of {name!r}",
+            )
         base, weights = 3 * len(joints), sign * direction
     else:
         image = _reflect(joints[joint]["anchor"], symmetry)
         if np.linalg.norm(image - joints[mirror]["anchor"]) > MIRROR_TOL * scale:
-            raise rd.fail(f"{where}.mirror", f"anchor of {twin!r} is not the mirror image of the anchor of {name!r}")
+            raise rd.fail(
+                f"{where}.mirror",
+                f"anchor of {twin!r} is not the mirror image of the anchor of {name!r}",
+            )
         base, weights = 0, direction
     return [(base + 3 * mirror + d, weights[d]) for d in range(3) if weights[d] != 0.0]
 
@@ -481,14 +731,37 @@ def _mirror_rows(rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, 
 def _read_solver(rd: Reader, data: dict) -> SolverSettings:
     if "solver" not in data:
         return SolverSettings()
-    table = rd.table(data["solver"], "solver", "[solver]", {"max_iterations", "tolerance", "initial_damping"}, set())
+    table = rd.table(
+        data["solver"],
+        "solver",
+        "[solver]",
+        {"max_iterations", "tolerance", "initial_damping"},
+        set(),
+    )
     defaults = SolverSettings()
     iterations = table.get("max_iterations", defaults.max_iterations)
-    if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
-        raise rd.fail("[solver].max_iterations", f"expected a positive integer, got {iterations!r}")
-    tolerance = rd.positive(table, "tolerance", "[solver]") if "tolerance" in table else defaults.tolerance
-    damping = rd.positive(table, "initial_damping", "[solver]") if "initial_damping" in table else defaults.initial_damping
-    return SolverSettings(max_iterations=iterations, tolerance=tolerance, initial_damping=damping)
+    if (
+        isinstance(iterations, bool)
+        or not isinstance(iterations, int)
+        or iterations < 1
+    ):
+        raise rd.fail(
+            "[solver].max_iterations",
+            f"expected a positive integer, got {iterations!r}",
+        )
+    tolerance = (
+        rd.positive(table, "tolerance", "[solver]")
+        if "tolerance" in table
+        else defaults.tolerance
+    )
+    damping = (
+        rd.positive(table, "initial_damping", "[solver]")
+        if "initial_damping" in table
+        else defaults.initial_damping
+    )
+    return SolverSettings(
+        max_iterations=iterations, tolerance=tolerance, initial_damping=damping
+    )
 
 
 def _read_evaluation(rd: Reader, data: dict) -> EvaluationSettings:
@@ -514,5 +787,8 @@ def _read_evaluation(rd: Reader, data: dict) -> EvaluationSettings:
         values[key] = value
     settings = EvaluationSettings(**values)
     if settings.samples_per_dimension < 2:
-        raise rd.fail("[evaluation].samples_per_dimension", "expected at least 2 (the range's two ends)")
+        raise rd.fail(
+            "[evaluation].samples_per_dimension",
+            "expected at least 2 (the range's two ends)",
+        )
     return settings

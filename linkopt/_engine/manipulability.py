@@ -33,7 +33,8 @@ from .readout import point_positions
 
 
 def yoshikawa(jac: Float[Array, "k M"]) -> Float[Array, ""]:
-    """``sqrt(det(J Jᵀ))`` for ``k ≤ M``, else ``sqrt(det(Jᵀ J))`` (eq. 1); 0 at a singularity."""
+    """``sqrt(det(J Jᵀ))`` for ``k ≤ M``, else ``sqrt(det(Jᵀ J))`` (eq. 1); 0 at a
+    singularity."""
     k, m = jac.shape
     gram = jac @ jac.T if k <= m else jac.T @ jac
     det = jnp.linalg.det(gram)
@@ -41,27 +42,50 @@ def yoshikawa(jac: Float[Array, "k M"]) -> Float[Array, ""]:
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, det, 1.0)), 0.0)
 
 
-def _select(mech: Mechanism, point: str | None, coordinates) -> tuple[int, tuple[int, ...]]:
-    """Static (point index, coordinate indices); defaults from the mechanism's outputs."""
+def _select(
+    mech: Mechanism, point: str | None, coordinates
+) -> tuple[int, tuple[int, ...]]:
+    """Static (point index, coordinate indices); defaults from the mechanism's
+    outputs."""
     if not mech.point_names:
-        raise InputError(f"{mech.source}: [[points]]: manipulability needs a named end-effector point; the mechanism has none")
+        raise InputError(
+            f"{mech.source}: [[points]]: manipulability needs a named end-effector point; the mechanism has none"
+        )
     if point is None:
         positional = [int(p) for p in mech.output_points if p >= 0]
         index = positional[0] if positional else 0
     elif point in mech.point_names:
         index = mech.point_names.index(point)
     else:
-        raise InputError(f"{mech.source}: [[points]]: no point named {point!r}; expected one of {list(mech.point_names)}")
+        raise InputError(
+            f"{mech.source}: [[points]]: no point named {point!r}; expected one of {list(mech.point_names)}"
+        )
     if coordinates is None:
-        declared = sorted({int(c) for p, c in zip(mech.output_points, mech.output_coords) if p == index})
+        declared = sorted(
+            {
+                int(c)
+                for p, c in zip(mech.output_points, mech.output_coords)
+                if p == index
+            }
+        )
         return index, tuple(declared) if declared else (0, 1, 2)
-    coords = tuple("xyz".index(c) if isinstance(c, str) and c in "xyz" else c for c in coordinates)
-    if not coords or any(c not in (0, 1, 2) for c in coords) or len(set(coords)) != len(coords):
-        raise InputError(f"manipulability: coordinates: expected distinct entries of x, y, z, got {coordinates!r}")
+    coords = tuple(
+        "xyz".index(c) if isinstance(c, str) and c in "xyz" else c for c in coordinates
+    )
+    if (
+        not coords
+        or any(c not in (0, 1, 2) for c in coords)
+        or len(set(coords)) != len(coords)
+    ):
+        raise InputError(
+            f"manipulability: coordinates: expected distinct entries of x, y, z, got {coordinates!r}"
+        )
     return index, coords
 
 
-def _point_jacobian(mech: Mechanism, index: int, coords: tuple[int, ...], state, design) -> Float[Array, "k M"]:
+def _point_jacobian(
+    mech: Mechanism, index: int, coords: tuple[int, ...], state, design
+) -> Float[Array, "k M"]:
     ds_da = sensitivity(mech, state, "motors", design=design)
     dp_ds = jax.jacfwd(lambda s: point_positions(mech, s, design=design)[index])(state)
     return (dp_ds @ ds_da)[np.array(coords)]
@@ -73,13 +97,19 @@ def _batched(mech: Mechanism, index: int, coords: tuple[int, ...], states, desig
     return jacs, jax.vmap(yoshikawa)(jacs)
 
 
-def point_jacobian(mech: Mechanism, state, point: str | None = None, coordinates=None, *, design=None) -> Float[Array, "... k M"]:
-    """``∂p/∂a`` of a named point (file units per motor unit) at solved state(s) ``(..., S)``."""
+def point_jacobian(
+    mech: Mechanism, state, point: str | None = None, coordinates=None, *, design=None
+) -> Float[Array, "... k M"]:
+    """``∂p/∂a`` of a named point (file units per motor unit) at solved state(s)
+    ``(..., S)``."""
     return _evaluate(mech, state, point, coordinates, design)[0]
 
 
-def manipulability(mech: Mechanism, state, point: str | None = None, coordinates=None, *, design=None) -> Float[Array, "..."]:
-    """Yoshikawa's ``w`` (eq. 1) of ``point`` at solved homogenised state(s) ``(..., S)``.
+def manipulability(
+    mech: Mechanism, state, point: str | None = None, coordinates=None, *, design=None
+) -> Float[Array, ...]:
+    """Yoshikawa's ``w`` (eq. 1) of ``point`` at solved homogenised state(s)
+    ``(..., S)``.
 
     ``point`` defaults to the point of the mechanism's first Cartesian output and
     ``coordinates`` (e.g. ``("x", "y")``) to that point's output coordinates.
@@ -93,5 +123,11 @@ def _evaluate(mech, state, point, coordinates, design):
     index, coords = _select(mech, point, coordinates)
     state = jnp.asarray(state, dtype=jnp.float64)
     batch = state.shape[:-1]
-    jacs, w = _batched(mech, index, coords, state.reshape(-1, state.shape[-1]), design_vector(mech, design))
+    jacs, w = _batched(
+        mech,
+        index,
+        coords,
+        state.reshape(-1, state.shape[-1]),
+        design_vector(mech, design),
+    )
     return jacs.reshape(*batch, *jacs.shape[1:]), w.reshape(batch)

@@ -7,14 +7,16 @@ from functools import partial
 import jax
 import numpy as np
 
-from .constraints import passive_residual
 from .._errors import MechanismFileError
+from .constraints import passive_residual
 from .geometry import geometry, rest_state
 from .model import Mechanism
 from .singularity import sigma_min_pair
 
 RANK_TOL = 1e-9  # relative to the largest singular value
-SINGULAR_TOL = 1e-7  # absolute σ_min (homogenised) below which the rest pose is singular
+SINGULAR_TOL = (
+    1e-7  # absolute σ_min (homogenised) below which the rest pose is singular
+)
 
 
 @partial(jax.jit, static_argnums=0)
@@ -29,21 +31,39 @@ def _rest_sigmas(mech: Mechanism):
 
 
 def mobility(mech: Mechanism) -> int:
-    """Degrees of freedom at rest: ``|s| - rank(∂C_passive/∂s)`` (motors as passive joints)."""
+    """Degrees of freedom at rest: ``|s| - rank(∂C_passive/∂s)`` (motors as passive
+    joints)."""
     values = np.linalg.svd(np.asarray(_passive_jacobian(mech)), compute_uv=False)
     rank = int(np.sum(values > RANK_TOL * values[0]))
     return mech.state_size - rank
 
 
 def check_mobility(mech: Mechanism) -> None:
-    """Motors and outputs must each number the mobility, and rest must not be singular."""
+    """Motors and outputs must each number the mobility, and rest must not be
+    singular."""
     dof = mobility(mech)
     if mech.num_motors != dof:
-        raise MechanismFileError(mech.source, "[[motors]]", f"the mechanism has mobility {dof} at the rest pose but {mech.num_motors} motor(s); they must be equal")
+        raise MechanismFileError(
+            mech.source,
+            "[[motors]]",
+            f"the mechanism has mobility {dof} at the rest pose but {mech.num_motors} motor(s); they must be equal",
+        )
     if mech.num_outputs != dof:
-        raise MechanismFileError(mech.source, "[[outputs]]", f"the mechanism has mobility {dof} at the rest pose but {mech.num_outputs} output(s); they must be equal")
+        raise MechanismFileError(
+            mech.source,
+            "[[outputs]]",
+            f"the mechanism has mobility {dof} at the rest pose but {mech.num_outputs} output(s); they must be equal",
+        )
     sigma_fk, sigma_bk = np.asarray(_rest_sigmas(mech))
     if sigma_fk < SINGULAR_TOL:
-        raise MechanismFileError(mech.source, "[[motors]]", f"the rest pose is a forward singularity (σ_min = {sigma_fk:.2e}): the motors do not determine the mechanism there")
+        raise MechanismFileError(
+            mech.source,
+            "[[motors]]",
+            f"the rest pose is a forward singularity (σ_min = {sigma_fk:.2e}): the motors do not determine the mechanism there",
+        )
     if sigma_bk < SINGULAR_TOL:
-        raise MechanismFileError(mech.source, "[[outputs]]", f"the rest pose is a backward singularity (σ_min = {sigma_bk:.2e}): the outputs do not determine the mechanism there")
+        raise MechanismFileError(
+            mech.source,
+            "[[outputs]]",
+            f"the rest pose is a backward singularity (σ_min = {sigma_bk:.2e}): the outputs do not determine the mechanism there",
+        )

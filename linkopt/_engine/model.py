@@ -1,4 +1,5 @@
-"""The one mechanism type: static topology in numpy, design-dependent geometry as arrays.
+"""The one mechanism type: static topology in numpy, design-dependent geometry as
+arrays.
 
 Conventions (used everywhere in linkopt):
 
@@ -57,10 +58,10 @@ class EvaluationSettings:
     ``regularizer_weight``: weight of ½|p - p₀|² with lengths divided by the reference
     length. ``max_step``: the starting (and smallest) trust radius of the IK/adversarial
     minimiser, in rad or reference lengths for linear motors; it grows to 4x after steps
-    it had to shorten (:mod:`linkopt._design.sampling`), and a step that jumps onto another
-    assembly branch is rejected.
-    ``alpha_minus``: an absolute α₋ that overrides ``alpha_factor`` (written into
-    optimised files so that they are judged by the threshold they were optimised for).
+    it had to shorten (:mod:`linkopt._design.sampling`), and a step that jumps onto
+    another assembly branch is rejected. ``alpha_minus``: an absolute α₋ that overrides
+    ``alpha_factor`` (written into optimised files so that they are judged by the
+    threshold they were optimised for).
     """
 
     samples_per_dimension: int = 3
@@ -79,10 +80,10 @@ class EvaluationSettings:
 class DesignSpace:
     """Free design parameters ``p`` (after ties) and their linear map onto the geometry.
 
-    ``geometry_flat(p) = geometry_flat(p0) + matrix @ (p - p0)``, where the flat geometry
-    is ``[anchors (J,3), axes (J,3)]`` raveled, in file units. A parameter drives one
-    coordinate of one joint; a ``mirror`` tie also drives the mirrored joint through the
-    reflection across the mechanism's symmetry plane.
+    ``geometry_flat(p) = geometry_flat(p0) + matrix @ (p - p0)``, where the flat
+    geometry is ``[anchors (J,3), axes (J,3)]`` raveled, in file units. A parameter
+    drives one coordinate of one joint; a ``mirror`` tie also drives the mirrored joint
+    through the reflection across the mechanism's symmetry plane.
     """
 
     names: tuple[str, ...]
@@ -90,7 +91,9 @@ class DesignSpace:
     lower: np.ndarray  # (n_p,)
     upper: np.ndarray  # (n_p,)
     matrix: np.ndarray  # (6 J, n_p)
-    is_length: np.ndarray  # (n_p,) bool: an anchor coordinate (file units), not an axis component
+    is_length: (
+        np.ndarray
+    )  # (n_p,) bool: an anchor coordinate (file units), not an axis component
 
     @property
     def size(self) -> int:
@@ -127,7 +130,9 @@ class Mechanism:
     output_names: tuple[str, ...]
     output_kinds: tuple[str, ...]  # "position" | "angle"
     output_points: np.ndarray  # (K,) int, -1 for angles
-    output_coords: np.ndarray  # (K,) int: x/y/z 0..2 for positions; for angles -1 (revolute,
+    output_coords: (
+        np.ndarray
+    )  # (K,) int: x/y/z 0..2 for positions; for angles -1 (revolute,
     # cylindrical) or the Tait–Bryan angle 0..2 of a universal/spherical joint
     output_joints: np.ndarray  # (K,) int, -1 for positions
     output_min: np.ndarray  # (K,) file units
@@ -168,4 +173,6 @@ class Mechanism:
 
     def joints_of(self, kind: str) -> np.ndarray:
         """Indices of the joints of one family (static)."""
-        return np.array([i for i, t in enumerate(self.joint_types) if t == kind], dtype=int)
+        return np.array(
+            [i for i, t in enumerate(self.joint_types) if t == kind], dtype=int
+        )

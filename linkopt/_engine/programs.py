@@ -1,4 +1,5 @@
-"""Traced programs kept on disk (:mod:`jax.export`), so that a warm process skips tracing.
+"""Traced programs kept on disk (:mod:`jax.export`), so that a warm process skips
+tracing.
 
 JAX's persistent compilation cache (:mod:`linkopt._config`) keeps compiled executables,
 but to look one up a new process must first trace and lower the Python function. For
@@ -19,9 +20,9 @@ import dataclasses
 import hashlib
 import os
 import tempfile
+from collections.abc import Callable
 from functools import lru_cache
 from pathlib import Path
-from typing import Callable
 
 import jax
 import jax.numpy as jnp
@@ -132,7 +133,8 @@ def _program(name: str, mech: Mechanism, fn: Callable, args) -> Callable:
 
 
 def call(name: str, mech: Mechanism, fn: Callable, *args):
-    """``jax.jit(fn)(*args)``, with ``fn``'s trace read from (or written to) the disk cache.
+    """``jax.jit(fn)(*args)``, with ``fn``'s trace read from (or written to) the disk
+    cache.
 
     ``fn`` must be a pure function of array arguments that depends on nothing but
     ``mech``, the linkopt sources and its arguments; ``name`` names the program."""

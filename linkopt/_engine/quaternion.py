@@ -26,7 +26,9 @@ def rotate(q: Float[Array, "... 4"], v: Float[Array, "... 3"]) -> Float[Array, "
     return (w * w - uu) * v + 2.0 * uv * u + 2.0 * w * jnp.cross(u, v)
 
 
-def multiply(p: Float[Array, "... 4"], q: Float[Array, "... 4"]) -> Float[Array, "... 4"]:
+def multiply(
+    p: Float[Array, "... 4"], q: Float[Array, "... 4"]
+) -> Float[Array, "... 4"]:
     """Hamilton product ``p ⊗ q``."""
     pw, pv = p[..., :1], p[..., 1:]
     qw, qv = q[..., :1], q[..., 1:]
@@ -40,7 +42,10 @@ def conjugate(q: Float[Array, "... 4"]) -> Float[Array, "... 4"]:
     return q * jnp.array([1.0, -1.0, -1.0, -1.0])
 
 
-def from_axis_angle(axis: Float[Array, "... 3"], angle: Float[Array, "..."]) -> Float[Array, "... 4"]:
-    """Unit quaternion of a rotation by ``angle`` (rad) about the unit vector ``axis``."""
+def from_axis_angle(
+    axis: Float[Array, "... 3"], angle: Float[Array, ...]
+) -> Float[Array, "... 4"]:
+    """Unit quaternion of a rotation by ``angle`` (rad) about the unit vector
+    ``axis``."""
     half = 0.5 * jnp.asarray(angle)[..., None]
     return jnp.concatenate([jnp.cos(half), jnp.sin(half) * axis], axis=-1)

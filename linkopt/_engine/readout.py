@@ -18,9 +18,15 @@ def _read(mech: Mechanism, what: str, state, design):
     geom = geometry(mech, design_vector(mech, design))
     fn = {
         "motors": lambda s: constraints.motor_values(mech, geom, s) * mech.motor_scale,
-        "outputs": lambda s: constraints.output_values(mech, geom, s) * mech.output_scale,
-        "joints": lambda s: constraints.joint_positions(mech, geom, s) * mech.length_scale,
-        "points": lambda s: constraints.point_positions(mech, geom, s) * mech.length_scale,
+        "outputs": lambda s: (
+            constraints.output_values(mech, geom, s) * mech.output_scale
+        ),
+        "joints": lambda s: (
+            constraints.joint_positions(mech, geom, s) * mech.length_scale
+        ),
+        "points": lambda s: (
+            constraints.point_positions(mech, geom, s) * mech.length_scale
+        ),
     }[what]
     state = jnp.asarray(state, dtype=jnp.float64)
     return fn(state) if state.ndim == 1 else jax.vmap(fn)(state)
@@ -37,10 +43,12 @@ def output_values(mech: Mechanism, state, *, design=None) -> Float[Array, "... K
 
 
 def joint_positions(mech: Mechanism, state, *, design=None) -> Float[Array, "... J 3"]:
-    """World position of every joint anchor (file units), in ``mech.joint_names`` order."""
+    """World position of every joint anchor (file units), in ``mech.joint_names``
+    order."""
     return _read(mech, "joints", state, design)
 
 
 def point_positions(mech: Mechanism, state, *, design=None) -> Float[Array, "... P 3"]:
-    """World position of every named point (file units), in ``mech.point_names`` order."""
+    """World position of every named point (file units), in ``mech.point_names``
+    order."""
     return _read(mech, "points", state, design)

@@ -40,8 +40,9 @@ from .model import Mechanism
 
 
 def stacked_jacobians(mech: Mechanism, geom: Geometry, state) -> Float[Array, "2 m n"]:
-    """``[∂C_FK/∂s, ∂C_BK/∂s]`` at ``state`` (homogenised), from the closed-form
-    block Jacobians of :mod:`linkopt._engine.jacobian` (differentiable in state and design)."""
+    """``[∂C_FK/∂s, ∂C_BK/∂s]`` at ``state`` (homogenised), from the closed-form block
+    Jacobians of :mod:`linkopt._engine.jacobian` (differentiable in state and
+    design)."""
     return jacobian.stacked_jacobians(mech, geom, state)
 
 
@@ -69,10 +70,14 @@ def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
     n = a.shape[-1]
     shift = 1e-13 * jnp.trace(a, axis1=1, axis2=2)[:, None, None] * jnp.eye(n)
     lower = jnp.linalg.cholesky(a + shift)
-    inv_lower = jax.scipy.linalg.solve_triangular(lower, jnp.broadcast_to(jnp.eye(n), a.shape), lower=True)
+    inv_lower = jax.scipy.linalg.solve_triangular(
+        lower, jnp.broadcast_to(jnp.eye(n), a.shape), lower=True
+    )
     inverse = jnp.einsum("bki,bkj->bij", inv_lower, inv_lower)  # A⁻¹ = L⁻ᵀ L⁻¹
     start = np.random.default_rng(0).standard_normal((n, min(BLOCK, n)))
-    x = _orthonormalise(jnp.broadcast_to(jnp.asarray(start), (a.shape[0],) + start.shape))
+    x = _orthonormalise(
+        jnp.broadcast_to(jnp.asarray(start), (a.shape[0],) + start.shape)
+    )
 
     def sweep(_, x):
         return _orthonormalise(jnp.einsum("bij,bjk->bik", inverse, x))
@@ -82,8 +87,9 @@ def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
     return jnp.einsum("bnk,bk->bn", x, ritz[:, :, 0])
 
 
-def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, "2"]:
-    """``(σ_min^FK, σ_min^BK)`` at one state, differentiable in ``state`` and ``geom``."""
+def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, 2]:
+    """``(σ_min^FK, σ_min^BK)`` at one state, differentiable in ``state`` and
+    ``geom``."""
     jac = stacked_jacobians(mech, geom, state)
     v = smallest_right_vectors(jax.lax.stop_gradient(jac))
     image = jnp.einsum("bij,bj->bi", jac, v)
@@ -110,6 +116,6 @@ def singular_values(mech: Mechanism, state, *, design=None) -> Float[Array, "...
     return _sigmas(mech, state, design)
 
 
-def f_sing(mech: Mechanism, state, *, design=None) -> Float[Array, "..."]:
+def f_sing(mech: Mechanism, state, *, design=None) -> Float[Array, ...]:
     """``f_sing`` (eq. 3) of a state or a batch of states."""
     return jnp.sum(1.0 / singular_values(mech, state, design=design), axis=-1)

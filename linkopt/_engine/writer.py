@@ -2,8 +2,8 @@
 
 The file's own tables are kept; joint anchors and axes take the design's values (mirror
 twins included), every parameter's rest value moves with them, and the reference length
-α₋ and body frame origins of the original are written explicitly so that the new file is homogenised and
-judged exactly as the design was during optimisation.
+α₋ and body frame origins of the original are written explicitly so that the new file is
+homogenised and judged exactly as the design was during optimisation.
 """
 
 from __future__ import annotations
@@ -36,14 +36,19 @@ def _value(v) -> str:
 
 
 def dumps(data: dict) -> str:
-    """TOML text of a parsed definition (tables and arrays of tables, one level deep)."""
+    """TOML text of a parsed definition (tables and arrays of tables, one level
+    deep)."""
     lines: list[str] = []
     for key, value in data.items():
         if isinstance(value, dict):
             lines.append(f"[{key}]")
             lines += [f"{k} = {_value(v)}" for k, v in value.items()]
             lines.append("")
-        elif isinstance(value, list) and value and all(isinstance(x, dict) for x in value):
+        elif (
+            isinstance(value, list)
+            and value
+            and all(isinstance(x, dict) for x in value)
+        ):
             for entry in value:
                 lines.append(f"[[{key}]]")
                 lines += [f"{k} = {_value(v)}" for k, v in entry.items()]
@@ -54,16 +59,21 @@ def dumps(data: dict) -> str:
 
 
 def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
-    """The parsed definition of ``mech`` with ``design`` baked into its rest geometry."""
+    """The parsed definition of ``mech`` with ``design`` baked into its rest
+    geometry."""
     design = np.asarray(design, dtype=float)
-    flat = np.concatenate([mech.anchors.ravel(), mech.axes.ravel()]) + mech.design.matrix @ (design - mech.design.p0)
+    flat = np.concatenate(
+        [mech.anchors.ravel(), mech.axes.ravel()]
+    ) + mech.design.matrix @ (design - mech.design.p0)
     count = len(mech.joint_names)
     anchors = flat[: 3 * count].reshape(count, 3)
     axes = flat[3 * count :].reshape(count, 3)
     data = copy.deepcopy(mech.raw)
     data["mechanism"]["reference_length"] = float(mech.length_scale)
     for body, origin in zip(data["bodies"], mech.body_origins):
-        body["origin"] = [float(v) for v in origin]  # same body frames, so the same f_sing
+        body["origin"] = [
+            float(v) for v in origin
+        ]  # same body frames, so the same f_sing
     data.setdefault("evaluation", {})["alpha_minus"] = float(alpha_minus)
     for k, joint in enumerate(data["joints"]):
         joint["anchor"] = [float(v) for v in anchors[k]]
@@ -72,9 +82,13 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
     return data
 
 
-def write_design(mech: Mechanism, design, alpha_minus: float, path: str | Path, header: str = "") -> Path:
+def write_design(
+    mech: Mechanism, design, alpha_minus: float, path: str | Path, header: str = ""
+) -> Path:
     """Write ``design`` as a mechanism file that every command accepts."""
     path = Path(path)
     comment = "".join(f"# {line}\n" for line in header.splitlines())
-    path.write_text(comment + dumps(design_definition(mech, design, alpha_minus)), encoding="utf-8")
+    path.write_text(
+        comment + dumps(design_definition(mech, design, alpha_minus)), encoding="utf-8"
+    )
     return path

@@ -1,26 +1,27 @@
 """Joint elimination (paper 000, Sec. V, Algorithm 1) and the optimise → eliminate loop.
 
-For a candidate ``k`` (the segment between joints ``k`` and ``k+1``, 0-based) the modules
-between the two joints are replaced by one abstract ``segment`` module, a free transform
-``Trans(x, y, z) Rot_z(yaw) Rot_y(pitch) Rot_x(roll)`` whose six parameters ``d_j`` start at
-``SE3toXYZRPY(T_j)`` (line 1). Each iteration (lines 4-17) stacks the tool Jacobians of all
-targets in ``(θ_1 … θ_nT, d', d_j)`` (eq. 12, from the engine's implicit tangents), asks
-for ``Δd_j = -α d_j`` and solves ``[Δθ; Δd'] = J_{θ,d'}⁺ (V - J_{d_j} Δd_j)`` with ``V`` the
-velocity that moves every tool back to its target (lines 7-10), clamping ``V``, ``Δθ``
-and ``Δd'`` and keeping ``d'`` in its bounds. Then joints ``k`` and ``k+1`` are merged
-(``θ_k + θ_{k+1}``, line 19) and ``δ`` (line 22) measures how far the merged arm's tools are
-from their targets.
+For a candidate ``k`` (the segment between joints ``k`` and ``k+1``, 0-based) the
+modules between the two joints are replaced by one abstract ``segment`` module, a free
+transform ``Trans(x, y, z) Rot_z(yaw) Rot_y(pitch) Rot_x(roll)`` whose six parameters
+``d_j`` start at ``SE3toXYZRPY(T_j)`` (line 1). Each iteration (lines 4-17) stacks the
+tool Jacobians of all targets in ``(θ_1 … θ_nT, d', d_j)`` (eq. 12, from the engine's
+implicit tangents), asks for ``Δd_j = -α d_j`` and solves
+``[Δθ; Δd'] = J_{θ,d'}⁺ (V - J_{d_j} Δd_j)`` with ``V`` the velocity that moves every
+tool back to its target (lines 7-10), clamping ``V``, ``Δθ`` and ``Δd'`` and keeping
+``d'`` in its bounds. Then joints ``k`` and ``k+1`` are merged (``θ_k + θ_{k+1}``, line
+19) and ``δ`` (line 22) measures how far the merged arm's tools are from their targets.
 
 Choices where the paper is terse (stated here as the careful-engineer reading):
 
-* The velocity is expressed as ``[ṗ_tool; ω]`` rather than the spatial twist ``[ṗ - ω × p; ω]``:
-  the two are related by an invertible map, but the tool-point form does not weigh
-  rotations by the distance to the world origin. Angular rows are kept only where the
-  target constrains them: none for position-only targets, the part ⟂ ``n̂_T`` for tip-axis
-  targets (a rotation about the tip axis is free), all three for full orientations, whose
-  error is ``ω = ½ Σ_c (R_fk e_c) × (R_T e_c)``.
+* The velocity is expressed as ``[ṗ_tool; ω]`` rather than the spatial twist
+  ``[ṗ - ω × p; ω]``: the two are related by an invertible map, but the tool-point form
+  does not weigh rotations by the distance to the world origin. Angular rows are kept
+  only where the target constrains them: none for position-only targets, the part ⟂
+  ``n̂_T`` for tip-axis targets (a rotation about the tip axis is free), all three for
+  full orientations, whose error is ``ω = ½ Σ_c (R_fk e_c) × (R_T e_c)``.
 * Step clamps (Sec. V-B): ``|V|`` 0.5 (linear) / 0.05 (angular), ``|Δd'|`` 0.1 / 0.01,
-  ``|Δθ|`` 0.05 rad; ``α = 10⁻²``, 500 iterations; the loop also stops when ``|d_j| < 10⁻⁴``.
+  ``|Δθ|`` 0.05 rad; ``α = 10⁻²``, 500 iterations; the loop also stops when
+  ``|d_j| < 10⁻⁴``.
 """
 
 from __future__ import annotations
@@ -33,7 +34,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import nlp
-from .model import Arm, Module, compose, rotation_matrix, make_arm, module_transform, tool_pose
+from .model import (
+    Arm,
+    Module,
+    compose,
+    make_arm,
+    module_transform,
+    rotation_matrix,
+    tool_pose,
+)
 
 ANGLE_SLOTS = ("roll", "pitch", "yaw")
 
@@ -52,8 +61,9 @@ class EliminationSettings:
 
 @dataclass(frozen=True)
 class Elimination:
-    """Result of Algorithm 1 for one candidate: the merged arm, its ``θ'`` at the targets
-    ``(n_T, n-1)``, its design ``d'`` and the error ``δ``; ``segment`` is ``|d_j|`` at the end."""
+    """Result of Algorithm 1 for one candidate: the merged arm, its ``θ'`` at the
+    targets ``(n_T, n-1)``, its design ``d'`` and the error ``δ``; ``segment`` is
+    ``|d_j|`` at the end."""
 
     candidate: int
     arm: Arm
@@ -66,7 +76,13 @@ class Elimination:
 
 def _rotation_to_rpy(r: np.ndarray) -> np.ndarray:
     """Roll, pitch, yaw of ``R = Rot_z(yaw) Rot_y(pitch) Rot_x(roll)``."""
-    return np.array([np.arctan2(r[2, 1], r[2, 2]), np.arctan2(-r[2, 0], np.hypot(r[2, 1], r[2, 2])), np.arctan2(r[1, 0], r[0, 0])])
+    return np.array(
+        [
+            np.arctan2(r[2, 1], r[2, 2]),
+            np.arctan2(-r[2, 0], np.hypot(r[2, 1], r[2, 2])),
+            np.arctan2(r[1, 0], r[0, 0]),
+        ]
+    )
 
 
 def _between(arm: Arm, k: int) -> range:
@@ -74,40 +90,82 @@ def _between(arm: Arm, k: int) -> range:
     return range(int(joints[k]) + 1, int(joints[k + 1]))
 
 
-def _rebuild(arm: Arm, modules: list[Module], keep: np.ndarray, extra: list[tuple[str, float, float, float, bool]], name: str) -> Arm:
-    """An arm of ``modules`` whose design is ``d[keep]`` followed by ``extra`` variables."""
+def _rebuild(
+    arm: Arm,
+    modules: list[Module],
+    keep: np.ndarray,
+    extra: list[tuple[str, float, float, float, bool]],
+    name: str,
+) -> Arm:
+    """An arm of ``modules`` whose design is ``d[keep]`` followed by ``extra``
+    variables."""
     remap = {int(old): new for new, old in enumerate(keep)}
-    fixed = [Module(m.kind, tuple((remap.get(i, -1) if i >= 0 else -1, v) for i, v in m.slots), m.mass) if m.kind != "segment" else m for m in modules]
+    fixed = [
+        Module(
+            m.kind,
+            tuple((remap.get(i, -1) if i >= 0 else -1, v) for i, v in m.slots),
+            m.mass,
+        )
+        if m.kind != "segment"
+        else m
+        for m in modules
+    ]
     names = [arm.design_names[i] for i in keep] + [e[0] for e in extra]
     d0 = np.concatenate([arm.d0[keep], [e[1] for e in extra]])
     lower = np.concatenate([arm.lower[keep], [e[2] for e in extra]])
     upper = np.concatenate([arm.upper[keep], [e[3] for e in extra]])
-    is_length = np.concatenate([arm.is_length[keep], [e[4] for e in extra]]).astype(bool)
-    return make_arm(name, tuple(fixed), names, d0, lower, upper, is_length, arm.torque_limit, arm.radius, arm.mechanism.source)
+    is_length = np.concatenate([arm.is_length[keep], [e[4] for e in extra]]).astype(
+        bool
+    )
+    return make_arm(
+        name,
+        tuple(fixed),
+        names,
+        d0,
+        lower,
+        upper,
+        is_length,
+        arm.torque_limit,
+        arm.radius,
+        arm.mechanism.source,
+    )
 
 
 def segment_arm(arm: Arm, k: int, d: np.ndarray) -> tuple[Arm, np.ndarray, np.ndarray]:
-    """The arm with the modules between joints ``k`` and ``k+1`` replaced by a free segment;
-    returns it, the indices ``keep`` of ``d'`` in ``d``, and ``d_j = SE3toXYZRPY(T_j)``."""
+    """The arm with the modules between joints ``k`` and ``k+1`` replaced by a free
+    segment; returns it, the indices ``keep`` of ``d'`` in ``d``, and
+    ``d_j = SE3toXYZRPY(T_j)``."""
     inside = _between(arm, k)
     frame = (jnp.array([1.0, 0.0, 0.0, 0.0]), jnp.zeros(3))
     for i in inside:
         frame = compose(frame, module_transform(arm.modules[i], jnp.asarray(d)))
-    d_j = np.concatenate([np.asarray(frame[1]), _rotation_to_rpy(np.asarray(rotation_matrix(frame[0])))])
+    d_j = np.concatenate(
+        [np.asarray(frame[1]), _rotation_to_rpy(np.asarray(rotation_matrix(frame[0])))]
+    )
     used = {i for m in (arm.modules[i] for i in inside) for i, _ in m.slots if i >= 0}
     keep = np.array([i for i in range(arm.num_design) if i not in used], dtype=int)
     m_prime = keep.size
     slots = tuple((m_prime + s, 0.0) for s in range(6))
-    modules = list(arm.modules[: inside.start]) + [Module("segment", slots, sum(arm.modules[i].mass for i in inside))] + list(arm.modules[inside.stop :])
-    extra = [(f"segment{k + 1}.{s}", 0.0, -1e3, 1e3, s not in ANGLE_SLOTS) for s in ("x", "y", "z", "roll", "pitch", "yaw")]
+    modules = (
+        list(arm.modules[: inside.start])
+        + [Module("segment", slots, sum(arm.modules[i].mass for i in inside))]
+        + list(arm.modules[inside.stop :])
+    )
+    extra = [
+        (f"segment{k + 1}.{s}", 0.0, -1e3, 1e3, s not in ANGLE_SLOTS)
+        for s in ("x", "y", "z", "roll", "pitch", "yaw")
+    ]
     return _rebuild(arm, modules, keep, extra, arm.name), keep, d_j
 
 
 def merged_arm(arm: Arm, k: int, keep: np.ndarray) -> Arm:
-    """The arm with the modules between joints ``k`` and ``k+1`` and joint ``k+1`` removed."""
+    """The arm with the modules between joints ``k`` and ``k+1`` and joint ``k+1``
+    removed."""
     inside = _between(arm, k)
     modules = list(arm.modules[: inside.start]) + list(arm.modules[inside.stop + 1 :])
-    return _rebuild(arm, modules, keep, [], f"{arm.name.split(',')[0]}, {arm.num_joints - 1} joints")
+    return _rebuild(
+        arm, modules, keep, [], f"{arm.name.split(',')[0]}, {arm.num_joints - 1} joints"
+    )
 
 
 @partial(jax.jit, static_argnums=0)
@@ -124,7 +182,9 @@ def _poses(arm: Arm, theta, d):
 
         def twist(dp_x, dr_x):  # (3, k), (3, 3, k) -> (6, k)
             w = jnp.einsum("abk,cb->ack", dr_x, rot)
-            return jnp.concatenate([dp_x, jnp.stack([w[2, 1], w[0, 2], w[1, 0]])], axis=0)
+            return jnp.concatenate(
+                [dp_x, jnp.stack([w[2, 1], w[0, 2], w[1, 0]])], axis=0
+            )
 
         return tip, rot, twist(dp[0], dr[0]), twist(dp[1], dr[1])
 
@@ -132,10 +192,13 @@ def _poses(arm: Arm, theta, d):
 
 
 def _target_velocity(problem: nlp.Problem, tip, rot, settings: EliminationSettings):
-    """Clamped ``V`` (lines 7-10) and the row projection of every target ``(n_T, 6, 6)``."""
+    """Clamped ``V`` (lines 7-10) and the row projection of every target
+    ``(n_T, 6, 6)``."""
     dp = problem.target_position - tip
     lin, ang = settings.clamp_velocity
-    dp = dp * np.minimum(1.0, lin / np.maximum(np.linalg.norm(dp, axis=1, keepdims=True), 1e-300))
+    dp = dp * np.minimum(
+        1.0, lin / np.maximum(np.linalg.norm(dp, axis=1, keepdims=True), 1e-300)
+    )
     omega = np.zeros_like(dp)
     proj = np.zeros((len(dp), 6, 6))
     proj[:, :3, :3] = np.eye(3)
@@ -148,7 +211,9 @@ def _target_velocity(problem: nlp.Problem, tip, rot, settings: EliminationSettin
         elif rows[1]:
             omega[i] = np.cross(rot[i][:, 2], n_t)
             proj[i, 3:, 3:] = np.eye(3) - np.outer(n_t, n_t)
-    omega = omega * np.minimum(1.0, ang / np.maximum(np.linalg.norm(omega, axis=1, keepdims=True), 1e-300))
+    omega = omega * np.minimum(
+        1.0, ang / np.maximum(np.linalg.norm(omega, axis=1, keepdims=True), 1e-300)
+    )
     return np.concatenate([dp, omega], axis=1), proj
 
 
@@ -156,26 +221,46 @@ def _clamp(step: np.ndarray, limits: np.ndarray) -> np.ndarray:
     return np.clip(step, -limits, limits)
 
 
-def delta_error(problem: nlp.Problem, arm: Arm, theta: np.ndarray, d: np.ndarray) -> float:
-    """``δ = Σ |p_T - p_fk|² + (1 - n̂_fk · n̂_T)`` over the targets (line 22; the tip term
-    only where a tip axis is given)."""
-    tip, rot, _, _ = (np.asarray(a) for a in _poses(arm, jnp.asarray(theta), jnp.asarray(d)))
+def delta_error(
+    problem: nlp.Problem, arm: Arm, theta: np.ndarray, d: np.ndarray
+) -> float:
+    """``δ = Σ |p_T - p_fk|² + (1 - n̂_fk · n̂_T)`` over the targets (line 22; the tip
+    term only where a tip axis is given)."""
+    tip, rot, _, _ = (
+        np.asarray(a) for a in _poses(arm, jnp.asarray(theta), jnp.asarray(d))
+    )
     position = np.sum((problem.target_position - tip) ** 2)
-    axis = np.sum(problem.rows[:, 1] * (1.0 - np.sum(rot[:, :, 2] * problem.target_axis, axis=1)))
+    axis = np.sum(
+        problem.rows[:, 1] * (1.0 - np.sum(rot[:, :, 2] * problem.target_axis, axis=1))
+    )
     return float(position + axis)
 
 
-def eliminate(problem: nlp.Problem, theta_targets: np.ndarray, d: np.ndarray, k: int, settings: EliminationSettings = EliminationSettings()) -> Elimination:
-    """Algorithm 1 for candidate ``k`` from the configurations at the targets ``(n_T, n)``."""
+def eliminate(
+    problem: nlp.Problem,
+    theta_targets: np.ndarray,
+    d: np.ndarray,
+    k: int,
+    settings: EliminationSettings = EliminationSettings(),
+) -> Elimination:
+    """Algorithm 1 for candidate ``k`` from the configurations at the targets
+    ``(n_T, n)``."""
     arm = problem.arm
     seg, keep, d_j = segment_arm(arm, k, d)
     d_prime = np.asarray(d, float)[keep].copy()
     theta = np.asarray(theta_targets, float).copy()
     n_t, n = theta.shape
-    lin_d = np.where(seg.is_length[: keep.size], settings.clamp_design[0], settings.clamp_design[1])
+    lin_d = np.where(
+        seg.is_length[: keep.size], settings.clamp_design[0], settings.clamp_design[1]
+    )
     iteration = 0
     while iteration < settings.iterations and np.linalg.norm(d_j) > settings.threshold:
-        tip, rot, j_theta, j_d = (np.asarray(a) for a in _poses(seg, jnp.asarray(theta), jnp.asarray(np.concatenate([d_prime, d_j]))))
+        tip, rot, j_theta, j_d = (
+            np.asarray(a)
+            for a in _poses(
+                seg, jnp.asarray(theta), jnp.asarray(np.concatenate([d_prime, d_j]))
+            )
+        )
         v, proj = _target_velocity(problem, tip, rot, settings)
         stack = np.zeros((n_t, 6, n_t * n + keep.size))
         for i in range(n_t):
@@ -185,33 +270,58 @@ def eliminate(problem: nlp.Problem, theta_targets: np.ndarray, d: np.ndarray, k:
         step_j = -settings.alpha * d_j
         rhs = np.einsum("iab,ib->ia", proj, v).ravel() - j_dj @ step_j
         step = np.linalg.pinv(stack.reshape(n_t * 6, -1), rcond=1e-8) @ rhs
-        theta += _clamp(step[: n_t * n].reshape(n_t, n), np.full(n, settings.clamp_theta))
-        d_prime = np.clip(d_prime + _clamp(step[n_t * n :], lin_d), arm.lower[keep], arm.upper[keep])
+        theta += _clamp(
+            step[: n_t * n].reshape(n_t, n), np.full(n, settings.clamp_theta)
+        )
+        d_prime = np.clip(
+            d_prime + _clamp(step[n_t * n :], lin_d), arm.lower[keep], arm.upper[keep]
+        )
         d_j = d_j + step_j
         iteration += 1
     merged = merged_arm(arm, k, keep)
     theta_merged = merge_trajectory(theta, k)
     reduced = replace(problem, arm=merged)
-    return Elimination(k, merged, theta_merged, d_prime, delta_error(reduced, merged, theta_merged, d_prime), float(np.linalg.norm(d_j)), iteration)
+    return Elimination(
+        k,
+        merged,
+        theta_merged,
+        d_prime,
+        delta_error(reduced, merged, theta_merged, d_prime),
+        float(np.linalg.norm(d_j)),
+        iteration,
+    )
 
 
 def merge_trajectory(theta: np.ndarray, k: int) -> np.ndarray:
-    """Waypoint configurations ``(n_W, n)`` with joints ``k`` and ``k+1`` merged (line 19)."""
+    """Waypoint configurations ``(n_W, n)`` with joints ``k`` and ``k+1`` merged (line
+    19)."""
     merged = np.delete(theta, k + 1, axis=1)
     merged[:, k] += theta[:, k + 1]
     return merged
 
 
-def best_elimination(problem: nlp.Problem, solution: nlp.ArmSolution, settings: EliminationSettings = EliminationSettings()) -> tuple[Elimination, list[Elimination]]:
+def best_elimination(
+    problem: nlp.Problem,
+    solution: nlp.ArmSolution,
+    settings: EliminationSettings = EliminationSettings(),
+) -> tuple[Elimination, list[Elimination]]:
     """Algorithm 1 for every candidate joint pair; the one of least ``δ`` first."""
     at = problem.target_waypoints
-    runs = [eliminate(problem, solution.theta[at], solution.design, k, settings) for k in range(problem.arm.num_joints - 1)]
+    runs = [
+        eliminate(problem, solution.theta[at], solution.design, k, settings)
+        for k in range(problem.arm.num_joints - 1)
+    ]
     return min(runs, key=lambda e: e.delta), runs
 
 
-def reoptimise(problem: nlp.Problem, solution: nlp.ArmSolution, elimination: Elimination, max_iterations: int | None = None) -> tuple[nlp.Problem, nlp.ArmSolution]:
-    """Re-solve eq. 1 for the merged arm from ``(θ', d')`` (intermediate waypoints merged from
-    the previous solution), which corrects Algorithm 1's drift."""
+def reoptimise(
+    problem: nlp.Problem,
+    solution: nlp.ArmSolution,
+    elimination: Elimination,
+    max_iterations: int | None = None,
+) -> tuple[nlp.Problem, nlp.ArmSolution]:
+    """Re-solve eq. 1 for the merged arm from ``(θ', d')`` (intermediate waypoints
+    merged from the previous solution), which corrects Algorithm 1's drift."""
     reduced = nlp.prepare(problem.task, elimination.arm)
     theta = merge_trajectory(solution.theta, elimination.candidate)
     theta[problem.target_waypoints] = elimination.theta
@@ -230,7 +340,14 @@ class Stage:
     deltas: tuple[float, ...] = ()
 
 
-def simplify(problem: nlp.Problem, first: nlp.ArmSolution, *, min_joints: int = 1, settings: EliminationSettings = EliminationSettings(), progress=None) -> list[Stage]:
+def simplify(
+    problem: nlp.Problem,
+    first: nlp.ArmSolution,
+    *,
+    min_joints: int = 1,
+    settings: EliminationSettings = EliminationSettings(),
+    progress=None,
+) -> list[Stage]:
     """Alternate Algorithm 1 and re-optimisation from a solved ``first`` stage while the
     re-optimised arm stays feasible and has more than ``min_joints`` joints."""
     stages = [Stage(problem, first, None)]

@@ -4,7 +4,8 @@ An arm (paper Sec. III-A) is a sequence of modules; each module is a rigid trans
 whose continuous parameters are either fixed numbers or design variables ``d``:
 
 * ``base``   ``Trans(x, y, z) · Rot_z(yaw) Rot_y(pitch) Rot_x(roll)``; its z axis is the
-  first joint's axis. Also used as the abstract ``segment`` of joint elimination (Sec. V).
+  first joint's axis. Also used as the abstract ``segment`` of joint elimination
+  (Sec. V).
 * ``joint``  a rotary actuator: ``Rot_z(θ)``, one motor.
 * ``link``   ``Trans_z(offset) · Trans_x(length) · Rot_x(twist)``, i.e. one Denavit–Hartenberg
   row ``(d, a, α)`` after the preceding joint's ``Rot_z(θ)``.
@@ -13,18 +14,19 @@ whose continuous parameters are either fixed numbers or design variables ``d``:
 
 Every joint module starts a new body; the modules up to the next joint are rigid parts
 of that body. The engine model (:func:`mechanism`) has a ground body and one body per
-joint, one revolute joint and motor per joint module, and one named point at the end
-of every module (``m<k>``, plus ``tip``). Its outputs are the joint angles: an open chain's
+joint, one revolute joint and motor per joint module, and one named point at the end of
+every module (``m<k>``, plus ``tip``). Its outputs are the joint angles: an open chain's
 loader check needs as many outputs as motors, and tip coordinates would make the
 stretched zero pose (the usual rest pose of a DH chain) backward-singular.
 
 Design variables such as a twist are not linear in the anchors, so the engine's linear
 design map is not used: :func:`arm_geometry` maps ``d`` to the engine's
-:class:`~linkopt._engine.geometry.Geometry` (body origins static, anchors moving inside the
-bodies, as everywhere in linkopt), and :func:`arm_state` gives the maximal-coordinate
-state of joint angles ``θ`` directly (a serial chain needs no solve), attached to ``θ`` and
-``d`` by the engine's implicit-function tangent, so every derivative of a state
-quantity comes from the engine's constraint Jacobian (:mod:`linkopt._engine.jacobian`).
+:class:`~linkopt._engine.geometry.Geometry` (body origins static, anchors moving inside
+the bodies, as everywhere in linkopt), and :func:`arm_state` gives the
+maximal-coordinate state of joint angles ``θ`` directly (a serial chain needs no solve),
+attached to ``θ`` and ``d`` by the engine's implicit-function tangent, so every
+derivative of a state quantity comes from the engine's constraint Jacobian
+(:mod:`linkopt._engine.jacobian`).
 """
 
 from __future__ import annotations
@@ -93,7 +95,9 @@ class Arm:
     @property
     def joint_modules(self) -> np.ndarray:
         """Module index of every joint, shape ``(n,)``."""
-        return np.array([k for k, m in enumerate(self.modules) if m.kind == "joint"], dtype=int)
+        return np.array(
+            [k for k, m in enumerate(self.modules) if m.kind == "joint"], dtype=int
+        )
 
 
 Frame = tuple[Float[Array, "4"], Float[Array, "3"]]  # (quaternion wxyz, position)
@@ -112,7 +116,9 @@ def _trans(vector) -> Frame:
 
 
 def _slot_values(module: Module, d) -> list:
-    return [d[i] if i >= 0 else jnp.asarray(v, dtype=jnp.float64) for i, v in module.slots]
+    return [
+        d[i] if i >= 0 else jnp.asarray(v, dtype=jnp.float64) for i, v in module.slots
+    ]
 
 
 def module_transform(module: Module, d, theta=None) -> Frame:
@@ -127,15 +133,20 @@ def module_transform(module: Module, d, theta=None) -> Frame:
     if module.kind == "joint":
         return _rot(2, theta)
     if module.kind == "link":
-        frame = compose(_trans(jnp.stack([zero, zero, s[2]])), _trans(jnp.stack([s[0], zero, zero])))
+        frame = compose(
+            _trans(jnp.stack([zero, zero, s[2]])), _trans(jnp.stack([s[0], zero, zero]))
+        )
         return compose(frame, _rot(0, s[1]))
     if module.kind == "tool":
         return compose(_trans(jnp.stack([s[0], zero, zero])), _rot(1, jnp.pi / 2))
     raise ValueError(f"unknown module kind {module.kind!r}")
 
 
-def chain(arm_modules: tuple[Module, ...], theta: Float[Array, " n"], d: Float[Array, " m"]) -> tuple[list[Frame], list[Frame]]:
-    """World frames after every module ``(K,)`` and at every joint *before* its rotation ``(n,)``."""
+def chain(
+    arm_modules: tuple[Module, ...], theta: Float[Array, " n"], d: Float[Array, " m"]
+) -> tuple[list[Frame], list[Frame]]:
+    """World frames after every module ``(K,)`` and at every joint *before* its rotation
+    ``(n,)``."""
     frame: Frame = (jnp.array([1.0, 0.0, 0.0, 0.0]), jnp.zeros(3))
     ends, joints = [], []
     k = 0
@@ -169,12 +180,22 @@ def tool_rotation(arm: Arm, theta, d) -> Float[Array, "3 3"]:
 # The engine model.
 
 
-def _definition(arm_name: str, modules: tuple[Module, ...], d: np.ndarray, length_scale: float | None) -> dict:
+def _definition(
+    arm_name: str,
+    modules: tuple[Module, ...],
+    d: np.ndarray,
+    length_scale: float | None,
+) -> dict:
     """The mechanism-file dictionary of the arm at design ``d`` (rest pose θ = 0).
 
-    ``units = "m"``: arm task files are in metres (and kg, N·m; see :mod:`linkopt._arms.codesign.task`),
-    which the task's gravity and torque limit assume, so the arm's lengths are too."""
-    ends, joints = chain(modules, jnp.zeros(sum(m.kind == "joint" for m in modules)), jnp.asarray(d, dtype=jnp.float64))
+    ``units = "m"``: arm task files are in metres (and kg, N·m; see
+    :mod:`linkopt._arms.codesign.task`), which the task's gravity and torque limit
+    assume, so the arm's lengths are too."""
+    ends, joints = chain(
+        modules,
+        jnp.zeros(sum(m.kind == "joint" for m in modules)),
+        jnp.asarray(d, dtype=jnp.float64),
+    )
     ends = [np.asarray(p) for _, p in ends]
     frames = [(np.asarray(q), np.asarray(p)) for q, p in joints]
     bodies = module_bodies(modules)
@@ -186,13 +207,21 @@ def _definition(arm_name: str, modules: tuple[Module, ...], d: np.ndarray, lengt
     body_points[n].append(ends[-1])
     data = {
         "mechanism": {"name": arm_name, "ground": "base", "units": "m"},
-        "bodies": [{"name": "base" if b == 0 else f"body{b}", "origin": [float(v) for v in np.mean(body_points[b], axis=0)]} for b in range(n + 1)],
+        "bodies": [
+            {
+                "name": "base" if b == 0 else f"body{b}",
+                "origin": [float(v) for v in np.mean(body_points[b], axis=0)],
+            }
+            for b in range(n + 1)
+        ],
         "joints": [],
         "motors": [],
         "points": [],
         "outputs": [],
     }
-    if length_scale is None:  # the arm's span: joint anchors and module ends (the loader's
+    if (
+        length_scale is None
+    ):  # the arm's span: joint anchors and module ends (the loader's
         # default uses anchors only, and a 1-joint arm has a single anchor)
         span = diameter(np.array(anchors + ends))
         length_scale = span if span > 1e-9 else 1.0
@@ -200,30 +229,83 @@ def _definition(arm_name: str, modules: tuple[Module, ...], d: np.ndarray, lengt
     for k, (q, p) in enumerate(frames):
         axis = np.asarray(rotation_matrix(jnp.asarray(q)))[:, 2]
         names = ["base" if k == 0 else f"body{k}", f"body{k + 1}"]
-        data["joints"].append({"name": f"j{k + 1}", "type": "revolute", "bodies": names, "anchor": [float(v) for v in p], "axis": [float(v) for v in axis]})
+        data["joints"].append(
+            {
+                "name": f"j{k + 1}",
+                "type": "revolute",
+                "bodies": names,
+                "anchor": [float(v) for v in p],
+                "axis": [float(v) for v in axis],
+            }
+        )
         data["motors"].append({"name": f"j{k + 1}", "joint": f"j{k + 1}"})
-        data["outputs"].append({"name": f"j{k + 1}", "joint": f"j{k + 1}", "min": -float(np.pi), "max": float(np.pi)})
+        data["outputs"].append(
+            {
+                "name": f"j{k + 1}",
+                "joint": f"j{k + 1}",
+                "min": -float(np.pi),
+                "max": float(np.pi),
+            }
+        )
     for k, p in enumerate(ends):
-        data["points"].append({"name": f"m{k}", "body": data["bodies"][bodies[k]]["name"], "position": [float(v) for v in p]})
-    data["points"].append({"name": "tip", "body": data["bodies"][n]["name"], "position": [float(v) for v in ends[-1]]})
+        data["points"].append(
+            {
+                "name": f"m{k}",
+                "body": data["bodies"][bodies[k]]["name"],
+                "position": [float(v) for v in p],
+            }
+        )
+    data["points"].append(
+        {
+            "name": "tip",
+            "body": data["bodies"][n]["name"],
+            "position": [float(v) for v in ends[-1]],
+        }
+    )
     return data
 
 
 def mechanism_definition(arm: Arm, d) -> dict:
     """Mechanism-file dictionary of the arm at design ``d``, same reference length."""
-    return _definition(arm.name, arm.modules, np.asarray(d, dtype=float), arm.mechanism.length_scale)
+    return _definition(
+        arm.name, arm.modules, np.asarray(d, dtype=float), arm.mechanism.length_scale
+    )
 
 
-def make_arm(name: str, modules: tuple[Module, ...], design_names, d0, lower, upper, is_length, torque_limit: float, radius: float, source: str = "<arm>") -> Arm:
-    """Build an :class:`Arm` and its engine model at ``d0`` (validated by the loader)."""
+def make_arm(
+    name: str,
+    modules: tuple[Module, ...],
+    design_names,
+    d0,
+    lower,
+    upper,
+    is_length,
+    torque_limit: float,
+    radius: float,
+    source: str = "<arm>",
+) -> Arm:
+    """Build an :class:`Arm` and its engine model at ``d0`` (validated by the
+    loader)."""
     d0 = np.asarray(d0, dtype=float)
     mech = build(_definition(name, modules, d0, None), source)
-    return Arm(name, tuple(modules), tuple(design_names), d0, np.asarray(lower, float), np.asarray(upper, float), np.asarray(is_length, bool), float(torque_limit), float(radius), mech)
+    return Arm(
+        name,
+        tuple(modules),
+        tuple(design_names),
+        d0,
+        np.asarray(lower, float),
+        np.asarray(upper, float),
+        np.asarray(is_length, bool),
+        float(torque_limit),
+        float(radius),
+        mech,
+    )
 
 
 def arm_geometry(arm: Arm, d: Float[Array, " m"]) -> Geometry:
-    """Engine geometry of design ``d`` (homogenised): joint anchors/axes at θ = 0, helper
-    axes along each joint frame's x (⟂ to the axis and smooth in ``d``), module-end points."""
+    """Engine geometry of design ``d`` (homogenised): joint anchors/axes at θ = 0,
+    helper axes along each joint frame's x (⟂ to the axis and smooth in ``d``),
+    module-end points."""
     mech = arm.mechanism
     n = arm.num_joints
     ends, joints = chain(arm.modules, jnp.zeros(n), d)
@@ -240,11 +322,14 @@ def arm_geometry(arm: Arm, d: Float[Array, " m"]) -> Geometry:
     )
 
 
-def direct_state(arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]) -> Float[Array, " S"]:
-    """Maximal-coordinate state of joint angles ``θ`` (homogenised), by the chain product.
+def direct_state(
+    arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]
+) -> Float[Array, " S"]:
+    """Maximal-coordinate state of joint angles ``θ`` (homogenised), by the chain
+    product.
 
-    Body ``k`` (after joint ``k``) moves by ``G = F_k(θ) F_k(0)⁻¹`` with ``F_k`` the frame
-    just after joint ``k``: quaternion ``q_F(θ) ⊗ q̄_F(0)``, origin ``G o_k``.
+    Body ``k`` (after joint ``k``) moves by ``G = F_k(θ) F_k(0)⁻¹`` with ``F_k`` the
+    frame just after joint ``k``: quaternion ``q_F(θ) ⊗ q̄_F(0)``, origin ``G o_k``.
     """
     mech = arm.mechanism
     scale = mech.length_scale
@@ -253,7 +338,9 @@ def direct_state(arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]) -> 
     origins = jnp.asarray(mech.body_origins)
     bodies = [jnp.concatenate([origins[0] / scale, jnp.array([1.0, 0.0, 0.0, 0.0])])]
     for k in range(arm.num_joints):
-        q_now = quat.multiply(moved[k][0], quat.from_axis_angle(jnp.array([0.0, 0.0, 1.0]), theta[k]))
+        q_now = quat.multiply(
+            moved[k][0], quat.from_axis_angle(jnp.array([0.0, 0.0, 1.0]), theta[k])
+        )
         q_rest = rest[k][0]
         q = quat.multiply(q_now, quat.conjugate(q_rest))
         x = moved[k][1] + quat.rotate(q, origins[k + 1] - rest[k][1])
@@ -261,7 +348,9 @@ def direct_state(arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]) -> 
     return jnp.concatenate(bodies)
 
 
-def arm_state(arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]) -> tuple[Geometry, Float[Array, " S"]]:
+def arm_state(
+    arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]
+) -> tuple[Geometry, Float[Array, " S"]]:
     """``(geometry, state)`` of ``(θ, d)``; the state's derivatives are the engine's
     implicit-function tangents ``ṡ = -(JᵀJ)⁻¹Jᵀ(∂C/∂a ȧ + ∂C/∂p ṗ)`` of ``C_FK``."""
     geom = arm_geometry(arm, d)
@@ -269,8 +358,11 @@ def arm_state(arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]) -> tup
     return geom, implicit_state(arm.mechanism, "fk", geom, theta, state)
 
 
-def arm_loads(arm: Arm, d: Float[Array, " m"], gravity, payload: float = 0.0) -> tuple[np.ndarray, Float[Array, "L 3"], Float[Array, "L 3"]]:
-    """Gravity loads ``(bodies (L,), rest points (L, 3), forces (L, 3))`` for :mod:`linkopt._engine.statics`.
+def arm_loads(
+    arm: Arm, d: Float[Array, " m"], gravity, payload: float = 0.0
+) -> tuple[np.ndarray, Float[Array, "L 3"], Float[Array, "L 3"]]:
+    """Gravity loads ``(bodies (L,), rest points (L, 3), forces (L, 3))`` for
+    :mod:`linkopt._engine.statics`.
 
     A module's mass sits midway between its input and output frame origins (a joint's
     at its axis), in the body that carries the module; the payload (kg) at the tool tip.
@@ -284,11 +376,15 @@ def arm_loads(arm: Arm, d: Float[Array, " m"], gravity, payload: float = 0.0) ->
     return bodies, jnp.stack(points), jnp.asarray(forces)
 
 
-def tool_pose(arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]) -> tuple[Float[Array, "3"], Float[Array, "3 3"], Geometry, Float[Array, " S"]]:
-    """``FK(θ, d) = (p_fk, R_fk)`` read off the engine state (Sec. III-B), plus geometry and state.
+def tool_pose(
+    arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]
+) -> tuple[Float[Array, 3], Float[Array, "3 3"], Geometry, Float[Array, " S"]]:
+    """``FK(θ, d) = (p_fk, R_fk)`` read off the engine state (Sec. III-B), plus geometry
+    and state.
 
-    ``p_fk`` is the ``tip`` point; ``R_fk = R(q_last) R_fk(0, d)``, the last body's rotation
-    applied to the tool's rest orientation (bodies are at identity orientation at rest).
+    ``p_fk`` is the ``tip`` point; ``R_fk = R(q_last) R_fk(0, d)``, the last body's
+    rotation applied to the tool's rest orientation (bodies are at identity orientation
+    at rest).
     """
     geom, state = arm_state(arm, theta, d)
     mech = arm.mechanism

@@ -1,30 +1,34 @@
 """Design and trajectory together: the constrained NLP of paper 000, eq. 1-8.
 
-Decision variables ``z = [Θ (n_W, n) raveled, d (m,)]``: the joint angles at every waypoint
-and the design. Waypoints: ``waypoints_per_target · n_T`` in all (paper: 4 n_T); the first
-and last are the first and last targets and the ``(k-1) n_T`` intermediate waypoints are
-shared among the target-to-target segments in proportion to their lengths (largest
-remainders, at least one per segment when there are enough).
+Decision variables ``z = [Θ (n_W, n) raveled, d (m,)]``: the joint angles at every
+waypoint and the design. Waypoints: ``waypoints_per_target · n_T`` in all (paper: 4
+n_T); the first and last are the first and last targets and the ``(k-1) n_T``
+intermediate waypoints are shared among the target-to-target segments in proportion to
+their lengths (largest remainders, at least one per segment when there are enough).
 
-Objective (eq. 1) ``w_path f_path + w_joints f_joints + w_length f_length + w_τ f_τ + w_obs f_obs``:
+Objective (eq. 1)
+``w_path f_path + w_joints f_joints + w_length f_length + w_τ f_τ + w_obs f_obs``:
 
-* ``f_path = Σ |p_i - p_{i+1}|²`` (eq. 6), ``f_joints = Σ Σ_j 1 - cos(θ_ij - θ_{i+1,j})`` (eq. 5);
+* ``f_path = Σ |p_i - p_{i+1}|²`` (eq. 6),
+  ``f_joints = Σ Σ_j 1 - cos(θ_ij - θ_{i+1,j})`` (eq. 5);
 * ``f_length = Σ`` of the design variables that are link/tool lengths;
 * ``f_τ = Σ (τ/τ_max)²`` over joints and waypoints (eq. 8 divided by τ_max²: the paper's
   weights were tuned for N·m of its modules; dividing keeps w_τ = 20 meaningful for any
   torque limit — a choice, since the paper does not say);
-* ``f_obs = Σ c(D(x) - r)`` over points spread along every module at every waypoint, ``c``
-  the CHOMP cost of :mod:`linkopt._arms.codesign.sdf`, ``D`` the SDF, ``r`` the module radius.
+* ``f_obs = Σ c(D(x) - r)`` over points spread along every module at every waypoint,
+  ``c`` the CHOMP cost of :mod:`linkopt._arms.codesign.sdf`, ``D`` the SDF, ``r`` the
+  module radius.
 
-Constraints ``g ≤ 0``: position (eq. 2), tip axis (eq. 3), full orientation (eq. 4) and the
-approach cone ``cos(a) - (R_fk e)·a_T`` at targets; torque limits ``±τ - τ_max`` at every
-waypoint (eq. 7), with static torques from the constraint multipliers (:mod:`linkopt._engine.statics`).
+Constraints ``g ≤ 0``: position (eq. 2), tip axis (eq. 3), full orientation (eq. 4) and
+the approach cone ``cos(a) - (R_fk e)·a_T`` at targets; torque limits ``±τ - τ_max`` at
+every waypoint (eq. 7), with static torques from the constraint multipliers
+(:mod:`linkopt._engine.statics`).
 
 Solved by scipy's SLSQP with exact JAX gradients from several random seeds (designs
-uniform in their bounds, target configurations uniform in [-π, π], intermediate waypoints
-interpolated), keeping the best feasible result. Infeasible seeds are allowed. The
-constraint Jacobian is block-sparse (a waypoint's rows depend on its θ and on d), so it is
-assembled from per-waypoint ``jacfwd`` blocks, vmapped over the waypoints.
+uniform in their bounds, target configurations uniform in [-π, π], intermediate
+waypoints interpolated), keeping the best feasible result. Infeasible seeds are allowed.
+The constraint Jacobian is block-sparse (a waypoint's rows depend on its θ and on d), so
+it is assembled from per-waypoint ``jacfwd`` blocks, vmapped over the waypoints.
 """
 
 from __future__ import annotations
@@ -38,12 +42,12 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.optimize
 
+from ..._engine.constraints import point_positions
+from ..._engine.statics import motor_torques
 from .. import checks
 from .model import Arm, arm_loads, tool_pose
-from .task import Task
-from ..._engine.constraints import point_positions
 from .sdf import DistanceField, build_field, chomp_cost, field_distance
-from ..._engine.statics import motor_torques
+from .task import Task
 
 SAMPLES_PER_MODULE = 8  # obstacle points along each module
 FEASIBLE_TOL = 1e-6  # max g for a feasible solution
@@ -51,7 +55,8 @@ OBJECTIVE_SCALE = 1e-3  # SLSQP sees f / 1000: the paper's weights give f ~ 1e3-
 
 
 def waypoint_layout(targets: np.ndarray, per_target: int) -> np.ndarray:
-    """Waypoint index of every target ``(n_T,)``; ``n_W = per_target · n_T`` (module docstring)."""
+    """Waypoint index of every target ``(n_T,)``; ``n_W = per_target · n_T`` (module
+    docstring)."""
     count = len(targets)
     total = per_target * count
     if count == 1:
@@ -71,7 +76,8 @@ def waypoint_layout(targets: np.ndarray, per_target: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Problem:
-    """A task prepared for the NLP: static layout, SDF, target arrays (hashed by identity)."""
+    """A task prepared for the NLP: static layout, SDF, target arrays (hashed by
+    identity)."""
 
     task: Task
     arm: Arm
@@ -90,23 +96,58 @@ class Problem:
 
     def split(self, z):
         n = self.arm.num_joints
-        return z[: self.num_waypoints * n].reshape(self.num_waypoints, n), z[self.num_waypoints * n :]
+        return z[: self.num_waypoints * n].reshape(self.num_waypoints, n), z[
+            self.num_waypoints * n :
+        ]
 
 
 def prepare(task: Task, arm: Arm | None = None) -> Problem:
-    """Layout, SDF and target arrays of ``task`` for ``arm`` (default the task's arm)."""
+    """Layout, SDF and target arrays of ``task`` for ``arm`` (default the task's
+    arm)."""
     arm = arm or task.arm
     targets = task.targets
     positions = np.array([t.position for t in targets])
     field = None
     if task.obstacles:
-        field = build_field(task.obstacles, task.workspace[0], task.workspace[1], task.voxel)
+        field = build_field(
+            task.obstacles, task.workspace[0], task.workspace[1], task.voxel
+        )
     axis = np.array([t.axis if t.axis is not None else np.zeros(3) for t in targets])
-    rotation = np.array([t.orientation if t.orientation is not None else np.eye(3) for t in targets])
-    approach = np.array([np.concatenate([t.approach[0], t.approach[1], [t.approach[2]]]) if t.approach else np.zeros(7) for t in targets])
-    rows = np.array([[True, t.axis is not None, t.orientation is not None, t.approach is not None] for t in targets])
+    rotation = np.array(
+        [t.orientation if t.orientation is not None else np.eye(3) for t in targets]
+    )
+    approach = np.array(
+        [
+            np.concatenate([t.approach[0], t.approach[1], [t.approach[2]]])
+            if t.approach
+            else np.zeros(7)
+            for t in targets
+        ]
+    )
+    rows = np.array(
+        [
+            [
+                True,
+                t.axis is not None,
+                t.orientation is not None,
+                t.approach is not None,
+            ]
+            for t in targets
+        ]
+    )
     layout = waypoint_layout(positions, task.solver["waypoints_per_target"])
-    return Problem(task, arm, layout, task.solver["waypoints_per_target"] * len(targets), field, positions, axis, rotation, approach, rows)
+    return Problem(
+        task,
+        arm,
+        layout,
+        task.solver["waypoints_per_target"] * len(targets),
+        field,
+        positions,
+        axis,
+        rotation,
+        approach,
+        rows,
+    )
 
 
 def _waypoint(problem: Problem, theta, d, loads):
@@ -116,7 +157,10 @@ def _waypoint(problem: Problem, theta, d, loads):
     tau = motor_torques(arm.mechanism, geom, state, *loads)
     obstacle = jnp.zeros(())
     if problem.field is not None:
-        ends = point_positions(arm.mechanism, geom, state)[:-1] * arm.mechanism.length_scale
+        ends = (
+            point_positions(arm.mechanism, geom, state)[:-1]
+            * arm.mechanism.length_scale
+        )
         t = jnp.linspace(0.0, 1.0, SAMPLES_PER_MODULE)[None, :, None]
         samples = (ends[:-1, None, :] * (1 - t) + ends[1:, None, :] * t).reshape(-1, 3)
         distance = field_distance(problem.field, samples) - arm.radius
@@ -130,7 +174,8 @@ def _loads(problem: Problem, d):
 
 
 def _target_rows(problem: Problem, tip, rot, index):
-    """``[g_pos, g_tip, g_rot, g_approach]`` of target ``index`` (eq. 2-4, Sec. III-E)."""
+    """``[g_pos, g_tip, g_rot, g_approach]`` of target ``index`` (eq. 2-4,
+    Sec. III-E)."""
     tol = problem.task.tolerances
     p_t = jnp.asarray(problem.target_position)[index]
     g_pos = jnp.sum((p_t - tip) ** 2) - tol["position"]
@@ -165,13 +210,20 @@ def _outputs(problem: Problem, theta, d):
 
 def _unpack(problem: Problem, out):
     n = problem.arm.num_joints
-    return out[..., :3], out[..., 3:12].reshape(out.shape[:-1] + (3, 3)), out[..., 12 : 12 + n], out[..., 12 + n]
+    return (
+        out[..., :3],
+        out[..., 3:12].reshape(out.shape[:-1] + (3, 3)),
+        out[..., 12 : 12 + n],
+        out[..., 12 + n],
+    )
 
 
 def _parts(problem: Problem, out, theta, d) -> dict:
     """Unweighted objectives from the per-waypoint outputs (module docstring)."""
     tip, _, tau, obstacle = _unpack(problem, out)
-    lengths = np.array([name.endswith(".length") for name in problem.arm.design_names], dtype=bool)
+    lengths = np.array(
+        [name.endswith(".length") for name in problem.arm.design_names], dtype=bool
+    )
     return {
         "path": jnp.sum(jnp.diff(tip, axis=0) ** 2),
         "joints": jnp.sum(1.0 - jnp.cos(jnp.diff(theta, axis=0))),
@@ -188,34 +240,56 @@ def _weighted(problem: Problem, out, theta, d):
 
 
 def _rows(problem: Problem, out, index):
-    """All candidate rows of one waypoint: 4 target rows (for target ``index``), ``2n`` torque rows."""
+    """All candidate rows of one waypoint: 4 target rows (for target ``index``), ``2n``
+    torque rows."""
     tip, rot, tau, _ = _unpack(problem, out)
     limit = problem.arm.torque_limit
-    return jnp.concatenate([_target_rows(problem, tip, rot, index), tau - limit, -tau - limit])
+    return jnp.concatenate(
+        [_target_rows(problem, tip, rot, index), tau - limit, -tau - limit]
+    )
 
 
 @partial(jax.jit, static_argnums=0)
 def _evaluate(problem: Problem, z):
-    """Objective, its gradient, constraint rows and their blocks, from one forward-mode pass.
+    """Objective, its gradient, constraint rows and their blocks, from one forward-mode
+    pass.
 
-    The expensive per-waypoint quantities (engine state, torques, obstacle cost) and their
-    Jacobians in ``(θ_i, d)`` are computed once (``jacfwd``, vmapped over waypoints); the
-    objective and the constraints are cheap functions of them, chained by hand.
+    The expensive per-waypoint quantities (engine state, torques, obstacle cost) and
+    their Jacobians in ``(θ_i, d)`` are computed once (``jacfwd``, vmapped over
+    waypoints); the objective and the constraints are cheap functions of them, chained
+    by hand.
     """
     theta, d = problem.split(z)
     out = jax.vmap(lambda th: _outputs(problem, th, d))(theta)
-    jt, jd = jax.vmap(jax.jacfwd(lambda th, dd: _outputs(problem, th, dd), argnums=(0, 1)), in_axes=(0, None))(theta, d)
-    value, (g_out, g_theta, g_d) = jax.value_and_grad(lambda o, t, dd: _weighted(problem, o, t, dd), argnums=(0, 1, 2))(out, theta, d)
-    grad = jnp.concatenate([(g_theta + jnp.einsum("wq,wqn->wn", g_out, jt)).ravel(), g_d + jnp.einsum("wq,wqm->m", g_out, jd)])
+    jt, jd = jax.vmap(
+        jax.jacfwd(lambda th, dd: _outputs(problem, th, dd), argnums=(0, 1)),
+        in_axes=(0, None),
+    )(theta, d)
+    value, (g_out, g_theta, g_d) = jax.value_and_grad(
+        lambda o, t, dd: _weighted(problem, o, t, dd), argnums=(0, 1, 2)
+    )(out, theta, d)
+    grad = jnp.concatenate(
+        [
+            (g_theta + jnp.einsum("wq,wqn->wn", g_out, jt)).ravel(),
+            g_d + jnp.einsum("wq,wqm->m", g_out, jd),
+        ]
+    )
     index = jnp.asarray(_target_of_waypoint(problem))
     rows = jax.vmap(lambda o, k: _rows(problem, o, k))(out, index)
     drows = jax.vmap(jax.jacfwd(lambda o, k: _rows(problem, o, k)))(out, index)
-    return value, grad, rows, jnp.einsum("wrq,wqn->wrn", drows, jt), jnp.einsum("wrq,wqm->wrm", drows, jd)
+    return (
+        value,
+        grad,
+        rows,
+        jnp.einsum("wrq,wqn->wrn", drows, jt),
+        jnp.einsum("wrq,wqm->wrm", drows, jd),
+    )
 
 
 @partial(jax.jit, static_argnums=0)
 def objective_parts(problem: Problem, z) -> dict:
-    """The unweighted objectives ``f_path, f_joints, f_length, f_torque, f_obstacle``."""
+    """The unweighted objectives
+    ``f_path, f_joints, f_length, f_torque, f_obstacle``."""
     theta, d = problem.split(z)
     out = jax.vmap(lambda th: _outputs(problem, th, d))(theta)
     return _parts(problem, out, theta, d)
@@ -224,7 +298,9 @@ def objective_parts(problem: Problem, z) -> dict:
 def evaluate(problem: Problem, z: np.ndarray):
     """``(f, ∇f, g, ∂g/∂z)``: objective (eq. 1) and gradient, existing constraint rows
     (``g ≤ 0`` feasible) and their dense Jacobian ``(n_c, size)``."""
-    value, grad, values, jac_theta, jac_d = (np.asarray(a) for a in _evaluate(problem, jnp.asarray(z)))
+    value, grad, values, jac_theta, jac_d = (
+        np.asarray(a) for a in _evaluate(problem, jnp.asarray(z))
+    )
     mask = _row_mask(problem)
     n, n_w = problem.arm.num_joints, problem.num_waypoints
     wp, row = np.nonzero(mask)
@@ -249,9 +325,15 @@ def _waypoints(problem: Problem, z):
 
 
 def waypoint_report(problem: Problem, z) -> dict:
-    """Per waypoint: tool positions, tip axes, torques (numpy), for output files and plots."""
+    """Per waypoint: tool positions, tip axes, torques (numpy), for output files and
+    plots."""
     tip, rot, tau, obstacle = _waypoints(problem, jnp.asarray(z, dtype=float))
-    return {"tip": np.asarray(tip), "axis": np.asarray(rot[:, :, 2]), "torque": np.asarray(tau), "obstacle": np.asarray(obstacle)}
+    return {
+        "tip": np.asarray(tip),
+        "axis": np.asarray(rot[:, :, 2]),
+        "torque": np.asarray(tau),
+        "obstacle": np.asarray(obstacle),
+    }
 
 
 @dataclass(frozen=True)
@@ -275,13 +357,27 @@ def initial_point(problem: Problem, seed: int) -> np.ndarray:
     rng = np.random.default_rng(checks.seed(seed))
     arm = problem.arm
     d = rng.uniform(arm.lower, arm.upper)
-    at_targets = rng.uniform(-np.pi, np.pi, (len(problem.target_waypoints), arm.num_joints))
+    at_targets = rng.uniform(
+        -np.pi, np.pi, (len(problem.target_waypoints), arm.num_joints)
+    )
     steps = np.arange(problem.num_waypoints)
-    theta = np.stack([np.interp(steps, problem.target_waypoints, at_targets[:, j]) for j in range(arm.num_joints)], axis=1)
+    theta = np.stack(
+        [
+            np.interp(steps, problem.target_waypoints, at_targets[:, j])
+            for j in range(arm.num_joints)
+        ],
+        axis=1,
+    )
     return np.concatenate([theta.ravel(), d])
 
 
-def solve_from(problem: Problem, z0: np.ndarray, *, max_iterations: int | None = None, start: int = -1) -> ArmSolution:
+def solve_from(
+    problem: Problem,
+    z0: np.ndarray,
+    *,
+    max_iterations: int | None = None,
+    start: int = -1,
+) -> ArmSolution:
     """One SLSQP solve of eq. 1 from ``z0``."""
     arm = problem.arm
     iterations = max_iterations or problem.task.solver["max_iterations"]
@@ -295,7 +391,9 @@ def solve_from(problem: Problem, z0: np.ndarray, *, max_iterations: int | None =
         return cache[key]
 
     scale = OBJECTIVE_SCALE
-    bounds = [(None, None)] * (problem.num_waypoints * arm.num_joints) + list(zip(arm.lower, arm.upper))
+    bounds = [(None, None)] * (problem.num_waypoints * arm.num_joints) + list(
+        zip(arm.lower, arm.upper)
+    )
     started = time.perf_counter()
     result = scipy.optimize.minimize(
         lambda z: (at(z)[0] * scale, at(z)[1] * scale),
@@ -303,13 +401,29 @@ def solve_from(problem: Problem, z0: np.ndarray, *, max_iterations: int | None =
         jac=True,
         method="SLSQP",
         bounds=bounds,
-        constraints=[{"type": "ineq", "fun": lambda z: -at(z)[2], "jac": lambda z: -at(z)[3]}],
+        constraints=[
+            {"type": "ineq", "fun": lambda z: -at(z)[2], "jac": lambda z: -at(z)[3]}
+        ],
         options={"maxiter": iterations, "ftol": 1e-6},
     )
-    return finish(problem, result.x, time.perf_counter() - started, int(result.nit), str(result.message), start)
+    return finish(
+        problem,
+        result.x,
+        time.perf_counter() - started,
+        int(result.nit),
+        str(result.message),
+        start,
+    )
 
 
-def finish(problem: Problem, z, seconds: float = 0.0, iterations: int = 0, message: str = "", start: int = -1) -> ArmSolution:
+def finish(
+    problem: Problem,
+    z,
+    seconds: float = 0.0,
+    iterations: int = 0,
+    message: str = "",
+    start: int = -1,
+) -> ArmSolution:
     """Evaluate a point: objective, its parts, max constraint value."""
     z = np.asarray(z, dtype=float)
     _, _, g, _ = evaluate(problem, z)
@@ -317,7 +431,18 @@ def finish(problem: Problem, z, seconds: float = 0.0, iterations: int = 0, messa
     w = problem.task.weights
     violation = float(np.max(g)) if g.size else 0.0
     theta, d = problem.split(z)
-    return ArmSolution(theta.copy(), d.copy(), sum(w[k] * v for k, v in parts.items()), parts, violation, violation <= FEASIBLE_TOL, iterations, seconds, message, start)
+    return ArmSolution(
+        theta.copy(),
+        d.copy(),
+        sum(w[k] * v for k, v in parts.items()),
+        parts,
+        violation,
+        violation <= FEASIBLE_TOL,
+        iterations,
+        seconds,
+        message,
+        start,
+    )
 
 
 def best_of(solutions: list[ArmSolution]) -> ArmSolution:
@@ -333,7 +458,14 @@ def _solve_start(job) -> ArmSolution:
     return solve_from(problem, initial_point(problem, seed), start=start)
 
 
-def solve(problem: Problem, *, starts: int | None = None, seed: int | None = None, workers: int = 1, progress=None) -> tuple[ArmSolution, list[ArmSolution]]:
+def solve(
+    problem: Problem,
+    *,
+    starts: int | None = None,
+    seed: int | None = None,
+    workers: int = 1,
+    progress=None,
+) -> tuple[ArmSolution, list[ArmSolution]]:
     """Multi-start solve: start ``k`` uses seed ``seed + k``; returns (best, all).
 
     ``starts`` and ``seed`` default to the task's ``[solver]`` values; ``starts`` and
@@ -342,7 +474,9 @@ def solve(problem: Problem, *, starts: int | None = None, seed: int | None = Non
     With ``workers > 1`` the starts run in that many spawned processes (each one core:
     see :mod:`linkopt._config`); results do not depend on the worker count.
     """
-    starts = checks.count(problem.task.solver["starts"] if starts is None else starts, "starts")
+    starts = checks.count(
+        problem.task.solver["starts"] if starts is None else starts, "starts"
+    )
     seed = checks.seed(problem.task.solver["seed"] if seed is None else seed, "seed")
     workers = checks.count(workers, "workers")
     jobs = [(problem, seed + k, k) for k in range(starts)]
@@ -356,7 +490,9 @@ def solve(problem: Problem, *, starts: int | None = None, seed: int | None = Non
         import concurrent.futures
         import multiprocessing
 
-        with concurrent.futures.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        with concurrent.futures.ProcessPoolExecutor(
+            workers, mp_context=multiprocessing.get_context("spawn")
+        ) as pool:
             results = []
             for solution in pool.map(_solve_start, jobs):
                 results.append(solution)

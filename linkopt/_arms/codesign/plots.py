@@ -1,5 +1,6 @@
-"""Headless 3-D figures of arm designs: the arm at every target with the tool's path and the
-obstacles (paper 000, Figs. 3 and 6), and the joint-elimination sequence (Fig. 9)."""
+"""Headless 3-D figures of arm designs: the arm at every target with the tool's path and
+the obstacles (paper 000, Figs. 3 and 6), and the joint-elimination sequence
+(Fig. 9)."""
 
 from __future__ import annotations
 
@@ -14,8 +15,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .model import Arm, arm_state  # noqa: E402
 from ..._engine.constraints import point_positions  # noqa: E402
+from .model import Arm, arm_state  # noqa: E402
 from .sdf import Obstacle  # noqa: E402
 
 COLOURS = plt.get_cmap("rainbow")
@@ -23,7 +24,8 @@ COLOURS = plt.get_cmap("rainbow")
 
 @partial(jax.jit, static_argnums=0)
 def module_points(arm: Arm, theta, d):
-    """Module-end points and tip of every configuration ``(W, n)`` -> ``(W, K + 1, 3)``."""
+    """Module-end points and tip of every configuration ``(W, n)`` ->
+    ``(W, K + 1, 3)``."""
 
     def one(th):
         geom, state = arm_state(arm, th, d)
@@ -33,8 +35,16 @@ def module_points(arm: Arm, theta, d):
 
 
 def _box_edges(center, size, orientation=None):
-    unit = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
-    pairs = [(a, b) for a in range(8) for b in range(a + 1, 8) if np.sum(unit[a] != unit[b]) == 1]
+    unit = np.array(
+        [[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)],
+        dtype=float,
+    )
+    pairs = [
+        (a, b)
+        for a in range(8)
+        for b in range(a + 1, 8)
+        if np.sum(unit[a] != unit[b]) == 1
+    ]
     corners = unit * 0.5 * np.asarray(size)
     if orientation is not None:
         corners = corners @ np.asarray(orientation).T
@@ -49,7 +59,9 @@ def draw_obstacle(ax, obstacle: Obstacle, limits) -> None:
             ax.plot(*zip(a, b), **style)
     elif obstacle.kind == "box":
         lo, hi = limits
-        half = 0.5 * np.asarray(obstacle.size)  # huge boxes (the ground) clipped to the view
+        half = 0.5 * np.asarray(
+            obstacle.size
+        )  # huge boxes (the ground) clipped to the view
         low = np.maximum(np.asarray(obstacle.center) - half, lo)
         high = np.minimum(np.asarray(obstacle.center) + half, hi)
         if np.all(high > low):
@@ -57,8 +69,13 @@ def draw_obstacle(ax, obstacle: Obstacle, limits) -> None:
                 ax.plot(*zip(a, b), **style)
     elif obstacle.kind in ("sphere", "capsule"):
         u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 16), np.linspace(0, np.pi, 9))
-        ball = np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)], axis=-1) * obstacle.radius
-        centres = [obstacle.center] if obstacle.kind == "sphere" else [obstacle.a, obstacle.b]
+        ball = (
+            np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)], axis=-1)
+            * obstacle.radius
+        )
+        centres = (
+            [obstacle.center] if obstacle.kind == "sphere" else [obstacle.a, obstacle.b]
+        )
         for c in centres:
             ax.plot_wireframe(*(ball + np.asarray(c)).transpose(2, 0, 1), **style)
         if obstacle.kind == "capsule":
@@ -73,8 +90,19 @@ def _limits(points: np.ndarray, targets: np.ndarray, pad: float = 0.1):
     return mid - span / 2, mid + span / 2
 
 
-def draw_solution(ax, arm: Arm, theta, design, targets: np.ndarray, target_waypoints, axes=None, obstacles=(), title: str = "") -> None:
-    """The arm at each target (one colour per target), the tip path (dashed) and obstacles."""
+def draw_solution(
+    ax,
+    arm: Arm,
+    theta,
+    design,
+    targets: np.ndarray,
+    target_waypoints,
+    axes=None,
+    obstacles=(),
+    title: str = "",
+) -> None:
+    """The arm at each target (one colour per target), the tip path (dashed) and
+    obstacles."""
     points = np.asarray(module_points(arm, jnp.asarray(theta), jnp.asarray(design)))
     lo, hi = _limits(points, targets)
     for obstacle in obstacles:
@@ -99,7 +127,17 @@ def plot_solution(problem, solution, path: str | Path, title: str = "") -> Path:
     """Figure of one solved problem (:mod:`linkopt._arms.codesign.nlp`) as PNG."""
     fig = plt.figure(figsize=(7, 6))
     ax = fig.add_subplot(projection="3d")
-    draw_solution(ax, problem.arm, solution.theta, solution.design, problem.target_position, problem.target_waypoints, problem.target_axis, problem.task.obstacles, title)
+    draw_solution(
+        ax,
+        problem.arm,
+        solution.theta,
+        solution.design,
+        problem.target_position,
+        problem.target_waypoints,
+        problem.target_axis,
+        problem.task.obstacles,
+        title,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -116,7 +154,17 @@ def plot_stages(stages, path: str | Path) -> Path:
         label = f"{n} joint{'s' if n != 1 else ''}, {'feasible' if sol.feasible else 'infeasible'}"
         if stage.elimination is not None:
             label += f"\nmerged {stage.elimination.candidate + 1}+{stage.elimination.candidate + 2}, δ = {stage.elimination.delta:.2g}"
-        draw_solution(ax, prob.arm, sol.theta, sol.design, prob.target_position, prob.target_waypoints, prob.target_axis, prob.task.obstacles, label)
+        draw_solution(
+            ax,
+            prob.arm,
+            sol.theta,
+            sol.design,
+            prob.target_position,
+            prob.target_waypoints,
+            prob.target_axis,
+            prob.task.obstacles,
+            label,
+        )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

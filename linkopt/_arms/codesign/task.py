@@ -49,15 +49,35 @@ from pathlib import Path
 
 import numpy as np
 
+from ..._engine.loader import Reader, parse_text, parse_toml
 from .model import LENGTH_SLOTS, SLOTS, Arm, Module, make_arm
-from ..._engine.loader import parse_text, parse_toml, Reader
 from .sdf import Obstacle, load_mesh
 
-TOP_LEVEL = {"task", "modules", "targets", "obstacles", "workspace", "weights", "tolerances", "solver"}
-WEIGHTS = {"path": 500.0, "joints": 200.0, "length": 1.0, "torque": 20.0, "obstacle": 5000.0}
+TOP_LEVEL = {
+    "task",
+    "modules",
+    "targets",
+    "obstacles",
+    "workspace",
+    "weights",
+    "tolerances",
+    "solver",
+}
+WEIGHTS = {
+    "path": 500.0,
+    "joints": 200.0,
+    "length": 1.0,
+    "torque": 20.0,
+    "obstacle": 5000.0,
+}
 TOLERANCES = {"position": 5e-4, "tip": 1e-3, "rotation": 1e-2}
 SOLVER = {"starts": 8, "seed": 0, "max_iterations": 300, "waypoints_per_target": 4}
-OBSTACLE_FIELDS = {"box": ({"center", "size"}, {"orientation"}), "sphere": ({"center", "radius"}, set()), "capsule": ({"a", "b", "radius"}, set()), "mesh": ({"path"}, {"center", "scale"})}
+OBSTACLE_FIELDS = {
+    "box": ({"center", "size"}, {"orientation"}),
+    "sphere": ({"center", "radius"}, set()),
+    "capsule": ({"a", "b", "radius"}, set()),
+    "mesh": ({"path"}, {"center", "scale"}),
+}
 
 
 @dataclass(frozen=True)
@@ -67,7 +87,9 @@ class Target:
     position: np.ndarray  # (3,)
     axis: np.ndarray | None = None  # (3,) unit
     orientation: np.ndarray | None = None  # (3, 3)
-    approach: tuple[np.ndarray, np.ndarray, float] | None = None  # (local, world, cos(angle))
+    approach: tuple[np.ndarray, np.ndarray, float] | None = (
+        None  # (local, world, cos(angle))
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,7 +111,15 @@ class Task:
     clearance: float = 0.04
 
 
-def _slot(rd: Reader, item: dict, slot: str, where: str, names: list, bounds: list, required: bool):
+def _slot(
+    rd: Reader,
+    item: dict,
+    slot: str,
+    where: str,
+    names: list,
+    bounds: list,
+    required: bool,
+):
     """One module slot: a fixed number, or ``{min, max, init?}`` (a design variable)."""
     if slot not in item:
         if required:
@@ -98,10 +128,19 @@ def _slot(rd: Reader, item: dict, slot: str, where: str, names: list, bounds: li
     value = item[slot]
     if isinstance(value, dict):
         rd.table(value, slot, f"{where}.{slot}", {"min", "max", "init"}, {"min", "max"})
-        low, high = rd.number(value, "min", f"{where}.{slot}"), rd.number(value, "max", f"{where}.{slot}")
+        low, high = (
+            rd.number(value, "min", f"{where}.{slot}"),
+            rd.number(value, "max", f"{where}.{slot}"),
+        )
         if low >= high:
-            raise rd.fail(f"{where}.{slot}", f"needs min < max, got min={low} and max={high}")
-        init = rd.number(value, "init", f"{where}.{slot}") if "init" in value else 0.5 * (low + high)
+            raise rd.fail(
+                f"{where}.{slot}", f"needs min < max, got min={low} and max={high}"
+            )
+        init = (
+            rd.number(value, "init", f"{where}.{slot}")
+            if "init" in value
+            else 0.5 * (low + high)
+        )
         if not low <= init <= high:
             raise rd.fail(f"{where}.{slot}.init", f"{init} is outside [{low}, {high}]")
         names.append(f"{item.get('name', where)}.{slot}")
@@ -117,19 +156,35 @@ def _read_modules(rd: Reader, data: dict) -> tuple[tuple[Module, ...], list, lis
         where = f"modules[{k}]"
         kind = item.get("type")
         if not isinstance(kind, str) or kind not in SLOTS:
-            raise rd.fail(f"{where}.type", f"unknown module type {kind!r}; expected one of {list(SLOTS)}")
+            raise rd.fail(
+                f"{where}.type",
+                f"unknown module type {kind!r}; expected one of {list(SLOTS)}",
+            )
         needs_mass = kind in ("joint", "link", "tool")
-        rd.table(item, "modules", where, {"type", "name", "mass", *SLOTS[kind]}, {"type"} | ({"mass"} if needs_mass else set()))
+        rd.table(
+            item,
+            "modules",
+            where,
+            {"type", "name", "mass", *SLOTS[kind]},
+            {"type"} | ({"mass"} if needs_mass else set()),
+        )
         mass = rd.number(item, "mass", where) if "mass" in item else 0.0
         if mass < 0:
             raise rd.fail(f"{where}.mass", f"expected a mass >= 0, got {mass}")
-        slots = tuple(_slot(rd, item, s, where, names, bounds, s == "length") for s in SLOTS[kind])
+        slots = tuple(
+            _slot(rd, item, s, where, names, bounds, s == "length") for s in SLOTS[kind]
+        )
         modules.append(Module(kind, slots, mass))
     kinds = [m.kind for m in modules]
     if kinds[0] != "base" or kinds.count("base") != 1:
-        raise rd.fail("modules[0].type", "the first module, and only it, must be the 'base'")
+        raise rd.fail(
+            "modules[0].type", "the first module, and only it, must be the 'base'"
+        )
     if kinds[-1] != "tool" or kinds.count("tool") != 1:
-        raise rd.fail(f"modules[{len(kinds) - 1}].type", "the last module, and only it, must be the 'tool'")
+        raise rd.fail(
+            f"modules[{len(kinds) - 1}].type",
+            "the last module, and only it, must be the 'tool'",
+        )
     if "joint" not in kinds:
         raise rd.fail("[[modules]]", "an arm needs at least one 'joint' module")
     return tuple(modules), names, bounds
@@ -140,11 +195,25 @@ def _unit(rd: Reader, data: dict, key: str, where: str) -> np.ndarray:
 
 
 def _read_orientation(rd: Reader, value, where: str) -> np.ndarray:
-    ok = isinstance(value, list) and len(value) == 3 and all(isinstance(r, list) and len(r) == 3 for r in value)
-    ok = ok and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for r in value for v in r)
+    ok = (
+        isinstance(value, list)
+        and len(value) == 3
+        and all(isinstance(r, list) and len(r) == 3 for r in value)
+    )
+    ok = ok and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+        for r in value
+        for v in r
+    )
     matrix = np.asarray(value, dtype=float) if ok else None
-    if matrix is None or np.abs(matrix @ matrix.T - np.eye(3)).max() > 1e-6 or np.linalg.det(matrix) < 0:
-        raise rd.fail(where, "expected a 3x3 rotation matrix (rows, orthonormal, det +1)")
+    if (
+        matrix is None
+        or np.abs(matrix @ matrix.T - np.eye(3)).max() > 1e-6
+        or np.linalg.det(matrix) < 0
+    ):
+        raise rd.fail(
+            where, "expected a 3x3 rotation matrix (rows, orthonormal, det +1)"
+        )
     return matrix
 
 
@@ -152,18 +221,43 @@ def _read_targets(rd: Reader, data: dict) -> tuple[Target, ...]:
     targets = []
     for k, item in enumerate(rd.entries(data, "targets", required=True)):
         where = f"targets[{k}]"
-        rd.table(item, "targets", where, {"position", "axis", "orientation", "approach"}, {"position"})
+        rd.table(
+            item,
+            "targets",
+            where,
+            {"position", "axis", "orientation", "approach"},
+            {"position"},
+        )
         axis = _unit(rd, item, "axis", where) if "axis" in item else None
-        orientation = _read_orientation(rd, item["orientation"], f"{where}.orientation") if "orientation" in item else None
+        orientation = (
+            _read_orientation(rd, item["orientation"], f"{where}.orientation")
+            if "orientation" in item
+            else None
+        )
         approach = None
         if "approach" in item:
             cone = item["approach"]
             if not isinstance(cone, dict):
-                raise rd.fail(f"{where}.approach", "expected a table {local, direction, angle_deg}")
-            rd.table(cone, "approach", f"{where}.approach", {"local", "direction", "angle_deg"}, {"local", "direction", "angle_deg"})
+                raise rd.fail(
+                    f"{where}.approach",
+                    "expected a table {local, direction, angle_deg}",
+                )
+            rd.table(
+                cone,
+                "approach",
+                f"{where}.approach",
+                {"local", "direction", "angle_deg"},
+                {"local", "direction", "angle_deg"},
+            )
             angle = rd.positive(cone, "angle_deg", f"{where}.approach")
-            approach = (_unit(rd, cone, "local", f"{where}.approach"), _unit(rd, cone, "direction", f"{where}.approach"), math.cos(math.radians(angle)))
-        targets.append(Target(rd.vector(item, "position", where), axis, orientation, approach))
+            approach = (
+                _unit(rd, cone, "local", f"{where}.approach"),
+                _unit(rd, cone, "direction", f"{where}.approach"),
+                math.cos(math.radians(angle)),
+            )
+        targets.append(
+            Target(rd.vector(item, "position", where), axis, orientation, approach)
+        )
     return tuple(targets)
 
 
@@ -173,20 +267,37 @@ def _read_obstacles(rd: Reader, data: dict, base: Path) -> tuple[Obstacle, ...]:
         where = f"obstacles[{k}]"
         kind = item.get("type")
         if not isinstance(kind, str) or kind not in OBSTACLE_FIELDS:
-            raise rd.fail(f"{where}.type", f"unknown obstacle type {kind!r}; expected one of {list(OBSTACLE_FIELDS)}")
+            raise rd.fail(
+                f"{where}.type",
+                f"unknown obstacle type {kind!r}; expected one of {list(OBSTACLE_FIELDS)}",
+            )
         required, optional = OBSTACLE_FIELDS[kind]
-        rd.table(item, "obstacles", where, {"type"} | required | optional, {"type"} | required)
+        rd.table(
+            item,
+            "obstacles",
+            where,
+            {"type"} | required | optional,
+            {"type"} | required,
+        )
         args = {"kind": kind}
         for key in ("center", "size", "a", "b"):
             if key in item:
                 args[key] = tuple(rd.vector(item, key, where))
         if "size" in args and min(args["size"]) <= 0:
-            raise rd.fail(f"{where}.size", f"expected positive edge lengths, got {list(args['size'])}")
+            raise rd.fail(
+                f"{where}.size",
+                f"expected positive edge lengths, got {list(args['size'])}",
+            )
         for key in ("radius", "scale"):
             if key in item:
                 args[key] = rd.positive(item, key, where)
         if "orientation" in item:
-            args["orientation"] = tuple(tuple(float(v) for v in row) for row in _read_orientation(rd, item["orientation"], f"{where}.orientation"))
+            args["orientation"] = tuple(
+                tuple(float(v) for v in row)
+                for row in _read_orientation(
+                    rd, item["orientation"], f"{where}.orientation"
+                )
+            )
         if kind == "mesh":
             path = base / rd.string(item, "path", where)
             if not path.is_file():
@@ -200,7 +311,9 @@ def _read_obstacles(rd: Reader, data: dict, base: Path) -> tuple[Obstacle, ...]:
     return tuple(obstacles)
 
 
-def _options(rd: Reader, data: dict, key: str, defaults: dict, integer: bool = False) -> dict:
+def _options(
+    rd: Reader, data: dict, key: str, defaults: dict, integer: bool = False
+) -> dict:
     table = data.get(key, {})
     if not isinstance(table, dict):
         raise rd.fail(f"[{key}]", "expected a table")
@@ -208,8 +321,16 @@ def _options(rd: Reader, data: dict, key: str, defaults: dict, integer: bool = F
     out = dict(defaults)
     for name in table:
         value = rd.number(table, name, f"[{key}]")
-        if value < 0 or (integer and (value != int(value) or (name != "seed" and value < 1))):
-            what = "number >= 0" if not integer else "non-negative integer" if name == "seed" else "positive integer"
+        if value < 0 or (
+            integer and (value != int(value) or (name != "seed" and value < 1))
+        ):
+            what = (
+                "number >= 0"
+                if not integer
+                else "non-negative integer"
+                if name == "seed"
+                else "positive integer"
+            )
             raise rd.fail(f"[{key}].{name}", f"expected a {what}, got {table[name]!r}")
         out[name] = int(value) if integer else value
     return out
@@ -218,39 +339,92 @@ def _options(rd: Reader, data: dict, key: str, defaults: dict, integer: bool = F
 def _read_workspace(rd: Reader, data: dict, obstacles) -> tuple:
     if "workspace" not in data:
         if obstacles:
-            raise rd.fail("[workspace]", "missing table; obstacles need the voxel grid's lower and upper corners")
+            raise rd.fail(
+                "[workspace]",
+                "missing table; obstacles need the voxel grid's lower and upper corners",
+            )
         return None, 0.02, 0.04
     if not isinstance(data["workspace"], dict):
-        raise rd.fail("[workspace]", f"expected a table {{lower, upper, voxel?, clearance?}}, got {data['workspace']!r}")
-    table = rd.table(data["workspace"], "workspace", "[workspace]", {"lower", "upper", "voxel", "clearance"}, {"lower", "upper"})
-    lower, upper = rd.vector(table, "lower", "[workspace]"), rd.vector(table, "upper", "[workspace]")
+        raise rd.fail(
+            "[workspace]",
+            f"expected a table {{lower, upper, voxel?, clearance?}}, got {data['workspace']!r}",
+        )
+    table = rd.table(
+        data["workspace"],
+        "workspace",
+        "[workspace]",
+        {"lower", "upper", "voxel", "clearance"},
+        {"lower", "upper"},
+    )
+    lower, upper = (
+        rd.vector(table, "lower", "[workspace]"),
+        rd.vector(table, "upper", "[workspace]"),
+    )
     if np.any(lower >= upper):
-        raise rd.fail("[workspace].upper", f"must exceed lower in every coordinate, got lower={list(lower)} upper={list(upper)}")
+        raise rd.fail(
+            "[workspace].upper",
+            f"must exceed lower in every coordinate, got lower={list(lower)} upper={list(upper)}",
+        )
     voxel = rd.positive(table, "voxel", "[workspace]") if "voxel" in table else 0.02
-    clearance = rd.positive(table, "clearance", "[workspace]") if "clearance" in table else 2.0 * voxel
+    clearance = (
+        rd.positive(table, "clearance", "[workspace]")
+        if "clearance" in table
+        else 2.0 * voxel
+    )
     return (lower, upper), voxel, clearance
 
 
 def parse_task(data: dict, source: str, base: Path = Path(".")) -> Task:
-    """Validate a parsed task file and build the :class:`Task` (arm compiled and checked)."""
+    """Validate a parsed task file and build the :class:`Task` (arm compiled and
+    checked)."""
     rd = Reader(source)
     unknown = sorted(set(data) - TOP_LEVEL)
     if unknown:
         raise rd.fail(unknown[0], f"unknown table; expected one of {sorted(TOP_LEVEL)}")
     if not isinstance(data.get("task"), dict):
         raise rd.fail("[task]", "missing table")
-    head = rd.table(data["task"], "task", "[task]", {"name", "gravity", "torque_limit", "module_radius", "payload"}, {"name", "gravity", "torque_limit", "module_radius"})
+    head = rd.table(
+        data["task"],
+        "task",
+        "[task]",
+        {"name", "gravity", "torque_limit", "module_radius", "payload"},
+        {"name", "gravity", "torque_limit", "module_radius"},
+    )
     modules, names, bounds = _read_modules(rd, data)
-    d0, lower, upper, is_length = (np.array(c) for c in zip(*bounds)) if bounds else (np.zeros(0),) * 3 + (np.zeros(0, bool),)
+    d0, lower, upper, is_length = (
+        (np.array(c) for c in zip(*bounds))
+        if bounds
+        else (np.zeros(0),) * 3 + (np.zeros(0, bool),)
+    )
     payload = rd.number(head, "payload", "[task]") if "payload" in head else 0.0
-    arm = make_arm(rd.string(head, "name", "[task]"), modules, names, d0, lower, upper, is_length, rd.positive(head, "torque_limit", "[task]"), rd.positive(head, "module_radius", "[task]"), source)
+    arm = make_arm(
+        rd.string(head, "name", "[task]"),
+        modules,
+        names,
+        d0,
+        lower,
+        upper,
+        is_length,
+        rd.positive(head, "torque_limit", "[task]"),
+        rd.positive(head, "module_radius", "[task]"),
+        source,
+    )
     obstacles = _read_obstacles(rd, data, base)
     workspace, voxel, clearance = _read_workspace(rd, data, obstacles)
     return Task(
-        name=arm.name, source=source, arm=arm, targets=_read_targets(rd, data), obstacles=obstacles,
-        gravity=rd.vector(head, "gravity", "[task]"), payload=payload,
-        weights=_options(rd, data, "weights", WEIGHTS), tolerances=_options(rd, data, "tolerances", TOLERANCES),
-        solver=_options(rd, data, "solver", SOLVER, integer=True), workspace=workspace, voxel=voxel, clearance=clearance,
+        name=arm.name,
+        source=source,
+        arm=arm,
+        targets=_read_targets(rd, data),
+        obstacles=obstacles,
+        gravity=rd.vector(head, "gravity", "[task]"),
+        payload=payload,
+        weights=_options(rd, data, "weights", WEIGHTS),
+        tolerances=_options(rd, data, "tolerances", TOLERANCES),
+        solver=_options(rd, data, "solver", SOLVER, integer=True),
+        workspace=workspace,
+        voxel=voxel,
+        clearance=clearance,
     )
 
 

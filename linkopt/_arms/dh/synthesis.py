@@ -1,8 +1,9 @@
-"""Manipulability-driven synthesis of a DH table from task points (paper 004, Sec. IV-V).
+"""Manipulability-driven synthesis of a DH table from task points (paper 004,
+Sec. IV-V).
 
 Unknowns: the constant DH parameters ``K`` (``a``, ``α`` and the constant one of
-``d``/``θ`` per joint, see :mod:`linkopt._arms.dh.table`) and one joint vector ``q_i`` per target
-``p_i``. The cost is eq. 10,
+``d``/``θ`` per joint, see :mod:`linkopt._arms.dh.table`) and one joint vector ``q_i``
+per target ``p_i``. The cost is eq. 10,
 
     F(K, q_1..q_m) = ξ·L(K) + Σ_i [ 1/(w_i² + b) + ε·D_i² ],
 
@@ -17,14 +18,15 @@ Choices where the paper is vague (stated here, as the project asks):
   the issue defines total size with absolute values. In the cost ``|x|`` is smoothed to
   ``sqrt(x² + δ²) - δ`` with ``δ = 1e-4`` of the task scale so the gradient is
   continuous; the reported size uses the exact ``|x|``.
-* The optimiser: the paper used steepest descent in Mathematica; we use L-BFGS-B
-  (scipy, 30 correction pairs) with exact JAX gradients of the cost, jitted and vmapped
-  over targets. optimistix's LBFGS, vmapped over the starts, was tried: on the sample run
-  it stopped early on three of eight starts (eq. 10 value 161 vs 55) and was slower.
-* For speed the cost uses the closed-form DH map (:func:`linkopt._arms.dh.table.tip_position`) and
-  its Jacobian. The numbers we *report* (residual, manipulability) are recomputed on the
-  engine's :class:`~linkopt.Mechanism` built from the table
-  (:func:`engine_report`), and tests check that both agree.
+* The optimiser: the paper used steepest descent in Mathematica; we use L-BFGS-B (scipy,
+  30 correction pairs) with exact JAX gradients of the cost, jitted and vmapped over
+  targets. optimistix's LBFGS, vmapped over the starts, was tried: on the sample run it
+  stopped early on three of eight starts (eq. 10 value 161 vs 55) and was slower.
+* For speed the cost uses the closed-form DH map
+  (:func:`linkopt._arms.dh.table.tip_position`) and its Jacobian. The numbers we
+  *report* (residual, manipulability) are recomputed on the engine's
+  :class:`~linkopt.Mechanism` built from the table (:func:`engine_report`), and tests
+  check that both agree.
 * Multi-start: ``starts`` seeded initial guesses (``np.random.default_rng(seed)``); each
   target's initial joint vector is the member of a shared random pool of joint vectors
   whose tip lands nearest to it. The start with the lowest eq. 10 value wins.
@@ -57,11 +59,10 @@ import numpy as np
 import scipy.optimize
 from jaxtyping import Array, Float
 
-from .. import checks
-
-from . import table as dh
 from ..._config import one_blas_thread
 from ..._errors import InputError
+from .. import checks
+from . import table as dh
 
 _SMOOTH_ABS = 1e-4  # δ of the smoothed |x| in L, relative to the task scale
 _POOL = 512  # random joint vectors per start for the initial per-target joint guesses
@@ -90,9 +91,9 @@ class DHSynthesisSettings:
 class DHSynthesis:
     """One synthesised arm: its table, one joint vector per target and their measures.
 
-    ``residual`` and ``manipulability`` (shape ``(m,)``) are closed-form values at ``q``;
-    :func:`engine_report` recomputes them on the Mechanism. ``stage1`` holds the same
-    summary for the minimiser of eq. 10 at the user's ε, before the precision
+    ``residual`` and ``manipulability`` (shape ``(m,)``) are closed-form values at
+    ``q``; :func:`engine_report` recomputes them on the Mechanism. ``stage1`` holds the
+    same summary for the minimiser of eq. 10 at the user's ε, before the precision
     continuation.
     """
 
@@ -109,7 +110,9 @@ class DHSynthesis:
     starts: list = field(default_factory=list)  # per start: eq. 10 value after stage 1
 
     def summary(self) -> dict:
-        return _summary(self.residual, self.manipulability, self.size) | {"cost": self.cost}
+        return _summary(self.residual, self.manipulability, self.size) | {
+            "cost": self.cost
+        }
 
 
 def _summary(residual, w, size) -> dict:
@@ -121,13 +124,22 @@ def _summary(residual, w, size) -> dict:
     }
 
 
-def _unpack(types: str, x: Float[Array, " V"], m: int) -> tuple[dh.DHTable, Float[Array, "m N"]]:
+def _unpack(
+    types: str, x: Float[Array, " V"], m: int
+) -> tuple[dh.DHTable, Float[Array, "m N"]]:
     n = len(types)
     return dh.DHTable(x[:n], x[n : 2 * n], x[2 * n : 3 * n]), x[3 * n :].reshape(m, n)
 
 
 def _pack(table: dh.DHTable, q) -> np.ndarray:
-    return np.concatenate([np.asarray(table.a), np.asarray(table.alpha), np.asarray(table.offset), np.asarray(q).ravel()])
+    return np.concatenate(
+        [
+            np.asarray(table.a),
+            np.asarray(table.alpha),
+            np.asarray(table.offset),
+            np.asarray(q).ravel(),
+        ]
+    )
 
 
 def _w_squared(jac: Float[Array, "3 N"]) -> Float[Array, ""]:
@@ -146,12 +158,20 @@ def _per_target(types: str, table: dh.DHTable, q, target):
 def _smooth_size(types: str, table: dh.DHTable, delta: float) -> Float[Array, ""]:
     revolute = np.array([c == "R" for c in types])
     smooth = lambda v: jnp.sqrt(v * v + delta * delta) - delta  # noqa: E731
-    return jnp.sum(smooth(table.a)) + jnp.sum(jnp.where(revolute, smooth(table.offset), 0.0))
+    return jnp.sum(smooth(table.a)) + jnp.sum(
+        jnp.where(revolute, smooth(table.offset), 0.0)
+    )
 
 
 @partial(jax.jit, static_argnums=(0,))
-def cost(types: str, x: Float[Array, " V"], targets: Float[Array, "m 3"], weights: Float[Array, "4"]) -> Float[Array, ""]:
-    """Eq. 10 of the flat vector ``x = [a, α, offset, q_1..q_m]``; ``weights = (ξ, ε, b, δ)``."""
+def cost(
+    types: str,
+    x: Float[Array, " V"],
+    targets: Float[Array, "m 3"],
+    weights: Float[Array, 4],
+) -> Float[Array, ""]:
+    """Eq. 10 of the flat vector ``x = [a, α, offset, q_1..q_m]``;
+    ``weights = (ξ, ε, b, δ)``."""
     xi, eps, b, delta = weights
     table, q = _unpack(types, x, targets.shape[0])
     w2, d2 = jax.vmap(lambda qi, p: _per_target(types, table, qi, p))(q, targets)
@@ -162,24 +182,37 @@ _value_and_grad = jax.jit(jax.value_and_grad(cost, argnums=1), static_argnums=(0
 
 
 @partial(jax.jit, static_argnums=(0,))
-def measures(types: str, table: dh.DHTable, q: Float[Array, "m N"], targets: Float[Array, "m 3"]):
+def measures(
+    types: str, table: dh.DHTable, q: Float[Array, "m N"], targets: Float[Array, "m 3"]
+):
     """Closed-form ``(residual D_i, manipulability w_i)`` per target, each ``(m,)``."""
     w2, d2 = jax.vmap(lambda qi, p: _per_target(types, table, qi, p))(q, targets)
     return jnp.sqrt(d2), jnp.sqrt(jnp.maximum(w2, 0.0))
 
 
 @partial(jax.jit, static_argnums=(0, 4))
-def polish(types: str, table: dh.DHTable, q: Float[Array, "m N"], targets: Float[Array, "m 3"], iterations: int) -> Float[Array, "m N"]:
-    """Damped Gauss–Newton on ``p(q_i) = p_i`` with the table fixed, vmapped over targets;
-    a step is kept only if it lowers the residual."""
+def polish(
+    types: str,
+    table: dh.DHTable,
+    q: Float[Array, "m N"],
+    targets: Float[Array, "m 3"],
+    iterations: int,
+) -> Float[Array, "m N"]:
+    """Damped Gauss–Newton on ``p(q_i) = p_i`` with the table fixed, vmapped over
+    targets; a step is kept only if it lowers the residual."""
 
     def one(qi, target):
         def step(_, v):
             jac = dh.tip_jacobian(types, table, v)
             gap = dh.tip_position(types, table, v) - target
-            delta = jnp.linalg.solve(jac.T @ jac + 1e-12 * jnp.eye(jac.shape[1]), jac.T @ gap)
+            delta = jnp.linalg.solve(
+                jac.T @ jac + 1e-12 * jnp.eye(jac.shape[1]), jac.T @ gap
+            )
             trial = v - delta
-            better = jnp.sum((dh.tip_position(types, table, trial) - target) ** 2) < gap @ gap
+            better = (
+                jnp.sum((dh.tip_position(types, table, trial) - target) ** 2)
+                < gap @ gap
+            )
             return jnp.where(better, trial, v)
 
         return jax.lax.fori_loop(0, iterations, step, qi)
@@ -187,7 +220,9 @@ def polish(types: str, table: dh.DHTable, q: Float[Array, "m N"], targets: Float
     return jax.vmap(one)(q, targets)
 
 
-def minimise(types: str, x0: np.ndarray, targets, weights, settings: DHSynthesisSettings) -> np.ndarray:
+def minimise(
+    types: str, x0: np.ndarray, targets, weights, settings: DHSynthesisSettings
+) -> np.ndarray:
     targets = jnp.asarray(targets)
     weights = jnp.asarray(weights, dtype=float)
 
@@ -199,20 +234,37 @@ def minimise(types: str, x0: np.ndarray, targets, weights, settings: DHSynthesis
     # few hundred entries: on 2 busy cores one sample-run start took 6.5 s of CPU with the
     # default pool and 0.85 s with one thread (same iterates), so BLAS runs single-threaded here.
     with one_blas_thread():
-        result = scipy.optimize.minimize(fun, x0, jac=True, method="L-BFGS-B", options={"maxiter": settings.max_iterations, "maxcor": 30})
+        result = scipy.optimize.minimize(
+            fun,
+            x0,
+            jac=True,
+            method="L-BFGS-B",
+            options={"maxiter": settings.max_iterations, "maxcor": 30},
+        )
     return result.x
 
 
-def _initial_guess(types: str, targets: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Random table scaled to the task, per-target joints from the nearest of a random pool."""
+def _initial_guess(
+    types: str, targets: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
+    """Random table scaled to the task, per-target joints from the nearest of a random
+    pool."""
     n, scale = len(types), float(np.max(np.linalg.norm(targets, axis=1))) or 1.0
     revolute = np.array([c == "R" for c in types])
     a = rng.uniform(0.3, 1.0, n) * scale
     alpha = rng.uniform(-np.pi, np.pi, n)
-    offset = np.where(revolute, rng.uniform(-0.2, 0.2, n) * scale, rng.uniform(-np.pi, np.pi, n))
-    pool = np.where(revolute, rng.uniform(-np.pi, np.pi, (_POOL, n)), rng.uniform(-scale, scale, (_POOL, n)))
+    offset = np.where(
+        revolute, rng.uniform(-0.2, 0.2, n) * scale, rng.uniform(-np.pi, np.pi, n)
+    )
+    pool = np.where(
+        revolute,
+        rng.uniform(-np.pi, np.pi, (_POOL, n)),
+        rng.uniform(-scale, scale, (_POOL, n)),
+    )
     table = dh.DHTable(jnp.asarray(a), jnp.asarray(alpha), jnp.asarray(offset))
-    tips = np.asarray(jax.vmap(lambda v: dh.tip_position(types, table, v))(jnp.asarray(pool)))
+    tips = np.asarray(
+        jax.vmap(lambda v: dh.tip_position(types, table, v))(jnp.asarray(pool))
+    )
     nearest = np.argmin(np.linalg.norm(tips[None] - targets[:, None], axis=-1), axis=1)
     return _pack(table, pool[nearest])
 
@@ -220,12 +272,21 @@ def _initial_guess(types: str, targets: np.ndarray, rng: np.random.Generator) ->
 def check_targets(points, source: str = "task points") -> np.ndarray:
     """Task points as a finite ``(m, 3)`` float array, else :class:`InputError`."""
     array = np.asarray(points, dtype=float)
-    if array.ndim != 2 or array.shape[1] != 3 or array.shape[0] < 1 or not np.all(np.isfinite(array)):
-        raise InputError(f"{source}: expected at least one row of 3 finite coordinates (x, y, z), got an array of shape {array.shape}")
+    if (
+        array.ndim != 2
+        or array.shape[1] != 3
+        or array.shape[0] < 1
+        or not np.all(np.isfinite(array))
+    ):
+        raise InputError(
+            f"{source}: expected at least one row of 3 finite coordinates (x, y, z), got an array of shape {array.shape}"
+        )
     return array
 
 
-def _weights(settings: DHSynthesisSettings, targets: np.ndarray, precision: float) -> np.ndarray:
+def _weights(
+    settings: DHSynthesisSettings, targets: np.ndarray, precision: float
+) -> np.ndarray:
     scale = float(np.max(np.linalg.norm(targets, axis=1))) or 1.0
     return np.array([settings.size_damping, precision, settings.b, _SMOOTH_ABS * scale])
 
@@ -235,28 +296,41 @@ def _check_settings(settings: DHSynthesisSettings) -> None:
         value = getattr(settings, name)
         positive = name == "reach_tolerance"
         if not np.isfinite(value) or value < 0 or (positive and value == 0):
-            raise InputError(f"synthesis settings: {name}: expected a finite {'positive' if positive else 'non-negative'} number, got {value!r}")
+            raise InputError(
+                f"synthesis settings: {name}: expected a finite {'positive' if positive else 'non-negative'} number, got {value!r}"
+            )
     if settings.starts < 1 or settings.max_iterations < 1:
-        raise InputError(f"synthesis settings: starts and max_iterations must be at least 1, got {settings.starts} and {settings.max_iterations}")
+        raise InputError(
+            f"synthesis settings: starts and max_iterations must be at least 1, got {settings.starts} and {settings.max_iterations}"
+        )
     checks.seed(settings.seed, "synthesis settings: seed")
 
 
-def _reach(types: str, x: np.ndarray, targets: np.ndarray, settings: DHSynthesisSettings) -> np.ndarray:
-    """Precision continuation (module docstring): ε × 10 per round until all are reached."""
+def _reach(
+    types: str, x: np.ndarray, targets: np.ndarray, settings: DHSynthesisSettings
+) -> np.ndarray:
+    """Precision continuation (module docstring): ε × 10 per round until all are
+    reached."""
     m = len(targets)
     precision = settings.precision
     for _ in range(settings.precision_rounds):
-        residual, _ = measures(types, *_unpack(types, jnp.asarray(x), m), jnp.asarray(targets))
+        residual, _ = measures(
+            types, *_unpack(types, jnp.asarray(x), m), jnp.asarray(targets)
+        )
         if float(np.max(residual)) <= settings.reach_tolerance:
             break
         precision *= 10.0
-        x = minimise(types, x, targets, _weights(settings, targets, precision), settings)
+        x = minimise(
+            types, x, targets, _weights(settings, targets, precision), settings
+        )
     table, q = _unpack(types, jnp.asarray(x), m)
     q = polish(types, table, q, jnp.asarray(targets), settings.polish_iterations)
     return _pack(table, q)
 
 
-def synthesize_config(types: str, targets, settings: DHSynthesisSettings = DHSynthesisSettings()) -> DHSynthesis:
+def synthesize_config(
+    types: str, targets, settings: DHSynthesisSettings = DHSynthesisSettings()
+) -> DHSynthesis:
     """Synthesise one joint-type string (e.g. ``"RRR"``) for ``targets`` ``(m, 3)``."""
     types = dh.check_joint_types(types)
     targets = check_targets(targets)
@@ -264,26 +338,48 @@ def synthesize_config(types: str, targets, settings: DHSynthesisSettings = DHSyn
     started = time.perf_counter()
     rng = np.random.default_rng(settings.seed)
     weights = _weights(settings, targets, settings.precision)
-    runs = [minimise(types, _initial_guess(types, targets, rng), targets, weights, settings) for _ in range(settings.starts)]
-    values = [float(cost(types, jnp.asarray(x), jnp.asarray(targets), jnp.asarray(weights))) for x in runs]
+    runs = [
+        minimise(types, _initial_guess(types, targets, rng), targets, weights, settings)
+        for _ in range(settings.starts)
+    ]
+    values = [
+        float(cost(types, jnp.asarray(x), jnp.asarray(targets), jnp.asarray(weights)))
+        for x in runs
+    ]
     best = runs[int(np.argmin(values))]
     table1, q1 = _unpack(types, jnp.asarray(best), len(targets))
-    stage1 = _summary(*measures(types, table1, q1, jnp.asarray(targets)), dh.size(types, table1)) | {"cost": min(values)}
+    stage1 = _summary(
+        *measures(types, table1, q1, jnp.asarray(targets)), dh.size(types, table1)
+    ) | {"cost": min(values)}
     final = _reach(types, best, targets, settings)
     table, q = _unpack(types, jnp.asarray(final), len(targets))
-    residual, w = (np.asarray(v) for v in measures(types, table, q, jnp.asarray(targets)))
+    residual, w = (
+        np.asarray(v) for v in measures(types, table, q, jnp.asarray(targets))
+    )
     return DHSynthesis(
-        types=types, table=dh.DHTable(*(np.asarray(v) for v in table)), q=np.asarray(q), targets=targets,
-        residual=residual, manipulability=w,
-        cost=float(cost(types, jnp.asarray(final), jnp.asarray(targets), jnp.asarray(weights))),
-        size=float(dh.size(types, table)), stage1=stage1, seconds=time.perf_counter() - started, starts=values,
+        types=types,
+        table=dh.DHTable(*(np.asarray(v) for v in table)),
+        q=np.asarray(q),
+        targets=targets,
+        residual=residual,
+        manipulability=w,
+        cost=float(
+            cost(types, jnp.asarray(final), jnp.asarray(targets), jnp.asarray(weights))
+        ),
+        size=float(dh.size(types, table)),
+        stage1=stage1,
+        seconds=time.perf_counter() - started,
+        starts=values,
     )
 
 
 def all_configurations(n: int) -> list[str]:
-    """The ``2^n`` R/P strings of ``n`` joints (paper Sec. V), P before R in each place."""
+    """The ``2^n`` R/P strings of ``n`` joints (paper Sec. V), P before R in each
+    place."""
     if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or not 1 <= n <= 8:
-        raise InputError(f"joints: expected a number of joints between 1 and 8 or an R/P string, got {n!r}")
+        raise InputError(
+            f"joints: expected a number of joints between 1 and 8 or an R/P string, got {n!r}"
+        )
     return ["".join(c) for c in itertools.product("PR", repeat=int(n))]
 
 
@@ -295,20 +391,28 @@ def has_engine_model(types: str) -> bool:
 
 
 def configurations(joints: str | int, where: str = "joints") -> list[str]:
-    """The R/P strings ``joints`` asks for: one string, or for a number ``N`` those of the
-    ``2^N`` that have an engine model (:func:`has_engine_model`; all of them for N <= 3).
-    A given string without an engine model is an :class:`InputError`, before any work."""
+    """The R/P strings ``joints`` asks for: one string, or for a number ``N`` those of
+    the ``2^N`` that have an engine model (:func:`has_engine_model`; all of them for N
+    <= 3). A given string without an engine model is an :class:`InputError`, before any
+    work."""
     if isinstance(joints, str) and joints.strip().isdigit():
         joints = int(joints.strip())
     if not isinstance(joints, str):
         return [t for t in all_configurations(joints) if has_engine_model(t)]
     types = dh.check_joint_types(joints, where)
     if not has_engine_model(types):
-        raise InputError(f"{where}: {types!r}: a {len(types)}-joint arm needs at least {len(types) - 3} revolute joints (R) for its mechanism file, it has {types.count('R')}")
+        raise InputError(
+            f"{where}: {types!r}: a {len(types)}-joint arm needs at least {len(types) - 3} revolute joints (R) for its mechanism file, it has {types.count('R')}"
+        )
     return [types]
 
 
-def synthesize_dh(targets, joints: str | int, settings: DHSynthesisSettings = DHSynthesisSettings(), progress=None) -> tuple[DHSynthesis, dict[str, DHSynthesis]]:
+def synthesize_dh(
+    targets,
+    joints: str | int,
+    settings: DHSynthesisSettings = DHSynthesisSettings(),
+    progress=None,
+) -> tuple[DHSynthesis, dict[str, DHSynthesis]]:
     """Synthesise ``joints`` (an R/P string, or a number N: all 2^N strings that have an
     engine model, see :func:`configurations`; keep the one with the highest mean
     manipulability). Returns ``(best, every synthesis by string)``.
@@ -333,23 +437,30 @@ def rest_configuration(synthesis: DHSynthesis) -> np.ndarray:
 def engine_report(synthesis: DHSynthesis, *, name: str = "DH arm"):
     """Build the Mechanism of a synthesis and measure it there.
 
-    Each target's engine state is solved by :func:`linkopt.solve_fk` from the closed-form
-    state (motors ``q_i - q_rest``); the tip, the residual and Yoshikawa's ``w`` (from the
-    engine's sensitivities, :func:`linkopt._engine.manipulability.manipulability`) are read off
-    the solved states. Returns ``(mechanism, toml_text, report)`` where ``report`` has
+    Each target's engine state is solved by :func:`linkopt.solve_fk` from the
+    closed-form state (motors ``q_i - q_rest``); the tip, the residual and Yoshikawa's
+    ``w`` (from the engine's sensitivities,
+    :func:`linkopt._engine.manipulability.manipulability`) are read off the solved
+    states. Returns ``(mechanism, toml_text, report)`` where ``report`` has
     ``positions (m,3)``, ``residual (m,)``, ``manipulability (m,)``, ``converged (m,)``.
     """
     from ..._engine.kinematics import solve_fk
     from ..._engine.manipulability import manipulability
     from ..._engine.readout import point_positions
 
-    types, table, q = synthesis.types, dh.DHTable(*(jnp.asarray(v) for v in synthesis.table)), jnp.asarray(synthesis.q)
+    types, table, q = (
+        synthesis.types,
+        dh.DHTable(*(jnp.asarray(v) for v in synthesis.table)),
+        jnp.asarray(synthesis.q),
+    )
     q_rest = jnp.asarray(rest_configuration(synthesis))
     bounds = (synthesis.targets.min(axis=0), synthesis.targets.max(axis=0))
     mech, text = dh.to_mechanism(types, table, q_rest, name=name, bounds=bounds)
     starts = dh.engine_states(types, table, q, q_rest, float(mech.length_scale))
     solution = solve_fk(mech, dh.motor_values(q, q_rest), start=starts)
-    tip = np.asarray(point_positions(mech, solution.state))[:, mech.point_names.index("tip")]
+    tip = np.asarray(point_positions(mech, solution.state))[
+        :, mech.point_names.index("tip")
+    ]
     w = np.asarray(manipulability(mech, solution.state, "tip", (0, 1, 2)))
     report = {
         "positions": tip,

@@ -1,1 +1,2 @@
-"""Planar arms that trace continuous paths around obstacles (Campos et al., paper 002)."""
+"""Planar arms that trace continuous paths around obstacles (Campos et al.,
+paper 002)."""

@@ -21,15 +21,16 @@ from jaxtyping import Float
 
 from .. import checks
 from . import geometry as geo
-from .synthesis import TraceSettings, Problem, initial_guess, solve_nlp
+from .synthesis import Problem, TraceSettings, initial_guess, solve_nlp
 from .task import TraceTask
 from .verify import PlanarArm, TraceVerification, verify
 
 
 @dataclass
 class DiscreteComparison:
-    """``points``: the ``n`` targets; ``curve``: dense path points; ``outside``: which of
-    them lie outside the design's annulus; ``excursion``: the largest distance outside."""
+    """``points``: the ``n`` targets; ``curve``: dense path points; ``outside``: which
+    of them lie outside the design's annulus; ``excursion``: the largest distance
+    outside."""
 
     design: PlanarArm
     points: Float[np.ndarray, "n 2"]
@@ -40,10 +41,15 @@ class DiscreteComparison:
     verification: TraceVerification
 
 
-def equidistant_points(task: TraceTask, n: int, dense: int = 4000) -> Float[np.ndarray, "n 2"]:
-    """``n`` points at equal arc length along the whole path (first and last included)."""
+def equidistant_points(
+    task: TraceTask, n: int, dense: int = 4000
+) -> Float[np.ndarray, "n 2"]:
+    """``n`` points at equal arc length along the whole path (first and last
+    included)."""
     curve = dense_curve(task, dense)
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0), axis=1))])
+    s = np.concatenate(
+        [[0.0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0), axis=1))]
+    )
     want = np.linspace(0.0, s[-1], n)
     return np.stack([np.interp(want, s, curve[:, i]) for i in range(2)], axis=1)
 
@@ -51,7 +57,12 @@ def equidistant_points(task: TraceTask, n: int, dense: int = 4000) -> Float[np.n
 def dense_curve(task: TraceTask, total: int = 4000) -> Float[np.ndarray, "N 2"]:
     lengths = np.array([p.length for p in task.primitives])
     counts = np.maximum(16, (total * lengths / lengths.sum()).astype(int))
-    return np.concatenate([np.asarray(geo.points(p, jnp.linspace(0.0, 1.0, c))) for p, c in zip(task.primitives, counts)])
+    return np.concatenate(
+        [
+            np.asarray(geo.points(p, jnp.linspace(0.0, 1.0, c)))
+            for p, c in zip(task.primitives, counts)
+        ]
+    )
 
 
 def _point_problem(task: TraceTask, pts: np.ndarray) -> Problem:
@@ -65,17 +76,30 @@ def _point_problem(task: TraceTask, pts: np.ndarray) -> Problem:
         rows = [r[0] + r[1] - d, d - jnp.sqrt((r[0] - r[1]) ** 2 + 1e-12)]
         states = geo.arm_states(base, r, 0.0, p, sigma)
         if len(centers):
-            segs = geo.segment_distance(centers[None, None], states[:, :-1, None], states[:, 1:, None])
+            segs = geo.segment_distance(
+                centers[None, None], states[:, :-1, None], states[:, 1:, None]
+            )
             rows.append((segs - grown).ravel())
-        rows.append(geo.segment_distance(p, states[:, 0], states[:, 1]) - task.link_diameter)
+        rows.append(
+            geo.segment_distance(p, states[:, 0], states[:, 1]) - task.link_diameter
+        )
         return jnp.concatenate(rows)
 
     violation = lambda x, sigma: 0.5 * jnp.sum(jnp.minimum(g(x, sigma), 0.0) ** 2)
-    return Problem(jax.jit(g), jax.jit(jax.jacfwd(g)), jax.jit(jax.value_and_grad(violation)), 2, "points")
+    return Problem(
+        jax.jit(g),
+        jax.jit(jax.jacfwd(g)),
+        jax.jit(jax.value_and_grad(violation)),
+        2,
+        "points",
+    )
 
 
-def discretised_design(task: TraceTask, n: int = 25, seed: int = 0, restarts: int = 6) -> PlanarArm | None:
-    """Shortest 2-link arm found that reaches the ``n`` points collision-free (see module)."""
+def discretised_design(
+    task: TraceTask, n: int = 25, seed: int = 0, restarts: int = 6
+) -> PlanarArm | None:
+    """Shortest 2-link arm found that reaches the ``n`` points collision-free (see
+    module)."""
     rng = np.random.default_rng(checks.seed(seed))
     problem = _point_problem(task, equidistant_points(task, n))
     settings = TraceSettings()
@@ -86,7 +110,10 @@ def discretised_design(task: TraceTask, n: int = 25, seed: int = 0, restarts: in
         for sigma in (1, -1):
             x, feasible, length = solve_nlp(task, problem, x0, sigma, region, settings)
             if feasible and (best is None or length < best[1]):
-                best = (PlanarArm(x[:2].copy(), x[2:4].copy(), np.zeros(0), sigma), length)
+                best = (
+                    PlanarArm(x[:2].copy(), x[2:4].copy(), np.zeros(0), sigma),
+                    length,
+                )
     return None if best is None else best[0]
 
 
@@ -100,5 +127,12 @@ def compare(task: TraceTask, design: PlanarArm, n: int = 25) -> DiscreteComparis
     seg = np.linalg.norm(np.diff(curve, axis=0), axis=1)
     outside = beyond > 0
     frac = float(seg[outside[1:] | outside[:-1]].sum() / seg.sum())
-    return DiscreteComparison(design, equidistant_points(task, n), curve, outside, float(max(beyond.max(), 0.0)),
-                              frac, verify(task, design))
+    return DiscreteComparison(
+        design,
+        equidistant_points(task, n),
+        curve,
+        outside,
+        float(max(beyond.max(), 0.0)),
+        frac,
+        verify(task, design),
+    )

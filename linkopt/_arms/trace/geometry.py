@@ -1,10 +1,11 @@
-"""Planar geometry of shape primitives and 2-/3-link arms (paper 002, Sec. II, III-C, Table I).
+"""Planar geometry of shape primitives and 2-/3-link arms (paper 002, Sec. II, III-C,
+Table I).
 
 Pure ``jax.numpy`` functions, differentiable in the origin, link lengths and angles; a
-:class:`~linkopt._arms.trace.task.Primitive` is static (its numbers are constants at trace
-time). Conventions: the elbow branch ``sigma = +1`` puts the elbow to the *left* of the
-vector from the distal origin ``s_{n-1}`` to the end-effector (the paper's "upwards"
-configuration, positive cross product in eq. 5), ``sigma = -1`` to the right.
+:class:`~linkopt._arms.trace.task.Primitive` is static (its numbers are constants at
+trace time). Conventions: the elbow branch ``sigma = +1`` puts the elbow to the *left*
+of the vector from the distal origin ``s_{n-1}`` to the end-effector (the paper's
+"upwards" configuration, positive cross product in eq. 5), ``sigma = -1`` to the right.
 """
 
 from __future__ import annotations
@@ -17,24 +18,26 @@ from .task import Primitive
 TINY = 1e-30  # keeps sqrt differentiable at 0 without biasing lengths >= 1e-15
 
 
-def _norm(v: Float[Array, "... 2"]) -> Float[Array, "..."]:
+def _norm(v: Float[Array, "... 2"]) -> Float[Array, ...]:
     """NaN-safe Euclidean norm (zero gradient at 0 rather than NaN)."""
     return jnp.sqrt(jnp.sum(v * v, axis=-1) + TINY)
 
 
-def unit_vector(v: Float[Array, "2"]) -> Float[Array, "2"]:
+def unit_vector(v: Float[Array, 2]) -> Float[Array, 2]:
     """``v / |v|``, and the x-axis for ``v = 0`` (where every direction is as good, e.g.
     a circle seen from its centre), with finite gradients everywhere."""
     n2 = jnp.sum(v * v)
     safe = n2 > 1e-30
-    return jnp.where(safe, v / jnp.sqrt(jnp.where(safe, n2, 1.0)), jnp.array([1.0, 0.0]))
+    return jnp.where(
+        safe, v / jnp.sqrt(jnp.where(safe, n2, 1.0)), jnp.array([1.0, 0.0])
+    )
 
 
-def cross(a: Float[Array, "... 2"], b: Float[Array, "... 2"]) -> Float[Array, "..."]:
+def cross(a: Float[Array, "... 2"], b: Float[Array, "... 2"]) -> Float[Array, ...]:
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
-def unit(angle: Float[Array, "..."]) -> Float[Array, "... 2"]:
+def unit(angle: Float[Array, ...]) -> Float[Array, "... 2"]:
     return jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=-1)
 
 
@@ -46,34 +49,47 @@ def points(prim: Primitive, t: Float[Array, " N"]) -> Float[Array, "N 2"]:
     return prim.center + prim.radius * unit(prim.angle0 + prim.sweep * t)
 
 
-def arc_parameter(prim: Primitive, p: Float[Array, "... 2"]) -> tuple[Float[Array, "..."], Float[Array, "..."]]:
+def arc_parameter(
+    prim: Primitive, p: Float[Array, "... 2"]
+) -> tuple[Float[Array, ...], Float[Array, ...]]:
     """For a point on an arc/circle's circle: its parameter ``t`` (may exceed 1) and
     whether it lies on the arc (``0 <= t <= 1``)."""
     d = p - prim.center
     ang = jnp.arctan2(d[..., 1], d[..., 0])
     offset = jnp.mod((ang - prim.angle0) * jnp.sign(prim.sweep), 2 * jnp.pi)
-    offset = jnp.where(offset > 2 * jnp.pi - 1e-9, 0.0, offset)  # the start, rounded past 2π
+    offset = jnp.where(
+        offset > 2 * jnp.pi - 1e-9, 0.0, offset
+    )  # the start, rounded past 2π
     t = offset / abs(prim.sweep)
     return t, t <= 1.0 + 1e-12
 
 
-def critical_points(prim: Primitive, origin: Float[Array, "2"]) -> dict[str, Float[Array, "2"]]:
+def critical_points(
+    prim: Primitive, origin: Float[Array, 2]
+) -> dict[str, Float[Array, 2]]:
     """Critical points of Table I relative to the distal origin ``s_{n-1}``.
 
-    Returns ``initial``, ``final``, ``closest``, ``farthest`` (a circle's initial and final
-    point are its start ``c.p_c``). Lines: the foot of the perpendicular clamped to the
-    segment, the farther end point. Circles: ``c ∓ r (s - c)/|s - c|``. Arcs: those two
-    points when they lie on the arc, else the nearer/farther end point.
+    Returns ``initial``, ``final``, ``closest``, ``farthest`` (a circle's initial and
+    final point are its start ``c.p_c``). Lines: the foot of the perpendicular clamped
+    to the segment, the farther end point. Circles: ``c ∓ r (s - c)/|s - c|``. Arcs:
+    those two points when they lie on the arc, else the nearer/farther end point.
     """
     cands, valid = _candidates(prim, origin)
     dist = _norm(cands - origin)
     big = 1e30
     closest = cands[jnp.argmin(jnp.where(valid, dist, big))]
     farthest = cands[jnp.argmax(jnp.where(valid, dist, -big))]
-    return {"initial": jnp.asarray(prim.start), "final": jnp.asarray(prim.end), "closest": closest, "farthest": farthest}
+    return {
+        "initial": jnp.asarray(prim.start),
+        "final": jnp.asarray(prim.end),
+        "closest": closest,
+        "farthest": farthest,
+    }
 
 
-def _candidates(prim: Primitive, origin: Float[Array, "2"]) -> tuple[Float[Array, "K 2"], Float[Array, " K"]]:
+def _candidates(
+    prim: Primitive, origin: Float[Array, 2]
+) -> tuple[Float[Array, "K 2"], Float[Array, " K"]]:
     ends = jnp.stack([jnp.asarray(prim.start), jnp.asarray(prim.end)])
     if prim.kind == "line":
         d = prim.end - prim.start
@@ -87,25 +103,35 @@ def _candidates(prim: Primitive, origin: Float[Array, "2"]) -> tuple[Float[Array
     return jnp.concatenate([ends, ray]), jnp.concatenate([jnp.ones(2, bool), on_arc])
 
 
-def distance_range(prim: Primitive, origin: Float[Array, "2"]) -> tuple[Float[Array, ""], Float[Array, ""]]:
+def distance_range(
+    prim: Primitive, origin: Float[Array, 2]
+) -> tuple[Float[Array, ""], Float[Array, ""]]:
     """``(|p_closest - s|, |p_farthest - s|)``: the radii eq. 2 must bracket."""
     cp = critical_points(prim, origin)
     return _norm(cp["closest"] - origin), _norm(cp["farthest"] - origin)
 
 
-def critical_parameters(prim: Primitive, origin: Float[Array, "2"]) -> Float[Array, "4"]:
-    """Path parameters ``t`` of (initial, final, closest, farthest); circles end at 1."""
+def critical_parameters(prim: Primitive, origin: Float[Array, 2]) -> Float[Array, 4]:
+    """Path parameters ``t`` of (initial, final, closest, farthest); circles end at
+    1."""
     cp = critical_points(prim, origin)
     if prim.kind == "line":
         d = prim.end - prim.start
-        tt = [jnp.dot(cp[k] - prim.start, d) / jnp.dot(d, d) for k in ("closest", "farthest")]
+        tt = [
+            jnp.dot(cp[k] - prim.start, d) / jnp.dot(d, d)
+            for k in ("closest", "farthest")
+        ]
     else:
-        tt = [jnp.clip(arc_parameter(prim, cp[k])[0], 0.0, 1.0) for k in ("closest", "farthest")]
+        tt = [
+            jnp.clip(arc_parameter(prim, cp[k])[0], 0.0, 1.0)
+            for k in ("closest", "farthest")
+        ]
     return jnp.stack([jnp.asarray(0.0), jnp.asarray(1.0), *tt])
 
 
 def support(prim: Primitive, dirs: Float[Array, "K 2"]) -> Float[Array, " K"]:
-    """Support function ``h(u) = max_{p ∈ SP} u·p`` of the primitive (exact per type)."""
+    """Support function ``h(u) = max_{p ∈ SP} u·p`` of the primitive (exact per
+    type)."""
     ends = jnp.maximum(dirs @ prim.start, dirs @ prim.end)
     if prim.kind == "line":
         return ends
@@ -116,14 +142,20 @@ def support(prim: Primitive, dirs: Float[Array, "K 2"]) -> Float[Array, " K"]:
     return jnp.where(on_arc, top, ends)
 
 
-def reachable(origin: Float[Array, "2"], a, b, p: Float[Array, "... 2"], tol: float = 0.0) -> Float[Array, "..."]:
-    """Eq. 2: ``|a - b| <= |p - s| <= a + b`` (the 2-link annulus), with slack ``tol``."""
+def reachable(
+    origin: Float[Array, 2], a, b, p: Float[Array, "... 2"], tol: float = 0.0
+) -> Float[Array, ...]:
+    """Eq. 2: ``|a - b| <= |p - s| <= a + b`` (the 2-link annulus), with slack
+    ``tol``."""
     d = jnp.sqrt(jnp.sum((p - origin) ** 2, axis=-1))
     return (d >= jnp.abs(a - b) - tol) & (d <= a + b + tol)
 
 
-def ik_elbow(origin: Float[Array, "2"], a, b, p: Float[Array, "... 2"], sigma) -> Float[Array, "... 2"]:
-    """Closed-form 2-link IK: the elbow ``s_n`` with ``|s_n - s| = a``, ``|p - s_n| = b``.
+def ik_elbow(
+    origin: Float[Array, 2], a, b, p: Float[Array, "... 2"], sigma
+) -> Float[Array, "... 2"]:
+    """Closed-form 2-link IK: the elbow ``s_n`` with ``|s_n - s| = a``,
+    ``|p - s_n| = b``.
 
     Law of cosines: the elbow is the direction to ``p`` turned by
     ``sigma · arccos((a² + d² - b²) / (2 a d))``; outside the annulus the cosine is
@@ -136,7 +168,13 @@ def ik_elbow(origin: Float[Array, "2"], a, b, p: Float[Array, "... 2"], sigma) -
     return origin + a * unit(ang)
 
 
-def arm_states(base: Float[Array, "2"], lengths: Float[Array, " n"], proximal_angle, p: Float[Array, "N 2"], sigma) -> Float[Array, "N n+1 2"]:
+def arm_states(
+    base: Float[Array, 2],
+    lengths: Float[Array, " n"],
+    proximal_angle,
+    p: Float[Array, "N 2"],
+    sigma,
+) -> Float[Array, "N n+1 2"]:
     """States ``S = (s_1, …, s_{n+1})`` placing the end-effector at each ``p``.
 
     Two links: ``s_1 = base``, elbow by :func:`ik_elbow`. Three links: the proximal link
@@ -152,7 +190,9 @@ def arm_states(base: Float[Array, "2"], lengths: Float[Array, " n"], proximal_an
     return jnp.stack(rows + [elbow, p], axis=1)
 
 
-def distal_origin(base: Float[Array, "2"], lengths: Float[Array, " n"], proximal_angle) -> Float[Array, "2"]:
+def distal_origin(
+    base: Float[Array, 2], lengths: Float[Array, " n"], proximal_angle
+) -> Float[Array, 2]:
     """``s_{n-1}``: the base for 2 links, the end of the static proximal link for 3."""
     if lengths.shape[0] == 2:
         return jnp.asarray(base)
@@ -168,16 +208,24 @@ def joint_angles(states: Float[Array, "N n+1 2"]) -> Float[Array, "N n"]:
     return jnp.arctan2(jnp.sin(rel), jnp.cos(rel))
 
 
-def forward(base: Float[Array, "2"], lengths: Float[Array, " n"], angles: Float[Array, "N n"]) -> Float[Array, "N n+1 2"]:
+def forward(
+    base: Float[Array, 2], lengths: Float[Array, " n"], angles: Float[Array, "N n"]
+) -> Float[Array, "N n+1 2"]:
     """Forward kinematics from DH joint angles (inverse of :func:`joint_angles`)."""
     absolute = jnp.cumsum(angles, axis=1)
     steps = lengths * unit(absolute).transpose(2, 0, 1)
     pts = jnp.cumsum(steps.transpose(1, 2, 0), axis=1)
-    return jnp.concatenate([jnp.broadcast_to(base, (angles.shape[0], 1, 2)), base + pts], axis=1)
+    return jnp.concatenate(
+        [jnp.broadcast_to(base, (angles.shape[0], 1, 2)), base + pts], axis=1
+    )
 
 
-def segment_distance(x: Float[Array, "... 2"], a: Float[Array, "... 2"], b: Float[Array, "... 2"]) -> Float[Array, "..."]:
+def segment_distance(
+    x: Float[Array, "... 2"], a: Float[Array, "... 2"], b: Float[Array, "... 2"]
+) -> Float[Array, ...]:
     """Distance from points ``x`` to segments ``[a, b]`` (broadcast)."""
     d = b - a
-    s = jnp.clip(jnp.sum((x - a) * d, axis=-1) / (jnp.sum(d * d, axis=-1) + TINY), 0.0, 1.0)
+    s = jnp.clip(
+        jnp.sum((x - a) * d, axis=-1) / (jnp.sum(d * d, axis=-1) + TINY), 0.0, 1.0
+    )
     return _norm(x - (a + s[..., None] * d))

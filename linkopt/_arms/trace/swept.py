@@ -1,11 +1,12 @@
-"""Swept-area bounds SV^over and SV^app of the distal links (paper 002, Sec. III-B, III-D).
+"""Swept-area bounds SV^over and SV^app of the distal links (paper 002, Sec. III-B,
+III-D).
 
 Every bound is a convex set, represented by its support function sampled on ``K`` unit
 directions ``u_k``; the signed distance of a point ``x`` to such a set is taken as
 ``max_k (u_k·x − h(u_k))``. With finitely many directions this never exceeds the true
 distance outside the set, so a clearance constraint ``sd(c_o) >= r_o + Δ/2`` on it
-implies the exact eqs. 3-4 (centre outside, every edge farther than the radius), with the
-link radius Δ/2 added as in the verification of Sec. III-F.
+implies the exact eqs. 3-4 (centre outside, every edge farther than the radius), with
+the link radius Δ/2 added as in the verification of Sec. III-F.
 
 * ``over``: the paper's SV_1^over (the disk of radius ``r_{n-1}`` about ``s_{n-1}``) and
   SV_2^over (hull of the primitive and its tangents ``h_1, h_2`` to that disk) together
@@ -16,7 +17,8 @@ link radius Δ/2 added as in the verification of Sec. III-F.
   and a polygon circumscribing ``e_j``; SV_2^app the hull of that polygon and SP_j. The
   paper's pentagon circumscribes the arc with 2 tangent pieces; we use 4, which stays
   bounded for elbow arcs up to 2π and is tighter. As in the paper this is an
-  approximation (the elbow may leave ``e_j`` between critical points), hence verification.
+  approximation (the elbow may leave ``e_j`` between critical points), hence
+  verification.
 """
 
 from __future__ import annotations
@@ -37,8 +39,11 @@ _ANG = np.linspace(0.0, 2 * np.pi, DIRECTIONS, endpoint=False)
 DIRS = np.stack([np.cos(_ANG), np.sin(_ANG)], axis=1)
 
 
-def signed_distance(x: Float[Array, "... 2"], h: Float[Array, " K"], temp: float = 0.0) -> Float[Array, "..."]:
-    """Lower bound of the signed distance from ``x`` to the set with support values ``h``.
+def signed_distance(
+    x: Float[Array, "... 2"], h: Float[Array, " K"], temp: float = 0.0
+) -> Float[Array, ...]:
+    """Lower bound of the signed distance from ``x`` to the set with support values
+    ``h``.
 
     ``temp > 0`` replaces the max by ``temp·logsumexp(·/temp) − temp·log K``, which is
     smooth (for SLSQP) and still never above the max, so the bound stays conservative.
@@ -46,7 +51,9 @@ def signed_distance(x: Float[Array, "... 2"], h: Float[Array, " K"], temp: float
     z = x @ DIRS.T - h
     if temp <= 0:
         return jnp.max(z, axis=-1)
-    return temp * jax.scipy.special.logsumexp(z / temp, axis=-1) - temp * np.log(DIRECTIONS)
+    return temp * jax.scipy.special.logsumexp(z / temp, axis=-1) - temp * np.log(
+        DIRECTIONS
+    )
 
 
 def hull_support(pts: Float[Array, "M 2"], temp: float = 0.0) -> Float[Array, " K"]:
@@ -58,15 +65,25 @@ def hull_support(pts: Float[Array, "M 2"], temp: float = 0.0) -> Float[Array, " 
     return temp * jax.scipy.special.logsumexp(z / temp, axis=0)
 
 
-def over_support(prim: Primitive, origin: Float[Array, "2"], a) -> list[Float[Array, " K"]]:
+def over_support(
+    prim: Primitive, origin: Float[Array, 2], a
+) -> list[Float[Array, " K"]]:
     """SV^over_j: support of conv(disk(s_{n-1}, r_{n-1}) ∪ SP_j) (Sec. III-B)."""
     return [jnp.maximum(geo.support(prim, DIRS), DIRS @ origin + a)]
 
 
-def elbow_arc(prim: Primitive, origin: Float[Array, "2"], a, b, sigma, temp: float = 0.0) -> tuple[Float[Array, ""], Float[Array, ""]]:
-    """Angular interval ``[lo, hi]`` of the elbow arc e_j about ``s_{n-1}`` (Sec. III-D);
-    ``temp > 0`` (radians) takes soft extremes, which only widen the interval."""
-    t = jnp.concatenate([geo.critical_parameters(prim, origin), jnp.linspace(0.0, 1.0, EXTRA_SAMPLES + 2)[1:-1]])
+def elbow_arc(
+    prim: Primitive, origin: Float[Array, 2], a, b, sigma, temp: float = 0.0
+) -> tuple[Float[Array, ""], Float[Array, ""]]:
+    """Angular interval ``[lo, hi]`` of the elbow arc e_j about ``s_{n-1}``
+    (Sec. III-D); ``temp > 0`` (radians) takes soft extremes, which only widen the
+    interval."""
+    t = jnp.concatenate(
+        [
+            geo.critical_parameters(prim, origin),
+            jnp.linspace(0.0, 1.0, EXTRA_SAMPLES + 2)[1:-1],
+        ]
+    )
     t = jnp.sort(t)
     elbows = geo.ik_elbow(origin, a, b, geo.points(prim, t), sigma)
     ang = jnp.arctan2(elbows[:, 1] - origin[1], elbows[:, 0] - origin[0])
@@ -81,7 +98,7 @@ def elbow_arc(prim: Primitive, origin: Float[Array, "2"], a, b, sigma, temp: flo
     return lo, jnp.minimum(hi, lo + 2 * jnp.pi)
 
 
-def arc_polygon(origin: Float[Array, "2"], a, lo, hi) -> Float[Array, "P 2"]:
+def arc_polygon(origin: Float[Array, 2], a, lo, hi) -> Float[Array, "P 2"]:
     """Vertices of the polygon circumscribing the arc ``[lo, hi]`` of radius ``a``:
     the two end points and ``ARC_PIECES`` tangent-line intersections at radius
     ``a / cos(δ/2)``, ``δ = (hi − lo)/ARC_PIECES``."""
@@ -92,7 +109,9 @@ def arc_polygon(origin: Float[Array, "2"], a, lo, hi) -> Float[Array, "P 2"]:
     return jnp.concatenate([ends[:1], outer, ends[1:]])
 
 
-def app_support(prim: Primitive, origin: Float[Array, "2"], a, b, sigma, temp: float = 0.0) -> list[Float[Array, " K"]]:
+def app_support(
+    prim: Primitive, origin: Float[Array, 2], a, b, sigma, temp: float = 0.0
+) -> list[Float[Array, " K"]]:
     """SV^app_j = (SV_1^app, SV_2^app) as support values (Sec. III-D, Fig. 4)."""
     lo, hi = elbow_arc(prim, origin, a, b, sigma, ANGLE_TEMP if temp else 0.0)
     poly = arc_polygon(origin, a, lo, hi)
@@ -101,7 +120,9 @@ def app_support(prim: Primitive, origin: Float[Array, "2"], a, b, sigma, temp: f
     return [sv1, sv2]
 
 
-def swept_support(kind: str, prim: Primitive, origin, a, b, sigma, temp: float = 0.0) -> list[Float[Array, " K"]]:
+def swept_support(
+    kind: str, prim: Primitive, origin, a, b, sigma, temp: float = 0.0
+) -> list[Float[Array, " K"]]:
     """The bound named ``kind`` (``"over"`` or ``"app"``) as a list of convex parts;
     ``temp`` smooths maxima into upper bounds (see :func:`hull_support`)."""
     if kind == "over":

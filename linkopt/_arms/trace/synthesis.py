@@ -1,4 +1,5 @@
-"""Synthesis of a 2- or 3-link planar arm tracing a continuous task (paper 002, eq. 1-11).
+"""Synthesis of a 2- or 3-link planar arm tracing a continuous task (paper 002,
+eq. 1-11).
 
 The NLP of eq. 1: minimise ``Σ r_k`` subject to eqs. 2-11 at the critical points
 (initial, final, closest, farthest) of every primitive. Decision variables are the base
@@ -7,29 +8,32 @@ links, the absolute angle ``φ_j`` of the static proximal link on each primitive
 paper also lists the critical states' joint positions as variables tied by the length
 equalities of eq. 11; we eliminate them with the closed-form IK (so eq. 11 holds exactly
 and the state ``S_{j,u}`` is a function of the variables), and the elbow-consistency
-eq. 5 becomes one branch ``σ = ±1`` for the whole task, tried in turn. One branch for all
-primitives is also what eq. 5 plus the transitions imply for 2 links (zero mobility at a
-transition, Sec. III-F-2a); for 3 links we keep it so that a transition never has to pass
-through a stretched distal pair.
+eq. 5 becomes one branch ``σ = ±1`` for the whole task, tried in turn. One branch for
+all primitives is also what eq. 5 plus the transitions imply for 2 links (zero mobility
+at a transition, Sec. III-F-2a); for 3 links we keep it so that a transition never has
+to pass through a stretched distal pair.
 
 Constraints (all ``>= 0``, lengths in task units):
 
-* eq. 2: ``r_{n-1} + r_n - |p_far - s_{n-1}| - m`` and ``|p_close - s_{n-1}| - |r_{n-1} - r_n| - m``
-  with a small margin ``m`` that keeps the arm off the singular annulus boundary;
+* eq. 2: ``r_{n-1} + r_n - |p_far - s_{n-1}| - m`` and
+  ``|p_close - s_{n-1}| - |r_{n-1} - r_n| - m`` with a small margin ``m`` that keeps the
+  arm off the singular annulus boundary;
 * eqs. 3-4: obstacle discs (grown by Δ/2) clear of SV^over or SV^app (``_trace_swept``);
   for 3 links also of the static proximal link;
 * eq. 8: end-effector at ``p_closest`` farther than Δ from the first distal link (the
   paper imposes it when ``r_{n-1} > r_n``; we impose it always: otherwise the same
-  distance is the end-effector's distance to the module at ``s_{n-1}``, a collision too);
-  eq. 9 (3 links): the primitive (24 samples) farther than Δ from the proximal link;
+  distance is the end-effector's distance to the module at ``s_{n-1}``, a collision
+  too); eq. 9 (3 links): the primitive (24 samples) farther than Δ from the proximal
+  link;
 * eqs. 6-7 (3 links): the four-bar at each transition point. Eqs. 6-7 are the law of
   cosines form of "``|P - s_2(θ_1)|`` within the distal annulus" (with
-  ``|P - s_2|² = r_g² + r_1² - 2 r_1 r_g cos θ_1`` the bound with ``(r_2 + r_3)²`` is the
-  lower one; the paper prints the two bounds of eq. 6 in the other order, and eq. 7 is
-  the same closure seen from the end-effector); we impose that form at
-  5 interior values of the linear ``θ_1`` motion the verifier will check, together with
-  obstacle clearance and self-collision of the links there (the paper leaves these to
-  verification; here they are also constraints, which makes verification pass more often).
+  ``|P - s_2|² = r_g² + r_1² - 2 r_1 r_g cos θ_1`` the bound with ``(r_2 + r_3)²`` is
+  the lower one; the paper prints the two bounds of eq. 6 in the other order, and eq. 7
+  is the same closure seen from the end-effector); we impose that form at 5 interior
+  values of the linear ``θ_1`` motion the verifier will check, together with obstacle
+  clearance and self-collision of the links there (the paper leaves these to
+  verification; here they are also constraints, which makes verification pass more
+  often).
 
 SLSQP (scipy) with exact JAX Jacobians solves each NLP from seeded initial guesses; a
 feasible point is accepted only after :func:`~linkopt._arms.trace.verify.verify` passes,
@@ -39,8 +43,8 @@ otherwise the next initial guess is tried (Sec. III-E).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import jax
 import jax.numpy as jnp
@@ -101,17 +105,23 @@ class TraceResult:
 
 def unpack(x: Float[Array, " V"], n: int, q: int):
     """``x = [s_1 (2), r (n), φ (q, 3 links only)]`` -> (base, lengths, angles)."""
-    phi = x[2 + n:] if n == 3 else jnp.zeros(q)
-    return x[:2], x[2:2 + n], phi
+    phi = x[2 + n :] if n == 3 else jnp.zeros(q)
+    return x[:2], x[2 : 2 + n], phi
 
 
-def constraint_function(task: TraceTask, n: int, kind: str, settings: TraceSettings) -> Callable:
+def constraint_function(
+    task: TraceTask, n: int, kind: str, settings: TraceSettings
+) -> Callable:
     """``g(x, sigma) -> (m,)``, feasible where every entry is ``>= 0`` (eqs. 2-11)."""
     q, delta = len(task.primitives), task.link_diameter
     margin = settings.reach_margin * task.scale
     temp = settings.smoothing * task.scale
     centers = jnp.asarray(task.obstacles[:, :2])
-    grown = jnp.asarray(task.obstacles[:, 2]) + delta / 2 + settings.clearance_margin * task.scale
+    grown = (
+        jnp.asarray(task.obstacles[:, 2])
+        + delta / 2
+        + settings.clearance_margin * task.scale
+    )
 
     def reach_rows(a, b, dmin, dmax):
         gap = jnp.sqrt((a - b) ** 2 + 1e-12)
@@ -122,7 +132,9 @@ def constraint_function(task: TraceTask, n: int, kind: str, settings: TraceSetti
         origin = geo.distal_origin(base, r, phi[j])
         dmin, dmax = geo.distance_range(prim, origin)
         rows = [reach_rows(a, b, dmin, dmax)]
-        for h in swept_support(kind, prim, origin, a, b, sigma, temp) if len(centers) else []:
+        for h in (
+            swept_support(kind, prim, origin, a, b, sigma, temp) if len(centers) else []
+        ):
             rows.append(signed_distance(centers, h, temp) - grown)
         close = geo.critical_points(prim, origin)["closest"]
         elbow = geo.ik_elbow(origin, a, b, close, sigma)
@@ -137,14 +149,20 @@ def constraint_function(task: TraceTask, n: int, kind: str, settings: TraceSetti
         point = jnp.asarray(task.primitives[j].end)
         tau = jnp.linspace(0.0, 1.0, TRANSITION_SAMPLES + 2)[1:-1]
         theta = phi[j] + tau * (phi[j + 1] - phi[j])
-        states = jax.vmap(lambda th: geo.arm_states(base, r, th, point[None], sigma)[0])(theta)
+        states = jax.vmap(
+            lambda th: geo.arm_states(base, r, th, point[None], sigma)[0]
+        )(theta)
         d = jnp.linalg.norm(point - states[:, 1], axis=-1)
         gap = jnp.sqrt((r[1] - r[2]) ** 2 + 1e-12)
         rows = [r[1] + r[2] - d - margin, d - gap - margin]
         if len(centers):
-            segs = geo.segment_distance(centers[None, None], states[:, :-1, None], states[:, 1:, None])
+            segs = geo.segment_distance(
+                centers[None, None], states[:, :-1, None], states[:, 1:, None]
+            )
             rows.append((segs - grown).ravel())
-        rows.append(geo.segment_distance(point, states[:, :-2], states[:, 1:-1]).ravel() - delta)
+        rows.append(
+            geo.segment_distance(point, states[:, :-2], states[:, 1:-1]).ravel() - delta
+        )
         return rows
 
     def g(x, sigma):
@@ -168,10 +186,18 @@ class Problem:
     kind: str
 
 
-def build_problem(task: TraceTask, n: int, kind: str, settings: TraceSettings) -> Problem:
+def build_problem(
+    task: TraceTask, n: int, kind: str, settings: TraceSettings
+) -> Problem:
     g = constraint_function(task, n, kind, settings)
     violation = lambda x, sigma: 0.5 * jnp.sum(jnp.minimum(g(x, sigma), 0.0) ** 2)
-    return Problem(jax.jit(g), jax.jit(jax.jacfwd(g)), jax.jit(jax.value_and_grad(violation)), n, kind)
+    return Problem(
+        jax.jit(g),
+        jax.jit(jax.jacfwd(g)),
+        jax.jit(jax.value_and_grad(violation)),
+        n,
+        kind,
+    )
 
 
 def _bounds(task: TraceTask, n: int, region: int) -> list[tuple]:
@@ -187,10 +213,17 @@ def _bounds(task: TraceTask, n: int, region: int) -> list[tuple]:
 
 
 def _path_points(task: TraceTask, per: int = 64) -> np.ndarray:
-    return np.concatenate([np.asarray(geo.points(p, jnp.linspace(0.0, 1.0, per))) for p in task.primitives])
+    return np.concatenate(
+        [
+            np.asarray(geo.points(p, jnp.linspace(0.0, 1.0, per)))
+            for p in task.primitives
+        ]
+    )
 
 
-def initial_guess(task: TraceTask, n: int, region: int, rng: np.random.Generator) -> np.ndarray:
+def initial_guess(
+    task: TraceTask, n: int, region: int, rng: np.random.Generator
+) -> np.ndarray:
     """A seeded random start: base in its rectangle (or near the path), links sized so
     the farthest path point is just reachable, one proximal angle for all primitives."""
     pts = _path_points(task)
@@ -202,7 +235,9 @@ def initial_guess(task: TraceTask, n: int, region: int, rng: np.random.Generator
         towards = pts.mean(0) - base
         phi = np.arctan2(towards[1], towards[0]) + rng.normal(0.0, 0.8)
         far = np.linalg.norm(pts - base, axis=1).max()
-        r1 = np.clip(rng.uniform(0.2, 0.5) * far, task.min_link_length, task.max_link_length)
+        r1 = np.clip(
+            rng.uniform(0.2, 0.5) * far, task.min_link_length, task.max_link_length
+        )
         origin = base + r1 * np.array([np.cos(phi), np.sin(phi)])
         x.append([r1])
     reach = 1.05 * np.linalg.norm(pts - origin, axis=1).max()
@@ -213,7 +248,14 @@ def initial_guess(task: TraceTask, n: int, region: int, rng: np.random.Generator
     return np.concatenate([np.ravel(v) for v in x])
 
 
-def solve_nlp(task: TraceTask, problem: Problem, x0: np.ndarray, sigma: int, region: int, settings: TraceSettings):
+def solve_nlp(
+    task: TraceTask,
+    problem: Problem,
+    x0: np.ndarray,
+    sigma: int,
+    region: int,
+    settings: TraceSettings,
+):
     """One solve of eq. 1 from ``x0``; returns (x, feasible, total length).
 
     As the paper (Sec. III-I), a simpler problem first: L-BFGS-B on the squared
@@ -221,14 +263,21 @@ def solve_nlp(task: TraceTask, problem: Problem, x0: np.ndarray, sigma: int, reg
     minimises ``Σ r_k`` under the constraints from there. SLSQP can stall or leave the
     feasible set on these piecewise-smooth constraints (the swept-area bounds switch
     between critical points), so every feasible iterate is recorded, the lowest-cost one
-    is kept and SLSQP is restarted from it (fresh Hessian) up to ``POLISH_ROUNDS`` times.
+    is kept and SLSQP is restarted from it (fresh Hessian) up to ``POLISH_ROUNDS``
+    times.
     """
     n = problem.n
     bounds = _bounds(task, n, region)
     g = lambda x: np.asarray(problem.g(x, sigma))
-    phase1 = scipy.optimize.minimize(lambda x: tuple(np.asarray(v) for v in problem.violation(x, sigma)), x0, jac=True,
-                                     bounds=bounds, method="L-BFGS-B", options={"maxiter": settings.max_iterations})
-    cost = lambda x: float(np.sum(x[2:2 + n]))
+    phase1 = scipy.optimize.minimize(
+        lambda x: tuple(np.asarray(v) for v in problem.violation(x, sigma)),
+        x0,
+        jac=True,
+        bounds=bounds,
+        method="L-BFGS-B",
+        options={"maxiter": settings.max_iterations},
+    )
+    cost = lambda x: float(np.sum(x[2 : 2 + n]))
     tol = -settings.feasibility_tol * task.scale
     best = {"x": np.asarray(phase1.x), "cost": np.inf, "feasible": False}
 
@@ -238,11 +287,23 @@ def solve_nlp(task: TraceTask, problem: Problem, x0: np.ndarray, sigma: int, reg
 
     keep(best["x"])
     grad = lambda x: np.concatenate([np.zeros(2), np.ones(n), np.zeros(len(x) - 2 - n)])
-    cons = {"type": "ineq", "fun": g, "jac": lambda x: np.asarray(problem.jac(x, sigma))}
+    cons = {
+        "type": "ineq",
+        "fun": g,
+        "jac": lambda x: np.asarray(problem.jac(x, sigma)),
+    }
     for _ in range(POLISH_ROUNDS):
         before = best["cost"]
-        res = scipy.optimize.minimize(cost, best["x"], jac=grad, bounds=bounds, constraints=[cons], callback=keep,
-                                      method="SLSQP", options={"maxiter": settings.max_iterations, "ftol": 1e-10})
+        res = scipy.optimize.minimize(
+            cost,
+            best["x"],
+            jac=grad,
+            bounds=bounds,
+            constraints=[cons],
+            callback=keep,
+            method="SLSQP",
+            options={"maxiter": settings.max_iterations, "ftol": 1e-10},
+        )
         keep(res.x)
         if not best["feasible"] or before - best["cost"] <= 1e-6 * task.scale:
             break
@@ -251,17 +312,26 @@ def solve_nlp(task: TraceTask, problem: Problem, x0: np.ndarray, sigma: int, reg
 
 def design_from(x: np.ndarray, n: int, sigma: int, q: int) -> PlanarArm:
     base, r, phi = unpack(np.asarray(x), n, q)
-    return PlanarArm(np.asarray(base), np.asarray(r), np.asarray(phi) if n == 3 else np.zeros(0), int(sigma))
+    return PlanarArm(
+        np.asarray(base),
+        np.asarray(r),
+        np.asarray(phi) if n == 3 else np.zeros(0),
+        int(sigma),
+    )
 
 
-def synthesize(task: TraceTask, seed: int = 0, settings: TraceSettings = TraceSettings(),
-               progress: Callable[[str], None] | None = None) -> TraceResult:
+def synthesize(
+    task: TraceTask,
+    seed: int = 0,
+    settings: TraceSettings = TraceSettings(),
+    progress: Callable[[str], None] | None = None,
+) -> TraceResult:
     """Try 2 links then 3, SV^over then SV^app, ``settings.restarts`` seeded starts each
     (cycling through the base rectangles) and both elbow branches. As the paper, the
-    first stage that yields a verified design ends the search; within it the shortest
-    of the first ``settings.best_of`` verified designs is returned (default 1: the
-    first, which is the paper's feasibility-first rule). ``progress`` receives one line
-    per NLP solve. ``seed`` must be a non-negative integer (else :class:`InputError`)."""
+    first stage that yields a verified design ends the search; within it the shortest of
+    the first ``settings.best_of`` verified designs is returned (default 1: the first,
+    which is the paper's feasibility-first rule). ``progress`` receives one line per NLP
+    solve. ``seed`` must be a non-negative integer (else :class:`InputError`)."""
     rng = np.random.default_rng(checks.seed(seed))
     start, attempts = time.perf_counter(), []
     say = progress or (lambda _msg: None)
@@ -270,7 +340,9 @@ def synthesize(task: TraceTask, seed: int = 0, settings: TraceSettings = TraceSe
             found = _stage(task, n, kind, settings, rng, attempts, say)
             if found:
                 design, check = min(found, key=lambda dc: dc[0].lengths.sum())
-                return TraceResult(task, design, check, kind, time.perf_counter() - start, attempts)
+                return TraceResult(
+                    task, design, check, kind, time.perf_counter() - start, attempts
+                )
     return TraceResult(task, None, None, None, time.perf_counter() - start, attempts)
 
 
@@ -285,12 +357,24 @@ def _stage(task, n, kind, settings, rng, attempts, say) -> list:
         for sigma in (1, -1):
             t0 = time.perf_counter()
             x, feasible, length = solve_nlp(task, problem, x0, sigma, region, settings)
-            record = {"links": n, "swept": kind, "restart": restart, "sigma": sigma, "region": region,
-                      "feasible": bool(feasible), "total_length": length, "verified": False, "failure": None}
+            record = {
+                "links": n,
+                "swept": kind,
+                "restart": restart,
+                "sigma": sigma,
+                "region": region,
+                "feasible": bool(feasible),
+                "total_length": length,
+                "verified": False,
+                "failure": None,
+            }
             if feasible:
                 design = design_from(x, n, sigma, len(task.primitives))
                 check = verify(task, design)
-                record.update(verified=check.passed, failure=None if check.passed else check.failures[0])
+                record.update(
+                    verified=check.passed,
+                    failure=None if check.passed else check.failures[0],
+                )
                 if check.passed:
                     found.append((design, check))
             record["seconds"] = time.perf_counter() - t0

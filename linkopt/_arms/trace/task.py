@@ -41,8 +41,8 @@ File layout (lengths in one unit, e.g. metres)::
     max = [0.1, 0.1]
 
 Consecutive primitives must meet (end of one = start of the next, within 1e-6 of the
-task size); as the paper assumes, no obstacle may lie inside a circle or the circle of an
-arc of the path.
+task size); as the paper assumes, no obstacle may lie inside a circle or the circle of
+an arc of the path.
 """
 
 from __future__ import annotations
@@ -55,8 +55,8 @@ from pathlib import Path
 import numpy as np
 from jaxtyping import Float
 
-from ..._errors import MechanismFileError
 from ..._engine.loader import parse_text, parse_toml
+from ..._errors import MechanismFileError
 
 KINDS = ("line", "arc", "circle")
 FIELDS = {
@@ -79,9 +79,9 @@ class Primitive:
     """
 
     kind: str
-    start: Float[np.ndarray, "2"]
-    end: Float[np.ndarray, "2"]
-    center: Float[np.ndarray, "2"]
+    start: Float[np.ndarray, 2]
+    end: Float[np.ndarray, 2]
+    center: Float[np.ndarray, 2]
     radius: float
     angle0: float
     sweep: float
@@ -130,19 +130,28 @@ class _Fields:
     def fail(self, where: str, message: str) -> MechanismFileError:
         return MechanismFileError(self.source, where, message)
 
-    def check_keys(self, data, where: str, required: set[str], optional: set[str]) -> None:
+    def check_keys(
+        self, data, where: str, required: set[str], optional: set[str]
+    ) -> None:
         if not isinstance(data, dict):
             raise self.fail(where, f"expected a table, got {data!r}")
         unknown = sorted(set(data) - required - optional)
         if unknown:
-            raise self.fail(f"{where}.{unknown[0]}", f"unknown field; expected one of {sorted(required | optional)}")
+            raise self.fail(
+                f"{where}.{unknown[0]}",
+                f"unknown field; expected one of {sorted(required | optional)}",
+            )
         missing = sorted(required - set(data))
         if missing:
             raise self.fail(f"{where}.{missing[0]}", "missing required field")
 
     def number(self, data: dict, key: str, where: str, positive: bool = False) -> float:
         v = data[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        if (
+            isinstance(v, bool)
+            or not isinstance(v, (int, float))
+            or not math.isfinite(v)
+        ):
             raise self.fail(f"{where}.{key}", f"expected a finite number, got {v!r}")
         if positive and v <= 0:
             raise self.fail(f"{where}.{key}", f"expected a positive number, got {v!r}")
@@ -151,9 +160,15 @@ class _Fields:
     def point(self, data: dict, key: str, where: str) -> np.ndarray:
         v = data[key]
         ok = isinstance(v, list) and len(v) == 2
-        ok = ok and all(not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x) for x in v)
+        ok = ok and all(
+            not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x)
+            for x in v
+        )
         if not ok:
-            raise self.fail(f"{where}.{key}", f"expected a list of 2 finite numbers [x, y], got {v!r}")
+            raise self.fail(
+                f"{where}.{key}",
+                f"expected a list of 2 finite numbers [x, y], got {v!r}",
+            )
         return np.asarray(v, dtype=float)
 
     def entries(self, data: dict, key: str) -> list:
@@ -164,7 +179,8 @@ class _Fields:
 
 
 def load_task(path: str | Path) -> TraceTask:
-    """Read and validate a task file; raises :class:`MechanismFileError` on bad input."""
+    """Read and validate a task file; raises :class:`MechanismFileError` on bad
+    input."""
     path = Path(path)
     return parse_task(parse_text(path), str(path))
 
@@ -183,21 +199,38 @@ def parse_task(data: dict, source: str) -> TraceTask:
     if "task" not in data:
         raise rd.fail("task", "missing required table [task]")
     head = data["task"]
-    rd.check_keys(head, "task", {"name", "link_diameter"}, {"min_link_length", "max_link_length"})
+    rd.check_keys(
+        head, "task", {"name", "link_diameter"}, {"min_link_length", "max_link_length"}
+    )
     if not isinstance(head["name"], str) or not head["name"]:
         raise rd.fail("task.name", f"expected a non-empty string, got {head['name']!r}")
     diameter = rd.number(head, "link_diameter", "task", positive=True)
-    min_link = rd.number(head, "min_link_length", "task", positive=True) if "min_link_length" in head else 2 * diameter
+    min_link = (
+        rd.number(head, "min_link_length", "task", positive=True)
+        if "min_link_length" in head
+        else 2 * diameter
+    )
     raw = rd.entries(data, "primitives")
     if not raw:
         raise rd.fail("primitives", "expected at least one [[primitives]] entry")
-    prims = tuple(_read_primitive(rd, item, f"primitives[{k}]") for k, item in enumerate(raw))
+    prims = tuple(
+        _read_primitive(rd, item, f"primitives[{k}]") for k, item in enumerate(raw)
+    )
     obstacles = _read_obstacles(rd, data)
     regions = _read_regions(rd, data)
-    task = TraceTask(head["name"], source, prims, obstacles, regions, diameter, min_link, np.inf)
-    max_link = rd.number(head, "max_link_length", "task", positive=True) if "max_link_length" in head else 4 * task.scale
+    task = TraceTask(
+        head["name"], source, prims, obstacles, regions, diameter, min_link, np.inf
+    )
+    max_link = (
+        rd.number(head, "max_link_length", "task", positive=True)
+        if "max_link_length" in head
+        else 4 * task.scale
+    )
     if max_link <= min_link:
-        raise rd.fail("task.max_link_length", f"expected more than min_link_length {min_link:g}, got {max_link:g}")
+        raise rd.fail(
+            "task.max_link_length",
+            f"expected more than min_link_length {min_link:g}, got {max_link:g}",
+        )
     task = dataclasses.replace(task, max_link_length=max_link)
     _check_connected(rd, task)
     _check_obstacles_outside_circles(rd, task)
@@ -206,10 +239,15 @@ def parse_task(data: dict, source: str) -> TraceTask:
 
 def _read_primitive(rd: _Fields, item, where: str) -> Primitive:
     if not isinstance(item, dict) or "type" not in item:
-        raise rd.fail(f"{where}.type", f"missing required field; expected one of {list(KINDS)}")
+        raise rd.fail(
+            f"{where}.type", f"missing required field; expected one of {list(KINDS)}"
+        )
     kind = item["type"]
     if kind not in KINDS:
-        raise rd.fail(f"{where}.type", f"unknown primitive type {kind!r}; expected one of {list(KINDS)}")
+        raise rd.fail(
+            f"{where}.type",
+            f"unknown primitive type {kind!r}; expected one of {list(KINDS)}",
+        )
     required, optional = FIELDS[kind]
     rd.check_keys(item, where, required, optional)
     if kind == "line":
@@ -219,7 +257,9 @@ def _read_primitive(rd: _Fields, item, where: str) -> Primitive:
         return Primitive("line", a, b, 0.5 * (a + b), 0.0, 0.0, 0.0)
     direction = item["direction"]
     if direction not in ("cw", "ccw"):
-        raise rd.fail(f"{where}.direction", f"expected \"cw\" or \"ccw\", got {direction!r}")
+        raise rd.fail(
+            f"{where}.direction", f'expected "cw" or "ccw", got {direction!r}'
+        )
     sign = 1.0 if direction == "ccw" else -1.0
     center = rd.point(item, "center", where)
     if kind == "circle":
@@ -227,24 +267,40 @@ def _read_primitive(rd: _Fields, item, where: str) -> Primitive:
     return _arc(rd, item, where, center, sign)
 
 
-def _circle(rd: _Fields, item: dict, where: str, center: np.ndarray, sign: float) -> Primitive:
+def _circle(
+    rd: _Fields, item: dict, where: str, center: np.ndarray, sign: float
+) -> Primitive:
     radius = rd.number(item, "radius", where, positive=True)
-    start = rd.point(item, "start", where) if "start" in item else center + [radius, 0.0]
+    start = (
+        rd.point(item, "start", where) if "start" in item else center + [radius, 0.0]
+    )
     if abs(np.linalg.norm(start - center) - radius) > REL_TOL * max(radius, 1.0):
-        raise rd.fail(f"{where}.start", f"expected a point on the circle (distance {radius:g} from center), got distance {np.linalg.norm(start - center):g}")
+        raise rd.fail(
+            f"{where}.start",
+            f"expected a point on the circle (distance {radius:g} from center), got distance {np.linalg.norm(start - center):g}",
+        )
     angle0 = math.atan2(*(start - center)[::-1])
-    return Primitive("circle", start, start.copy(), center, radius, angle0, sign * 2 * math.pi)
+    return Primitive(
+        "circle", start, start.copy(), center, radius, angle0, sign * 2 * math.pi
+    )
 
 
-def _arc(rd: _Fields, item: dict, where: str, center: np.ndarray, sign: float) -> Primitive:
+def _arc(
+    rd: _Fields, item: dict, where: str, center: np.ndarray, sign: float
+) -> Primitive:
     a, b = rd.point(item, "start", where), rd.point(item, "end", where)
     radius = float(np.linalg.norm(a - center))
     if radius <= 0:
         raise rd.fail(f"{where}.center", "an arc needs start != center")
     if abs(np.linalg.norm(b - center) - radius) > REL_TOL * max(radius, 1.0):
-        raise rd.fail(f"{where}.end", f"expected a point at the start's distance {radius:g} from center, got {np.linalg.norm(b - center):g}")
+        raise rd.fail(
+            f"{where}.end",
+            f"expected a point at the start's distance {radius:g} from center, got {np.linalg.norm(b - center):g}",
+        )
     if np.linalg.norm(b - a) <= REL_TOL * radius:
-        raise rd.fail(f"{where}.end", "an arc needs end != start (use a circle for a full turn)")
+        raise rd.fail(
+            f"{where}.end", "an arc needs end != start (use a circle for a full turn)"
+        )
     angle0 = math.atan2(*(a - center)[::-1])
     angle1 = math.atan2(*(b - center)[::-1])
     sweep = ((angle1 - angle0) * sign) % (2 * math.pi)
@@ -256,7 +312,12 @@ def _read_obstacles(rd: _Fields, data: dict) -> np.ndarray:
     for k, item in enumerate(rd.entries(data, "obstacles")):
         where = f"obstacles[{k}]"
         rd.check_keys(item, where, {"center", "radius"}, set())
-        rows.append([*rd.point(item, "center", where), rd.number(item, "radius", where, positive=True)])
+        rows.append(
+            [
+                *rd.point(item, "center", where),
+                rd.number(item, "radius", where, positive=True),
+            ]
+        )
     return np.asarray(rows, dtype=float).reshape(-1, 3)
 
 
@@ -267,7 +328,10 @@ def _read_regions(rd: _Fields, data: dict) -> np.ndarray:
         rd.check_keys(item, where, {"min", "max"}, set())
         lo, hi = rd.point(item, "min", where), rd.point(item, "max", where)
         if np.any(hi <= lo):
-            raise rd.fail(f"{where}.max", f"expected max > min in x and y, got min {lo.tolist()} max {hi.tolist()}")
+            raise rd.fail(
+                f"{where}.max",
+                f"expected max > min in x and y, got min {lo.tolist()} max {hi.tolist()}",
+            )
         rows.append([*lo, *hi])
     return np.asarray(rows, dtype=float).reshape(-1, 4)
 
@@ -278,11 +342,20 @@ def _check_connected(rd: _Fields, task: TraceTask) -> None:
         gap = np.linalg.norm(task.primitives[k].end - task.primitives[k + 1].start)
         if gap > tol:
             end = task.primitives[k].end.tolist()
-            raise rd.fail(f"primitives[{k + 1}].start", f"expected the end of primitives[{k}] {end} (primitives must be connected), gap {gap:g}")
+            raise rd.fail(
+                f"primitives[{k + 1}].start",
+                f"expected the end of primitives[{k}] {end} (primitives must be connected), gap {gap:g}",
+            )
 
 
 def _check_obstacles_outside_circles(rd: _Fields, task: TraceTask) -> None:
     for k, (x, y, r) in enumerate(task.obstacles):
         for j, p in enumerate(task.primitives):
-            if p.kind != "line" and np.hypot(x - p.center[0], y - p.center[1]) < p.radius:
-                raise rd.fail(f"obstacles[{k}].center", f"inside the circle of primitives[{j}] ({p.kind}); the task must keep obstacles outside circles and arcs' circles")
+            if (
+                p.kind != "line"
+                and np.hypot(x - p.center[0], y - p.center[1]) < p.radius
+            ):
+                raise rd.fail(
+                    f"obstacles[{k}].center",
+                    f"inside the circle of primitives[{j}] ({p.kind}); the task must keep obstacles outside circles and arcs' circles",
+                )

@@ -1,4 +1,5 @@
-"""Dense verification of the continuous motion of a synthesised arm (paper 002, Sec. III-E, III-F).
+"""Dense verification of the continuous motion of a synthesised arm (paper 002,
+Sec. III-E, III-F).
 
 Along every primitive the joint angles come from the closed-form IK on the design's
 elbow branch (the proximal link of a 3-link arm is static); along every transition of a
@@ -7,8 +8,8 @@ its value on the next while the end-effector stays at the transition point (the
 four-bar of Sec. III-F-2b), the distal pair following by IK. At every sample we check:
 
 * reachability (eq. 2) of the end-effector from ``s_{n-1}``;
-* link-to-obstacle clearance: distance from each obstacle centre to each link segment
-  at least ``r_o + Δ/2 + δ/2``, where ``δ`` is the largest displacement of that link's end
+* link-to-obstacle clearance: distance from each obstacle centre to each link segment at
+  least ``r_o + Δ/2 + δ/2``, where ``δ`` is the largest displacement of that link's end
   points to a neighbouring sample (a first-order bound on what the motion between
   samples can add); samples are spaced Δ/16 along the path;
 * self-collision: the end-effector farther than Δ from every link it is not attached to
@@ -40,7 +41,7 @@ class PlanarArm:
     """A planar arm: base ``s_1``, link lengths ``r`` (2 or 3), the static proximal
     angle per primitive (3 links; absolute, from the x-axis) and the elbow branch."""
 
-    base: Float[np.ndarray, "2"]
+    base: Float[np.ndarray, 2]
     lengths: Float[np.ndarray, " n"]
     proximal_angles: Float[np.ndarray, " q"]
     sigma: int
@@ -75,19 +76,33 @@ def _proximal(design: PlanarArm, j: int) -> float:
     return float(design.proximal_angles[j]) if design.n_links == 3 else 0.0
 
 
-def primitive_states(task: TraceTask, design: PlanarArm, j: int, t: np.ndarray) -> np.ndarray:
+def primitive_states(
+    task: TraceTask, design: PlanarArm, j: int, t: np.ndarray
+) -> np.ndarray:
     """``(N, n_links+1, 2)`` states along primitive ``j`` at path parameters ``t``."""
     p = geo.points(task.primitives[j], jnp.asarray(t))
-    return np.asarray(geo.arm_states(design.base, jnp.asarray(design.lengths), _proximal(design, j), p, design.sigma))
+    return np.asarray(
+        geo.arm_states(
+            design.base,
+            jnp.asarray(design.lengths),
+            _proximal(design, j),
+            p,
+            design.sigma,
+        )
+    )
 
 
-def transition_states(task: TraceTask, design: PlanarArm, j: int, tau: np.ndarray) -> np.ndarray:
+def transition_states(
+    task: TraceTask, design: PlanarArm, j: int, tau: np.ndarray
+) -> np.ndarray:
     """States of the transition from primitive ``j`` to ``j+1`` at fractions ``tau``:
     the end-effector stays at the transition point, ``θ_1`` moves linearly (3 links);
     a 2-link arm has no transition motion (mobility 0), its state is repeated."""
     point = jnp.asarray(task.primitives[j].end)[None]
     lengths = jnp.asarray(design.lengths)
-    theta = _proximal(design, j) + jnp.asarray(tau) * (_proximal(design, j + 1) - _proximal(design, j))
+    theta = _proximal(design, j) + jnp.asarray(tau) * (
+        _proximal(design, j + 1) - _proximal(design, j)
+    )
     one = lambda th: geo.arm_states(design.base, lengths, th, point, design.sigma)[0]
     return np.asarray(jax.vmap(one)(theta))
 
@@ -103,20 +118,30 @@ def dense_states(fn, n: int, target: float) -> tuple[np.ndarray, np.ndarray]:
         if k.max() == 1 or k.sum() > MAX_SAMPLES:
             break
         offsets = np.arange(k.sum()) - np.repeat(np.cumsum(k) - k, k)
-        t = np.append(np.repeat(t[:-1], k) + offsets / np.repeat(k, k) * np.repeat(np.diff(t), k), 1.0)
+        t = np.append(
+            np.repeat(t[:-1], k) + offsets / np.repeat(k, k) * np.repeat(np.diff(t), k),
+            1.0,
+        )
         states = fn(t)
     return t, states
 
 
 def critical_states(task: TraceTask, design: PlanarArm) -> list[np.ndarray]:
-    """States at (initial, final, closest, farthest) of every primitive, ``(4, n+1, 2)`` each."""
+    """States at (initial, final, closest, farthest) of every primitive, ``(4, n+1, 2)``
+    each."""
     out = []
     lengths = jnp.asarray(design.lengths)
     for j, prim in enumerate(task.primitives):
         origin = geo.distal_origin(design.base, lengths, _proximal(design, j))
         cp = geo.critical_points(prim, origin)
         pts = jnp.stack([cp[k] for k in ("initial", "final", "closest", "farthest")])
-        out.append(np.asarray(geo.arm_states(design.base, lengths, _proximal(design, j), pts, design.sigma)))
+        out.append(
+            np.asarray(
+                geo.arm_states(
+                    design.base, lengths, _proximal(design, j), pts, design.sigma
+                )
+            )
+        )
     return out
 
 
@@ -150,34 +175,66 @@ def _clearance(task: TraceTask, states: np.ndarray) -> np.ndarray:
     c = task.obstacles[:, :2][None, None]
     a, b = states[:, :-1, None], states[:, 1:, None]
     d = np.asarray(geo.segment_distance(jnp.asarray(c), jnp.asarray(a), jnp.asarray(b)))
-    return d - task.obstacles[:, 2] - task.link_diameter / 2 - _motion_bound(states)[:, :, None]
+    return (
+        d
+        - task.obstacles[:, 2]
+        - task.link_diameter / 2
+        - _motion_bound(states)[:, :, None]
+    )
 
 
 def _self_distance(states: np.ndarray) -> np.ndarray:
     """End-effector to every link but the last (eqs. 8-9), ``(N, links-1)``."""
     ee = jnp.asarray(states[:, -1:])
-    return np.asarray(geo.segment_distance(ee, jnp.asarray(states[:, :-2]), jnp.asarray(states[:, 1:-1])))
+    return np.asarray(
+        geo.segment_distance(
+            ee, jnp.asarray(states[:, :-2]), jnp.asarray(states[:, 1:-1])
+        )
+    )
 
 
-def _check(task: TraceTask, design: PlanarArm, label: str, states: np.ndarray, failures: list[str]) -> dict:
+def _check(
+    task: TraceTask,
+    design: PlanarArm,
+    label: str,
+    states: np.ndarray,
+    failures: list[str],
+) -> dict:
     clear = _clearance(task, states)
     selfd = _self_distance(states) - task.link_diameter
     reach = _reach_margin(task, design, states)
     angles = np.asarray(geo.joint_angles(jnp.asarray(states)))
-    jstep = np.abs(np.angle(np.exp(1j * np.diff(angles, axis=0)))).max() if len(states) > 1 else 0.0
+    jstep = (
+        np.abs(np.angle(np.exp(1j * np.diff(angles, axis=0)))).max()
+        if len(states) > 1
+        else 0.0
+    )
     tol = 1e-9 * task.scale
     if reach.min() < -tol:
         k = int(reach.argmin())
-        failures.append(f"{label}: end-effector outside the reachable annulus (eq. 2) at sample {k} by {-reach[k]:.3g}")
+        failures.append(
+            f"{label}: end-effector outside the reachable annulus (eq. 2) at sample {k} by {-reach[k]:.3g}"
+        )
     if clear.size and clear.min() < 0:
         k, link, o = np.unravel_index(clear.argmin(), clear.shape)
-        failures.append(f"{label}: link {link + 1} clips obstacles[{o}] at sample {k} (clearance {clear.min():.3g})")
+        failures.append(
+            f"{label}: link {link + 1} clips obstacles[{o}] at sample {k} (clearance {clear.min():.3g})"
+        )
     if selfd.size and selfd.min() < 0:
-        failures.append(f"{label}: end-effector within Δ of another link (eqs. 8-9), margin {selfd.min():.3g}")
+        failures.append(
+            f"{label}: end-effector within Δ of another link (eqs. 8-9), margin {selfd.min():.3g}"
+        )
     if jstep > MAX_JOINT_STEP:
-        failures.append(f"{label}: a joint jumps {jstep:.3g} rad between samples (motion not continuous)")
-    return {"clear": clear.min() if clear.size else np.inf, "self": selfd.min() if selfd.size else np.inf,
-            "reach": reach.min(), "jstep": jstep, "angles": angles}
+        failures.append(
+            f"{label}: a joint jumps {jstep:.3g} rad between samples (motion not continuous)"
+        )
+    return {
+        "clear": clear.min() if clear.size else np.inf,
+        "self": selfd.min() if selfd.size else np.inf,
+        "reach": reach.min(),
+        "jstep": jstep,
+        "angles": angles,
+    }
 
 
 def verify(task: TraceTask, design: PlanarArm) -> TraceVerification:
