@@ -9,7 +9,7 @@ import pytest
 
 import linkopt  # noqa: F401  (float64)
 from linkopt._arms.codesign.model import Module, arm_state, make_arm, tool_rotation
-from linkopt._engine.constraints import fk_residual, point_positions
+from linkopt._engine.constraints import fk_residual, homogenised_point_positions
 
 # (offset d, length a, twist α) per joint, then the tool length.
 DH = [(0.10, 0.30, np.pi / 2), (0.00, 0.25, -0.4), (0.05, 0.20, 1.1)]
@@ -88,7 +88,10 @@ def test_tool_pose_matches_dh_product(arm, theta):
     geom, state = jax.jit(arm_state, static_argnums=0)(
         arm, jnp.asarray(theta), jnp.asarray(arm.d0)
     )
-    tip = point_positions(arm.mechanism, geom, state)[-1] * arm.mechanism.length_scale
+    tip = (
+        homogenised_point_positions(arm.mechanism, geom, state)[-1]
+        * arm.mechanism.length_scale
+    )
     np.testing.assert_allclose(tip, ref[:3, 3], atol=1e-12)
     np.testing.assert_allclose(
         tool_rotation(arm, jnp.asarray(theta), jnp.asarray(arm.d0)),
@@ -105,7 +108,8 @@ def test_engine_jacobian_matches_geometric_jacobian(arm):
     def tip(th):
         geom, state = arm_state(arm, th, jnp.asarray(arm.d0))
         return (
-            point_positions(arm.mechanism, geom, state)[-1] * arm.mechanism.length_scale
+            homogenised_point_positions(arm.mechanism, geom, state)[-1]
+            * arm.mechanism.length_scale
         )
 
     engine = jax.jit(jax.jacfwd(tip))(jnp.asarray(theta))
@@ -119,7 +123,7 @@ def test_design_jacobian_matches_finite_differences(arm):
     @jax.jit
     def tip(d):
         geom, state = arm_state(arm, theta, d)
-        return point_positions(arm.mechanism, geom, state)[-1]
+        return homogenised_point_positions(arm.mechanism, geom, state)[-1]
 
     d0 = jnp.asarray(arm.d0)
     engine = jax.jit(jax.jacfwd(tip))(d0)

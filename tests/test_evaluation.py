@@ -28,7 +28,7 @@ from linkopt._design.sampling import (
     minimise,
     minimise_queue,
 )
-from linkopt._engine.constraints import output_values
+from linkopt._engine.constraints import homogenised_output_values
 from linkopt._engine.geometry import rest_state
 
 
@@ -104,7 +104,7 @@ def test_objective_gradients_match_finite_differences(five_bar, kind):
             th,
         )
     else:  # the box's lower edge brought to the pose, so that the range barrier counts
-        outputs = output_values(five_bar, geom, state)  # homogenised
+        outputs = homogenised_output_values(five_bar, geom, state)  # homogenised
         low = outputs - jnp.array([0.5, 0.01])
         objective = adversarial_objective(
             five_bar, geom, motors + 0.05, low, low + 2.0, th

@@ -53,7 +53,11 @@ import jax.numpy as jnp
 from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, Bool, Float, Int
 
-from .._engine.constraints import fk_residual, output_residual, output_values
+from .._engine.constraints import (
+    fk_residual,
+    output_residual,
+    homogenised_output_values,
+)
 from .._engine.geometry import Geometry
 from .._engine.jacobian import state_jacobian
 from .._engine.kinematics import solve_single
@@ -375,7 +379,7 @@ def adversarial_objective(
     def objective(motors, state, ds_da, f_sing, d_f_sing):
         term, slope = jax.value_and_grad(attractive)(f_sing, th)
         wall, d_wall = jax.value_and_grad(
-            lambda s: barrier(output_values(mech, geom, s), low, high)
+            lambda s: barrier(homogenised_output_values(mech, geom, s), low, high)
         )(state)
         offset = motors - anchor_motors
         value = term + w_range * wall + 0.5 * w_motion * offset @ offset

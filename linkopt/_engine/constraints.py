@@ -8,7 +8,7 @@ passive joint and swaps the motor rows for output rows, so with as many motors a
 outputs both Jacobians have the same shape. All inputs are homogenised.
 
 The entry points that the samplers call many times (``fk_residual``,
-``output_residual``, ``output_values``) are jitted with the mechanism (and ``kind``)
+``output_residual``, ``homogenised_output_values``) are jitted with the mechanism (and ``kind``)
 static, so one evaluation traces each once and reuses the jaxpr at every other call
 site: tracing a 20-design evaluation went from 14.5 s to 5 s.
 """
@@ -108,7 +108,7 @@ def _motor_rows(mech: Mechanism, geom: Geometry, state, motors):
     return _combine(mech.num_motors, [(rotary, angles), (linear, shifts)])
 
 
-def motor_values(
+def homogenised_motor_values(
     mech: Mechanism, geom: Geometry, state: Float[Array, " S"]
 ) -> Float[Array, " M"]:
     """Motor values read off a state (homogenised; rad for revolute motors)."""
@@ -128,12 +128,16 @@ def _point_world(mech: Mechanism, geom: Geometry, state) -> Float[Array, "P 3"]:
     return x[body] + rotate(q[body], geom.points - geom.origins[body])
 
 
-def point_positions(mech: Mechanism, geom: Geometry, state) -> Float[Array, "P 3"]:
+def homogenised_point_positions(
+    mech: Mechanism, geom: Geometry, state
+) -> Float[Array, "P 3"]:
     """World positions of the named points (homogenised)."""
     return _point_world(mech, geom, state)
 
 
-def joint_positions(mech: Mechanism, geom: Geometry, state) -> Float[Array, "J 3"]:
+def homogenised_joint_positions(
+    mech: Mechanism, geom: Geometry, state
+) -> Float[Array, "J 3"]:
     """World position of each joint anchor, as seen from the joint's first body."""
     x, q = body_frames(state)
     body = mech.joint_bodies[:, 0]
@@ -176,7 +180,9 @@ def _output_rows(mech: Mechanism, geom: Geometry, state, outputs):
 
 
 @partial(jax.jit, static_argnums=0)
-def output_values(mech: Mechanism, geom: Geometry, state) -> Float[Array, " K"]:
+def homogenised_output_values(
+    mech: Mechanism, geom: Geometry, state
+) -> Float[Array, " K"]:
     """End-effector variables ``b(s)`` (homogenised; rad for angles)."""
     return _output_rows(mech, geom, state, None)
 

@@ -17,15 +17,17 @@ from .model import Mechanism
 def _read(mech: Mechanism, what: str, state, design):
     geom = geometry(mech, design_vector(mech, design))
     fn = {
-        "motors": lambda s: constraints.motor_values(mech, geom, s) * mech.motor_scale,
+        "motors": lambda s: (
+            constraints.homogenised_motor_values(mech, geom, s) * mech.motor_scale
+        ),
         "outputs": lambda s: (
-            constraints.output_values(mech, geom, s) * mech.output_scale
+            constraints.homogenised_output_values(mech, geom, s) * mech.output_scale
         ),
         "joints": lambda s: (
-            constraints.joint_positions(mech, geom, s) * mech.length_scale
+            constraints.homogenised_joint_positions(mech, geom, s) * mech.length_scale
         ),
         "points": lambda s: (
-            constraints.point_positions(mech, geom, s) * mech.length_scale
+            constraints.homogenised_point_positions(mech, geom, s) * mech.length_scale
         ),
     }[what]
     state = jnp.asarray(state, dtype=jnp.float64)

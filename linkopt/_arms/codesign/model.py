@@ -38,7 +38,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ..._engine import quaternion as quat
-from ..._engine.constraints import point_positions
+from ..._engine.constraints import homogenised_point_positions
 from ..._engine.geometry import Geometry
 from ..._engine.kinematics import implicit_state
 from ..._engine.loader import build, diameter
@@ -388,7 +388,7 @@ def tool_pose(
     """
     geom, state = arm_state(arm, theta, d)
     mech = arm.mechanism
-    tip = point_positions(mech, geom, state)[-1] * mech.length_scale
+    tip = homogenised_point_positions(mech, geom, state)[-1] * mech.length_scale
     q_last = state.reshape(-1, 7)[-1, 3:]
     rest = tool_rotation(arm, jnp.zeros_like(theta), d)
     return tip, rotation_matrix(q_last) @ rest, geom, state

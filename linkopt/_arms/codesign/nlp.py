@@ -42,7 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.optimize
 
-from ..._engine.constraints import point_positions
+from ..._engine.constraints import homogenised_point_positions
 from ..._engine.statics import motor_torques
 from .. import checks
 from .model import Arm, arm_loads, tool_pose
@@ -158,7 +158,7 @@ def _waypoint(problem: Problem, theta, d, loads):
     obstacle = jnp.zeros(())
     if problem.field is not None:
         ends = (
-            point_positions(arm.mechanism, geom, state)[:-1]
+            homogenised_point_positions(arm.mechanism, geom, state)[:-1]
             * arm.mechanism.length_scale
         )
         t = jnp.linspace(0.0, 1.0, SAMPLES_PER_MODULE)[None, :, None]

@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ..._engine.constraints import point_positions  # noqa: E402
+from ..._engine.constraints import homogenised_point_positions  # noqa: E402
 from .model import Arm, arm_state  # noqa: E402
 from .sdf import Obstacle  # noqa: E402
 
@@ -29,7 +29,10 @@ def module_points(arm: Arm, theta, d):
 
     def one(th):
         geom, state = arm_state(arm, th, d)
-        return point_positions(arm.mechanism, geom, state) * arm.mechanism.length_scale
+        return (
+            homogenised_point_positions(arm.mechanism, geom, state)
+            * arm.mechanism.length_scale
+        )
 
     return jax.vmap(one)(theta)
 
