@@ -11,10 +11,9 @@ from . import _config  # noqa: F401  (float64 and the compilation cache, before 
 
 # name → (module, attribute). Imported on first use (PEP 562), so that a process that
 # needs one part (a worker evaluating designs, ``linkopt check``) does not pay for the
-# rest: importing everything took 0.93 s, of which jax is 0.47 s and pyswarms (with
-# scipy.spatial) 0.22 s. Serial arms on the same engine: co-design (paper 000), DH
-# synthesis (004), path tracing (002) are the ``_arm``, ``_dh``, ``_elimination``,
-# ``_manipulability``, ``_statics`` and ``_trace`` modules.
+# rest (jax, pyswarms and scipy.spatial are most of the import time). The folders, in
+# pipeline order: ``_engine`` (the constraint engine), ``_design`` (design
+# optimisation), ``_arms`` (serial arms: ``codesign``, ``dh``, ``trace``), ``_cli``.
 _EXPORTS = {
     "constraint_rows": ("_engine.constraints", "constraint_rows"),
     "InputError": ("_errors", "InputError"),

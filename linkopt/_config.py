@@ -14,9 +14,8 @@ happen to be ready at once hang the process for ever (seen with jax 0.10.2, e.g.
 ``jit(vmap(grad(f_sing ∘ FK)))``; ``--xla_cpu_multi_thread_eigen=false`` does not help).
 ParallelBatchMap runs the whole batch inline when the pool has one thread, so unless the
 user set ``PJRT_NPROC`` we set it to 1 (read by XLA when it creates its CPU client, i.e.
-at the first computation; importing :mod:`linkopt` first guarantees that). Cost,
-measured on 2 cores: five-bar FK batches of 1e5 run at 10.8k solves/s instead of 19.4k;
-single solves got faster (185 µs instead of 250 µs).
+at the first computation; importing :mod:`linkopt` first guarantees that). The cost
+in batched solves per second is measured by ``benchmarks/bench_kinematics.py``.
 """
 
 from __future__ import annotations

@@ -6,8 +6,10 @@ through the full residual) each row group is differentiated analytically in its 
 variables. The rows are polynomial in the state (see :mod:`linkopt._engine.joints`), so
 with ``R(q) v`` the quadratic form of :func:`linkopt._engine.quaternion.rotate`
 
-* ``∂(R(q) v)/∂q = 2 [w v + u × v,  (u·v) I + u vᵀ - v uᵀ - w [v]×]`` for ``q = (w, u)``;
-* ``∂(a · R(q) v)/∂q = 2 (w (a·v) + a·(u × v),  -(a·v) u + (u·a) v + (u·v) a + w (v × a))``;
+* ``∂(R(q) v)/∂q = 2 [w v + u × v,  (u·v) I + u vᵀ - v uᵀ - w [v]×]``
+  for ``q = (w, u)``;
+* ``∂(a · R(q) v)/∂q =
+  2 (w (a·v) + a·(u × v),  -(a·v) u + (u·a) v + (u·v) a + w (v × a))``;
 * a wrapped angle ``atan2(s, c)`` (any target) has the gradient
   ``(c ∇s - s ∇c) / (c² + s²)``.
 
@@ -28,7 +30,7 @@ The row order and values are those of :func:`linkopt._engine.constraints.fk_resi
 The entry points that the samplers call many times (``state_jacobian``,
 ``stacked_jacobians``, ``normal_equations``) are jitted with the mechanism (and
 ``kind``) static, so one evaluation traces each once and reuses the jaxpr at every other
-call site: tracing a 20-design evaluation went from 14.5 s to 5 s.
+call site.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ Hand-written rather than ``optimistix.LevenbergMarquardt`` because the constrain
 are tiny (35-70 unknowns) and warm-started: a solve takes 3-4 iterations and the
 per-iteration overhead dominates. optimistix fixes its initial damping at 1, which
 costs several extra iterations from a warm start; ``benchmarks/bench_kinematics.py``
-keeps it as the comparison (about 6x slower a solve in our measurement).
+keeps it as the comparison.
 
 Shape follows optimistix: :func:`init`, :func:`step`, :func:`terminate`, run by
 :func:`solve` in a ``lax.while_loop``. The step solves ``(JᵀJ + λI) δ = -Jᵀr`` by
@@ -26,7 +26,8 @@ from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, Bool, Float, Int
 
 Residual = Callable[[Float[Array, " n"]], Float[Array, " m"]]
-#: ``x -> (C(x), J(x)ᵀJ(x), J(x)ᵀC(x))``: the residual and its Gauss–Newton normal equations.
+#: ``x -> (C(x), J(x)ᵀJ(x), J(x)ᵀC(x))``: the residual and its Gauss–Newton normal
+#: equations.
 Linearisation = Callable[
     [Float[Array, " n"]],
     tuple[Float[Array, " m"], Float[Array, "n n"], Float[Array, " n"]],

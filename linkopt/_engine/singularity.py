@@ -9,20 +9,16 @@ The motor and output rows' Jacobians do not depend on the motor/output *targets*
 
 σ_min is found by block inverse iteration with a Rayleigh–Ritz step on ``A = JᵀJ``
 (``BLOCK`` vectors, ``ITERATIONS`` sweeps, a fixed seeded start block) instead of a full
-SVD: the LAPACK SVD of a few dozen columns cost 0.2 ms per matrix and was 80 % of a
-design evaluation. For 180 five-bar states (two matrices each, one thread) the SVD
-takes 64 ms and this 26 ms. Against the SVD it agreed to 7e-5 relative with 4 sweeps
-along a five-bar path whose two smallest singular values come within 0.7 % of each
-other (``tests/test_singularity.py`` checks 1e-3). ``A⁻¹ = L⁻ᵀL⁻¹`` is formed once from
-the Cholesky factor (one triangular solve with ``n`` right-hand sides) and each sweep
-is a matrix product: jaxlib's batched triangular solves cost about 2.6 µs per 35 x 35
-matrix and 6-column block, and the two per sweep were most of σ_min's cost (five-bar
-evaluation of 10 designs: 1.06 s → 0.98 s; σ unchanged to 1e-15 relative).
-Close to a singularity the smallest eigenvalue separates and the iteration converges
-faster. The value returned is ``σ = ‖J(s) v‖`` with the Ritz vector ``v`` held fixed,
-an upper bound on σ_min that equals it at convergence, and whose derivative is the
-exact first derivative of σ_min for a simple smallest singular value
-(``dσ = uᵀ dJ v``, ``u = Jv/σ``).
+SVD: the LAPACK SVD of a few dozen columns was most of a design evaluation (figures in
+``benchmarks/bench_kinematics.py``). ``tests/test_singularity.py`` checks it against the
+SVD, also along a five-bar path whose two smallest singular values come within 0.7 % of
+each other. ``A⁻¹ = L⁻ᵀL⁻¹`` is formed once from the Cholesky factor (one triangular
+solve with ``n`` right-hand sides) and each sweep is a matrix product rather than two
+batched triangular solves, which were most of σ_min's cost. Close to a singularity the
+smallest eigenvalue separates and the iteration converges faster. The value returned is
+``σ = ‖J(s) v‖`` with the Ritz vector ``v`` held fixed, an upper bound on σ_min that
+equals it at convergence, and whose derivative is the exact first derivative of σ_min
+for a simple smallest singular value (``dσ = uᵀ dJ v``, ``u = Jv/σ``).
 """
 
 from __future__ import annotations
