@@ -26,7 +26,7 @@ JANSEN = dict(
     l=7.8,
     m=15.0,
 )
-O = np.array([0.0, 0.0])
+O = np.array([0.0, 0.0])  # noqa: E741  (Jansen's name for the crank centre)
 A = np.array([-JANSEN["a"], -JANSEN["l"]])
 STEPS = 72
 
@@ -187,7 +187,8 @@ def test_foot_path_matches_circle_intersection(jansen, full_turn):
         np.angle(np.exp(1j * (read - motors[:, 0]))), 0.0, atol=1e-10
     )
 
-    # The classic Jansen foot path: a flat stance at the bottom, x within about 68 units.
+    # The classic Jansen foot path: a flat stance at the bottom, x within about 68
+    # units.
     assert -71.6 < foot[:, 0].min() < -71.0 and -4.0 < foot[:, 0].max() < -3.5
     assert -91.9 < foot[:, 1].min() < -91.7 and -70.0 < foot[:, 1].max() < -69.0
 

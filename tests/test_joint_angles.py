@@ -42,7 +42,8 @@ def test_universal_joint_angles_are_its_two_rotations_and_the_third_is_zero():
     a, b = 0.7, -0.4
     qj = multiply(from_axis_angle(e1, a), from_axis_angle(e2, b))
     qi = jnp.array([1.0, 0.0, 0.0, 0.0])
-    # the universal joint's own row: axis on body i stays perpendicular to axis2 on body j
+    # the universal joint's own row: axis on body i stays perpendicular to axis2 on
+    # body j
     row = _joints.universal(
         jnp.zeros(3), qi, jnp.zeros(3), jnp.zeros(3), qj, jnp.zeros(3), e1, e2, e2
     )[3]

@@ -31,7 +31,8 @@ def test_sizes_match_table_one(name):
     assert linkopt.mobility(mech) == mobility == mech.num_motors == mech.num_outputs
 
 
-# name: (forward singularity in the range, backward singularity in the range, part unreachable)
+# name: (forward singularity in the range, backward singularity in the range,
+#        part unreachable)
 DEFECTS = {
     "finger": (True, False, False),
     "neck_2dof": (True, False, False),

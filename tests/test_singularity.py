@@ -95,8 +95,9 @@ def test_f_sing_gradient_through_fk_matches_finite_differences(five_bar):
         / (2 * h)
         for e in np.eye(3)
     ]
-    # σ_min comes from a converged-to-1e-5 Ritz vector (linkopt._engine.singularity), so the
-    # analytic derivative and the finite difference of the computed σ differ at that level
+    # σ_min comes from a converged-to-1e-5 Ritz vector (linkopt._engine.singularity), so
+    # the analytic derivative and the finite difference of the computed σ differ at
+    # that level
     np.testing.assert_allclose(grad_a, fd_a, rtol=3e-4, atol=1e-7)
     np.testing.assert_allclose(grad_p, fd_p, rtol=3e-4, atol=1e-7)
 
@@ -114,7 +115,8 @@ def test_batched_svd_gradient_does_not_hang():
         def f(a):
             s = linkopt.solve_fk(m, a).state
             return f_sing_value(m, g, s)
-        grads = jax.jit(jax.vmap(jax.grad(f)))(jnp.asarray(np.linspace(-0.2, 0.2, 64).reshape(32, 2)))
+        a = jnp.asarray(np.linspace(-0.2, 0.2, 64).reshape(32, 2))
+        grads = jax.jit(jax.vmap(jax.grad(f)))(a)
         assert np.all(np.isfinite(np.asarray(grads)))
         print("ok")
         """

@@ -49,7 +49,8 @@ def _select(
     outputs."""
     if not mech.point_names:
         raise InputError(
-            f"{mech.source}: [[points]]: manipulability needs a named end-effector point; the mechanism has none"
+            f"{mech.source}: [[points]]: manipulability needs a named end-effector "
+            "point; the mechanism has none"
         )
     if point is None:
         positional = [int(p) for p in mech.output_points if p >= 0]
@@ -58,7 +59,8 @@ def _select(
         index = mech.point_names.index(point)
     else:
         raise InputError(
-            f"{mech.source}: [[points]]: no point named {point!r}; expected one of {list(mech.point_names)}"
+            f"{mech.source}: [[points]]: no point named {point!r}; expected one of "
+            f"{list(mech.point_names)}"
         )
     if coordinates is None:
         declared = sorted(
@@ -78,7 +80,8 @@ def _select(
         or len(set(coords)) != len(coords)
     ):
         raise InputError(
-            f"manipulability: coordinates: expected distinct entries of x, y, z, got {coordinates!r}"
+            "manipulability: coordinates: expected distinct entries of x, y, z, got "
+            f"{coordinates!r}"
         )
     return index, coords
 

@@ -46,24 +46,28 @@ def check_mobility(mech: Mechanism) -> None:
         raise MechanismFileError(
             mech.source,
             "[[motors]]",
-            f"the mechanism has mobility {dof} at the rest pose but {mech.num_motors} motor(s); they must be equal",
+            f"the mechanism has mobility {dof} at the rest pose but {mech.num_motors} "
+            "motor(s); they must be equal",
         )
     if mech.num_outputs != dof:
         raise MechanismFileError(
             mech.source,
             "[[outputs]]",
-            f"the mechanism has mobility {dof} at the rest pose but {mech.num_outputs} output(s); they must be equal",
+            f"the mechanism has mobility {dof} at the rest pose but {mech.num_outputs} "
+            "output(s); they must be equal",
         )
     sigma_fk, sigma_bk = np.asarray(_rest_sigmas(mech))
     if sigma_fk < SINGULAR_TOL:
         raise MechanismFileError(
             mech.source,
             "[[motors]]",
-            f"the rest pose is a forward singularity (σ_min = {sigma_fk:.2e}): the motors do not determine the mechanism there",
+            f"the rest pose is a forward singularity (σ_min = {sigma_fk:.2e}): the "
+            "motors do not determine the mechanism there",
         )
     if sigma_bk < SINGULAR_TOL:
         raise MechanismFileError(
             mech.source,
             "[[outputs]]",
-            f"the rest pose is a backward singularity (σ_min = {sigma_bk:.2e}): the outputs do not determine the mechanism there",
+            f"the rest pose is a backward singularity (σ_min = {sigma_bk:.2e}): the "
+            "outputs do not determine the mechanism there",
         )

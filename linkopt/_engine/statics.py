@@ -87,7 +87,8 @@ def static_torques(
     for b in bodies:
         if isinstance(b, str) and b not in mech.body_names:
             raise InputError(
-                f"static_torques: unknown body {b!r}; expected one of {list(mech.body_names)}"
+                f"static_torques: unknown body {b!r}; expected one of "
+                f"{list(mech.body_names)}"
             )
     index = np.array(
         [mech.body_names.index(b) if isinstance(b, str) else int(b) for b in bodies],
