@@ -36,7 +36,8 @@ def _progress(solution: nlp.ArmSolution) -> None:
         else f"infeasible (max g {solution.max_violation:.2e})"
     )
     print(
-        f"start {solution.start}: {state}, objective {solution.objective:.4g}, {solution.iterations} iterations, {solution.seconds:.1f} s",
+        f"start {solution.start}: {state}, objective {solution.objective:.4g}, "
+        f"{solution.iterations} iterations, {solution.seconds:.1f} s",
         file=sys.stderr,
         flush=True,
     )
@@ -51,6 +52,10 @@ def _rows_table(header: list[str], rows: np.ndarray) -> str:
     )
 
 
+def _feasible(solution: nlp.ArmSolution) -> str:
+    return "feasible" if solution.feasible else "infeasible"
+
+
 def write_solution(
     problem: nlp.Problem, solution: nlp.ArmSolution, out: Path, prefix: str = ""
 ) -> dict:
@@ -60,14 +65,52 @@ def write_solution(
     arm = problem.arm
     z = np.concatenate([solution.theta.ravel(), solution.design])
     report = nlp.waypoint_report(problem, z)
+    _write_design(arm, solution, out / f"{prefix}design.toml")
+    _write_tables(problem, solution, report, out, prefix)
+    _write_constraints(problem, solution, z, report, out / f"{prefix}constraints.json")
+    plot_solution(
+        problem,
+        solution,
+        out / f"{prefix}arm.png",
+        title=(
+            f"{arm.name}: objective {solution.objective:.4g}, {_feasible(solution)}"
+        ),
+    )
+    return {
+        "joints": arm.num_joints,
+        "design": dict(zip(arm.design_names, map(float, solution.design))),
+        "feasible": solution.feasible,
+        "max_violation": solution.max_violation,
+        "objective": solution.objective,
+        "parts": solution.parts,
+        "iterations": solution.iterations,
+        "seconds": solution.seconds,
+        "max_abs_torque": float(np.abs(report["torque"]).max()),
+    }
+
+
+def _write_design(arm, solution: nlp.ArmSolution, path: Path) -> None:
+    """The arm at its optimised design as a mechanism file, the design in a header."""
     header = (
-        f"{arm.name}: optimised by linkopt arm (paper 000), feasible = {solution.feasible}\n"
+        f"{arm.name}: optimised by linkopt arm (paper 000), "
+        f"feasible = {solution.feasible}\n"
         + "\n".join(f"{n} = {v:.9g}" for n, v in zip(arm.design_names, solution.design))
     )
     text = "".join(f"# {line}\n" for line in header.splitlines()) + dumps(
         mechanism_definition(arm, solution.design)
     )
-    (out / f"{prefix}design.toml").write_text(text, encoding="utf-8")
+    path.write_text(text, encoding="utf-8")
+
+
+def _write_tables(
+    problem: nlp.Problem,
+    solution: nlp.ArmSolution,
+    report: dict,
+    out: Path,
+    prefix: str,
+) -> None:
+    """``waypoints.csv`` and ``torques.csv``."""
+    arm = problem.arm
     joints = [f"theta{k + 1}" for k in range(arm.num_joints)]
     target = np.full(problem.num_waypoints, -1.0)
     target[problem.target_waypoints] = np.arange(len(problem.target_waypoints))
@@ -96,36 +139,24 @@ def write_solution(
         ),
         encoding="utf-8",
     )
+
+
+def _write_constraints(
+    problem: nlp.Problem, solution: nlp.ArmSolution, z, report: dict, path: Path
+) -> None:
     _, _, g, _ = nlp.evaluate(problem, z)
-    (out / f"{prefix}constraints.json").write_text(
+    path.write_text(
         json.dumps(
             {
                 "max_g": solution.max_violation,
                 "g": g.tolist(),
-                "torque_limit": arm.torque_limit,
+                "torque_limit": problem.arm.torque_limit,
                 "max_abs_torque": float(np.abs(report["torque"]).max()),
             },
             indent=1,
         ),
         encoding="utf-8",
     )
-    plot_solution(
-        problem,
-        solution,
-        out / f"{prefix}arm.png",
-        title=f"{arm.name}: objective {solution.objective:.4g}, {'feasible' if solution.feasible else 'infeasible'}",
-    )
-    return {
-        "joints": arm.num_joints,
-        "design": dict(zip(arm.design_names, map(float, solution.design))),
-        "feasible": solution.feasible,
-        "max_violation": solution.max_violation,
-        "objective": solution.objective,
-        "parts": solution.parts,
-        "iterations": solution.iterations,
-        "seconds": solution.seconds,
-        "max_abs_torque": float(np.abs(report["torque"]).max()),
-    }
 
 
 def _check_arguments(args) -> None:
@@ -146,7 +177,8 @@ def _solve(args):
     out = checks.output_directory(args.out)
     problem = nlp.prepare(task)
     print(
-        f"{task.name}: {task.arm.num_joints} joints, {task.arm.num_design} design parameters, {len(task.targets)} targets, {problem.num_waypoints} waypoints",
+        f"{task.name}: {task.arm.num_joints} joints, {task.arm.num_design} design "
+        f"parameters, {len(task.targets)} targets, {problem.num_waypoints} waypoints",
         file=sys.stderr,
         flush=True,
     )
@@ -187,31 +219,29 @@ def run_design(args) -> int:
         }
     )
     (out / "summary.json").write_text(json.dumps(summary, indent=1), encoding="utf-8")
+    state = "feasible" if best.feasible else "INFEASIBLE"
     print(
-        f"best: start {best.start}, {'feasible' if best.feasible else 'INFEASIBLE'}, objective {best.objective:.4g}; {sum(r.feasible for r in runs)}/{len(runs)} starts feasible; {seconds:.0f} s; written to {out}"
+        f"best: start {best.start}, {state}, objective {best.objective:.4g}; "
+        f"{sum(r.feasible for r in runs)}/{len(runs)} starts feasible; "
+        f"{seconds:.0f} s; written to {out}"
     )
     return 0 if best.feasible else 1
 
 
-def run_simplify(args) -> int:
-    from .._arms.codesign import elimination
-    from .._arms.codesign.plots import plot_stages
-
-    task, problem, out, best, runs, seconds = _solve(args)
-
-    def report(stage) -> None:
-        e = stage.elimination
-        print(
-            f"merged joints {e.candidate + 1}+{e.candidate + 2} (δ of candidates: {', '.join(f'{d:.3g}' for d in stage.deltas)}); re-optimised {stage.problem.arm.num_joints}-joint arm: {'feasible' if stage.solution.feasible else 'infeasible'}",
-            file=sys.stderr,
-            flush=True,
-        )
-
-    stages = (
-        elimination.simplify(problem, best, min_joints=args.min_joints, progress=report)
-        if best.feasible
-        else [elimination.Stage(problem, best, None)]
+def _stage_progress(stage) -> None:
+    e = stage.elimination
+    deltas = ", ".join(f"{d:.3g}" for d in stage.deltas)
+    print(
+        f"merged joints {e.candidate + 1}+{e.candidate + 2} (δ of candidates: "
+        f"{deltas}); re-optimised {stage.problem.arm.num_joints}-joint arm: "
+        f"{_feasible(stage.solution)}",
+        file=sys.stderr,
+        flush=True,
     )
+
+
+def _write_stages(stages, out: Path) -> list[dict]:
+    """Each stage's files (prefix ``stage<k>_``); returns their summaries."""
     summaries = []
     for k, stage in enumerate(stages):
         entry = write_solution(stage.problem, stage.solution, out, f"stage{k}_")
@@ -227,6 +257,22 @@ def run_simplify(args) -> int:
                 }
             )
         summaries.append(entry)
+    return summaries
+
+
+def run_simplify(args) -> int:
+    from .._arms.codesign import elimination
+    from .._arms.codesign.plots import plot_stages
+
+    task, problem, out, best, runs, seconds = _solve(args)
+    stages = (
+        elimination.simplify(
+            problem, best, min_joints=args.min_joints, progress=_stage_progress
+        )
+        if best.feasible
+        else [elimination.Stage(problem, best, None)]
+    )
+    summaries = _write_stages(stages, out)
     plot_stages(stages, out / "elimination.png")
     final = max((k for k, s in enumerate(stages) if s.solution.feasible), default=0)
     (out / "summary.json").write_text(
@@ -241,8 +287,11 @@ def run_simplify(args) -> int:
         ),
         encoding="utf-8",
     )
+    joints = " -> ".join(str(s.problem.arm.num_joints) for s in stages)
     print(
-        f"joints: {' -> '.join(str(s.problem.arm.num_joints) for s in stages)}; smallest feasible arm: {stages[final].problem.arm.num_joints} joints (stage {final}); written to {out}"
+        f"joints: {joints}; smallest feasible arm: "
+        f"{stages[final].problem.arm.num_joints} joints (stage {final}); "
+        f"written to {out}"
     )
     return 0 if stages[final].solution.feasible else 1
 

@@ -27,7 +27,10 @@ from .._errors import InputError
 def register(arm_subparsers) -> None:
     p = arm_subparsers.add_parser(
         "trace",
-        help="synthesise a 2-/3-link planar arm tracing a continuous path around obstacles",
+        help=(
+            "synthesise a 2-/3-link planar arm tracing a continuous path around "
+            "obstacles"
+        ),
     )
     p.add_argument(
         "task",
@@ -45,14 +48,20 @@ def register(arm_subparsers) -> None:
         type=int,
         default=1,
         metavar="K",
-        help="collect K verified designs in the first successful stage and keep the shortest (default 1)",
+        help=(
+            "collect K verified designs in the first successful stage and keep the "
+            "shortest (default 1)"
+        ),
     )
     p.add_argument(
         "--discretised",
         type=int,
         default=0,
         metavar="N",
-        help="also synthesise from N equidistant points and show where the curve leaves its reachable space",
+        help=(
+            "also synthesise from N equidistant points and show where the curve "
+            "leaves its reachable space"
+        ),
     )
     p.add_argument("--no-gif", action="store_true", help="skip the animation")
     p.set_defaults(run=run)
@@ -72,7 +81,8 @@ def run(args) -> int:
     checks.count(args.best_of, "--best-of")
     if args.discretised < 0 or args.discretised == 1:
         raise InputError(
-            f"--discretised: expected 0 (off) or at least 2 points, got {args.discretised}"
+            "--discretised: expected 0 (off) or at least 2 points, "
+            f"got {args.discretised}"
         )
     task = load_task(args.task)
     out = checks.output_directory(args.out)
@@ -171,16 +181,22 @@ def _discretised(task, args, out: Path, figures: list[str]) -> dict:
 def _summary(result, out: Path) -> None:
     if not result.success:
         print(
-            f"{result.task.name}: no verified design after {len(result.attempts)} NLP solves ({result.seconds:.1f} s); see {out / 'result.json'}"
+            f"{result.task.name}: no verified design after {len(result.attempts)} "
+            f"NLP solves ({result.seconds:.1f} s); see {out / 'result.json'}"
         )
         return
     d, v = result.design, result.verification
+    lengths = ", ".join(f"{r:.4g}" for r in d.lengths)
+    elbow = "up" if d.sigma > 0 else "down"
+    samples = sum(len(s.states) for s in v.segments)
     print(
-        f"{result.task.name}: {d.n_links} links (SV^{result.swept}), lengths {', '.join(f'{r:.4g}' for r in d.lengths)}, "
-        f"total {d.lengths.sum():.4g}, elbow {'up' if d.sigma > 0 else 'down'}, base ({d.base[0]:.4g}, {d.base[1]:.4g})"
+        f"{result.task.name}: {d.n_links} links (SV^{result.swept}), lengths "
+        f"{lengths}, total {d.lengths.sum():.4g}, elbow {elbow}, "
+        f"base ({d.base[0]:.4g}, {d.base[1]:.4g})"
     )
     print(
-        f"  verified: min clearance {v.min_clearance:.3g}, min self-distance {v.min_self_distance:.3g}, "
-        f"reach margin {v.min_reach_margin:.3g}, {sum(len(s.states) for s in v.segments)} samples; {result.seconds:.1f} s"
+        f"  verified: min clearance {v.min_clearance:.3g}, min self-distance "
+        f"{v.min_self_distance:.3g}, reach margin {v.min_reach_margin:.3g}, "
+        f"{samples} samples; {result.seconds:.1f} s"
     )
     print(f"  wrote {out / 'result.json'}, {out / 'arm.toml'}")

@@ -1,16 +1,15 @@
-"""``linkopt arm ...`` on the command line, in-process: ``arm design`` exits 0 exactly
-when the returned arm is feasible (else 1) and writes a ``design.toml`` the loader
-accepts; bad arguments exit 2 with one ``linkopt: error:`` line before any solving."""
+"""``linkopt arm design`` (and the argument checks the other ``linkopt arm`` commands
+share), in-process: ``arm design`` exits 0 exactly when the returned arm is feasible
+(else 1) and writes a ``design.toml`` the loader accepts; bad arguments exit 2 with one
+``linkopt: error:`` line before any solving."""
 
 import json
 
-import numpy as np
 import pytest
 from arm_tasks import TINY_ARM, reached_targets
 
 import linkopt
 from linkopt._cli.main import main
-from linkopt._cli.trace import file_stem
 
 ARM = (
     TINY_ARM
@@ -89,13 +88,4 @@ def test_other_arm_commands_reject_a_negative_seed(command, tmp_path, capsys):
     assert (
         capsys.readouterr().err
         == "linkopt: error: --seed: expected a non-negative integer, got -1\n"
-    )
-
-
-def test_trace_file_names_are_safe_whatever_the_task_name():
-    assert file_stem("rose") == "rose"
-    assert file_stem("../a/b c") == "_a_b_c"
-    assert file_stem("..") == "task"
-    assert "/" not in file_stem("x/y") and np.all(
-        [c not in file_stem("a:b*?") for c in ":*?"]
     )

@@ -1,0 +1,245 @@
+"""``linkopt evaluate | plot | verify``: one design of a mechanism file, the file's own
+or ``--design``, scored (paper Sec. IV), drawn, and checked densely over the target
+range.
+
+``verify`` exits with 1 when the design fails the check.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .._design.evaluation import alpha_minus, evaluate
+from .._engine.loader import load
+from .._engine.readout import output_values
+from .._errors import InputError
+from .values import design_arg
+
+_DESIGN_HELP = (
+    "design values in parameter order (comma-separated), or a mechanism file with "
+    "the same parameters"
+)
+
+
+def _motors(mech, motors) -> dict:
+    """An evaluation's (homogenised) motor values in file units, by name."""
+    return dict(
+        zip(mech.motor_names, map(float, np.asarray(motors) * mech.motor_scale))
+    )
+
+
+def _sample(mech, ev, t: int, goal, ik_out, adv_out) -> dict:
+    """Target ``t``: its IK solve and its adversarial sample."""
+    return {
+        "target": dict(zip(mech.output_names, map(float, goal))),
+        "ik": {
+            "motors": _motors(mech, ev.ik_motors[t]),
+            "reached": dict(zip(mech.output_names, map(float, ik_out[t]))),
+            "f_bk": float(ev.ik_reach[t]),
+            "f_sing": float(ev.ik_f_sing[t]),
+        },
+        "adversarial": {
+            "motors": _motors(mech, ev.adv_motors[t]),
+            "outputs": dict(zip(mech.output_names, map(float, adv_out[t]))),
+            "f_sing": float(ev.adv_f_sing[t]),
+            "culled": float(ev.adv_culled[t]),
+        },
+    }
+
+
+def evaluation_payload(mech, ev) -> dict:
+    """What ``linkopt evaluate`` reports (``--json``) for one evaluation."""
+    from .._design.evaluation import targets
+
+    ik_out = np.asarray(output_values(mech, ev.ik_states))
+    adv_out = np.asarray(output_values(mech, ev.adv_states))
+    samples = [
+        _sample(mech, ev, t, goal, ik_out, adv_out)
+        for t, goal in enumerate(targets(mech))
+    ]
+    return {
+        "f_design": float(ev.f_design),
+        "reach": float(ev.reach),
+        "singularity": float(ev.singularity),
+        "regularizer": float(ev.regularizer),
+        "alpha_minus": alpha_minus(mech),
+        "samples": samples,
+    }
+
+
+def run_evaluate(args) -> int:
+    mech = load(args.file)
+    design = design_arg(mech, args.design)
+    payload = evaluation_payload(mech, evaluate(mech, design))
+    if args.json:
+        print(json.dumps(payload, indent=2))
+        return 0
+    print(
+        f"{mech.name}: f_design = {payload['f_design']:.4g} (reach "
+        f"{payload['reach']:.4g}, singularity {payload['singularity']:.4g}); "
+        f"regulariser {payload['regularizer']:.4g}; α₋ = {payload['alpha_minus']:.4g}"
+    )
+    print(
+        f"  {'target':<22} {'IK reached':<22} {'f_BK':>9} {'f_sing IK':>10} "
+        f"{'f_sing adv':>10} {'culled':>9}"
+    )
+    for sample in payload["samples"]:
+        target = ", ".join(f"{v:.4g}" for v in sample["target"].values())
+        reached = ", ".join(f"{v:.4g}" for v in sample["ik"]["reached"].values())
+        print(
+            f"  {target:<22} {reached:<22} {sample['ik']['f_bk']:9.2e} "
+            f"{sample['ik']['f_sing']:10.4g} {sample['adversarial']['f_sing']:10.4g} "
+            f"{sample['adversarial']['culled']:9.3g}"
+        )
+    return 0
+
+
+def run_plot(args) -> int:
+    from .._design.plots import plot_mechanism
+
+    mech = load(args.file)
+    design = design_arg(mech, args.design)
+    if args.resolution < 8:
+        raise InputError(
+            f"--resolution: expected at least 8 cells per axis, got {args.resolution}"
+        )
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    label = args.label or ("initial" if design is None else "design")
+    stem = Path(args.file).stem
+    if mech.num_motors == mech.num_outputs and mech.num_motors in (2, 3):
+        _plot_spaces(mech, design, args.resolution, out / f"{stem}_{label}.png")
+    else:
+        print(
+            f"{args.file}: space plots need 2 or 3 motors and outputs, the file has "
+            f"{mech.num_motors}; drawing the mechanism only",
+            file=sys.stderr,
+        )
+    print(
+        plot_mechanism(
+            mech, out / f"{stem}_{label}_mechanism.png", designs={label: design}
+        )
+    )
+    return 0
+
+
+def _plot_spaces(mech, design, resolution: int, path: Path) -> None:
+    """Evaluate the design and draw its motor- and end-effector-space maps."""
+    from .._design.plots import plot_spaces
+
+    print(f"evaluating {mech.name} ...", file=sys.stderr)
+    ev = evaluate(mech, design)
+    grids = "grids" if mech.num_motors == 2 else "grids (three 2-D sections each)"
+    print(
+        f"solving the {resolution}x{resolution} motor and end-effector {grids} ...",
+        file=sys.stderr,
+    )
+    print(plot_spaces(mech, ev, path, resolution=resolution, design=design))
+
+
+def verification_payload(mech, result) -> dict:
+    """What ``linkopt verify`` reports (``--json``) for one verification."""
+    return {
+        "passed": result.passed,
+        "coverage": result.coverage,
+        "cells": result.cells,
+        "grid": list(result.grid_shape),
+        "threshold_alpha_minus": result.threshold,
+        "max_f_sing": result.max_f_sing,
+        "min_sigma_fk": result.min_sigma_fk,
+        "min_sigma_bk": result.min_sigma_bk,
+        "worst_cell": dict(zip(mech.output_names, map(float, result.worst_outputs))),
+        "unreached_example": None
+        if result.unreached_example is None
+        else dict(zip(mech.output_names, map(float, result.unreached_example))),
+    }
+
+
+def run_verify(args) -> int:
+    from .._design.verify import verify
+
+    mech = load(args.file)
+    design = design_arg(mech, args.design)
+    if args.resolution is not None and args.resolution < 2:
+        raise InputError(
+            "--resolution: expected at least 2 points per output, "
+            f"got {args.resolution}"
+        )
+    payload = verification_payload(mech, verify(mech, design, args.resolution))
+    if args.json:
+        print(json.dumps(payload, indent=2))
+    else:
+        _print_verification(mech, payload)
+    return 0 if payload["passed"] else 1
+
+
+def _print_verification(mech, payload: dict) -> None:
+    verdict = "PASS" if payload["passed"] else "FAIL"
+    print(
+        f"{mech.name}: {verdict}: coverage {100 * payload['coverage']:.1f}% of "
+        f"{payload['cells']} cells; max f_sing {payload['max_f_sing']:.4g} "
+        f"(threshold α₋ {payload['threshold_alpha_minus']:.4g}); "
+        f"min σ FK {payload['min_sigma_fk']:.3g}, BK {payload['min_sigma_bk']:.3g}"
+    )
+    print(
+        "  worst cell "
+        + ", ".join(f"{n}={v:.4g}" for n, v in payload["worst_cell"].items())
+    )
+    if payload["unreached_example"]:
+        print(
+            "  e.g. unreached "
+            + ", ".join(f"{n}={v:.4g}" for n, v in payload["unreached_example"].items())
+        )
+
+
+def register(subparsers) -> None:
+    """Add ``evaluate``, ``plot`` and ``verify`` to the ``linkopt`` sub-commands."""
+    evaluate_cmd = subparsers.add_parser(
+        "evaluate", help="IK and adversarial samples, f_design (paper Sec. IV)"
+    )
+    evaluate_cmd.add_argument("file")
+    evaluate_cmd.add_argument("--design", help=_DESIGN_HELP)
+    evaluate_cmd.add_argument(
+        "--json", action="store_true", help="machine-readable output"
+    )
+    evaluate_cmd.set_defaults(run=run_evaluate)
+    _register_plot(subparsers)
+    _register_verify(subparsers)
+
+
+def _register_plot(subparsers) -> None:
+    plot = subparsers.add_parser(
+        "plot", help="motor- and end-effector-space maps and a drawing (PNG)"
+    )
+    plot.add_argument("file")
+    plot.add_argument("--design", help="as for evaluate")
+    plot.add_argument("--out", required=True, help="output directory")
+    plot.add_argument(
+        "--resolution", type=int, default=60, help="grid cells per axis (default 60)"
+    )
+    plot.add_argument(
+        "--label", help="file-name label (default 'initial', or 'design' with --design)"
+    )
+    plot.set_defaults(run=run_plot)
+
+
+def _register_verify(subparsers) -> None:
+    verify_cmd = subparsers.add_parser(
+        "verify",
+        help="dense check of the whole target range: coverage and singularity distance",
+    )
+    verify_cmd.add_argument("file")
+    verify_cmd.add_argument("--design", help="as for evaluate")
+    verify_cmd.add_argument(
+        "--resolution",
+        type=int,
+        help="grid points per output (default 41, or 13 for 3 outputs)",
+    )
+    verify_cmd.add_argument(
+        "--json", action="store_true", help="machine-readable output"
+    )
+    verify_cmd.set_defaults(run=run_verify)

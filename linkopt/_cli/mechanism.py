@@ -1,0 +1,167 @@
+"""``linkopt check | fk | bk``: a mechanism file, its summary and its kinematics.
+
+``fk``/``bk`` solve one configuration from ``--motors``/``--outputs`` values, or a CSV
+file of rows solved as one continuation path; a failed solve exits with 1.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+
+from .._engine.kinematics import solve_bk, solve_bk_path, solve_fk, solve_fk_path
+from .._engine.loader import load
+from . import payloads
+from .values import read_values
+
+
+def _print_table(title: str, items: dict) -> None:
+    print(title)
+    for key, value in items.items():
+        print(f"  {key:<18} {value}")
+
+
+def run_check(args) -> int:
+    mech = load(args.file)
+    info = payloads.summary(mech)
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    print(f"{info['name']} ({info['file']}): OK")
+    _print_summary(info)
+    return 0
+
+
+def _print_summary(info: dict) -> None:
+    """The tables of ``linkopt check``: sizes, motors, outputs, parameters, joints."""
+    sizes = {
+        k: info[k]
+        for k in ("state_size", "mobility", "design_parameters", "reference_length")
+    }
+    sizes["constraint_rows"] = (
+        f"FK {info['constraint_rows']['fk']}, BK {info['constraint_rows']['bk']}"
+    )
+    sizes["bodies"] = ", ".join(info["bodies"])
+    _print_table("sizes", sizes)
+    _print_table(
+        "motors", {k: f"{v['kind']} at {v['joint']}" for k, v in info["motors"].items()}
+    )
+    _print_table(
+        "outputs",
+        {
+            k: f"{v['kind']} in [{v['min']:g}, {v['max']:g}]"
+            for k, v in info["outputs"].items()
+        },
+    )
+    _print_table(
+        "parameters",
+        {
+            k: f"{v['initial']:g} in [{v['min']:g}, {v['max']:g}]"
+            for k, v in info["parameters"].items()
+        },
+    )
+    _print_table(
+        "joints (rest anchor)",
+        {k: f"{v['type']:<11} {v['anchor']}" for k, v in info["joints"].items()},
+    )
+
+
+def run_solve(args, kind: str) -> int:
+    """``linkopt fk`` (``kind`` "fk") or ``linkopt bk`` ("bk")."""
+    mech = load(args.file)
+    names = mech.motor_names if kind == "fk" else mech.output_names
+    what = "motors" if kind == "fk" else "outputs"
+    values, is_path = read_values(getattr(args, what), names, what)
+    if is_path:
+        solver = solve_fk_path if kind == "fk" else solve_bk_path
+    else:
+        solver = solve_fk if kind == "fk" else solve_bk
+    solution = solver(mech, values)
+    states = np.atleast_2d(np.asarray(solution.state))
+    converged = np.atleast_1d(np.asarray(solution.converged))
+    residual = np.atleast_1d(np.asarray(solution.residual))
+    records = [
+        payloads.configuration(mech, s, c, r)
+        for s, c, r in zip(states, converged, residual)
+    ]
+    payload = (
+        {"converged": bool(converged.all()), "path": records} if is_path else records[0]
+    )
+    if args.json:
+        print(json.dumps(payload, indent=2))
+    else:
+        _print_records(records, kind, is_path)
+    if not converged.all():
+        _report_failure(kind, is_path, converged, residual)
+        return 1
+    return 0
+
+
+def _print_records(records: list[dict], kind: str, is_path: bool) -> None:
+    for k, rec in enumerate(records):
+        label = f"row {k + 1}" if is_path else kind.upper()
+        print(
+            f"{label}: converged={rec['converged']} residual={rec['residual']:.2e} "
+            f"f_sing={rec['f_sing']:.4g} (σ_min FK {rec['sigma_min_fk']:.4g}, "
+            f"BK {rec['sigma_min_bk']:.4g})"
+        )
+        print(
+            "  motors  " + ", ".join(f"{n}={v:.6g}" for n, v in rec["motors"].items())
+        )
+        print(
+            "  outputs " + ", ".join(f"{n}={v:.6g}" for n, v in rec["outputs"].items())
+        )
+        if not is_path:
+            for n, p in {**rec["joints"], **rec["points"]}.items():
+                print(f"  {n:<16} ({p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g})")
+
+
+def _report_failure(kind: str, is_path: bool, converged, residual) -> None:
+    first = int(np.argmin(converged))
+    where = f" at row {first + 1}" if is_path else ""
+    print(
+        f"linkopt: error: {kind.upper()} solve failed{where}: residual "
+        f"{residual[first]:.2e} (no assembly reached from the start state)",
+        file=sys.stderr,
+    )
+
+
+def _run_fk(args) -> int:
+    return run_solve(args, "fk")
+
+
+def _run_bk(args) -> int:
+    return run_solve(args, "bk")
+
+
+def register(subparsers) -> None:
+    """Add ``check``, ``fk`` and ``bk`` to the ``linkopt`` sub-commands."""
+    check = subparsers.add_parser(
+        "check", help="validate a mechanism file and summarise it"
+    )
+    check.add_argument("file")
+    check.add_argument("--json", action="store_true", help="machine-readable output")
+    check.set_defaults(run=run_check)
+    for kind, what, text, run in (
+        ("fk", "motors", "forward kinematics: motor values -> configuration", _run_fk),
+        (
+            "bk",
+            "outputs",
+            "backward kinematics: outputs -> configuration and motors",
+            _run_bk,
+        ),
+    ):
+        cmd = subparsers.add_parser(kind, help=text)
+        cmd.add_argument("file")
+        cmd.add_argument(
+            f"--{what}",
+            required=True,
+            help=(
+                f"comma-separated {what} (file units, radians), or a CSV file of rows "
+                "solved as one continuation path"
+            ),
+        )
+        cmd.add_argument("--json", action="store_true", help="machine-readable output")
+        cmd.set_defaults(run=run)

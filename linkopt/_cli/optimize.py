@@ -1,0 +1,207 @@
+"""``linkopt optimize FILE --out DIR``: hybrid particle swarm + partial gradient design
+optimisation (paper Sec. V).
+
+``DIR`` holds the run's checkpoint and history (``--resume`` continues it), the
+optimised mechanism file, its verification and the figures. Progress lines go to
+stderr; the summary (JSON) to stdout.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+
+from .._engine.loader import load
+from .._errors import InputError
+
+WORKERS = max(1, min(2, os.cpu_count() or 1))
+_SUMMARY_KEYS = (
+    "iterations",
+    "f_design",
+    "regularizer",
+    "verified",
+    "initial_verified",
+    "design",
+    "optimized_file",
+)
+
+
+def _check_arguments(args, mech) -> None:
+    if mech.design.size == 0:
+        raise InputError(
+            f"{args.file}: [[parameters]]: the file declares no design parameters "
+            "to optimise"
+        )
+    for flag in ("particles", "iterations", "workers"):
+        if getattr(args, flag) < 1:
+            raise InputError(
+                f"--{flag}: expected a positive integer, got {getattr(args, flag)}"
+            )
+    if args.seed < 0:
+        raise InputError(f"--seed: expected a non-negative integer, got {args.seed}")
+    if not (args.tolerance > 0 and 0 <= args.improvement < 1 and args.patience >= 0):
+        raise InputError(
+            "--tolerance must be > 0, --improvement in [0, 1), --patience >= 0; "
+            f"got {args.tolerance}, {args.improvement}, {args.patience}"
+        )
+
+
+def _progress(iterations: int):
+    """The per-iteration progress line (stderr) of a run capped at ``iterations``."""
+
+    def report(record: dict) -> None:
+        done = record["iteration"] + 1
+        elapsed = record["wall_time"]
+        remaining = elapsed / done * (iterations - done)
+        print(
+            f"iteration {record['iteration']:4d}  best f_design "
+            f"{record['best_f_design_overall']:.4e}"
+            f" (this iteration {record['best_f_design']:.4e}, regulariser "
+            f"{record['regularizer']:.2e})"
+            f"  elapsed {elapsed:6.1f} s  at most {remaining:6.1f} s left",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    return report
+
+
+def run_optimize(args) -> int:
+    from .._design.optimizer import OptimizerSettings
+    from .._design.run import optimize, write_outputs
+
+    mech = load(args.file)
+    _check_arguments(args, mech)
+    settings = OptimizerSettings(
+        particles=args.particles,
+        iterations=args.iterations,
+        seed=args.seed,
+        mode=args.mode,
+        tolerance=args.tolerance,
+        patience=args.patience,
+        improvement=args.improvement,
+    )
+    run = optimize(
+        mech,
+        args.out,
+        settings,
+        resume=args.resume,
+        progress=_progress(settings.iterations),
+        workers=args.workers,
+    )
+    print(
+        "writing the optimised file, verification and figures ...",
+        file=sys.stderr,
+        flush=True,
+    )
+    summary = write_outputs(
+        mech, args.out, run, settings, resolution=args.resolution, workers=args.workers
+    )
+    print(json.dumps({k: summary[k] for k in _SUMMARY_KEYS}, indent=2))
+    out = Path(args.out)
+    print(
+        f"figures: {out / 'spaces_optimized.png'}, {out / 'convergence.png'}, "
+        f"{out / 'mechanism.png'}",
+        file=sys.stderr,
+    )
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add ``optimize`` to the ``linkopt`` sub-commands; its defaults are those of
+    :class:`~linkopt.OptimizerSettings`."""
+    from .._design.optimizer import OptimizerSettings
+
+    opt = subparsers.add_parser(
+        "optimize",
+        help=(
+            "hybrid particle swarm + partial gradient design optimisation "
+            "(paper Sec. V)"
+        ),
+    )
+    opt.add_argument("file")
+    opt.add_argument(
+        "--out",
+        required=True,
+        help="run directory (checkpoint, history, optimised file, figures)",
+    )
+    defaults = OptimizerSettings()
+    _add_swarm_options(opt, defaults)
+    _add_stopping_options(opt, defaults)
+    opt.add_argument(
+        "--resume", action="store_true", help="continue the run checkpointed in --out"
+    )
+    opt.add_argument(
+        "--workers",
+        type=int,
+        default=WORKERS,
+        help=(
+            "processes sharing the particles, and the final verifications and plots "
+            f"(default {WORKERS}: one per core, at most 2)"
+        ),
+    )
+    opt.add_argument(
+        "--resolution",
+        type=int,
+        default=60,
+        help="grid cells per axis of the final plots",
+    )
+    opt.set_defaults(run=run_optimize)
+
+
+def _add_swarm_options(opt, d) -> None:
+    """``--particles``, ``--iterations``, ``--seed``, ``--mode``."""
+    opt.add_argument(
+        "--particles",
+        type=int,
+        default=d.particles,
+        help=f"swarm size (default {d.particles})",
+    )
+    opt.add_argument(
+        "--iterations",
+        type=int,
+        default=d.iterations,
+        help=f"iteration cap (default {d.iterations})",
+    )
+    opt.add_argument(
+        "--seed", type=int, default=d.seed, help=f"random seed (default {d.seed})"
+    )
+    opt.add_argument(
+        "--mode",
+        choices=["hybrid", "gradient"],
+        default=d.mode,
+        help="hybrid PSO + partial gradient (default), or partial gradient only",
+    )
+
+
+def _add_stopping_options(opt, d) -> None:
+    """``--tolerance``, ``--patience``, ``--improvement``."""
+    opt.add_argument(
+        "--tolerance",
+        type=float,
+        default=d.tolerance,
+        help=(
+            "f_design at or below which a design counts as reaching its range with "
+            f"no singularity (default {d.tolerance:g})"
+        ),
+    )
+    opt.add_argument(
+        "--patience",
+        type=int,
+        default=d.patience,
+        help=(
+            "stop after this many iterations without improving the returned "
+            f"feasible design (default {d.patience})"
+        ),
+    )
+    opt.add_argument(
+        "--improvement",
+        type=float,
+        default=d.improvement,
+        help=(
+            "relative drop of the returned design's total that counts as improving "
+            f"(default {d.improvement:g})"
+        ),
+    )

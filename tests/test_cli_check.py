@@ -1,0 +1,43 @@
+"""``linkopt check FILE``: a summary of a mechanism file (text or ``--json``); a broken
+or missing file exits 2 with one ``linkopt: error:`` line."""
+
+import json
+
+import pytest
+from conftest import MECHANISMS
+from test_mechanism_files import BROKEN
+
+from linkopt._cli.main import main
+
+
+@pytest.mark.parametrize("name", sorted(BROKEN))
+def test_check_reports_a_broken_file_in_one_line(name, tmp_path, capsys):
+    text, _, message = BROKEN[name]
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and message in err and err.startswith("linkopt: error:")
+
+
+def test_missing_file_is_a_clear_error(tmp_path, capsys):
+    assert main(["check", str(tmp_path / "nope.toml")]) == 2
+    assert "nope.toml: file not found" in capsys.readouterr().err
+
+
+def test_check_json_reports_required_keys(capsys):
+    assert main(["check", str(MECHANISMS / "five_bar.toml"), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert (
+        info["state_size"] == 35
+        and info["mobility"] == 2
+        and info["design_parameters"] == 3
+    )
+    assert info["constraint_rows"]["fk"] == 38 and info[
+        "reference_length"
+    ] == pytest.approx(74.0)
+    assert set(info["motors"]) == {"left", "right"} and set(info["outputs"]) == {
+        "x",
+        "y",
+    }
+    assert info["joints"]["tip"]["anchor"] == [0.0, 70.0, 0.0]

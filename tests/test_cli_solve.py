@@ -1,0 +1,95 @@
+"""``linkopt fk`` / ``linkopt bk``: one configuration from comma-separated values or a
+continuation path from a CSV file; bad values exit 2, a failed solve exits 1."""
+
+import json
+
+import numpy as np
+import pytest
+from conftest import MECHANISMS
+
+from linkopt._cli.main import main
+
+
+def test_fk_json_and_bk_round_trip_via_cli(capsys):
+    path = str(MECHANISMS / "five_bar.toml")
+    assert main(["fk", path, "--motors", "0.2,-0.1", "--json"]) == 0
+    fk = json.loads(capsys.readouterr().out)
+    for key in (
+        "converged",
+        "residual",
+        "motors",
+        "outputs",
+        "joints",
+        "points",
+        "f_sing",
+        "sigma_min_fk",
+        "sigma_min_bk",
+    ):
+        assert key in fk
+    assert fk["converged"] and fk["residual"] <= 1e-10
+    assert fk["f_sing"] == pytest.approx(
+        1 / fk["sigma_min_fk"] + 1 / fk["sigma_min_bk"]
+    )
+    outputs = f"{fk['outputs']['x']!r},{fk['outputs']['y']!r}"
+    assert main(["bk", path, "--outputs", outputs, "--json"]) == 0
+    bk = json.loads(capsys.readouterr().out)
+    assert bk["motors"]["left"] == pytest.approx(0.2, abs=1e-9) and bk["motors"][
+        "right"
+    ] == pytest.approx(-0.1, abs=1e-9)
+    np.testing.assert_allclose(bk["points"]["ee"], fk["points"]["ee"], atol=1e-9)
+
+
+def test_fk_csv_path_via_cli(tmp_path, capsys):
+    csv_path = tmp_path / "motors.csv"
+    csv_path.write_text("left,right\n0,0\n0.1,-0.05\n0.2,-0.1\n")
+    assert (
+        main(
+            [
+                "fk",
+                str(MECHANISMS / "five_bar.toml"),
+                "--motors",
+                str(csv_path),
+                "--json",
+            ]
+        )
+        == 0
+    )
+    result = json.loads(capsys.readouterr().out)
+    assert result["converged"] and len(result["path"]) == 3
+    assert result["path"][2]["motors"]["left"] == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["fk", "--motors", "0.1"], "expected 2 finite numbers (left, right)"),
+        (["bk", "--outputs", "a,b"], "expected 2 comma-separated numbers (x, y)"),
+    ],
+)
+def test_bad_values_are_rejected(args, message, capsys):
+    assert main([args[0], str(MECHANISMS / "five_bar.toml"), *args[1:]]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_bad_csv_header_names_file_and_line(tmp_path, capsys):
+    csv_path = tmp_path / "m.csv"
+    csv_path.write_text("a,b\n0,0\n")
+    assert (
+        main(["fk", str(MECHANISMS / "five_bar.toml"), "--motors", str(csv_path)]) == 2
+    )
+    assert f"{csv_path}: line 1: header" in capsys.readouterr().err
+
+
+def test_negative_values_are_not_taken_for_options(capsys):
+    assert (
+        main(
+            ["fk", str(MECHANISMS / "five_bar.toml"), "--motors", "-0.1,0.1", "--json"]
+        )
+        == 0
+    )
+    assert json.loads(capsys.readouterr().out)["motors"]["left"] == pytest.approx(-0.1)
+
+
+def test_failed_solve_exits_one(capsys):
+    assert main(["bk", str(MECHANISMS / "five_bar.toml"), "--outputs", "0,200"]) == 1
+    assert "BK solve failed" in capsys.readouterr().err
