@@ -1,7 +1,7 @@
 """The paper's mechanism suite (paper 001, Sec. VI, Table I): sizes, iterations, time.
 
-Run:
-``.venv/bin/python benchmarks/bench_suite.py [--runs runs/suite] [--only finger,neck_2dof]``
+Run: ``.venv/bin/python benchmarks/bench_suite.py [--runs runs/suite]
+[--only finger,neck_2dof]``
 
 For each mechanism, runs ``linkopt optimize FILE --out RUNS/NAME --resume`` in a fresh
 process (default settings: 20 particles, hybrid PSO + partial gradient, seed 0), so a
@@ -58,6 +58,19 @@ def run(name: str, runs: Path) -> dict:
     return {"seconds": seconds, **json.loads(summary.read_text())}
 
 
+def _row(name: str, mech, r: dict) -> str:
+    """One mechanism's line of the table, the paper's values in parentheses."""
+    s, p, t, iterations, seconds = PAPER[name]
+    command = "-" if r["seconds"] is None else f"{r['seconds']:.0f} s"
+    return (
+        f"{name:12} {mech.state_size:>3} ({s:>2}) {mech.design.size:>2} ({p:>2})"
+        f" {len(targets(mech)):>3} ({t:>2})"
+        f" {r['iterations']:>4} ({iterations:>2}) {r['wall_time']:>8.0f} s"
+        f" {command:>9} {seconds / 60:>6.0f} min"
+        f" {seconds / r['wall_time']:>6.0f}x  {r['verified']}"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument(
@@ -75,18 +88,14 @@ def main() -> None:
         result = run(name, Path(args.runs))
         rows.append((name, mech, result))
     print(
-        f"{'mechanism':12} {'|s|':>8} {'|p|':>6} {'targets':>8} {'iterations':>11} {'optimiser':>10} {'command':>9} {'paper':>8} {'ratio':>7}  verified"
+        f"{'mechanism':12} {'|s|':>8} {'|p|':>6} {'targets':>8} {'iterations':>11}"
+        f" {'optimiser':>10} {'command':>9} {'paper':>8} {'ratio':>7}  verified"
     )
     for name, mech, r in rows:
-        s, p, t, iterations, seconds = PAPER[name]
-        command = "-" if r["seconds"] is None else f"{r['seconds']:.0f} s"
-        print(
-            f"{name:12} {mech.state_size:>3} ({s:>2}) {mech.design.size:>2} ({p:>2}) {len(targets(mech)):>3} ({t:>2})"
-            f" {r['iterations']:>4} ({iterations:>2}) {r['wall_time']:>8.0f} s {command:>9} {seconds / 60:>6.0f} min"
-            f" {seconds / r['wall_time']:>6.0f}x  {r['verified']}"
-        )
+        print(_row(name, mech, r))
     print(
-        "(paper's Table I values in parentheses; ratio = paper's time / our optimiser wall time)"
+        "(paper's Table I values in parentheses;"
+        " ratio = paper's time / our optimiser wall time)"
     )
 
 

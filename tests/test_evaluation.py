@@ -123,14 +123,10 @@ def test_objective_gradients_match_finite_differences(five_bar, kind):
     np.testing.assert_allclose(gradient, fd, rtol=1e-5)
 
 
-def test_queued_lanes_take_the_same_steps_as_vmapped_lanes(five_bar):
-    """IK then adversarial minimisation of the lanes of two designs through 5 slots end
-    where ``vmap(minimise)`` of each phase ends them, after as many iterations (IK
-    counts spread from a few to the cap)."""
-    th = thresholds(alpha_minus(five_bar))
+def _two_designs_lanes(five_bar):
+    """The lanes of the initial design and one 2 % larger: geometries, targets, zero
+    motors and the rest state, one row per (design, target)."""
     goals = jnp.asarray(targets(five_bar) / five_bar.output_scale)
-    low = jnp.asarray(five_bar.output_min / five_bar.output_scale)
-    high = jnp.asarray(five_bar.output_max / five_bar.output_scale)
     geoms = [
         linkopt.geometry(five_bar),
         linkopt.geometry(five_bar, five_bar.design.p0 * 1.02),
@@ -140,12 +136,13 @@ def test_queued_lanes_take_the_same_steps_as_vmapped_lanes(five_bar):
     )
     lane_goals = jnp.tile(goals, (2, 1))
     lanes = len(lane_goals)
-    caps = (
-        five_bar.evaluation.ik_iterations,
-        five_bar.evaluation.adversarial_iterations,
-    )
     zero = jnp.zeros((lanes, five_bar.num_motors))
     rest = jnp.broadcast_to(rest_state(five_bar), (lanes,) + rest_state(five_bar).shape)
+    return lane_geoms, lane_goals, zero, rest
+
+
+def _vmapped_phases(five_bar, th, low, high, caps, lane_geoms, lane_goals, zero, rest):
+    """Each phase of every lane by ``vmap(minimise)``, the reference of the queue."""
 
     def ik(geom, goal, motors, state):
         return minimise(
@@ -169,6 +166,26 @@ def test_queued_lanes_take_the_same_steps_as_vmapped_lanes(five_bar):
             bfgs=True,
         )
 
+    expected_ik = jax.jit(jax.vmap(ik))(lane_geoms, lane_goals, zero, rest)
+    expected_adv = jax.jit(jax.vmap(adversarial))(
+        lane_geoms, expected_ik.motors, expected_ik.state
+    )
+    return expected_ik, expected_adv
+
+
+def test_queued_lanes_take_the_same_steps_as_vmapped_lanes(five_bar):
+    """IK then adversarial minimisation of the lanes of two designs through 5 slots end
+    where ``vmap(minimise)`` of each phase ends them, after as many iterations (IK
+    counts spread from a few to the cap)."""
+    th = thresholds(alpha_minus(five_bar))
+    low = jnp.asarray(five_bar.output_min / five_bar.output_scale)
+    high = jnp.asarray(five_bar.output_max / five_bar.output_scale)
+    lane_geoms, lane_goals, zero, rest = _two_designs_lanes(five_bar)
+    caps = (
+        five_bar.evaluation.ik_iterations,
+        five_bar.evaluation.adversarial_iterations,
+    )
+
     def problem(lane, second, anchor):
         geom, goal = lane
         return geom, either(
@@ -177,9 +194,8 @@ def test_queued_lanes_take_the_same_steps_as_vmapped_lanes(five_bar):
             second,
         )
 
-    expected_ik = jax.jit(jax.vmap(ik))(lane_geoms, lane_goals, zero, rest)
-    expected_adv = jax.jit(jax.vmap(adversarial))(
-        lane_geoms, expected_ik.motors, expected_ik.state
+    expected_ik, expected_adv = _vmapped_phases(
+        five_bar, th, low, high, caps, lane_geoms, lane_goals, zero, rest
     )
     queued = jax.jit(
         lambda *a: minimise_queue(five_bar, problem, (a[0], a[1]), a[2], a[3], caps, 5)

@@ -22,7 +22,9 @@ def test_thresholds_follow_the_paper():
 
 
 def test_step_values_and_c2_joins():
-    phi = lambda x: step(x, TH)  # noqa: E731
+    def phi(x):
+        return step(x, TH)
+
     assert (
         float(phi(6.0)) == 0.0
         and float(phi(11.0)) == 1.0
@@ -55,7 +57,9 @@ def test_attractive_cubic_matches_the_papers_coefficients():
 
 
 def test_attractive_is_c2_at_alpha_plus_with_minimum_at_alpha_t():
-    psi = lambda x: attractive(x, TH)  # noqa: E731
+    def psi(x):
+        return attractive(x, TH)
+
     left = np.array(derivatives(psi, 10.0 - 1e-7))
     right = np.array(derivatives(psi, 10.0 + 1e-7))
     np.testing.assert_allclose(left, right, atol=1e-5)

@@ -15,12 +15,10 @@ A batch of ``D`` designs is ``D·T`` independent lanes, each an IK minimisation 
 by an adversarial one from its result, run through
 :func:`linkopt._design.sampling.minimise_queue` with ``QUEUE_WIDTH`` slots.
 
-``QUEUE_WIDTH`` = 12 is measured: a lane-step costs more in a wider batch (we think
-because a few dozen lanes' matrices stay in the CPU caches, and because the trial
-solve's inner loop runs to its slowest lane), more than the per-step overhead that
-favours width saves. Ten five-bar designs (90 lanes) took 0.83-0.87 s at widths 6-15,
-0.97 s at 45 and 1.14 s at 90; ten 3-motor neck designs (270 lanes) 5.9-6.5 s at 8 and
-15, 6.7 s at 45 and 8.1-9.1 s at 135.
+``QUEUE_WIDTH`` = 12 is measured (``benchmarks/bench_evaluation.py``): a lane-step
+costs more in a wider batch (we think because a few dozen lanes' matrices stay in the
+CPU caches, and because the trial solve's inner loop runs to its slowest lane), more
+than the per-step overhead that favours width saves.
 
 ``α₋`` is ``alpha_factor`` times ``f_sing`` at the rest pose of the file's *initial*
 design, fixed for the whole optimisation so that a design cannot move its own threshold.
@@ -43,7 +41,13 @@ from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.model import Mechanism
 from .._engine.singularity import f_sing_value
 from .metrics import culled, thresholds
-from .sampling import adversarial_objective, either, ik_objective, minimise_queue
+from .sampling import (
+    Sample,
+    adversarial_objective,
+    either,
+    ik_objective,
+    minimise_queue,
+)
 
 QUEUE_WIDTH = 12  # slots of the sample queue (module docstring)
 
@@ -102,48 +106,36 @@ def regularizer(mech: Mechanism, design) -> Float[Array, ""]:
     return 0.5 * mech.evaluation.regularizer_weight * offset @ offset
 
 
-def _evaluate_batch(
-    mech: Mechanism, designs: Float[Array, "D n_p"], alpha
-) -> Evaluation:
-    """The evaluations of ``D`` designs (homogenised), every field with leading axis
-    ``D``."""
-    th = thresholds(alpha)
-    goals = jnp.asarray(targets(mech) / mech.output_scale)
-    low = jnp.asarray(mech.output_min / mech.output_scale)
-    high = jnp.asarray(mech.output_max / mech.output_scale)
+def _lanes(mech: Mechanism, designs: Float[Array, "D n_p"], goals: Float[Array, "T K"]):
+    """Each lane's geometry and target: ``D·T`` lanes, the targets of the first design
+    first."""
     count, per_design = designs.shape[0], goals.shape[0]
-    lanes = count * per_design
     geoms = jax.vmap(lambda p: geometry(mech, p))(designs)
     lane_geoms = jax.tree_util.tree_map(
         lambda g: jnp.repeat(g, per_design, axis=0), geoms
     )
-    lane_goals = jnp.tile(goals, (count, 1))
-    rest = rest_state(mech)
-    rest = jnp.broadcast_to(rest, (lanes,) + rest.shape)
-    zero = jnp.zeros((lanes, mech.num_motors))
-    settings = mech.evaluation
+    return lane_geoms, jnp.tile(goals, (count, 1))
 
-    def problem(lane, adversarial, anchor):
-        geom, goal = lane
-        ik = ik_objective(mech, geom, goal, th)
-        return geom, either(
-            ik, adversarial_objective(mech, geom, anchor, low, high, th), adversarial
-        )
 
-    iterations = (settings.ik_iterations, settings.adversarial_iterations)
-    ik_samples, adv_samples = minimise_queue(
-        mech,
-        problem,
-        (lane_geoms, lane_goals),
-        zero,
-        rest,
-        iterations,
-        width=QUEUE_WIDTH,
-    )
+def _evaluation(
+    mech: Mechanism,
+    designs: Float[Array, "D n_p"],
+    th,
+    lanes,
+    ik_samples: Sample,
+    adv_samples: Sample,
+) -> Evaluation:
+    """The ``D`` designs' evaluations from their lanes' IK and adversarial samples."""
+    lane_geoms, lane_goals = lanes
+    count = designs.shape[0]
+    per_design = lane_goals.shape[0] // count
     residuals = jax.vmap(lambda g, goal, s: output_residual(mech, g, goal, s))(
         lane_geoms, lane_goals, ik_samples.state
     )
-    per = lambda a: a.reshape((count, per_design) + a.shape[1:])  # noqa: E731
+
+    def per(a):  # lanes (D·T, ...) → (D, T, ...)
+        return a.reshape((count, per_design) + a.shape[1:])
+
     reach = per(0.5 * jnp.sum(residuals**2, axis=1))
     adv_sing = adv_samples.f_sing
     adv_culled = per(culled(adv_sing, th))
@@ -161,6 +153,36 @@ def _evaluate_batch(
         adv_f_sing=per(adv_sing),
         adv_culled=adv_culled,
     )
+
+
+def _evaluate_batch(
+    mech: Mechanism, designs: Float[Array, "D n_p"], alpha
+) -> Evaluation:
+    """The evaluations of ``D`` designs (homogenised), every field with leading axis
+    ``D``."""
+    th = thresholds(alpha)
+    goals = jnp.asarray(targets(mech) / mech.output_scale)
+    low = jnp.asarray(mech.output_min / mech.output_scale)
+    high = jnp.asarray(mech.output_max / mech.output_scale)
+    lanes = _lanes(mech, designs, goals)
+    count = designs.shape[0] * goals.shape[0]
+    rest = rest_state(mech)
+    rest = jnp.broadcast_to(rest, (count,) + rest.shape)
+    zero = jnp.zeros((count, mech.num_motors))
+    settings = mech.evaluation
+
+    def problem(lane, adversarial, anchor):
+        geom, goal = lane
+        ik = ik_objective(mech, geom, goal, th)
+        return geom, either(
+            ik, adversarial_objective(mech, geom, anchor, low, high, th), adversarial
+        )
+
+    iterations = (settings.ik_iterations, settings.adversarial_iterations)
+    ik_samples, adv_samples = minimise_queue(
+        mech, problem, lanes, zero, rest, iterations, width=QUEUE_WIDTH
+    )
+    return _evaluation(mech, designs, th, lanes, ik_samples, adv_samples)
 
 
 jax.export.register_namedtuple_serialization(

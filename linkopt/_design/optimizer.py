@@ -38,9 +38,11 @@ do not change a design in any way a user would notice.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import asdict, dataclass
 
 import numpy as np
+from jaxtyping import Bool, Float
 
 from .._engine.model import Mechanism
 from .evaluation import Evaluation, alpha_minus
@@ -50,10 +52,14 @@ from .workers import Workers
 
 @dataclass(frozen=True)
 class OptimizerSettings:
+    """A run's settings (module docstring); its checkpoint records them, and a resume
+    with others is refused."""
+
     particles: int = 20
     iterations: int = 60
     seed: int = 0
-    mode: str = "hybrid"  # "hybrid" (PSO + partial gradient) or "gradient" (partial gradient only)
+    #: "hybrid" (PSO + partial gradient) or "gradient" (partial gradient only)
+    mode: str = "hybrid"
     gradient_probability: float = 0.5
     cognitive: float = 2.0
     social: float = 2.0
@@ -64,7 +70,8 @@ class OptimizerSettings:
     spread: float = 0.05  # initial particles: p₀ ± spread · (upper - lower), uniform
     gradient_rate: float = 0.01
     gradient_step: float = 0.02  # reference lengths
-    tolerance: float = 1e-12  # f_design at or below which a design counts as feasible (module docstring)
+    #: f_design at or below which a design counts as feasible (module docstring)
+    tolerance: float = 1e-12
     patience: int = 3
     improvement: float = 1e-3
 
@@ -76,25 +83,27 @@ class OptimizerSettings:
         return asdict(self)
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class SwarmRun:
-    """Everything needed to continue a run exactly: the swarm, the RNG and the
-    history."""
+    """Everything needed to continue a run exactly: the swarm, the RNG and the history.
+
+    Immutable: :func:`step` returns a new run (:func:`dataclasses.replace`) and leaves
+    its argument as it was, so an earlier run stays valid beside the later ones.
+    Shapes: ``N`` particles, ``n_p`` design parameters.
+    """
 
     iteration: int
-    position: np.ndarray  # (N, n_p)
-    velocity: np.ndarray
-    pbest_pos: np.ndarray
-    pbest_cost: np.ndarray
-    best_pos: np.ndarray
+    position: Float[np.ndarray, "N n_p"]
+    velocity: Float[np.ndarray, "N n_p"]
+    pbest_pos: Float[np.ndarray, "N n_p"]
+    pbest_cost: Float[np.ndarray, " N"]
+    best_pos: Float[np.ndarray, " n_p"]
     best_cost: float
     rng_state: dict
-    history: list[dict]
+    history: tuple[dict, ...]  # one record per finished iteration
     stalled: int = 0  # iterations since the returned design last improved
     finished: bool = False
-    result_pos: np.ndarray | None = (
-        None  # the design the run returns (module docstring)
-    )
+    result_pos: Float[np.ndarray, " n_p"] | None = None  # returned (module docstring)
     result_total: float = float("inf")
     result_feasible: bool = False
 
@@ -111,17 +120,16 @@ def start(mech: Mechanism, settings: OptimizerSettings) -> SwarmRun:
     )
     offsets[0] = 0.0
     position = np.clip(d.p0 + offsets, d.lower, d.upper)
-    n = settings.particles
     return SwarmRun(
-        0,
-        position,
-        np.zeros_like(position),
-        position.copy(),
-        np.full(n, np.inf),
-        d.p0.copy(),
-        float("inf"),
-        rng.bit_generator.state,
-        [],
+        iteration=0,
+        position=position,
+        velocity=np.zeros_like(position),
+        pbest_pos=position.copy(),
+        pbest_cost=np.full(settings.particles, np.inf),
+        best_pos=d.p0.copy(),
+        best_cost=float("inf"),
+        rng_state=rng.bit_generator.state,
+        history=(),
     )
 
 
@@ -152,9 +160,60 @@ def _gradient_moves(
     return -scaled * factor * scale
 
 
-def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray, best: int) -> dict:
-    """The iteration's history row (the run loop adds ``wall_time``)."""
-    return {
+def _costs(ev: Evaluation) -> Float[np.ndarray, " N"]:
+    """Each particle's total, infinite where it is not finite."""
+    costs = ev.f_design + ev.regularizer
+    return np.where(np.isfinite(costs), costs, np.inf)
+
+
+def _update_bests(run: SwarmRun, swarm, costs: np.ndarray) -> SwarmRun:
+    """Personal and global bests after this iteration's evaluation (pyswarms' rules);
+    ``swarm`` takes them too."""
+    swarm.current_cost = costs
+    swarm.pbest_pos, swarm.pbest_cost = compute_pbest(swarm)
+    swarm.best_pos, swarm.best_cost = Star().compute_gbest(swarm)
+    return dataclasses.replace(
+        run,
+        pbest_pos=swarm.pbest_pos,
+        pbest_cost=swarm.pbest_cost,
+        best_pos=np.asarray(swarm.best_pos),
+        best_cost=float(swarm.best_cost),
+        finished=False,
+    )
+
+
+def _update_result(
+    run: SwarmRun, feasible: np.ndarray, costs: np.ndarray, settings: OptimizerSettings
+) -> SwarmRun:
+    """Keep the best design seen (feasible first, then by total) and count stalled
+    iterations."""
+    if not feasible.any():
+        if not run.result_feasible:  # nothing feasible yet: the swarm's best
+            run = dataclasses.replace(
+                run,
+                result_pos=np.asarray(run.best_pos).copy(),
+                result_total=run.best_cost,
+            )
+        return dataclasses.replace(run, stalled=run.stalled + 1)
+    k = int(np.argmin(np.where(feasible, costs, np.inf)))
+    improved = not run.result_feasible or costs[k] < run.result_total * (
+        1.0 - settings.improvement
+    )
+    if not run.result_feasible or costs[k] < run.result_total:
+        run = dataclasses.replace(
+            run,
+            result_pos=run.position[k].copy(),
+            result_total=float(costs[k]),
+            result_feasible=True,
+        )
+    return dataclasses.replace(run, stalled=0 if improved else run.stalled + 1)
+
+
+def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray) -> SwarmRun:
+    """``run`` with the iteration's history row appended (the run loop adds
+    ``wall_time``)."""
+    best = int(np.argmin(costs))
+    record = {
         "iteration": run.iteration,
         "best_total": float(costs[best]),
         "best_f_design": float(ev.f_design[best]),
@@ -164,57 +223,30 @@ def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray, best: int) -> dict
         "swarm_best_total": run.best_cost,
         "evaluations": (run.iteration + 1) * len(costs),
     }
-
-
-def step(
-    mech: Mechanism,
-    run: SwarmRun,
-    settings: OptimizerSettings,
-    workers: Workers | None = None,
-) -> SwarmRun:
-    """One iteration: evaluate, update bests, record, then move every particle.
-
-    ``workers`` splits the batched evaluation and gradients over processes (default:
-    this process only)."""
-    workers = workers or Workers(mech)
-    alpha = alpha_minus(mech)
-    ev = workers.evaluate(run.position)
-    costs = ev.f_design + ev.regularizer
-    costs = np.where(np.isfinite(costs), costs, np.inf)
-    swarm = _swarm(run, settings, settings.inertia(run.iteration))
-    swarm.current_cost = costs
-    swarm.pbest_pos, swarm.pbest_cost = compute_pbest(swarm)
-    swarm.best_pos, swarm.best_cost = Star().compute_gbest(swarm)
-    run = SwarmRun(
-        run.iteration,
-        run.position,
-        run.velocity,
-        swarm.pbest_pos,
-        swarm.pbest_cost,
-        np.asarray(swarm.best_pos),
-        float(swarm.best_cost),
-        run.rng_state,
-        list(run.history),
-        run.stalled,
-        False,
-        run.result_pos,
-        run.result_total,
-        run.result_feasible,
-    )
-    _update_result(run, np.asarray(ev.f_design) <= settings.tolerance, costs, settings)
-    best = int(np.argmin(costs))
-    record = _record(run, ev, costs, best)
     record["best_design"] = [float(v) for v in run.result_pos]
     record["best_f_design_overall"] = float(
-        min(h["best_f_design"] for h in run.history + [record])
+        min(h["best_f_design"] for h in (*run.history, record))
     )
-    run.history.append(record)
-    if (
+    return dataclasses.replace(run, history=(*run.history, record))
+
+
+def _converged(run: SwarmRun, settings: OptimizerSettings) -> bool:
+    """Whether the run stops after this iteration (module docstring)."""
+    return (
         run.result_feasible and run.stalled >= settings.patience
-    ) or run.iteration + 1 >= settings.iterations:
-        run.finished = True
-        run.iteration += 1
-        return run
+    ) or run.iteration + 1 >= settings.iterations
+
+
+def _move(
+    mech: Mechanism,
+    run: SwarmRun,
+    swarm,
+    ev: Evaluation,
+    settings: OptimizerSettings,
+    workers: Workers,
+) -> SwarmRun:
+    """Every particle's move: a partial-gradient step or a swarm step (module
+    docstring), drawn from the run's RNG; the next iteration's run."""
     rng = np.random.default_rng()
     rng.bit_generator.state = run.rng_state
     use_gradient, velocity = swarm_moves(rng, run, settings)
@@ -224,46 +256,47 @@ def step(
     bounds = (mech.design.lower, mech.design.upper)
     moved = compute_position(swarm, bounds, BoundaryHandler(strategy="nearest"))
     if use_gradient.any():
-        gradients = workers.partial_gradient(run.position, ev, alpha)
+        gradients = workers.partial_gradient(run.position, ev, alpha_minus(mech))
         gradients = np.where(np.isfinite(gradients), gradients, 0.0)
         stepped = np.clip(
             run.position + _gradient_moves(mech, gradients, settings), *bounds
         )
         moved = np.where(use_gradient[:, None], stepped, moved)
-    run.position = np.asarray(moved)
-    run.velocity = np.where(use_gradient[:, None], run.velocity, swarm.velocity)
-    run.rng_state = rng.bit_generator.state
-    run.iteration += 1
-    return run
-
-
-def _update_result(
-    run: SwarmRun, feasible: np.ndarray, costs: np.ndarray, settings: OptimizerSettings
-) -> None:
-    """Keep the best design seen (feasible first, then by total) and count stalled
-    iterations."""
-    if not feasible.any():
-        if not run.result_feasible:  # nothing feasible yet: the swarm's best
-            run.result_pos, run.result_total = (
-                np.asarray(run.best_pos).copy(),
-                run.best_cost,
-            )
-        run.stalled += 1
-        return
-    k = int(np.argmin(np.where(feasible, costs, np.inf)))
-    improved = not run.result_feasible or costs[k] < run.result_total * (
-        1.0 - settings.improvement
+    return dataclasses.replace(
+        run,
+        position=np.asarray(moved),
+        velocity=np.where(use_gradient[:, None], run.velocity, swarm.velocity),
+        rng_state=rng.bit_generator.state,
+        iteration=run.iteration + 1,
     )
-    if not run.result_feasible or costs[k] < run.result_total:
-        run.result_pos, run.result_total, run.result_feasible = (
-            run.position[k].copy(),
-            float(costs[k]),
-            True,
-        )
-    run.stalled = 0 if improved else run.stalled + 1
 
 
-def swarm_moves(rng: np.random.Generator, run: SwarmRun, settings: OptimizerSettings):
+def step(
+    mech: Mechanism,
+    run: SwarmRun,
+    settings: OptimizerSettings,
+    workers: Workers | None = None,
+) -> SwarmRun:
+    """One iteration, from a run to the next: evaluate, update bests, record, then move
+    every particle (or mark the run finished).
+
+    ``workers`` splits the batched evaluation and gradients over processes (default:
+    this process only)."""
+    workers = workers or Workers(mech)
+    ev = workers.evaluate(run.position)
+    costs = _costs(ev)
+    swarm = _swarm(run, settings, settings.inertia(run.iteration))
+    run = _update_bests(run, swarm, costs)
+    feasible = np.asarray(ev.f_design) <= settings.tolerance
+    run = _record(_update_result(run, feasible, costs, settings), ev, costs)
+    if _converged(run, settings):
+        return dataclasses.replace(run, finished=True, iteration=run.iteration + 1)
+    return _move(mech, run, swarm, ev, settings, workers)
+
+
+def swarm_moves(
+    rng: np.random.Generator, run: SwarmRun, settings: OptimizerSettings
+) -> tuple[Bool[np.ndarray, " N"], Float[np.ndarray, "N n_p"]]:
     """Which particles take a gradient step, and everyone's swarm velocity (Sec. V)."""
     n = run.position.shape[0]
     use_gradient = (
@@ -282,7 +315,7 @@ def swarm_moves(rng: np.random.Generator, run: SwarmRun, settings: OptimizerSett
     return use_gradient, velocity
 
 
-def best_design(run: SwarmRun) -> np.ndarray:
+def best_design(run: SwarmRun) -> Float[np.ndarray, " n_p"]:
     """The design the run returns: the best seen so far, feasible first (module
     docstring)."""
     return run.result_pos

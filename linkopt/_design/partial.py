@@ -11,8 +11,8 @@ We never differentiate through a solve. For a sample term ``g(s, p)`` the chain 
 evaluated design, so no forward solve is needed at all; :func:`frozen_lagrangian` is
 the scalar whose ``p``-gradient is the partial gradient (its value equals
 ``f_design + regulariser`` up to the loop-closure residual). This keeps the batched
-gradient a straight-line program: it compiles in seconds, where reverse mode through
-the LM while-loops of :func:`frozen_objective` under ``vmap`` took many minutes.
+gradient a straight-line program, quick to compile, where reverse mode through
+the LM while-loops of :func:`frozen_objective` under ``vmap`` compiled far too slowly.
 :func:`frozen_objective` (which re-solves) stays as the reference for the tests.
 """
 

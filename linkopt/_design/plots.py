@@ -10,24 +10,27 @@ adversarial samples.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
+from typing import NamedTuple
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from jaxtyping import Bool, Float  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
 from .._engine.geometry import rest_state  # noqa: E402
 from .._engine.model import Mechanism  # noqa: E402
-from .._engine.readout import (
+from .._engine.readout import (  # noqa: E402
     joint_positions,
     output_values,
     point_positions,
-)  # noqa: E402
+)
 from .evaluation import Evaluation  # noqa: E402
-from .maps import Map2D, motor_map, output_map  # noqa: E402
+from .maps import Map2D, motor_map, output_map, sections  # noqa: E402
 
 MAGENTA = "#ff00ff"
 PADDING = 0.35
@@ -113,8 +116,6 @@ def section_maps(mech: Mechanism, evaluation: Evaluation, resolution: int, desig
     the third variable (output: the range's ends and middle; motor: the smallest, median
     and largest third motor value of the IK samples). Returns
     ``[(motor_map, output_map, motor_cut, output_cut)]``, one per section."""
-    from .maps import sections
-
     if mech.num_motors != 3 or mech.num_outputs != 3:
         raise ValueError("sections need exactly three motors and three outputs")
     rest = rest_state(mech)
@@ -168,6 +169,162 @@ def _nearest(values: np.ndarray, cuts) -> np.ndarray:
     return np.argmin(np.abs(values[:, None] - np.asarray(cuts)[None, :]), axis=1)
 
 
+class _Row(NamedTuple):
+    """One row of :func:`plot_spaces`: a motor- and an end-effector-space map, their
+    title suffixes, and which IK and adversarial samples the row shows."""
+
+    motors: Map2D
+    outputs: Map2D
+    at_motor: str
+    at_output: str
+    ik: Bool[np.ndarray, " T"]
+    adv: Bool[np.ndarray, " T"]
+
+
+class _Samples(NamedTuple):
+    """The samples in motor space (``a``) and end-effector space (``b``), file
+    units."""
+
+    ik_a: Float[np.ndarray, "T M"]
+    adv_a: Float[np.ndarray, "T M"]
+    ik_b: Float[np.ndarray, "T K"]
+    adv_b: Float[np.ndarray, "T K"]
+
+
+def _samples(mech: Mechanism, evaluation: Evaluation, design) -> _Samples:
+    return _Samples(
+        np.asarray(evaluation.ik_motors) * mech.motor_scale,
+        np.asarray(evaluation.adv_motors) * mech.motor_scale,
+        np.asarray(output_values(mech, evaluation.ik_states, design=design)),
+        np.asarray(output_values(mech, evaluation.adv_states, design=design)),
+    )
+
+
+def _section_rows(
+    mech: Mechanism, evaluation: Evaluation, resolution: int, design, samples: _Samples
+) -> list[_Row]:
+    """Three motors and outputs: one row per section, with the samples whose third
+    output is nearest to it."""
+    cuts = section_maps(mech, evaluation, resolution, design)
+    b_cuts = [c[3] for c in cuts]
+    return [
+        _Row(
+            motors,
+            outputs,
+            f" at {mech.motor_names[2]} = {a_cut:.3g}",
+            f" at {mech.output_names[2]} = {b_cut:.3g}",
+            _nearest(samples.ik_b[:, 2], b_cuts) == k,
+            _nearest(samples.adv_b[:, 2], b_cuts) == k,
+        )
+        for k, (motors, outputs, a_cut, b_cut) in enumerate(cuts)
+    ]
+
+
+def _rows(
+    mech: Mechanism, evaluation: Evaluation, resolution: int, design, samples: _Samples
+) -> list[_Row]:
+    """The figure's rows: one for two motors and outputs, one per section for
+    three."""
+    if mech.num_motors == 2 and mech.num_outputs == 2:
+        motors, outputs = space_maps(mech, evaluation, resolution, design)
+        every_ik = np.ones(len(samples.ik_a), bool)
+        return [
+            _Row(motors, outputs, "", "", every_ik, np.ones(len(samples.adv_a), bool))
+        ]
+    if mech.num_motors == 3 and mech.num_outputs == 3:
+        return _section_rows(mech, evaluation, resolution, design, samples)
+    raise ValueError(
+        "space plots need 2 or 3 motors and as many outputs, "
+        f"not {mech.num_motors} and {mech.num_outputs}"
+    )
+
+
+def _colour_norm(rows: list[_Row]) -> LogNorm:
+    """One log colour scale over the feasible cells of every map."""
+    values = np.concatenate(
+        [
+            np.concatenate(
+                [
+                    r.motors.f_sing[r.motors.feasible],
+                    r.outputs.f_sing[r.outputs.feasible],
+                ]
+            )
+            for r in rows
+        ]
+    )
+    return LogNorm(
+        vmin=max(np.min(values), 1e-3),
+        vmax=max(np.percentile(values, 99), np.min(values) * 10),
+    )
+
+
+def _scatter_samples(ax, ik: Float[np.ndarray, "n 2"], adv: Float[np.ndarray, "m 2"]):
+    """IK samples as white circles, adversarial samples as magenta crosses."""
+    ax.scatter(
+        ik[:, 0],
+        ik[:, 1],
+        s=40,
+        facecolors="none",
+        edgecolors="white",
+        linewidths=1.5,
+        label="IK samples",
+        zorder=3,
+    )
+    ax.scatter(
+        adv[:, 0],
+        adv[:, 1],
+        s=40,
+        marker="x",
+        color=MAGENTA,
+        linewidths=1.8,
+        label="adversarial samples",
+        zorder=4,
+    )
+
+
+def _draw_row(mech: Mechanism, left, right, row: _Row, norm, samples: _Samples):
+    """Both panels of a row, the target range in each, and the samples; returns the
+    right panel's image (for the colour bar)."""
+    motor_labels = [
+        f"motor {n} ({'rad' if not lin else 'length'})"
+        for n, lin in zip(mech.motor_names, mech.motor_linear)
+    ]
+    output_labels = [f"output {n}" for n in mech.output_names]
+    lo, hi = mech.output_min, mech.output_max
+    _panel(left, row.motors, norm, "motor space" + row.at_motor, motor_labels)
+    image = _panel(
+        right, row.outputs, norm, "end-effector space" + row.at_output, output_labels
+    )
+    inside = _inside(mech, row.motors.outputs)
+    if 0.0 < inside.max():
+        left.contour(
+            row.motors.axis0,
+            row.motors.axis1,
+            inside.T,
+            levels=[0.5],
+            colors=MAGENTA,
+            linewidths=2,
+        )
+    right.plot(
+        [lo[0], hi[0], hi[0], lo[0], lo[0]],
+        [lo[1], lo[1], hi[1], hi[1], lo[1]],
+        color=MAGENTA,
+        lw=2,
+    )
+    _scatter_samples(left, samples.ik_a[row.ik], samples.adv_a[row.adv])
+    _scatter_samples(right, samples.ik_b[row.ik], samples.adv_b[row.adv])
+    right.legend(loc="upper right", fontsize=8, facecolor="0.85")
+    return image
+
+
+def _spaces_title(mech: Mechanism, evaluation: Evaluation) -> str:
+    return (
+        f"{mech.name}: f_design = {float(evaluation.f_design):.3g} "
+        f"(reach {float(evaluation.reach):.3g}, "
+        f"singularity {float(evaluation.singularity):.3g})"
+    )
+
+
 def plot_spaces(
     mech: Mechanism,
     evaluation: Evaluation,
@@ -180,55 +337,9 @@ def plot_spaces(
     """Motor space (left) and end-effector space (right), as the paper's Fig. 2/4/6; for
     three motors and outputs, one row per 2-D section (:func:`section_maps`), each
     showing the samples whose third coordinate is nearest to that section."""
-    ik_a = np.asarray(evaluation.ik_motors) * mech.motor_scale
-    adv_a = np.asarray(evaluation.adv_motors) * mech.motor_scale
-    ik_b = np.asarray(output_values(mech, evaluation.ik_states, design=design))
-    adv_b = np.asarray(output_values(mech, evaluation.adv_states, design=design))
-    if mech.num_motors == 2 and mech.num_outputs == 2:
-        motors, outputs = space_maps(mech, evaluation, resolution, design)
-        rows = [
-            (
-                motors,
-                outputs,
-                "",
-                "",
-                np.ones(len(ik_a), bool),
-                np.ones(len(adv_a), bool),
-            )
-        ]
-    elif mech.num_motors == 3 and mech.num_outputs == 3:
-        rows = []
-        cuts = section_maps(mech, evaluation, resolution, design)
-        b_cuts = [c[3] for c in cuts]
-        for k, (motors, outputs, a_cut, b_cut) in enumerate(cuts):
-            at_a, at_b = (
-                f" at {mech.motor_names[2]} = {a_cut:.3g}",
-                f" at {mech.output_names[2]} = {b_cut:.3g}",
-            )
-            rows.append(
-                (
-                    motors,
-                    outputs,
-                    at_a,
-                    at_b,
-                    _nearest(ik_b[:, 2], b_cuts) == k,
-                    _nearest(adv_b[:, 2], b_cuts) == k,
-                )
-            )
-    else:
-        raise ValueError(
-            f"space plots need 2 or 3 motors and as many outputs, not {mech.num_motors} and {mech.num_outputs}"
-        )
-    values = np.concatenate(
-        [
-            np.concatenate([m.f_sing[m.feasible], o.f_sing[o.feasible]])
-            for m, o, *_ in rows
-        ]
-    )
-    norm = LogNorm(
-        vmin=max(np.min(values), 1e-3),
-        vmax=max(np.percentile(values, 99), np.min(values) * 10),
-    )
+    samples = _samples(mech, evaluation, design)
+    rows = _rows(mech, evaluation, resolution, design, samples)
+    norm = _colour_norm(rows)
     fig, axes = plt.subplots(
         len(rows),
         2,
@@ -236,67 +347,14 @@ def plot_spaces(
         constrained_layout=True,
         squeeze=False,
     )
-    motor_labels = [
-        f"motor {n} ({'rad' if not lin else 'length'})"
-        for n, lin in zip(mech.motor_names, mech.motor_linear)
-    ]
-    output_labels = [f"output {n}" for n in mech.output_names]
-    lo, hi = mech.output_min, mech.output_max
-    for (left, right), (motors, outputs, at_a, at_b, ik_rows, adv_rows) in zip(
-        axes, rows
-    ):
-        _panel(left, motors, norm, "motor space" + at_a, motor_labels)
-        image = _panel(right, outputs, norm, "end-effector space" + at_b, output_labels)
-        inside = _inside(mech, motors.outputs)
-        if 0.0 < inside.max():
-            left.contour(
-                motors.axis0,
-                motors.axis1,
-                inside.T,
-                levels=[0.5],
-                colors=MAGENTA,
-                linewidths=2,
-            )
-        right.plot(
-            [lo[0], hi[0], hi[0], lo[0], lo[0]],
-            [lo[1], lo[1], hi[1], hi[1], lo[1]],
-            color=MAGENTA,
-            lw=2,
-        )
-        for ax, ik, adv in (
-            (left, ik_a[ik_rows], adv_a[adv_rows]),
-            (right, ik_b[ik_rows], adv_b[adv_rows]),
-        ):
-            ax.scatter(
-                ik[:, 0],
-                ik[:, 1],
-                s=40,
-                facecolors="none",
-                edgecolors="white",
-                linewidths=1.5,
-                label="IK samples",
-                zorder=3,
-            )
-            ax.scatter(
-                adv[:, 0],
-                adv[:, 1],
-                s=40,
-                marker="x",
-                color=MAGENTA,
-                linewidths=1.8,
-                label="adversarial samples",
-                zorder=4,
-            )
-        right.legend(loc="upper right", fontsize=8, facecolor="0.85")
+    for (left, right), row in zip(axes, rows):
+        image = _draw_row(mech, left, right, row, norm, samples)
     fig.colorbar(
         image,
         ax=axes.ravel().tolist(),
         label="f_sing (brighter = closer to a singularity)",
     )
-    fig.suptitle(
-        title
-        or f"{mech.name}: f_design = {float(evaluation.f_design):.3g} (reach {float(evaluation.reach):.3g}, singularity {float(evaluation.singularity):.3g})"
-    )
+    fig.suptitle(title or _spaces_title(mech, evaluation))
     path = Path(path)
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -402,7 +460,9 @@ def plot_mechanism(
     return path
 
 
-def plot_convergence(history: list[dict], path: str | Path, *, title: str = "") -> Path:
+def plot_convergence(
+    history: Sequence[dict], path: str | Path, *, title: str = ""
+) -> Path:
     """Best total, f_design and its parts per iteration (log scale)."""
     it = [h["iteration"] for h in history]
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)

@@ -38,9 +38,9 @@ adversarial lanes stop after 14-40.
 Starting a minimisation is a :func:`_step` of length zero (``fresh``), and both phases
 share the step, choosing objective and Hessian model per slot, so the compiled loop
 holds the expensive evaluation (trial solve, ``ds/da``, ``f_sing`` and its gradient)
-once. The earlier program held it four times (IK start and step, adversarial start and
-step): for 10 five-bar designs it took 2.0 s to load from the compilation cache and
-27 s to compile, against 0.6 s and 9 s now.
+once, where holding it four times (IK start and step, adversarial start and step) made
+the program several times slower to compile and to load from the compilation cache
+(``benchmarks/bench_evaluation.py``).
 """
 
 from __future__ import annotations
@@ -55,8 +55,8 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .._engine.constraints import (
     fk_residual,
-    output_residual,
     homogenised_output_values,
+    output_residual,
 )
 from .._engine.geometry import Geometry
 from .._engine.jacobian import state_jacobian
@@ -144,6 +144,66 @@ def _unevaluated(motors0: Float[Array, " M"], state0: Float[Array, " S"]) -> _It
     )
 
 
+class _Trial(NamedTuple):
+    """A trial step and its forward solve (module docstring)."""
+
+    delta: Float[Array, " M"]  # the step in motors, zero when fresh
+    shortened: Bool[Array, ""]  # the trust radius cut it
+    state: Float[Array, " S"]  # the solved state (the iterate's own when fresh)
+    converged: Bool[Array, ""]
+    on_branch: Bool[Array, ""]  # the solve stayed near the linear prediction
+
+
+def _trial(mech: Mechanism, geom: Geometry, it: _Iterate, fresh) -> _Trial:
+    """The damped quasi-Newton step within the trust radius, and the forward solve from
+    its linear prediction ``s + (ds/da) δ``."""
+    size = it.motors.shape[0]
+    system = it.hessian + it.damping * jnp.eye(size)
+    delta = -jnp.linalg.solve(system, it.gradient)
+    norm = jnp.sqrt(delta @ delta)
+    shortened = norm > it.radius
+    delta = jnp.where(
+        fresh, 0.0, delta * jnp.minimum(1.0, it.radius / jnp.maximum(norm, 1e-300))
+    )
+    predicted = jnp.where(fresh, 0.0, it.ds_da @ delta)
+    trial = solve_single(
+        mech, "fk", geom, it.motors + delta, it.state + predicted, TRIAL_ITERATIONS
+    )
+    state = jnp.where(fresh, it.state, trial.state)
+    departure = jnp.sqrt(jnp.sum((trial.state - it.state - predicted) ** 2))
+    on_branch = departure <= BRANCH_TOL * jnp.sqrt(predicted @ predicted) + 1e-10
+    return _Trial(delta, shortened, state, trial.converged, on_branch)
+
+
+def _bfgs(it: _Iterate, delta, gradient) -> Float[Array, "M M"]:
+    """The BFGS update of the iterate's Hessian estimate, kept where the curvature is
+    not positive."""
+    y = gradient - it.gradient
+    curvature = y @ delta
+    hb = it.hessian @ delta
+    updated = (
+        it.hessian
+        - jnp.outer(hb, hb) / (delta @ hb)
+        + jnp.outer(y, y) / jnp.where(curvature > 0, curvature, 1.0)
+    )
+    return jnp.where(curvature > 1e-12, updated, it.hessian)
+
+
+def _trust(it: _Iterate, accept, shortened, max_step) -> tuple:
+    """The next damping and trust radius (module docstring)."""
+    damping = jnp.where(
+        accept, jnp.maximum(it.damping / 3.0, 1e-9), it.damping * 4.0 + 1e-6
+    )
+    radius = jnp.where(
+        accept,
+        jnp.where(
+            shortened, jnp.minimum(2.0 * it.radius, RADIUS_GROWTH * max_step), it.radius
+        ),
+        jnp.maximum(it.radius / 2.0, max_step),
+    )
+    return damping, radius
+
+
 def _step(
     mech: Mechanism,
     geom: Geometry,
@@ -161,50 +221,28 @@ def _step(
     evaluation once. ``bfgs`` and ``fresh`` may be traced booleans.
     """
     fresh = jnp.asarray(fresh)
-    size = it.motors.shape[0]
     max_step = mech.evaluation.max_step
-    system = it.hessian + it.damping * jnp.eye(size)
-    delta = -jnp.linalg.solve(system, it.gradient)
-    norm = jnp.sqrt(delta @ delta)
-    shortened = norm > it.radius
-    delta = jnp.where(
-        fresh, 0.0, delta * jnp.minimum(1.0, it.radius / jnp.maximum(norm, 1e-300))
-    )
-    predicted = jnp.where(fresh, 0.0, it.ds_da @ delta)
-    trial = solve_single(
-        mech, "fk", geom, it.motors + delta, it.state + predicted, TRIAL_ITERATIONS
-    )
-    state = jnp.where(fresh, it.state, trial.state)
-    departure = jnp.sqrt(jnp.sum((trial.state - it.state - predicted) ** 2))
-    on_branch = departure <= BRANCH_TOL * jnp.sqrt(predicted @ predicted) + 1e-10
+    trial = _trial(mech, geom, it, fresh)
+    delta, state = trial.delta, trial.state
     value, gradient, model, ds_da, f_sing = evaluate_point(
         objective, mech, geom, it.motors + delta, state
     )
     decrease = value <= it.value + ARMIJO * (it.gradient @ delta)
-    accept = fresh | (trial.converged & on_branch & decrease & jnp.isfinite(value))
-    y = gradient - it.gradient
-    curvature = y @ delta
-    hb = it.hessian @ delta
-    updated = (
-        it.hessian
-        - jnp.outer(hb, hb) / (delta @ hb)
-        + jnp.outer(y, y) / jnp.where(curvature > 0, curvature, 1.0)
+    accept = fresh | (
+        trial.converged & trial.on_branch & decrease & jnp.isfinite(value)
     )
-    quasi_newton = jnp.where(curvature > 1e-12, updated, it.hessian)
-    model = jnp.where(bfgs, jnp.where(fresh, jnp.eye(size), quasi_newton), model)
-    pick = lambda new, old: jnp.where(accept, new, old)  # noqa: E731
-    damping = jnp.where(
-        accept, jnp.maximum(it.damping / 3.0, 1e-9), it.damping * 4.0 + 1e-6
-    )
-    radius = jnp.where(
-        accept,
-        jnp.where(
-            shortened, jnp.minimum(2.0 * it.radius, RADIUS_GROWTH * max_step), it.radius
-        ),
-        jnp.maximum(it.radius / 2.0, max_step),
-    )
+    quasi_newton = _bfgs(it, delta, gradient)
+    eye = jnp.eye(it.motors.shape[0])
+    model = jnp.where(bfgs, jnp.where(fresh, eye, quasi_newton), model)
+
+    def pick(new, old):
+        return jnp.where(accept, new, old)
+
+    damping, radius = _trust(it, accept, trial.shortened, max_step)
     small = jnp.max(jnp.abs(pick(gradient, it.gradient))) < GRADIENT_TOL
-    stalled = accept & ~shortened & (it.value - value <= VALUE_RTOL * jnp.abs(value))
+    stalled = (
+        accept & ~trial.shortened & (it.value - value <= VALUE_RTOL * jnp.abs(value))
+    )
     return _Iterate(
         motors=pick(it.motors + delta, it.motors),
         state=pick(state, it.state),
@@ -267,6 +305,79 @@ def _store(out: Sample, lane: Int[Array, " W"], it: _Iterate) -> Sample:
     )
 
 
+def _take(tree, index):
+    """Rows ``index`` of every leaf of ``tree``."""
+    return jax.tree_util.tree_map(lambda a: a[index], tree)
+
+
+class _Queue(NamedTuple):
+    """The loop state of :func:`minimise_queue`, one row per slot (``W`` slots)."""
+
+    slots: _Iterate  # each slot's iterate
+    second: Bool[Array, " W"]  # the slot's lane is in phase two
+    anchor: Float[Array, "W M"]  # phase one's final motors, for phase two
+    fresh: Bool[Array, " W"]  # the slot's next step starts a minimisation
+    lanes: object  # the slot's lane's slice of ``lanes``
+    owner: Int[Array, " W"]  # the lane the slot works on, -1 when idle
+    upcoming: Int[Array, ""]  # the first lane still waiting for a slot
+    outs: tuple[Sample, Sample]  # both phases' samples, in lane order
+
+
+def _start_queue(blank: _Iterate, lanes, motors0, width: int) -> _Queue:
+    """The first ``width`` lanes in the slots, each about to start phase one."""
+    first = jnp.arange(width)
+    out = _sample(blank)
+    no = jnp.zeros(width, bool)
+    return _Queue(
+        _take(blank, first),
+        no,
+        motors0[first],
+        ~no,
+        _take(lanes, first),
+        first,
+        jnp.asarray(width),
+        (out, out),
+    )
+
+
+def _end_phases(queue: _Queue, finished: Bool[Array, " W"], count: int):
+    """Store the samples of the phases that finished; a slot whose lane finished phase
+    one starts phase two where phase one ended. Also returns where phase two
+    finished."""
+    first_done, second_done = finished & ~queue.second, finished & queue.second
+    outs = (
+        _store(queue.outs[0], jnp.where(first_done, queue.owner, count), queue.slots),
+        _store(queue.outs[1], jnp.where(second_done, queue.owner, count), queue.slots),
+    )
+    anchor = jnp.where(first_done[:, None], queue.slots.motors, queue.anchor)
+    queue = queue._replace(
+        anchor=anchor, second=queue.second | first_done, fresh=first_done, outs=outs
+    )
+    return queue, second_done
+
+
+def _refill(
+    queue: _Queue, free: Bool[Array, " W"], blank: _Iterate, lanes, count: int
+) -> _Queue:
+    """The ``free`` slots take the next waiting lanes, in order, while any wait; the
+    others of them fall idle."""
+    incoming = queue.upcoming + jnp.cumsum(free) - 1
+    fill = free & (incoming < count)
+    source = jnp.minimum(incoming, count - 1)
+    slots = _where(fill, _take(blank, source), queue.slots)
+    slot_lanes = _where(fill, _take(lanes, source), queue.lanes)
+    return _Queue(
+        slots,
+        queue.second & ~fill,
+        queue.anchor,
+        queue.fresh | fill,
+        slot_lanes,
+        jnp.where(fill, incoming, jnp.where(free, -1, queue.owner)),
+        queue.upcoming + jnp.sum(free),
+        queue.outs,
+    )
+
+
 def minimise_queue(
     mech: Mechanism,
     problem: Callable,
@@ -291,64 +402,25 @@ def minimise_queue(
     """
     count = motors0.shape[0]
     width = min(width, count)
-    take = lambda tree, index: jax.tree_util.tree_map(lambda a: a[index], tree)  # noqa: E731
     caps = jnp.asarray(iterations)
-
-    blank = jax.vmap(_unevaluated)(
-        motors0, state0
-    )  # each lane's start, to be evaluated
+    blank = jax.vmap(_unevaluated)(motors0, state0)  # each lane's start, unevaluated
 
     def step(lane, second, anchor, fresh, it):
         geom, objective = problem(lane, second, anchor)
         return _step(mech, geom, objective, second, it, fresh)
 
-    def body(carry):
-        slots, second, anchor, fresh, slot_lanes, owner, upcoming, outs = carry
-        slots = jax.vmap(step)(slot_lanes, second, anchor, fresh, slots)
-        finished = (owner >= 0) & _finished(slots, caps[second.astype(int)])
-        first_done, second_done = finished & ~second, finished & second
-        outs = (
-            _store(outs[0], jnp.where(first_done, owner, count), slots),
-            _store(outs[1], jnp.where(second_done, owner, count), slots),
+    def body(queue: _Queue) -> _Queue:
+        slots = jax.vmap(step)(
+            queue.lanes, queue.second, queue.anchor, queue.fresh, queue.slots
         )
-        anchor = jnp.where(
-            first_done[:, None], slots.motors, anchor
-        )  # phase two starts where phase one ended
-        second, fresh = second | first_done, first_done
-        free = second_done | (owner < 0)
-        incoming = upcoming + jnp.cumsum(free) - 1
-        fill = free & (incoming < count)
-        source = jnp.minimum(incoming, count - 1)
-        slots = _where(fill, take(blank, source), slots)
-        slot_lanes = _where(fill, take(lanes, source), slot_lanes)
-        second, fresh = second & ~fill, fresh | fill
-        owner = jnp.where(fill, incoming, jnp.where(free, -1, owner))
-        return (
-            slots,
-            second,
-            anchor,
-            fresh,
-            slot_lanes,
-            owner,
-            upcoming + jnp.sum(free),
-            outs,
-        )
+        finished = (queue.owner >= 0) & _finished(slots, caps[queue.second.astype(int)])
+        queue, second_done = _end_phases(queue._replace(slots=slots), finished, count)
+        free = second_done | (queue.owner < 0)
+        return _refill(queue, free, blank, lanes, count)
 
-    first = jnp.arange(width)
-    out = _sample(blank)
-    no = jnp.zeros(width, bool)
-    carry = (
-        take(blank, first),
-        no,
-        motors0[first],
-        ~no,
-        take(lanes, first),
-        first,
-        jnp.asarray(width),
-        (out, out),
-    )
-    carry = jax.lax.while_loop(lambda c: jnp.any(c[5] >= 0), body, carry)
-    return carry[7]
+    queue = _start_queue(blank, lanes, motors0, width)
+    queue = jax.lax.while_loop(lambda q: jnp.any(q.owner >= 0), body, queue)
+    return queue.outs
 
 
 def ik_objective(mech: Mechanism, geom: Geometry, target, th: Thresholds) -> Objective:

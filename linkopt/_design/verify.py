@@ -61,7 +61,10 @@ def verify(mech: Mechanism, design=None, resolution: int | None = None) -> Verif
     state, entered = _entry_state(mech, design, values[cell])
     shape = values.shape[:-1]
     if entered:
-        solve = lambda v, s: solve_bk(mech, v, start=s, design=design)  # noqa: E731
+
+        def solve(v, s):
+            return solve_bk(mech, v, start=s, design=design)
+
         states, feasible = continuation_grid(
             solve, values, cell, state, chunk=max(64, 2 * resolution ** max(k - 1, 1))
         )

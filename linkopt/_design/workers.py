@@ -3,23 +3,22 @@
 XLA's CPU pool runs with one thread here (see :mod:`linkopt._config`), so one process
 keeps one core busy. :class:`Workers` splits the particles into ``count`` contiguous
 chunks: the calling process evaluates the first itself while ``count - 1`` spawned
-processes, each holding the mechanism, evaluate the others; the
-chunks' results are concatenated in particle order. The caller works rather than waits
-because a spawned process costs a Python and JAX start-up (about 1 s) before its
-first evaluation, and the caller has paid that already (five-bar, 2 processes, warm
-cache: 14.4 s in the optimiser instead of 15.3 s). Each chunk is the same batched,
-jitted call as in a single process, so the persistent compilation cache serves every
-worker after the first run. A chunk's numbers do not depend on which process computed
-it, so a run with the same seed and worker count always gives the same result.
-With ``count = 1`` everything runs in the calling process.
+processes, each holding the mechanism, evaluate the others; the chunks' results are
+concatenated in particle order. The caller works rather than waits because a spawned
+process costs a Python and JAX start-up before its first evaluation, and the caller has
+paid that already. Each chunk is the same batched, jitted call as in a single process,
+so the persistent compilation cache serves every worker after the first run. A chunk's
+numbers do not depend on which process computed it, so a run with the same seed and
+worker count always gives the same result. With ``count = 1`` everything runs in the
+calling process.
 
 Partial gradients are computed chunk by chunk in the calling process, with the same
-chunks and so the same numbers: one takes 0.03 s (10 five-bar designs) once its
-executable is loaded, and loading it takes each process about 1 s. When the caller has
+chunks and so the same numbers: once its executable is loaded a chunk's gradient costs
+far less than loading that executable in every worker would. When the caller has
 evaluated its chunk before the workers answer (every first iteration: a worker starts
-about 1.3 s after the caller), it differentiates that chunk while it waits, so most
-of the load falls in time it would have spent idle (five-bar, warm cache: the first
-evaluation and partial gradient of 20 designs took 5.2 s instead of 5.75 s).
+after the caller), it differentiates that chunk while it waits, so most of the load
+falls in time it would have spent idle. The timings behind these choices are in
+``benchmarks/bench_optimizer.py``.
 
 OpenBLAS is held to one thread while a chunk computes (:mod:`linkopt._config`): in the
 workers for their lifetime, in the calling process only while it computes.
@@ -67,13 +66,11 @@ class Workers:
         self.mech = mech
         self.count = count
         self._pool = None
-        self._early: tuple | None = (
-            None  # (designs, evaluation, alpha, gradient) of a first chunk
-        )
+        # (designs, evaluation, alpha, gradient) of a first chunk
+        self._early: tuple | None = None
         if count > 1:
-            context = multiprocessing.get_context(
-                "spawn"
-            )  # fork would copy JAX's threads
+            # spawn, not fork: fork would copy JAX's threads
+            context = multiprocessing.get_context("spawn")
             self._pool = context.Pool(
                 count - 1, initializer=_initialise, initargs=(mech,)
             )
@@ -94,9 +91,7 @@ class Workers:
         )
         with one_blas_thread():
             first = jax.tree_util.tree_map(np.asarray, evaluate(self.mech, chunks[0]))
-            if (
-                pending is not None and not pending.ready()
-            ):  # idle until the workers answer
+            if pending is not None and not pending.ready():  # idle until they answer
                 alpha = alpha_minus(self.mech)
                 self._early = (
                     chunks[0],

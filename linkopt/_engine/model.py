@@ -19,6 +19,8 @@ Conventions (used everywhere in linkopt):
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -176,3 +178,42 @@ class Mechanism:
         return np.array(
             [i for i, t in enumerate(self.joint_types) if t == kind], dtype=int
         )
+
+
+def _digest(value, sink) -> None:
+    """Feed ``value`` into the hash ``sink``: dataclasses field by field (a field named
+    ``source`` left out), arrays by dtype, shape and bytes, containers item by item,
+    anything else by its ``repr``."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        sink.update(type(value).__name__.encode())
+        for f in dataclasses.fields(value):
+            if f.name != "source":
+                sink.update(f.name.encode())
+                _digest(getattr(value, f.name), sink)
+    elif isinstance(value, np.ndarray):
+        sink.update(f"{value.dtype.str}{value.shape}".encode())
+        sink.update(np.ascontiguousarray(value).tobytes())
+    elif isinstance(value, (tuple, list)):
+        sink.update(f"{type(value).__name__}{len(value)}".encode())
+        for item in value:
+            _digest(item, sink)
+    elif isinstance(value, dict):
+        sink.update(f"dict{len(value)}".encode())
+        for key in sorted(value, key=str):
+            sink.update(repr(key).encode())
+            _digest(value[key], sink)
+    else:
+        sink.update(repr(value).encode())
+
+
+def fingerprint(mech: Mechanism) -> str:
+    """Hex digest of a mechanism's contents, its file path left out.
+
+    Two loads of the same file, from any path and in any process, share it; any change
+    to the file or to a field derived from it changes it. It keys the cache of traced
+    programs (:mod:`linkopt._engine.programs`) and ties an optimisation checkpoint to
+    its mechanism (:mod:`linkopt._design.run`).
+    """
+    sink = hashlib.sha256()
+    _digest(mech, sink)
+    return sink.hexdigest()

@@ -2,26 +2,27 @@
 tracing.
 
 JAX's persistent compilation cache (:mod:`linkopt._config`) keeps compiled executables,
-but to look one up a new process must first trace and lower the Python function. For
-the batched five-bar evaluation that took 5.9 s, against 2.1 s to load the executable,
-and every optimiser run and worker process paid it again. :func:`call` serialises the
-traced program (StableHLO) under a key of everything it depends on: the program's name,
-a fingerprint of the mechanism's contents (every field but the file path), the argument
-shapes and dtypes, the source of every ``linkopt`` module and the jax version. A later
-process deserialises it instead of tracing. The entry is written to a temporary file
-and renamed, so worker processes can share the directory. An entry that cannot be read
-is traced again and rewritten. A program that cannot be exported (a custom call that
-jax does not guarantee stable) runs through plain ``jax.jit``.
+but to look one up a new process must first trace and lower the Python function, which
+for the batched evaluation costs more than loading the executable (figures in
+``benchmarks/bench_evaluation.py``), in every optimiser run and worker process.
+:func:`call` serialises the traced program (StableHLO) under a key of everything it
+depends on: the program's name, the mechanism's fingerprint
+(:func:`linkopt._engine.model.fingerprint`: its contents, the file path left out), the
+argument shapes and dtypes, the jax version and the source of every module of the
+package, subfolders included (:func:`source_digest`). A later process deserialises it
+instead of tracing. The entry is written to a temporary file and renamed, so worker
+processes can share the directory. An entry that cannot be read is traced again and
+rewritten. A program that cannot be exported (a custom call that jax does not guarantee
+stable) runs through plain ``jax.jit``.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import os
 import tempfile
 from collections.abc import Callable
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import jax
@@ -30,49 +31,29 @@ import numpy as np
 from jax import export
 
 from .._config import cache_directory
-from .model import Mechanism
+from .model import Mechanism, fingerprint
 
-_PROGRAMS: dict[str, Callable] = {}  # key → jitted call of the (de)serialised program
-
-
-def _digest(value, sink) -> None:
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        sink.update(type(value).__name__.encode())
-        for f in dataclasses.fields(value):
-            if f.name != "source":
-                sink.update(f.name.encode())
-                _digest(getattr(value, f.name), sink)
-    elif isinstance(value, np.ndarray):
-        sink.update(f"{value.dtype.str}{value.shape}".encode())
-        sink.update(np.ascontiguousarray(value).tobytes())
-    elif isinstance(value, (tuple, list)):
-        sink.update(f"{type(value).__name__}{len(value)}".encode())
-        for item in value:
-            _digest(item, sink)
-    elif isinstance(value, dict):
-        sink.update(f"dict{len(value)}".encode())
-        for key in sorted(value, key=str):
-            sink.update(repr(key).encode())
-            _digest(value[key], sink)
-    else:
-        sink.update(repr(value).encode())
+#: The package folder whose sources key every program (:func:`source_digest`).
+PACKAGE = Path(__file__).resolve().parents[1]
+#: This process's programs: key → jitted call of the (de)serialised program.
+PROGRAMS: dict[str, Callable] = {}
 
 
-def fingerprint(mech: Mechanism) -> str:
-    """Hex digest of a mechanism's contents (its file path left out)."""
-    sink = hashlib.sha256()
-    _digest(mech, sink)
-    return sink.hexdigest()
-
-
-@lru_cache(maxsize=1)
-def _source_digest() -> str:
+def source_digest(package: Path) -> str:
+    """Hex digest of the jax version and every ``.py`` file under ``package``, in every
+    subfolder, by path relative to ``package`` and content: an edit anywhere in the
+    package keys new programs instead of reusing stale ones."""
     sink = hashlib.sha256(jax.__version__.encode())
-    package = Path(__file__).resolve().parents[1]
     for path in sorted(package.rglob("*.py")):
         sink.update(path.relative_to(package).as_posix().encode())
         sink.update(path.read_bytes())
     return sink.hexdigest()
+
+
+@cache
+def _package_digest(package: Path) -> str:
+    """:func:`source_digest`, once per process: its modules are loaded already."""
+    return source_digest(package)
 
 
 def _spec(leaf) -> jax.ShapeDtypeStruct:
@@ -80,7 +61,9 @@ def _spec(leaf) -> jax.ShapeDtypeStruct:
 
 
 def _key(name: str, mech: Mechanism, args) -> str:
-    sink = hashlib.sha256(f"{name}|{_source_digest()}|{fingerprint(mech)}".encode())
+    sink = hashlib.sha256(
+        f"{name}|{_package_digest(PACKAGE)}|{fingerprint(mech)}".encode()
+    )
     leaves, tree = jax.tree_util.tree_flatten(args)
     sink.update(str(tree).encode())
     for leaf in leaves:
@@ -116,8 +99,8 @@ def _store(path: Path, exported) -> None:
 
 def _program(name: str, mech: Mechanism, fn: Callable, args) -> Callable:
     key = _key(name, mech, args)
-    if key in _PROGRAMS:
-        return _PROGRAMS[key]
+    if key in PROGRAMS:
+        return PROGRAMS[key]
     path = _directory() / f"{name}-{key[:32]}.jaxexport"
     exported = _load(path)
     if exported is None:
@@ -125,11 +108,11 @@ def _program(name: str, mech: Mechanism, fn: Callable, args) -> Callable:
         try:
             exported = export.export(jax.jit(fn))(*specs)
         except Exception:  # not exportable: plain jit, traced in every process
-            _PROGRAMS[key] = jax.jit(fn)
-            return _PROGRAMS[key]
+            PROGRAMS[key] = jax.jit(fn)
+            return PROGRAMS[key]
         _store(path, exported)
-    _PROGRAMS[key] = jax.jit(exported.call)
-    return _PROGRAMS[key]
+    PROGRAMS[key] = jax.jit(exported.call)
+    return PROGRAMS[key]
 
 
 def call(name: str, mech: Mechanism, fn: Callable, *args):
