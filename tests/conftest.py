@@ -21,3 +21,24 @@ def five_bar_evaluation(five_bar):
     from linkopt._design.evaluation import evaluate
 
     return evaluate(five_bar)
+
+
+#: ``linkopt optimize`` flags of the smallest run (two particles, one iteration).
+TINY_OPTIMIZE = ["--particles", "2", "--iterations", "1"]
+
+
+@pytest.fixture
+def fresh_checkpoint(tmp_path, five_bar):
+    """A run folder holding the checkpoint of a five-bar run that has not started, as
+    ``linkopt optimize five_bar.toml`` with :data:`TINY_OPTIMIZE` writes it; returns
+    the folder and the parsed checkpoint, for a test to spoil and write back."""
+    import json
+
+    from linkopt._design.optimizer import OptimizerSettings, start
+    from linkopt._design.run import CHECKPOINT, save_checkpoint
+
+    settings = OptimizerSettings(particles=2, iterations=1)
+    out = tmp_path / "run"
+    out.mkdir()
+    save_checkpoint(out, start(five_bar, settings), five_bar, settings)
+    return out, json.loads((out / CHECKPOINT).read_text())

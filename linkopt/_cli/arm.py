@@ -9,6 +9,12 @@ waypoint, target marks), ``torques.csv`` (static torques per waypoint),
 and the figures (``arm.png``, and for ``simplify`` ``elimination.png``). Progress lines
 go to stderr.
 
+The command holds the lock on ``DIR`` (:mod:`linkopt._folders`) from before the solve
+until its files are written: a second command on the same ``DIR`` exits 2 naming the
+first. The files are written to a staging folder inside ``DIR`` and moved in together
+once all are written, ``summary.json`` last; a command that fails or is killed before
+that leaves none of them (and ``DIR``'s earlier files as they were).
+
 Exit status: 0 when the returned arm is feasible (``design``: the best start;
 ``simplify``: the smallest feasible stage), 1 when it is not (the files are still
 written), 2 on bad input (one ``linkopt: error: ...`` line on stderr).
@@ -27,6 +33,7 @@ from .._arms import checks
 from .._arms.codesign import nlp
 from .._arms.codesign.model import mechanism_definition
 from .._engine.writer import dumps
+from .._folders import run_folder, staged
 
 
 def _progress(solution: nlp.ArmSolution) -> None:
@@ -169,12 +176,15 @@ def _check_arguments(args) -> None:
         checks.count(args.min_joints, "--min-joints")
 
 
-def _solve(args):
+def _task(args):
+    """The checked arguments' task file, loaded: all input is checked here."""
     from .._arms.codesign.task import load_task
 
     _check_arguments(args)
-    task = load_task(args.task)
-    out = checks.output_directory(args.out)
+    return load_task(args.task)
+
+
+def _solve(args, task):
     problem = nlp.prepare(task)
     print(
         f"{task.name}: {task.arm.num_joints} joints, {task.arm.num_design} design "
@@ -190,7 +200,7 @@ def _solve(args):
         workers=args.workers,
         progress=_progress,
     )
-    return task, problem, out, best, runs, time.perf_counter() - started
+    return problem, best, runs, time.perf_counter() - started
 
 
 def _starts_summary(runs) -> list[dict]:
@@ -208,17 +218,22 @@ def _starts_summary(runs) -> list[dict]:
 
 
 def run_design(args) -> int:
-    task, problem, out, best, runs, seconds = _solve(args)
-    summary = write_solution(problem, best, out)
-    summary.update(
-        {
-            "task": str(args.task),
-            "best_start": best.start,
-            "wall_seconds": seconds,
-            "starts": _starts_summary(runs),
-        }
-    )
-    (out / "summary.json").write_text(json.dumps(summary, indent=1), encoding="utf-8")
+    task = _task(args)
+    with run_folder(args.out) as out:
+        problem, best, runs, seconds = _solve(args, task)
+        with staged(out, marker="summary.json") as stage:
+            summary = write_solution(problem, best, stage)
+            summary.update(
+                {
+                    "task": str(args.task),
+                    "best_start": best.start,
+                    "wall_seconds": seconds,
+                    "starts": _starts_summary(runs),
+                }
+            )
+            (stage / "summary.json").write_text(
+                json.dumps(summary, indent=1), encoding="utf-8"
+            )
     state = "feasible" if best.feasible else "INFEASIBLE"
     print(
         f"best: start {best.start}, {state}, objective {best.objective:.4g}; "
@@ -262,19 +277,35 @@ def _write_stages(stages, out: Path) -> list[dict]:
 
 def run_simplify(args) -> int:
     from .._arms.codesign import elimination
+
+    task = _task(args)
+    with run_folder(args.out) as out:
+        problem, best, runs, _ = _solve(args, task)
+        stages = (
+            elimination.simplify(
+                problem, best, min_joints=args.min_joints, progress=_stage_progress
+            )
+            if best.feasible
+            else [elimination.Stage(problem, best, None)]
+        )
+        final = max((k for k, s in enumerate(stages) if s.solution.feasible), default=0)
+        with staged(out, marker="summary.json") as stage:
+            _write_simplified(args, stages, final, runs, stage)
+    joints = " -> ".join(str(s.problem.arm.num_joints) for s in stages)
+    print(
+        f"joints: {joints}; smallest feasible arm: "
+        f"{stages[final].problem.arm.num_joints} joints (stage {final}); "
+        f"written to {out}"
+    )
+    return 0 if stages[final].solution.feasible else 1
+
+
+def _write_simplified(args, stages, final: int, runs, out: Path) -> None:
+    """Every stage's files, ``elimination.png`` and ``summary.json``."""
     from .._arms.codesign.plots import plot_stages
 
-    task, problem, out, best, runs, seconds = _solve(args)
-    stages = (
-        elimination.simplify(
-            problem, best, min_joints=args.min_joints, progress=_stage_progress
-        )
-        if best.feasible
-        else [elimination.Stage(problem, best, None)]
-    )
     summaries = _write_stages(stages, out)
     plot_stages(stages, out / "elimination.png")
-    final = max((k for k, s in enumerate(stages) if s.solution.feasible), default=0)
     (out / "summary.json").write_text(
         json.dumps(
             {
@@ -287,13 +318,6 @@ def run_simplify(args) -> int:
         ),
         encoding="utf-8",
     )
-    joints = " -> ".join(str(s.problem.arm.num_joints) for s in stages)
-    print(
-        f"joints: {joints}; smallest feasible arm: "
-        f"{stages[final].problem.arm.num_joints} joints (stage {final}); "
-        f"written to {out}"
-    )
-    return 0 if stages[final].solution.feasible else 1
 
 
 def _common(parser) -> None:

@@ -17,6 +17,7 @@ from .._design.evaluation import alpha_minus, evaluate
 from .._engine.loader import load
 from .._engine.readout import output_values
 from .._errors import InputError
+from .._folders import output_folder
 from .values import design_arg
 
 _DESIGN_HELP = (
@@ -107,8 +108,7 @@ def run_plot(args) -> int:
         raise InputError(
             f"--resolution: expected at least 8 cells per axis, got {args.resolution}"
         )
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(args.out, "--out")  # before any solve: a bad --out is exit 2
     label = args.label or ("initial" if design is None else "design")
     stem = Path(args.file).stem
     if mech.num_motors == mech.num_outputs and mech.num_motors in (2, 3):

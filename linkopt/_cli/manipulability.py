@@ -7,6 +7,12 @@ values, residual and manipulability measured on the engine's Mechanism),
 and ``DIR/manipulability.png`` (the arm at a few targets with the point cloud). Progress
 lines go to stderr; the summary to stdout.
 
+The command holds the lock on ``DIR`` (:mod:`linkopt._folders`) from before the
+synthesis until its files are written: a second command on the same ``DIR`` exits 2
+naming the first. The three files are written to a staging folder inside ``DIR`` and
+moved in together once all are written, ``dh.json`` last; a command that fails or is
+killed before that leaves none of them.
+
 Exit status: 0 when every target is reached (residual on the engine's mechanism within
 the reach tolerance, 1e-3), 1 when some are not or an engine FK solve fails (the files
 are still written), 2 on bad input (one ``linkopt: error: ...`` line on stderr).
@@ -31,6 +37,7 @@ from .._arms.dh.synthesis import (
     rest_configuration,
     synthesize_dh,
 )
+from .._folders import run_folder, staged
 
 CONVENTION = (
     "A_i = Rot_z(theta_i) Trans_z(d_i) Trans_x(a_i) Rot_x(alpha_i) (standard, distal "
@@ -149,21 +156,24 @@ def run(args) -> int:
     points = read_points(args.points)
     joints = _joints_argument(args.joints)
     settings = _settings(args)
-    out = checks.output_directory(args.out)
-    print(
-        f"linkopt arm manipulability: {len(points)} points, joints {joints}, "
-        f"ε = {settings.precision:g}, ξ = {settings.size_damping:g}, "
-        f"{settings.starts} starts",
-        file=sys.stderr,
-        flush=True,
-    )
-    best, results = synthesize_dh(points, joints, settings, progress=_progress)
-    print(
-        f"  measuring {best.types} on the engine's mechanism ...",
-        file=sys.stderr,
-        flush=True,
-    )
-    report, payload = _write_files(best, results, settings, Path(args.points).name, out)
+    with run_folder(args.out) as out:
+        print(
+            f"linkopt arm manipulability: {len(points)} points, joints {joints}, "
+            f"ε = {settings.precision:g}, ξ = {settings.size_damping:g}, "
+            f"{settings.starts} starts",
+            file=sys.stderr,
+            flush=True,
+        )
+        best, results = synthesize_dh(points, joints, settings, progress=_progress)
+        print(
+            f"  measuring {best.types} on the engine's mechanism ...",
+            file=sys.stderr,
+            flush=True,
+        )
+        with staged(out, marker="dh.json") as stage:
+            report, payload = _write_files(
+                best, results, settings, Path(args.points).name, stage
+            )
     s = payload["summary"]
     _print_result(best, s, settings, out)
     return 0 if bool(report["converged"].all()) and s["reached"] == s["targets"] else 1

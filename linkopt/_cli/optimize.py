@@ -4,6 +4,11 @@ optimisation (paper Sec. V).
 ``DIR`` holds the run's checkpoint and history (``--resume`` continues it), the
 optimised mechanism file, its verification and the figures. Progress lines go to
 stderr; the summary (JSON) to stdout.
+
+The command holds the lock on ``DIR`` from before the run starts until its outputs are
+written (:func:`linkopt._design.run.locked_run_folder`), so a second ``optimize`` on the
+same ``--out`` exits 2 naming the first; a bad ``--out`` or a checkpoint that is not
+one ``linkopt optimize`` wrote exits 2 before any optimisation starts.
 """
 
 from __future__ import annotations
@@ -70,7 +75,7 @@ def _progress(iterations: int):
 
 def run_optimize(args) -> int:
     from .._design.optimizer import OptimizerSettings
-    from .._design.run import optimize, write_outputs
+    from .._design.run import locked_run_folder, optimize, write_outputs
 
     mech = load(args.file)
     _check_arguments(args, mech)
@@ -83,22 +88,28 @@ def run_optimize(args) -> int:
         patience=args.patience,
         improvement=args.improvement,
     )
-    run = optimize(
-        mech,
-        args.out,
-        settings,
-        resume=args.resume,
-        progress=_progress(settings.iterations),
-        workers=args.workers,
-    )
-    print(
-        "writing the optimised file, verification and figures ...",
-        file=sys.stderr,
-        flush=True,
-    )
-    summary = write_outputs(
-        mech, args.out, run, settings, resolution=args.resolution, workers=args.workers
-    )
+    with locked_run_folder(args.out, args.resume, "--out"):
+        run = optimize(
+            mech,
+            args.out,
+            settings,
+            resume=args.resume,
+            progress=_progress(settings.iterations),
+            workers=args.workers,
+        )
+        print(
+            "writing the optimised file, verification and figures ...",
+            file=sys.stderr,
+            flush=True,
+        )
+        summary = write_outputs(
+            mech,
+            args.out,
+            run,
+            settings,
+            resolution=args.resolution,
+            workers=args.workers,
+        )
     print(json.dumps({k: summary[k] for k in _SUMMARY_KEYS}, indent=2))
     out = Path(args.out)
     print(

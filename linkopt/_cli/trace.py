@@ -9,7 +9,12 @@ mechanism file that ``linkopt check`` accepts), ``DIR/<task>_task.png``,
 task's name with every character other than letters, digits, ``.``, ``_`` and ``-``
 replaced by ``_`` (leading dots dropped). When no design is found only ``result.json``
 and ``<task>_task.png`` (the task alone) are written, plus the discretised comparison if
-one was asked for and found. Progress goes to stderr; exit status 0 with a verified
+one was asked for and found (and an ``arm.toml`` of an earlier run in ``DIR`` is
+removed). The command holds the lock on ``DIR`` (:mod:`linkopt._folders`) from before
+the synthesis until its files are written: a second command on the same ``DIR`` exits 2
+naming the first. The files are written to a staging folder inside ``DIR`` and moved in
+together once all are written, ``result.json`` last; a command that fails or is killed
+before that leaves none of them. Progress goes to stderr; exit status 0 with a verified
 design, 1 when none was found, 2 on bad input.
 """
 
@@ -22,6 +27,7 @@ from pathlib import Path
 
 from .._arms import checks
 from .._errors import InputError
+from .._folders import run_folder, staged
 
 
 def register(arm_subparsers) -> None:
@@ -72,7 +78,6 @@ def _say(msg: str) -> None:
 
 
 def run(args) -> int:
-    from .._arms.trace.export import mechanism_text, result_dict
     from .._arms.trace.synthesis import TraceSettings, synthesize
     from .._arms.trace.task import load_task
 
@@ -85,13 +90,25 @@ def run(args) -> int:
             f"got {args.discretised}"
         )
     task = load_task(args.task)
-    out = checks.output_directory(args.out)
-    result = synthesize(
-        task,
-        seed=args.seed,
-        settings=TraceSettings(restarts=args.restarts, best_of=args.best_of),
-        progress=_say,
-    )
+    with run_folder(args.out) as out:
+        result = synthesize(
+            task,
+            seed=args.seed,
+            settings=TraceSettings(restarts=args.restarts, best_of=args.best_of),
+            progress=_say,
+        )
+        # without a design, an arm.toml of an earlier run must not outlive its result
+        stale = () if result.success else ("arm.toml",)
+        with staged(out, marker="result.json", obsolete=stale) as stage:
+            _write(task, result, args, stage)
+    _summary(result, out)
+    return 0 if result.success else 1
+
+
+def _write(task, result, args, out: Path) -> None:
+    """The figures, ``arm.toml`` with a design, and ``result.json``."""
+    from .._arms.trace.export import mechanism_text, result_dict
+
     payload = result_dict(result)
     figures = _figures(task, result, out, not args.no_gif)
     if args.discretised:
@@ -101,8 +118,6 @@ def run(args) -> int:
         (out / "arm.toml").write_text(mechanism_text(result), encoding="utf-8")
         payload["mechanism"] = "arm.toml"
     (out / "result.json").write_text(json.dumps(payload, indent=2), encoding="utf-8")
-    _summary(result, out)
-    return 0 if result.success else 1
 
 
 def file_stem(name: str) -> str:

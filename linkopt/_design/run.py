@@ -7,7 +7,15 @@ iteration and, every step being deterministic, ends exactly as an uninterrupted 
 with the same seed. The checkpoint records the mechanism's fingerprint
 (:func:`linkopt._engine.model.fingerprint`, the same digest that keys the cache of
 traced programs) and the settings; resuming with a different mechanism or other
-settings is refused.
+settings is refused, and so is a checkpoint whose fields are not what a run writes
+(:mod:`linkopt._design.checkpoint`), before any work starts.
+
+A run folder belongs to one process at a time: :func:`optimize` and
+:func:`write_outputs` hold an exclusive lock on it (:mod:`linkopt._folders`; a second
+process gets :class:`~linkopt.InputError` naming the holder), temporary files have
+unique names, and the final outputs are staged and moved in together once all are
+written, ``summary.json`` last, so a failed or killed ``write_outputs`` leaves the
+folder's earlier outputs (or none) rather than a part of new ones.
 
 Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.csv``,
 ``verification.json`` (``linkopt verify`` on the initial and optimised designs),
@@ -22,141 +30,46 @@ from __future__ import annotations
 import dataclasses
 import json
 import multiprocessing
-import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from .._config import one_blas_thread
-from .._engine.model import Mechanism, fingerprint
+from .._engine.model import Mechanism
 from .._engine.writer import write_design
 from .._errors import InputError
+from .._folders import check_path, run_folder, staged, write_atomic
+from .checkpoint import CHECKPOINT, HISTORY_FIELDS, check_match, decode, encode, read
 from .evaluation import Evaluation, alpha_minus, evaluate
 from .optimizer import OptimizerSettings, SwarmRun, best_design, start, step
 from .workers import Workers
-
-CHECKPOINT = "checkpoint.json"
-HISTORY_FIELDS = [
-    "iteration",
-    "best_total",
-    "best_f_design",
-    "regularizer",
-    "reach",
-    "singularity",
-    "evaluations",
-    "wall_time",
-]
-#: The run's array fields, stored in the checkpoint as nested lists.
-_ARRAYS = ("position", "velocity", "pbest_pos", "pbest_cost", "best_pos")
-
-
-def _encode(run: SwarmRun, mech: Mechanism, settings: OptimizerSettings) -> dict:
-    arrays = {k: getattr(run, k).tolist() for k in _ARRAYS}
-    return {
-        "mechanism": fingerprint(mech),
-        "settings": settings.to_dict(),
-        "iteration": run.iteration,
-        "best_cost": run.best_cost,
-        "rng_state": run.rng_state,
-        "history": list(run.history),
-        "stalled": run.stalled,
-        "finished": run.finished,
-        "result_pos": None if run.result_pos is None else run.result_pos.tolist(),
-        "result_total": run.result_total,
-        "result_feasible": run.result_feasible,
-        **arrays,
-    }
-
-
-def _decode(data: dict) -> SwarmRun:
-    return SwarmRun(
-        **{k: np.asarray(data[k], dtype=float) for k in _ARRAYS},
-        iteration=data["iteration"],
-        best_cost=float(data["best_cost"]),
-        rng_state=data["rng_state"],
-        history=tuple(data["history"]),
-        stalled=data["stalled"],
-        finished=data["finished"],
-        **_decode_result(data),
-    )
-
-
-def _decode_result(data: dict) -> dict:
-    """The returned design's fields; checkpoints written before they existed have
-    none."""
-    position = data.get("result_pos")
-    return {
-        "result_pos": None if position is None else np.asarray(position, dtype=float),
-        "result_total": float(data.get("result_total", float("inf"))),
-        "result_feasible": bool(data.get("result_feasible", False)),
-    }
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
 
 
 def save_checkpoint(
     out: Path, run: SwarmRun, mech: Mechanism, settings: OptimizerSettings
 ) -> None:
-    _atomic_write(
-        out / CHECKPOINT, json.dumps(_encode(run, mech, settings), allow_nan=True)
+    """``checkpoint.json`` and ``history.csv``, each replaced atomically."""
+    write_atomic(
+        out / CHECKPOINT, json.dumps(encode(run, mech, settings), allow_nan=True)
     )
     lines = [",".join(HISTORY_FIELDS)] + [
         ",".join(repr(h[f]) for f in HISTORY_FIELDS) for h in run.history
     ]
-    _atomic_write(out / "history.csv", "\n".join(lines) + "\n")
-
-
-def _read_checkpoint(out: Path) -> dict:
-    path = out / CHECKPOINT
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(
-            f"{out}: no checkpoint to resume ({CHECKPOINT} missing)"
-        ) from None
-    except json.JSONDecodeError as err:
-        raise InputError(f"{path}: unreadable checkpoint ({err})") from None
-
-
-def _check_match(
-    path: Path, data: dict, mech: Mechanism, settings: OptimizerSettings
-) -> None:
-    """Refuse a checkpoint of another mechanism or made with other settings."""
-    if data["mechanism"] != fingerprint(mech):
-        raise InputError(
-            f"{path}: the checkpoint belongs to a different mechanism file; "
-            "use another --out"
-        )
-    if data["settings"] != settings.to_dict():
-        now = settings.to_dict()
-        changed = sorted(
-            k
-            for k in set(data["settings"]) | set(now)
-            if data["settings"].get(k) != now.get(k)
-        )
-        raise InputError(
-            f"{path}: the checkpoint was made with other settings "
-            f"({', '.join(changed)}); resume with the same flags"
-        )
+    write_atomic(out / "history.csv", "\n".join(lines) + "\n")
 
 
 def load_checkpoint(
     out: Path, mech: Mechanism, settings: OptimizerSettings
 ) -> SwarmRun:
-    """The run checkpointed in ``out``, which must be of ``mech`` with ``settings``."""
-    data = _read_checkpoint(out)
-    _check_match(out / CHECKPOINT, data, mech, settings)
-    return _decode(data)
+    """The run checkpointed in ``out``, which must be of ``mech`` with ``settings``;
+    every field is checked (:mod:`linkopt._design.checkpoint`)."""
+    data = read(out)
+    check_match(out / CHECKPOINT, data, mech, settings)
+    return decode(out / CHECKPOINT, data, mech, settings)
 
 
 def prepare(
@@ -172,6 +85,20 @@ def prepare(
         )
     out.mkdir(parents=True, exist_ok=True)
     return start(mech, settings)
+
+
+@contextmanager
+def locked_run_folder(
+    out: str | Path, resume: bool = False, where: str = "out"
+) -> Iterator[Path]:
+    """Hold the run folder ``out`` for the block: checked, created unless ``resume``
+    (which needs it to exist), and locked against other processes
+    (:mod:`linkopt._folders`); ``where`` names it in error messages."""
+    out = check_path(out, where)
+    if resume and not out.exists():
+        raise InputError(f"{out}: no checkpoint to resume ({CHECKPOINT} missing)")
+    with run_folder(out, where):
+        yield out
 
 
 def _timed(run: SwarmRun, wall_time: float) -> SwarmRun:
@@ -190,18 +117,22 @@ def optimize(
     workers: int = 1,
 ) -> SwarmRun:
     """Run (or resume) the optimiser, checkpointing after every iteration; ``workers``
-    processes share the particles (:mod:`linkopt._design.workers`)."""
-    out = Path(out)
-    run = prepare(out, mech, settings, resume)
-    offset = run.history[-1]["wall_time"] if run.history else 0.0
-    began = time.perf_counter()
-    with Workers(mech, workers) as pool:
-        while not run.finished:
-            run = step(mech, run, settings, pool)
-            run = _timed(run, offset + time.perf_counter() - began)
-            save_checkpoint(out, run, mech, settings)
-            if progress is not None:
-                progress(run.history[-1])
+    processes share the particles (:mod:`linkopt._design.workers`).
+
+    ``out`` is locked for the call (:func:`locked_run_folder`): another process on it
+    gets :class:`~linkopt.InputError`. A checkpoint to resume is checked in full before
+    any evaluation."""
+    with locked_run_folder(out, resume) as out:
+        run = prepare(out, mech, settings, resume)
+        offset = run.history[-1]["wall_time"] if run.history else 0.0
+        began = time.perf_counter()
+        with Workers(mech, workers) as pool:
+            while not run.finished:
+                run = step(mech, run, settings, pool)
+                run = _timed(run, offset + time.perf_counter() - began)
+                save_checkpoint(out, run, mech, settings)
+                if progress is not None:
+                    progress(run.history[-1])
     return run
 
 
@@ -347,24 +278,30 @@ def write_outputs(
     """Optimised file, verification, summary and figures for a finished run.
 
     With ``workers`` > 1 a spawned process verifies and plots the initial design while
-    this one does the optimised design (module docstring)."""
+    this one does the optimised design (module docstring). ``out`` is locked for the
+    call, and the files are staged: they replace the folder's earlier ones only once
+    all are written, ``summary.json`` last (:func:`linkopt._folders.staged`), so a
+    failure leaves no ``optimized.toml`` that looks like this run's result."""
     out = Path(out)
     design = best_design(run)
-    optimized = write_design(
-        mech,
-        design,
-        alpha_minus(mech),
-        out / "optimized.toml",
-        header=(
-            f"Optimised by linkopt from {mech.source} "
-            f"(seed {settings.seed}, {run.iteration} iterations)."
-        ),
-    )
-    checks, final = _design_outputs(
-        mech, out, run, design, resolution, verify_resolution, workers
-    )
-    (out / "verification.json").write_text(json.dumps(checks, indent=2))
-    summary = _summary(mech, run, settings, design, final, checks)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    summary["optimized_file"] = str(optimized)
+    if design is None:
+        raise InputError(f"{out}: the run has not finished an iteration yet")
+    with locked_run_folder(out), staged(out, marker="summary.json") as stage:
+        write_design(
+            mech,
+            design,
+            alpha_minus(mech),
+            stage / "optimized.toml",
+            header=(
+                f"Optimised by linkopt from {mech.source} "
+                f"(seed {settings.seed}, {run.iteration} iterations)."
+            ),
+        )
+        checks, final = _design_outputs(
+            mech, stage, run, design, resolution, verify_resolution, workers
+        )
+        (stage / "verification.json").write_text(json.dumps(checks, indent=2))
+        summary = _summary(mech, run, settings, design, final, checks)
+        (stage / "summary.json").write_text(json.dumps(summary, indent=2))
+    summary["optimized_file"] = str(out / "optimized.toml")
     return summary
