@@ -43,7 +43,8 @@ def bench(name: str, starts: int) -> dict:
         runs.append(nlp.solve_from(problem, nlp.initial_point(problem, k), start=k))
         r = runs[-1]
         print(
-            f"{name} seed {k}: {r.seconds:.1f} s, feasible {r.feasible}, objective {r.objective:.4g}",
+            f"{name} seed {k}: {r.seconds:.1f} s, feasible {r.feasible}, objective "
+            f"{r.objective:.4g}",
             flush=True,
         )
     best = nlp.best_of(runs)
@@ -81,7 +82,9 @@ def main() -> None:
     (out / "bench_arm_design.json").write_text(json.dumps(results, indent=1))
     for r in results:
         print(
-            f"{r['task']}: mean {r['mean_solve_min']:.2f} min per seed (paper {r['paper_mean_min']} min, ratio {r['ratio_paper_over_ours']:.1f}x), {r['feasible']}/{r['starts']} feasible, compile {r['compile_s']:.0f} s"
+            f"{r['task']}: mean {r['mean_solve_min']:.2f} min per seed (paper "
+            f"{r['paper_mean_min']} min, ratio {r['ratio_paper_over_ours']:.1f}x), "
+            f"{r['feasible']}/{r['starts']} feasible, compile {r['compile_s']:.0f} s"
         )
     print("figures: " + ", ".join(f"figures/arm_{r['task']}.png" for r in results))
 

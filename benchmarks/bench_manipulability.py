@@ -1,7 +1,7 @@
 """Paper 004's sample run: 63 points of (cos 5t, sin 3t, sin t), RRR, ε = 25, ξ = 12.
 
-Run:
-``.venv/bin/python benchmarks/bench_manipulability.py [--starts 8] [--seed 0] [--enumerate]``
+Run: ``.venv/bin/python benchmarks/bench_manipulability.py [--starts 8] [--seed 0]
+[--enumerate]``
 
 Prints, beside the paper's printed result (Sec. VI: average ellipsoid volume 1.451,
 smallest 0.81001, DH table a = (1.62611, 1.56317, 1.56376), ...), the mean and smallest
@@ -21,6 +21,11 @@ The paper's "ellipsoid volume" is w of eq. 1-2 (|det J| of the 3×3 position Jac
 0.86918 vs 0.86919; see tests/test_dh_synthesis.py). The paper gives no run time. Writes
 figures/manipulability_sample_run.png. ``--enumerate`` also runs all 2^3 joint-type
 strings (Sec. V) and prints their mean manipulability.
+
+The minimiser runs BLAS single-threaded (:func:`linkopt._config.one_blas_thread`):
+L-BFGS-B's vector updates call OpenBLAS, whose worker threads spin for vectors of a few
+hundred entries; on 2 busy cores one sample-run start took 6.5 s of CPU with the default
+pool and 0.85 s with one thread (same iterates).
 """
 
 from __future__ import annotations
@@ -42,20 +47,20 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 
 import linkopt  # noqa: E402,F401  (float64 and the compilation cache first)
 from linkopt._arms.dh import synthesis as syn  # noqa: E402
-from linkopt._arms.dh import table as _dh  # noqa: E402
-from linkopt._cli.manipulability import draw, read_points  # noqa: E402
+from linkopt._arms.dh import table as dh  # noqa: E402
+from linkopt._arms.dh.drawing import draw  # noqa: E402
+from linkopt._arms.dh.points import read_points  # noqa: E402
 
 TASK = ROOT / "tasks/curve_cos5t_sin3t_sint.csv"
 FIGURE = ROOT / "figures/manipulability_sample_run.png"
-PAPER_TABLE = _dh.table_from_arrays(
+PAPER_TABLE = dh.table_from_arrays(
     "RRR",
     [1.62611, 1.56317, 1.56376],
     [-1.56998, -0.000493347, 0.0],
     [-0.0403649, -0.00121933, 0.000180823],
 )
-PAPER_FIG3B_RESIDUAL = float(
-    np.linalg.norm([0.094132, 0.047255, 0.015007])
-)  # the larger of the two printed residuals
+# the larger of the two printed residuals
+PAPER_FIG3B_RESIDUAL = float(np.linalg.norm([0.094132, 0.047255, 0.015007]))
 PAPER_PRINTED = {
     "mean_manipulability": 1.451,
     "min_manipulability": 0.81001,
@@ -64,14 +69,14 @@ PAPER_PRINTED = {
 
 
 def best_reaching_ik(
-    table: _dh.DHTable, targets: np.ndarray, seed: int = 0, candidates: int = 24
+    table: dh.DHTable, targets: np.ndarray, seed: int = 0, candidates: int = 24
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per target, the highest-w of ``candidates`` polished IK solutions that reach (≤
     1e-3); targets with none reached keep their smallest-residual candidate."""
     rng = np.random.default_rng(seed)
     pool = rng.uniform(-np.pi, np.pi, (4096, 3))
     tips = np.asarray(
-        jax.vmap(lambda v: _dh.tip_position("RRR", table, v))(jnp.asarray(pool))
+        jax.vmap(lambda v: dh.tip_position("RRR", table, v))(jnp.asarray(pool))
     )
     order = np.argsort(np.linalg.norm(tips[None] - targets[:, None], axis=-1), axis=1)[
         :, :candidates
@@ -94,22 +99,21 @@ def best_reaching_ik(
 
 
 def paper_eq10_with_fixed_table(
-    table: _dh.DHTable, targets: np.ndarray, q0: np.ndarray
+    table: dh.DHTable, targets: np.ndarray, q0: np.ndarray
 ) -> tuple[float, np.ndarray, np.ndarray]:
     """Eq. 10 at ε = 25, ξ = 12 with the paper's table fixed and the joint vectors
     optimised."""
     k = np.concatenate([np.asarray(v) for v in table])
-    weights = jnp.asarray(syn._weights(syn.DHSynthesisSettings(), targets, 25.0))
+    weights = jnp.asarray(syn.cost_weights(syn.DHSynthesisSettings(), targets, 25.0))
 
     def fun(q):
-        value, grad = syn._value_and_grad(
+        value, grad = syn.value_and_grad(
             "RRR", jnp.asarray(np.concatenate([k, q])), jnp.asarray(targets), weights
         )
         return float(value), np.asarray(grad)[k.size :]
 
-    with threadpool_limits(
-        1, user_api="blas"
-    ):  # as in linkopt._arms.dh.synthesis.minimise
+    # BLAS single-threaded, as in linkopt._arms.dh.synthesis.minimise
+    with threadpool_limits(1, user_api="blas"):
         q = scipy.optimize.minimize(
             fun, q0.ravel(), jac=True, method="L-BFGS-B", options={"maxiter": 4000}
         ).x
@@ -134,22 +138,146 @@ def row(
     )
 
 
-def main() -> None:
+def _arguments() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--starts", type=int, default=8)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
         "--enumerate", action="store_true", help="also try all 2^3 joint-type strings"
     )
-    args = parser.parse_args()
-    targets = read_points(TASK)
-    assert targets.shape == (63, 3)
+    return parser.parse_args()
 
+
+def _print_table(paper: dict, ours, report: dict, synth_seconds: float) -> None:
+    """The comparison table: the paper's printed result, its table re-evaluated, our
+    stage 1 and our final arm on the engine."""
+    print(f"| {'':<48} | mean w  |  min w  | max resid | size   | wall s  |")
+    print(f"|{'-' * 50}|---------|---------|-----------|--------|---------|")
+    p, s1 = PAPER_PRINTED, ours.stage1
+    w, r = report["manipulability"], report["residual"]
+    rows = [
+        (
+            "paper, printed (Sec. VI, Fig. 3)",
+            p["mean_manipulability"],
+            p["min_manipulability"],
+            f">= {PAPER_FIG3B_RESIDUAL:.3f}",
+            p["size"],
+            "n/a",
+        ),
+        (
+            "paper's table, best reaching IK per target",
+            paper["w_ik"].mean(),
+            paper["w_ik"].min(),
+            paper["r_ik"].max(),
+            p["size"],
+            paper["seconds"],
+        ),
+        (
+            "paper's table, q re-optimised on eq. 10",
+            paper["w_eq10"].mean(),
+            paper["w_eq10"].min(),
+            paper["r_eq10"].max(),
+            p["size"],
+            "-",
+        ),
+        (
+            "ours, stage 1 (eq. 10 at ε = 25, as the paper)",
+            s1["mean_manipulability"],
+            s1["min_manipulability"],
+            s1["max_residual"],
+            s1["size"],
+            "-",
+        ),
+        (
+            "ours, final (all reached), on the engine",
+            w.mean(),
+            w.min(),
+            r.max(),
+            ours.size,
+            synth_seconds,
+        ),
+    ]
+    for item in rows:
+        print(row(*item))
+
+
+def _print_summary(paper: dict, ours, report: dict, engine_seconds: float) -> None:
+    """Eq. 10 values, ratios to the paper, engine vs closed form, our DH table."""
+    p, s1 = PAPER_PRINTED, ours.stage1
+    w, r = report["manipulability"], report["residual"]
+    print(
+        f"\neq. 10 value (ε = 25, ξ = 12): paper's table {paper['eq10']:.3f} (q "
+        f"re-optimised), ours stage 1 {s1['cost']:.3f}, ours final {ours.cost:.3f}"
+    )
+    print(
+        f"ours vs paper printed: mean w x{w.mean() / p['mean_manipulability']:.2f}, "
+        f"min w x{w.min() / p['min_manipulability']:.2f}, size "
+        f"x{ours.size / p['size']:.2f}; reached {int(np.sum(r <= 1e-3))}/{len(r)} "
+        "(residual <= 1e-3)"
+    )
+    print(
+        f"engine vs closed form: max |Δw| {np.abs(w - ours.manipulability).max():.1e}, "
+        f"max |Δresidual| {np.abs(r - ours.residual).max():.1e}; engine measurement "
+        f"{engine_seconds:.1f} s"
+    )
+    starts = ", ".join(f"{v:.2f}" for v in ours.starts)
+    print(f"eq. 10 value per start after stage 1: {starts}")
+    t = ours.table
+    print("\nour DH table (distal):  a, alpha, d")
+    for i in range(3):
+        print(
+            f"  {i + 1}  {float(t.a[i]):+.5f}  {float(t.alpha[i]):+.5f}  "
+            f"{float(t.offset[i]):+.6f}"
+        )
+
+
+def _draw(ours, report: dict) -> None:
+    w, p = report["manipulability"], PAPER_PRINTED
+    FIGURE.parent.mkdir(exist_ok=True)
+    draw(
+        ours,
+        FIGURE,
+        count=5,
+        title=(
+            f"paper 004 sample run, RRR: mean w {w.mean():.3f} (paper 1.451), min "
+            f"{w.min():.3f} (0.810), size {ours.size:.2f} ({p['size']:.2f})"
+        ),
+    )
+    print(f"wrote {FIGURE.relative_to(ROOT)}")
+
+
+def _enumerate(targets: np.ndarray, settings) -> None:
+    start = time.perf_counter()
+    best, results = syn.synthesize_dh(targets, 3, settings)
+    ranked = sorted(results.items(), key=lambda kv: -np.mean(kv[1].manipulability))
+    print(
+        f"\nall 2^3 joint types ({time.perf_counter() - start:.0f} s): "
+        + ", ".join(f"{k} {np.mean(v.manipulability):.3f}" for k, v in ranked)
+        + f"; chosen {best.types}"
+    )
+
+
+def _paper(targets: np.ndarray) -> dict:
+    """The paper's table re-evaluated: best reaching IK, and eq. 10 with the joint
+    vectors re-optimised."""
     start = time.perf_counter()
     q_ik, r_ik, w_ik = best_reaching_ik(PAPER_TABLE, targets)
-    eq10_paper, r_eq10, w_eq10 = paper_eq10_with_fixed_table(PAPER_TABLE, targets, q_ik)
-    paper_seconds = time.perf_counter() - start
+    eq10, r_eq10, w_eq10 = paper_eq10_with_fixed_table(PAPER_TABLE, targets, q_ik)
+    return {
+        "r_ik": r_ik,
+        "w_ik": w_ik,
+        "eq10": eq10,
+        "r_eq10": r_eq10,
+        "w_eq10": w_eq10,
+        "seconds": time.perf_counter() - start,
+    }
 
+
+def main() -> None:
+    args = _arguments()
+    targets = read_points(TASK)
+    assert targets.shape == (63, 3)
+    paper = _paper(targets)
     settings = syn.DHSynthesisSettings(
         precision=25.0, size_damping=12.0, starts=args.starts, seed=args.seed
     )
@@ -159,104 +287,15 @@ def main() -> None:
     start = time.perf_counter()
     _, _, report = syn.engine_report(ours)
     engine_seconds = time.perf_counter() - start
-
     print(
-        f"Paper 004 sample run: {len(targets)} points, RRR, precision 25, size damping 12; {args.starts} starts, seed {args.seed}\n"
+        f"Paper 004 sample run: {len(targets)} points, RRR, precision 25, size damping "
+        f"12; {args.starts} starts, seed {args.seed}\n"
     )
-    print(f"| {'':<48} | mean w  |  min w  | max resid | size   | wall s  |")
-    print(f"|{'-' * 50}|---------|---------|-----------|--------|---------|")
-    p = PAPER_PRINTED
-    print(
-        row(
-            "paper, printed (Sec. VI, Fig. 3)",
-            p["mean_manipulability"],
-            p["min_manipulability"],
-            f">= {PAPER_FIG3B_RESIDUAL:.3f}",
-            p["size"],
-            "n/a",
-        )
-    )
-    print(
-        row(
-            "paper's table, best reaching IK per target",
-            w_ik.mean(),
-            w_ik.min(),
-            r_ik.max(),
-            p["size"],
-            paper_seconds,
-        )
-    )
-    print(
-        row(
-            "paper's table, q re-optimised on eq. 10",
-            w_eq10.mean(),
-            w_eq10.min(),
-            r_eq10.max(),
-            p["size"],
-            "-",
-        )
-    )
-    s1 = ours.stage1
-    print(
-        row(
-            "ours, stage 1 (eq. 10 at ε = 25, as the paper)",
-            s1["mean_manipulability"],
-            s1["min_manipulability"],
-            s1["max_residual"],
-            s1["size"],
-            "-",
-        )
-    )
-    w, r = report["manipulability"], report["residual"]
-    print(
-        row(
-            "ours, final (all reached), on the engine",
-            w.mean(),
-            w.min(),
-            r.max(),
-            ours.size,
-            synth_seconds,
-        )
-    )
-    print(
-        f"\neq. 10 value (ε = 25, ξ = 12): paper's table {eq10_paper:.3f} (q re-optimised), ours stage 1 {s1['cost']:.3f}, ours final {ours.cost:.3f}"
-    )
-    print(
-        f"ours vs paper printed: mean w x{w.mean() / p['mean_manipulability']:.2f}, min w x{w.min() / p['min_manipulability']:.2f}, size x{ours.size / p['size']:.2f}; reached {int(np.sum(r <= 1e-3))}/{len(r)} (residual <= 1e-3)"
-    )
-    print(
-        f"engine vs closed form: max |Δw| {np.abs(w - ours.manipulability).max():.1e}, max |Δresidual| {np.abs(r - ours.residual).max():.1e}; engine measurement {engine_seconds:.1f} s"
-    )
-    print(
-        f"eq. 10 value per start after stage 1: {', '.join(f'{v:.2f}' for v in ours.starts)}"
-    )
-    t = ours.table
-    print("\nour DH table (distal):  a, alpha, d")
-    for i in range(3):
-        print(
-            f"  {i + 1}  {float(t.a[i]):+.5f}  {float(t.alpha[i]):+.5f}  {float(t.offset[i]):+.6f}"
-        )
-    FIGURE.parent.mkdir(exist_ok=True)
-    draw(
-        ours,
-        FIGURE,
-        count=5,
-        title=f"paper 004 sample run, RRR: mean w {w.mean():.3f} (paper 1.451), min {w.min():.3f} (0.810), size {ours.size:.2f} ({p['size']:.2f})",
-    )
-    print(f"wrote {FIGURE.relative_to(ROOT)}")
+    _print_table(paper, ours, report, synth_seconds)
+    _print_summary(paper, ours, report, engine_seconds)
+    _draw(ours, report)
     if args.enumerate:
-        start = time.perf_counter()
-        best, results = syn.synthesize_dh(targets, 3, settings)
-        print(
-            f"\nall 2^3 joint types ({time.perf_counter() - start:.0f} s): "
-            + ", ".join(
-                f"{k} {np.mean(v.manipulability):.3f}"
-                for k, v in sorted(
-                    results.items(), key=lambda kv: -np.mean(kv[1].manipulability)
-                )
-            )
-            + f"; chosen {best.types}"
-        )
+        _enumerate(targets, settings)
 
 
 if __name__ == "__main__":

@@ -16,6 +16,7 @@ import argparse
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -26,64 +27,105 @@ PAPER_MIN = {
     "clean_table": 7.5,
     "rose_discretised": 6.8,
 }
+DPI = 100
 
-CASE = r"""
-import json, sys, time
-t0, c0 = time.perf_counter(), time.process_time()
-import linkopt
-from linkopt._arms.trace.task import load_task
-from linkopt._arms.trace.synthesis import TraceSettings, synthesize
-name, seed, figures = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "1"
-root = sys.argv[4]
-task_name = "rose" if name.startswith("rose") else name
-task = load_task(f"{root}/tasks/{task_name}.toml")
-out = {"case": name}
-if name == "rose_discretised":
+
+def _save(fig, path: str) -> None:
+    fig.savefig(path, dpi=DPI, bbox_inches="tight")
+
+
+def _discretised(task, seed: int) -> tuple[dict, object]:
     from linkopt._arms.trace.discrete import compare, discretised_design
+
     design = discretised_design(task, 25, seed=seed)
     cmp = compare(task, design)
-    out.update(lengths=design.lengths.tolist(), excursion=cmp.excursion, fraction_outside=cmp.fraction_outside,
-               verified=cmp.verification.passed, failure=(cmp.verification.failures or [None])[0])
-else:
-    settings = {"rose_over": TraceSettings(links=(2,), swept=("over",)),
-                "rose_app": TraceSettings(links=(2,), swept=("app",))}.get(name, TraceSettings())
+    out = dict(
+        lengths=design.lengths.tolist(),
+        excursion=cmp.excursion,
+        fraction_outside=cmp.fraction_outside,
+        verified=cmp.verification.passed,
+        failure=(cmp.verification.failures or [None])[0],
+    )
+    return out, cmp
+
+
+def _synthesised(name: str, task, seed: int) -> tuple[dict, object]:
+    from linkopt._arms.trace.synthesis import TraceSettings, synthesize
+
+    settings = {
+        "rose_over": TraceSettings(links=(2,), swept=("over",)),
+        "rose_app": TraceSettings(links=(2,), swept=("app",)),
+    }.get(name, TraceSettings())
     result = synthesize(task, seed=seed, settings=settings)
-    out.update(success=result.success, solves=len(result.attempts))
+    out = dict(success=result.success, solves=len(result.attempts))
     if result.success:
         d, v = result.design, result.verification
-        out.update(links=d.n_links, swept=result.swept, lengths=d.lengths.tolist(), total=float(d.lengths.sum()),
-                   verified=v.passed, clearance=v.min_clearance, samples=sum(len(s.states) for s in v.segments))
-out["wall_s"], out["cpu_s"] = time.perf_counter() - t0, time.process_time() - c0
-if figures:
+        out.update(
+            links=d.n_links,
+            swept=result.swept,
+            lengths=d.lengths.tolist(),
+            total=float(d.lengths.sum()),
+            verified=v.passed,
+            clearance=v.min_clearance,
+            samples=sum(len(s.states) for s in v.segments),
+        )
+    return out, result
+
+
+def _figures(name: str, task_name: str, task, found) -> None:
     import matplotlib.pyplot as plt
+
     from linkopt._arms.trace import plots as tp
-    fig_dir = f"{root}/figures"
+
+    fig_dir = f"{ROOT}/figures"
     if name == "rose_discretised":
-        tp.discretised_figure(task, cmp).savefig(f"{fig_dir}/trace_rose_discretised.png", dpi=100, bbox_inches="tight")
-    elif result.success:
-        tag = name if name.startswith("rose") else task_name
-        tp.solution_figure(task, d, v, title=f"{task_name} (SV^{result.swept}): {d.n_links} links, "
-                           + ", ".join(f"{r:.3g}" for r in d.lengths)).savefig(f"{fig_dir}/trace_{tag}_solution.png", dpi=100, bbox_inches="tight")
-        tp.swept_figure(task, d, v, result.swept).savefig(f"{fig_dir}/trace_{tag}_swept.png", dpi=100, bbox_inches="tight")
-        if name == "rose_over":
-            fig, ax = plt.subplots(figsize=(6, 6)); tp.draw_task(ax, task); tp._limits(ax, task, d)
-            ax.set_title("task: rose"); fig.savefig(f"{fig_dir}/trace_rose_task.png", dpi=100, bbox_inches="tight")
-            tp.write_gif(f"{fig_dir}/trace_rose.gif", task, d, v)
-print("RESULT " + json.dumps(out))
-"""
+        _save(
+            tp.discretised_figure(task, found), f"{fig_dir}/trace_rose_discretised.png"
+        )
+        return
+    if not found.success:
+        return
+    d, v = found.design, found.verification
+    tag = name if name.startswith("rose") else task_name
+    lengths = ", ".join(f"{r:.3g}" for r in d.lengths)
+    title = f"{task_name} (SV^{found.swept}): {d.n_links} links, {lengths}"
+    _save(
+        tp.solution_figure(task, d, v, title=title),
+        f"{fig_dir}/trace_{tag}_solution.png",
+    )
+    _save(tp.swept_figure(task, d, v, found.swept), f"{fig_dir}/trace_{tag}_swept.png")
+    if name == "rose_over":
+        fig, ax = plt.subplots(figsize=(6, 6))
+        tp.draw_task(ax, task)
+        tp.set_limits(ax, task, d)
+        ax.set_title("task: rose")
+        _save(fig, f"{fig_dir}/trace_rose_task.png")
+        tp.write_gif(f"{fig_dir}/trace_rose.gif", task, d, v)
+
+
+def case(name: str, seed: int, figures: bool) -> None:
+    """One case, in this (fresh) process: prints ``RESULT {json}``."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    import linkopt  # noqa: F401  (float64, cache)
+    from linkopt._arms.trace.task import load_task
+
+    task_name = "rose" if name.startswith("rose") else name
+    task = load_task(f"{ROOT}/tasks/{task_name}.toml")
+    if name == "rose_discretised":
+        out, found = _discretised(task, seed)
+    else:
+        out, found = _synthesised(name, task, seed)
+    out = {"case": name, **out}
+    out["wall_s"], out["cpu_s"] = time.perf_counter() - t0, time.process_time() - c0
+    if figures:
+        _figures(name, task_name, task, found)
+    print("RESULT " + json.dumps(out))
 
 
 def run_case(name: str, seed: int, figures: bool) -> dict:
+    command = [sys.executable, __file__, "--case", name, "--seed", str(seed)]
     proc = subprocess.run(
-        [
-            sys.executable,
-            "-c",
-            CASE,
-            name,
-            str(seed),
-            "1" if figures else "0",
-            str(ROOT),
-        ],
+        command + (["--figures"] if figures else []),
         capture_output=True,
         text=True,
         check=True,
@@ -92,31 +134,41 @@ def run_case(name: str, seed: int, figures: bool) -> dict:
     return json.loads(line[len("RESULT ") :])
 
 
+def _describe(name: str, r: dict) -> str:
+    lengths = ", ".join(f"{x:.4g}" for x in r.get("lengths", []))
+    if name == "rose_discretised":
+        check = "passes" if r["verified"] else "fails: " + r["failure"]
+        return (
+            f"2 links {lengths}; curve up to {r['excursion']:.2g} outside the RS "
+            f"({100 * r['fraction_outside']:.1f} %), continuous check {check}"
+        )
+    if r["success"]:
+        return (
+            f"{r['links']} links (SV^{r['swept']}) {lengths} = {r['total']:.4g}, "
+            f"verified on {r['samples']} samples, clearance {r['clearance']:.3g}, "
+            f"{r['solves']} NLP solves"
+        )
+    return f"no verified design in {r['solves']} NLP solves"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--figures", action="store_true")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--case", choices=list(PAPER_MIN), help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.case:
+        case(args.case, args.seed, args.figures)
+        return
     print(
         f"{'case':<17} {'wall s':>7} {'cpu s':>7} {'paper min':>9} {'ratio':>6}  result"
     )
     for name, paper in PAPER_MIN.items():
         r = run_case(name, args.seed, args.figures)
         ratio = r["wall_s"] / (60 * paper)
-        if name == "rose_discretised":
-            what = (
-                f"2 links {', '.join(f'{x:.4g}' for x in r['lengths'])}; curve up to {r['excursion']:.2g} outside the RS "
-                f"({100 * r['fraction_outside']:.1f} %), continuous check {'passes' if r['verified'] else 'fails: ' + r['failure']}"
-            )
-        elif r["success"]:
-            what = (
-                f"{r['links']} links (SV^{r['swept']}) {', '.join(f'{x:.4g}' for x in r['lengths'])} = {r['total']:.4g}, "
-                f"verified on {r['samples']} samples, clearance {r['clearance']:.3g}, {r['solves']} NLP solves"
-            )
-        else:
-            what = f"no verified design in {r['solves']} NLP solves"
         print(
-            f"{name:<17} {r['wall_s']:7.1f} {r['cpu_s']:7.1f} {paper:9.1f} {ratio:6.3f}  {what}",
+            f"{name:<17} {r['wall_s']:7.1f} {r['cpu_s']:7.1f} {paper:9.1f} "
+            f"{ratio:6.3f}  {_describe(name, r)}",
             flush=True,
         )
 

@@ -16,9 +16,13 @@ DH = [(0.10, 0.30, np.pi / 2), (0.00, 0.25, -0.4), (0.05, 0.20, 1.1)]
 TOOL = 0.12
 
 
+def fixed(v) -> tuple[int, float]:
+    """A module slot fixed at ``v`` (no design variable)."""
+    return (-1, float(v))
+
+
 def dh_arm():
     """The arm of ``DH``: twists and lengths of the links are design variables."""
-    fixed = lambda v: (-1, float(v))  # noqa: E731
     modules = [
         Module("base", tuple(fixed(v) for v in (0.1, -0.2, 0.3, 0.0, 0.0, 0.0)), 0.0)
     ]
@@ -142,7 +146,6 @@ def test_one_joint_arm_builds_with_its_span_as_reference_length():
     """A 1-joint arm has a single joint anchor, so the loader cannot infer a reference
     length from anchors (joint elimination reaches such arms); the arm supplies its span
     instead."""
-    fixed = lambda v: (-1, float(v))  # noqa: E731
     modules = (
         Module("base", tuple(fixed(v) for v in (0.0, 0.0, 0.3, 0.0, 0.0, 0.0)), 0.0),
         Module("joint", (), 0.3),

@@ -17,10 +17,14 @@ ROOT = Path(__file__).resolve().parent.parent
 L1, L2, M1, M2, MJ, MP, G = 0.4, 0.3, 1.5, 0.8, 0.35, 0.6, 9.81
 
 
+def fixed(v) -> tuple[int, float]:
+    """A module slot fixed at ``v`` (no design variable)."""
+    return (-1, float(v))
+
+
 def planar_arm():
     """Two vertical axes (z) in the xy-plane, gravity along -y; links' masses at their
     midpoints, the elbow actuator's mass at the elbow, the payload at the tip."""
-    fixed = lambda v: (-1, float(v))  # noqa: E731
     modules = (
         Module("base", tuple(fixed(0.0) for _ in range(6)), 0.0),
         Module("joint", (), 0.0),
@@ -61,7 +65,8 @@ def test_planar_arm_matches_jacobian_transpose(arm, theta):
         )
 
     tau = np.asarray(torques(jnp.asarray(theta)))
-    # Point Jacobians (xy rows) of the link midpoints, elbow and tip, and the loads on them.
+    # Point Jacobians (xy rows) of the link midpoints, elbow and tip, and the loads on
+    # them.
     jac = {
         "m1": np.array([[-0.5 * L1 * s1, 0.0], [0.5 * L1 * c1, 0.0]]),
         "elbow": np.array([[-L1 * s1, 0.0], [L1 * c1, 0.0]]),
@@ -102,9 +107,11 @@ def test_closed_loop_five_bar_obeys_virtual_work():
         static_torques(mech, state, ["distal_left"], rest_ee[None], force[None])
     )
     h = 1e-6
-    ee = lambda a: np.asarray(
-        linkopt.point_positions(mech, linkopt.solve_fk(mech, a, start=state).state)
-    )[0]  # noqa: E731
+
+    def ee(a):
+        solution = linkopt.solve_fk(mech, a, start=state)
+        return np.asarray(linkopt.point_positions(mech, solution.state))[0]
+
     dp_da = np.stack(
         [(ee(motors + h * e) - ee(motors - h * e)) / (2 * h) for e in np.eye(2)], axis=1
     )

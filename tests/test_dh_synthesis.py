@@ -8,21 +8,19 @@ differences; a small synthesis reaches its targets and its engine measures match
 bad input gives one-line errors.
 """
 
-import json
-
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import linkopt
 from linkopt._arms.dh import synthesis as syn
-from linkopt._arms.dh import table as _dh
-from linkopt._cli.main import main
-from linkopt._cli.manipulability import read_points
+from linkopt._arms.dh import table as dh
+from linkopt._arms.dh.points import read_points
 from linkopt._engine.manipulability import manipulability, point_jacobian, yoshikawa
 
-# The paper's DH table (Sec. VI) and its Fig. 3 targets, joint vectors, residuals and volumes.
-PAPER = _dh.table_from_arrays(
+# The paper's DH table (Sec. VI) and its Fig. 3 targets, joint vectors, residuals and
+# volumes.
+PAPER = dh.table_from_arrays(
     "RRR",
     [1.62611, 1.56317, 1.56376],
     [-1.56998, -0.000493347, 0.0],
@@ -42,7 +40,7 @@ FIG3 = [
         0.86919,
     ),
 ]
-RPR = _dh.table_from_arrays(
+RPR = dh.table_from_arrays(
     "RPR", [0.4, 0.1, 0.5], [np.pi / 2, -np.pi / 2, 0.3], [0.2, 0.4, -0.1]
 )  # d1, θ2, d3
 
@@ -56,7 +54,7 @@ def test_link_transform_is_the_distal_product():
     tz, tx = np.eye(4), np.eye(4)
     tz[2, 3], tx[0, 3] = d, a
     np.testing.assert_allclose(
-        _dh.link_transform(theta, d, a, alpha), rz @ tz @ tx @ rx, atol=1e-15
+        dh.link_transform(theta, d, a, alpha), rz @ tz @ tx @ rx, atol=1e-15
     )
 
 
@@ -69,16 +67,16 @@ def test_paper_figure3_residual_and_volume(target, q, residual, volume):
     """
     q = jnp.array(q)
     np.testing.assert_allclose(
-        _dh.tip_position("RRR", PAPER, q) - np.array(target), residual, atol=2e-4
+        dh.tip_position("RRR", PAPER, q) - np.array(target), residual, atol=2e-4
     )
-    w = yoshikawa(_dh.tip_jacobian("RRR", PAPER, q))
+    w = yoshikawa(dh.tip_jacobian("RRR", PAPER, q))
     assert abs(float(w) - volume) < 1e-4
 
 
 @pytest.fixture(scope="module")
 def rpr_arm():
     q_rest = jnp.array([0.3, 0.25, -0.8])
-    mech, _ = _dh.to_mechanism("RPR", RPR, q_rest, bounds=(-np.ones(3), np.ones(3)))
+    mech, _ = dh.to_mechanism("RPR", RPR, q_rest, bounds=(-np.ones(3), np.ones(3)))
     return mech, q_rest
 
 
@@ -90,7 +88,7 @@ def test_mechanism_fk_matches_closed_form_from_rest(rpr_arm):
     solution = linkopt.solve_fk(mech, offsets)
     assert bool(np.all(solution.converged))
     tip = np.asarray(linkopt.point_positions(mech, solution.state))[:, 0]
-    expected = np.stack([_dh.tip_position("RPR", RPR, v) for v in q])
+    expected = np.stack([dh.tip_position("RPR", RPR, v) for v in q])
     np.testing.assert_allclose(tip, expected, atol=1e-9)
     np.testing.assert_allclose(
         linkopt.motor_values(mech, solution.state), offsets, atol=1e-9
@@ -101,11 +99,11 @@ def test_closed_form_state_satisfies_the_engine(rpr_arm):
     """The closed-form state of a far configuration already solves the engine's FK."""
     mech, q_rest = rpr_arm
     q = jnp.array([[2.5, -0.6, 2.9], [-2.0, 0.9, -3.0]])
-    start = _dh.engine_states("RPR", RPR, q, q_rest, float(mech.length_scale))
-    solution = linkopt.solve_fk(mech, _dh.motor_values(q, q_rest), start=start)
+    start = dh.engine_states("RPR", RPR, q, q_rest, float(mech.length_scale))
+    solution = linkopt.solve_fk(mech, dh.motor_values(q, q_rest), start=start)
     assert bool(np.all(solution.converged)) and int(np.max(solution.iterations)) == 0
     jac = point_jacobian(mech, solution.state, "tip", "xyz")
-    closed = np.stack([_dh.tip_jacobian("RPR", RPR, v) for v in q])
+    closed = np.stack([dh.tip_jacobian("RPR", RPR, v) for v in q])
     np.testing.assert_allclose(jac, closed, atol=1e-9)
     w = manipulability(mech, solution.state)
     np.testing.assert_allclose(w, np.abs(np.linalg.det(closed)), rtol=1e-9)
@@ -113,16 +111,16 @@ def test_closed_form_state_satisfies_the_engine(rpr_arm):
 
 def test_planar_two_link_manipulability_is_l1_l2_sin_q2():
     l1, l2 = 0.7, 0.4
-    table = _dh.table_from_arrays("RR", [l1, l2], [0.0, 0.0], [0.0, 0.0])
+    table = dh.table_from_arrays("RR", [l1, l2], [0.0, 0.0], [0.0, 0.0])
     q_rest = jnp.array([0.3, 1.1])
-    mech, _ = _dh.to_mechanism("RR", table, q_rest)
+    mech, _ = dh.to_mechanism("RR", table, q_rest)
     assert [mech.output_names] == [("x", "y")]
     q = jnp.array([[0.3, 1.1], [-1.0, 2.5], [2.0, -0.4], [0.5, -2.9], [0.1, 1e-4]])
     expected = l1 * l2 * np.abs(np.sin(q[:, 1]))
-    closed = [float(yoshikawa(_dh.tip_jacobian("RR", table, v))) for v in q]
+    closed = [float(yoshikawa(dh.tip_jacobian("RR", table, v))) for v in q]
     np.testing.assert_allclose(closed, expected, rtol=1e-12, atol=1e-12)
-    start = _dh.engine_states("RR", table, q, q_rest, float(mech.length_scale))
-    states = linkopt.solve_fk(mech, _dh.motor_values(q, q_rest), start=start).state
+    start = dh.engine_states("RR", table, q, q_rest, float(mech.length_scale))
+    states = linkopt.solve_fk(mech, dh.motor_values(q, q_rest), start=start).state
     np.testing.assert_allclose(
         manipulability(mech, states), expected, rtol=1e-9, atol=1e-12
     )
@@ -156,9 +154,9 @@ def test_five_bar_manipulability_matches_finite_differences(five_bar):
 
 def test_eq10_gradient_matches_finite_differences():
     targets = np.array([[0.8, 0.2, 0.3], [0.1, 0.9, -0.2], [-0.5, 0.4, 0.6]])
-    x = syn._initial_guess("RPR", targets, np.random.default_rng(3))
+    x = syn.initial_guess("RPR", targets, np.random.default_rng(3))
     weights = jnp.array([12.0, 25.0, 1e-10, 1e-4])
-    _, grad = syn._value_and_grad("RPR", jnp.asarray(x), jnp.asarray(targets), weights)
+    _, grad = syn.value_and_grad("RPR", jnp.asarray(x), jnp.asarray(targets), weights)
     h = 1e-6
     fd = [
         (
@@ -205,54 +203,6 @@ def test_enumeration_keeps_the_best_mean_manipulability():
     )
 
 
-def test_cli_reports_engine_measures_and_writes_a_mechanism_file(
-    tmp_path, small_synthesis
-):
-    """The command (same task and settings as ``small_synthesis``) writes the table; its
-    residuals and w, measured on the engine, equal the closed form; arm.toml's FK
-    reaches."""
-    points = tmp_path / "task.txt"
-    points.write_text(
-        "# x y z\n"
-        + "\n".join(" ".join(repr(float(v)) for v in p) for p in TASK)
-        + "\n"
-    )
-    out = tmp_path / "out"
-    args = [
-        "--joints",
-        "RRR",
-        "--out",
-        str(out),
-        "--starts",
-        "2",
-        "--seed",
-        "1",
-        "--iterations",
-        "300",
-    ]
-    assert main(["arm", "manipulability", str(points), *args]) == 0
-    data = json.loads((out / "dh.json").read_text())
-    assert data["joints"] == "RRR" and data["theta"] == [None] * 3
-    np.testing.assert_allclose(
-        [t["q"] for t in data["targets"]], small_synthesis.q, atol=1e-9
-    )
-    np.testing.assert_allclose(
-        [t["residual"] for t in data["targets"]], small_synthesis.residual, atol=1e-9
-    )
-    np.testing.assert_allclose(
-        [t["manipulability"] for t in data["targets"]],
-        small_synthesis.manipulability,
-        rtol=1e-8,
-    )
-    assert data["summary"]["reached"] == len(TASK)
-    mech = linkopt.load(out / "arm.toml")
-    target = data["targets"][2]
-    motors = np.array(target["q"]) - np.array(data["rest_q"])
-    tip = linkopt.point_positions(mech, linkopt.solve_fk(mech, motors).state)[0]
-    np.testing.assert_allclose(tip, target["point"], atol=1e-3)
-    assert (out / "manipulability.png").stat().st_size > 10_000
-
-
 @pytest.mark.parametrize(
     "text, message",
     [
@@ -270,42 +220,11 @@ def test_bad_point_files(tmp_path, text, message):
     assert str(path) in str(err.value) and "\n" not in str(err.value)
 
 
-def test_bad_input_gives_one_line_errors(tmp_path, capsys):
-    points = tmp_path / "points.csv"
-    points.write_text("1, 0, 0\n")
-    assert (
-        main(
-            [
-                "arm",
-                "manipulability",
-                str(points),
-                "--joints",
-                "RXR",
-                "--out",
-                str(tmp_path / "o"),
-            ]
-        )
-        == 2
-    )
-    err = capsys.readouterr().err.strip().splitlines()
-    assert err[-1].startswith("linkopt: error: --joints:") and "'R'" in err[-1]
-    assert (
-        main(
-            [
-                "arm",
-                "manipulability",
-                str(tmp_path / "missing.csv"),
-                "--out",
-                str(tmp_path / "o"),
-            ]
-        )
-        == 2
-    )
-    assert "missing.csv: cannot read" in capsys.readouterr().err
+def test_bad_input_gives_one_line_errors():
     with pytest.raises(linkopt.InputError, match="joints: expected a number of joints"):
         syn.all_configurations(0)
     with pytest.raises(linkopt.InputError, match="DH table: alpha: expected 3"):
-        _dh.table_from_arrays("RRR", [1, 1, 1], [0, 0], [0, 0, 0])
+        dh.table_from_arrays("RRR", [1, 1, 1], [0, 0], [0, 0, 0])
     with pytest.raises(linkopt.InputError, match="precision"):
         syn.synthesize_config("RR", TASK[:2], syn.DHSynthesisSettings(precision=-1.0))
 

@@ -40,6 +40,7 @@ def output_directory(text: str, where: str = "--out") -> Path:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError(
-            f"{where}: cannot create the output directory {text!r} ({err.strerror or err})"
+            f"{where}: cannot create the output directory {text!r} "
+            f"({err.strerror or err})"
         ) from None
     return out

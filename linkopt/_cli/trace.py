@@ -135,7 +135,7 @@ def _figures(task, result, out: Path, gif: bool) -> list[str]:
     stem, names = file_stem(task.name), []
     fig, ax = plt.subplots(figsize=(6, 6))
     tp.draw_task(ax, task)
-    tp._limits(ax, task, result.design)
+    tp.set_limits(ax, task, result.design)
     ax.set_title(f"task {task.name}")
     figures = [("task", lambda: fig)]
     if result.success:

@@ -7,15 +7,16 @@ whose continuous parameters are either fixed numbers or design variables ``d``:
   first joint's axis. Also used as the abstract ``segment`` of joint elimination
   (Sec. V).
 * ``joint``  a rotary actuator: ``Rot_z(θ)``, one motor.
-* ``link``   ``Trans_z(offset) · Trans_x(length) · Rot_x(twist)``, i.e. one Denavit–Hartenberg
-  row ``(d, a, α)`` after the preceding joint's ``Rot_z(θ)``.
-* ``tool``   ``Trans_x(length) · Rot_y(π/2)``: the end effector, whose frame's z axis (the
-  tip axis ``n̂_fk`` of eq. 3) points along the tool.
+* ``link``   ``Trans_z(offset) · Trans_x(length) · Rot_x(twist)``, i.e. one
+  Denavit–Hartenberg row ``(d, a, α)`` after the preceding joint's ``Rot_z(θ)``.
+* ``tool``   ``Trans_x(length) · Rot_y(π/2)``: the end effector, whose frame's z axis
+  (the tip axis ``n̂_fk`` of eq. 3) points along the tool.
 
 Every joint module starts a new body; the modules up to the next joint are rigid parts
-of that body. The engine model (:func:`mechanism`) has a ground body and one body per
-joint, one revolute joint and motor per joint module, and one named point at the end of
-every module (``m<k>``, plus ``tip``). Its outputs are the joint angles: an open chain's
+of that body. The engine model (:func:`make_arm`, a serial chain of
+:mod:`linkopt._arms.chain`) has a ground body and one body per joint, one revolute
+joint and motor per joint module, and one named point at the end of every module
+(``m<k>``, plus ``tip``). Its outputs are the joint angles: an open chain's
 loader check needs as many outputs as motors, and tip coordinates would make the
 stretched zero pose (the usual rest pose of a DH chain) backward-singular.
 
@@ -41,8 +42,9 @@ from ..._engine import quaternion as quat
 from ..._engine.constraints import homogenised_point_positions
 from ..._engine.geometry import Geometry
 from ..._engine.kinematics import implicit_state
-from ..._engine.loader import build, diameter
+from ..._engine.loader import build
 from ..._engine.model import Mechanism
+from ..chain import chain_definition, chain_state, joint_output, span
 
 #: Continuous slots of each module kind, in order, and whether each is a length.
 SLOTS: dict[str, tuple[str, ...]] = {
@@ -180,6 +182,17 @@ def tool_rotation(arm: Arm, theta, d) -> Float[Array, "3 3"]:
 # The engine model.
 
 
+def _body_origins(anchors: list, tip: np.ndarray) -> list[np.ndarray]:
+    """Each body's origin at rest: the mean of the joint anchors it carries (the ground
+    its first joint's; the last body its joint's and the tool tip)."""
+    n = len(anchors)
+    carried = [[anchors[b - 1]] if b else [] for b in range(n + 1)]
+    for b in range(n):
+        carried[b].append(anchors[b])
+    carried[n].append(tip)
+    return [np.mean(points, axis=0) for points in carried]
+
+
 def _definition(
     arm_name: str,
     modules: tuple[Module, ...],
@@ -190,79 +203,37 @@ def _definition(
 
     ``units = "m"``: arm task files are in metres (and kg, N·m; see
     :mod:`linkopt._arms.codesign.task`), which the task's gravity and torque limit
-    assume, so the arm's lengths are too."""
+    assume, so the arm's lengths are too. Without ``length_scale`` the reference length
+    is the arm's span over joint anchors and module ends (the loader's default uses
+    anchors only, and a 1-joint arm has a single anchor)."""
     ends, joints = chain(
         modules,
         jnp.zeros(sum(m.kind == "joint" for m in modules)),
         jnp.asarray(d, dtype=jnp.float64),
     )
     ends = [np.asarray(p) for _, p in ends]
-    frames = [(np.asarray(q), np.asarray(p)) for q, p in joints]
-    bodies = module_bodies(modules)
-    n = len(frames)
-    anchors = [p for _, p in frames]
-    body_points = {b: [anchors[b - 1]] if b else [] for b in range(n + 1)}
-    for b in range(n):
-        body_points[b].append(anchors[b])
-    body_points[n].append(ends[-1])
-    data = {
-        "mechanism": {"name": arm_name, "ground": "base", "units": "m"},
-        "bodies": [
-            {
-                "name": "base" if b == 0 else f"body{b}",
-                "origin": [float(v) for v in np.mean(body_points[b], axis=0)],
-            }
-            for b in range(n + 1)
-        ],
-        "joints": [],
-        "motors": [],
-        "points": [],
-        "outputs": [],
-    }
-    if (
-        length_scale is None
-    ):  # the arm's span: joint anchors and module ends (the loader's
-        # default uses anchors only, and a 1-joint arm has a single anchor)
-        span = diameter(np.array(anchors + ends))
-        length_scale = span if span > 1e-9 else 1.0
-    data["mechanism"]["reference_length"] = float(length_scale)
-    for k, (q, p) in enumerate(frames):
-        axis = np.asarray(rotation_matrix(jnp.asarray(q)))[:, 2]
-        names = ["base" if k == 0 else f"body{k}", f"body{k + 1}"]
-        data["joints"].append(
-            {
-                "name": f"j{k + 1}",
-                "type": "revolute",
-                "bodies": names,
-                "anchor": [float(v) for v in p],
-                "axis": [float(v) for v in axis],
-            }
-        )
-        data["motors"].append({"name": f"j{k + 1}", "joint": f"j{k + 1}"})
-        data["outputs"].append(
-            {
-                "name": f"j{k + 1}",
-                "joint": f"j{k + 1}",
-                "min": -float(np.pi),
-                "max": float(np.pi),
-            }
-        )
-    for k, p in enumerate(ends):
-        data["points"].append(
-            {
-                "name": f"m{k}",
-                "body": data["bodies"][bodies[k]]["name"],
-                "position": [float(v) for v in p],
-            }
-        )
-    data["points"].append(
-        {
-            "name": "tip",
-            "body": data["bodies"][n]["name"],
-            "position": [float(v) for v in ends[-1]],
-        }
+    anchors = [np.asarray(p) for _, p in joints]
+    axes = [np.asarray(rotation_matrix(q))[:, 2] for q, _ in joints]
+    n = len(joints)
+    if length_scale is None:
+        length_scale = span(np.array(anchors + ends))
+    bodies = ["base"] + [f"body{b}" for b in range(1, n + 1)]
+    names = [f"j{k + 1}" for k in range(n)]
+    carriers = module_bodies(modules)
+    points = [(f"m{k}", int(carriers[k]), p) for k, p in enumerate(ends)]
+    return chain_definition(
+        arm_name,
+        bodies,
+        names,
+        names,
+        anchors,
+        axes,
+        points=[*points, ("tip", n, ends[-1])],
+        outputs=[joint_output(j, j, -float(np.pi), float(np.pi)) for j in names],
+        origins=_body_origins(anchors, ends[-1]),
+        units="m",
+        reference_length=length_scale,
     )
-    return data
 
 
 def mechanism_definition(arm: Arm, d) -> dict:
@@ -328,24 +299,26 @@ def direct_state(
     """Maximal-coordinate state of joint angles ``θ`` (homogenised), by the chain
     product.
 
-    Body ``k`` (after joint ``k``) moves by ``G = F_k(θ) F_k(0)⁻¹`` with ``F_k`` the
-    frame just after joint ``k``: quaternion ``q_F(θ) ⊗ q̄_F(0)``, origin ``G o_k``.
+    The ground stays at its origin. Body ``k`` (after joint ``k``) carries the frame
+    ``F_k`` just after joint ``k``, so it moves by ``G = F_k(θ) F_k(0)⁻¹``
+    (:func:`linkopt._arms.chain.chain_state`).
     """
     mech = arm.mechanism
     scale = mech.length_scale
     _, moved = chain(arm.modules, theta, d)
     _, rest = chain(arm.modules, jnp.zeros_like(theta), d)
     origins = jnp.asarray(mech.body_origins)
-    bodies = [jnp.concatenate([origins[0] / scale, jnp.array([1.0, 0.0, 0.0, 0.0])])]
-    for k in range(arm.num_joints):
-        q_now = quat.multiply(
-            moved[k][0], quat.from_axis_angle(jnp.array([0.0, 0.0, 1.0]), theta[k])
-        )
-        q_rest = rest[k][0]
-        q = quat.multiply(q_now, quat.conjugate(q_rest))
-        x = moved[k][1] + quat.rotate(q, origins[k + 1] - rest[k][1])
-        bodies.append(jnp.concatenate([x / scale, q]))
-    return jnp.concatenate(bodies)
+    z = jnp.array([0.0, 0.0, 1.0])
+    rotations = [
+        quat.multiply(q, quat.from_axis_angle(z, theta[k]))
+        for k, (q, _) in enumerate(moved)
+    ]
+    offsets = [origins[k + 1] - p for k, (_, p) in enumerate(rest)]
+    ground = jnp.concatenate([origins[0] / scale, jnp.array([1.0, 0.0, 0.0, 0.0])])
+    bodies = chain_state(
+        rotations, [p for _, p in moved], [q for q, _ in rest], scale, offsets
+    )
+    return jnp.concatenate([ground, bodies])
 
 
 def arm_state(

@@ -154,9 +154,13 @@ def plot_stages(stages, path: str | Path) -> Path:
         ax = fig.add_subplot(1, len(stages), k + 1, projection="3d")
         sol, prob = stage.solution, stage.problem
         n = prob.arm.num_joints
-        label = f"{n} joint{'s' if n != 1 else ''}, {'feasible' if sol.feasible else 'infeasible'}"
+        joints = f"{n} joint{'s' if n != 1 else ''}"
+        label = f"{joints}, {'feasible' if sol.feasible else 'infeasible'}"
         if stage.elimination is not None:
-            label += f"\nmerged {stage.elimination.candidate + 1}+{stage.elimination.candidate + 2}, δ = {stage.elimination.delta:.2g}"
+            merged = stage.elimination.candidate + 1
+            label += (
+                f"\nmerged {merged}+{merged + 1}, δ = {stage.elimination.delta:.2g}"
+            )
         draw_solution(
             ax,
             prob.arm,

@@ -97,8 +97,9 @@ def load_mesh(path: str):
     try:
         mesh = trimesh.load(path, force="mesh")
     except Exception as err:  # trimesh raises many kinds on corrupt or unknown files
+        detail = str(err).splitlines()[0] if str(err) else "no detail"
         raise ValueError(
-            f"cannot read {str(path)!r} as a mesh ({type(err).__name__}: {str(err).splitlines()[0] if str(err) else 'no detail'})"
+            f"cannot read {str(path)!r} as a mesh ({type(err).__name__}: {detail})"
         ) from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise ValueError(f"{str(path)!r} holds no triangle mesh (no faces)")

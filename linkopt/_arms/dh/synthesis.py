@@ -157,7 +157,10 @@ def _per_target(types: str, table: dh.DHTable, q, target):
 
 def _smooth_size(types: str, table: dh.DHTable, delta: float) -> Float[Array, ""]:
     revolute = np.array([c == "R" for c in types])
-    smooth = lambda v: jnp.sqrt(v * v + delta * delta) - delta  # noqa: E731
+
+    def smooth(v):
+        return jnp.sqrt(v * v + delta * delta) - delta
+
     return jnp.sum(smooth(table.a)) + jnp.sum(
         jnp.where(revolute, smooth(table.offset), 0.0)
     )
@@ -178,7 +181,8 @@ def cost(
     return xi * _smooth_size(types, table, delta) + jnp.sum(1.0 / (w2 + b) + eps * d2)
 
 
-_value_and_grad = jax.jit(jax.value_and_grad(cost, argnums=1), static_argnums=(0,))
+#: ``(cost, ∂cost/∂x)`` of :func:`cost`, jitted (the minimiser's objective).
+value_and_grad = jax.jit(jax.value_and_grad(cost, argnums=1), static_argnums=(0,))
 
 
 @partial(jax.jit, static_argnums=(0,))
@@ -227,12 +231,12 @@ def minimise(
     weights = jnp.asarray(weights, dtype=float)
 
     def fun(x):
-        value, grad = _value_and_grad(types, jnp.asarray(x), targets, weights)
+        value, grad = value_and_grad(types, jnp.asarray(x), targets, weights)
         return float(value), np.asarray(grad, dtype=float)
 
-    # L-BFGS-B's vector updates call OpenBLAS, whose worker threads spin for vectors of a
-    # few hundred entries: on 2 busy cores one sample-run start took 6.5 s of CPU with the
-    # default pool and 0.85 s with one thread (same iterates), so BLAS runs single-threaded here.
+    # L-BFGS-B's vector updates call OpenBLAS, whose worker threads spin for vectors of
+    # a few hundred entries (same iterates, several times the CPU time; figures in
+    # benchmarks/bench_manipulability.py), so BLAS runs single-threaded here.
     with one_blas_thread():
         result = scipy.optimize.minimize(
             fun,
@@ -244,7 +248,7 @@ def minimise(
     return result.x
 
 
-def _initial_guess(
+def initial_guess(
     types: str, targets: np.ndarray, rng: np.random.Generator
 ) -> np.ndarray:
     """Random table scaled to the task, per-target joints from the nearest of a random
@@ -279,14 +283,17 @@ def check_targets(points, source: str = "task points") -> np.ndarray:
         or not np.all(np.isfinite(array))
     ):
         raise InputError(
-            f"{source}: expected at least one row of 3 finite coordinates (x, y, z), got an array of shape {array.shape}"
+            f"{source}: expected at least one row of 3 finite coordinates (x, y, z), "
+            f"got an array of shape {array.shape}"
         )
     return array
 
 
-def _weights(
+def cost_weights(
     settings: DHSynthesisSettings, targets: np.ndarray, precision: float
 ) -> np.ndarray:
+    """``weights = (ξ, ε, b, δ)`` of :func:`cost` at precision ``ε``, with ``δ`` the
+    smoothing of ``|x|`` relative to the task scale."""
     scale = float(np.max(np.linalg.norm(targets, axis=1))) or 1.0
     return np.array([settings.size_damping, precision, settings.b, _SMOOTH_ABS * scale])
 
@@ -296,12 +303,15 @@ def _check_settings(settings: DHSynthesisSettings) -> None:
         value = getattr(settings, name)
         positive = name == "reach_tolerance"
         if not np.isfinite(value) or value < 0 or (positive and value == 0):
+            sign = "positive" if positive else "non-negative"
             raise InputError(
-                f"synthesis settings: {name}: expected a finite {'positive' if positive else 'non-negative'} number, got {value!r}"
+                f"synthesis settings: {name}: expected a finite {sign} number, got "
+                f"{value!r}"
             )
     if settings.starts < 1 or settings.max_iterations < 1:
         raise InputError(
-            f"synthesis settings: starts and max_iterations must be at least 1, got {settings.starts} and {settings.max_iterations}"
+            "synthesis settings: starts and max_iterations must be at least 1, got "
+            f"{settings.starts} and {settings.max_iterations}"
         )
     checks.seed(settings.seed, "synthesis settings: seed")
 
@@ -321,7 +331,7 @@ def _reach(
             break
         precision *= 10.0
         x = minimise(
-            types, x, targets, _weights(settings, targets, precision), settings
+            types, x, targets, cost_weights(settings, targets, precision), settings
         )
     table, q = _unpack(types, jnp.asarray(x), m)
     q = polish(types, table, q, jnp.asarray(targets), settings.polish_iterations)
@@ -337,9 +347,9 @@ def synthesize_config(
     _check_settings(settings)
     started = time.perf_counter()
     rng = np.random.default_rng(settings.seed)
-    weights = _weights(settings, targets, settings.precision)
+    weights = cost_weights(settings, targets, settings.precision)
     runs = [
-        minimise(types, _initial_guess(types, targets, rng), targets, weights, settings)
+        minimise(types, initial_guess(types, targets, rng), targets, weights, settings)
         for _ in range(settings.starts)
     ]
     values = [
@@ -378,7 +388,8 @@ def all_configurations(n: int) -> list[str]:
     place."""
     if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or not 1 <= n <= 8:
         raise InputError(
-            f"joints: expected a number of joints between 1 and 8 or an R/P string, got {n!r}"
+            "joints: expected a number of joints between 1 and 8 or an R/P string, "
+            f"got {n!r}"
         )
     return ["".join(c) for c in itertools.product("PR", repeat=int(n))]
 
@@ -402,7 +413,9 @@ def configurations(joints: str | int, where: str = "joints") -> list[str]:
     types = dh.check_joint_types(joints, where)
     if not has_engine_model(types):
         raise InputError(
-            f"{where}: {types!r}: a {len(types)}-joint arm needs at least {len(types) - 3} revolute joints (R) for its mechanism file, it has {types.count('R')}"
+            f"{where}: {types!r}: a {len(types)}-joint arm needs at least "
+            f"{len(types) - 3} revolute joints (R) for its mechanism file, it has "
+            f"{types.count('R')}"
         )
     return [types]
 

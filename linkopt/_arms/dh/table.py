@@ -6,24 +6,24 @@ Convention (paper 004, ref. [6], Spong & Vidyasagar; the *standard, distal* one)
     A_i = Rot_z(θ_i) Trans_z(d_i) Trans_x(a_i) Rot_x(α_i),    T_k = A_1 A_2 ... A_k,
 
 with frame 0 the world frame. Joint ``i`` moves link ``i`` relative to link ``i-1``
-about
-(R) or along (P) the axis ``z_{i-1}`` through the origin of frame ``i-1``. Its joint
-variable is ``θ_i`` for a revolute and ``d_i`` for a prismatic joint; the other of the
-two is a constant. The end effector is the origin of frame ``N``.
+about (R) or along (P) the axis ``z_{i-1}`` through the origin of frame ``i-1``. Its
+joint variable is ``θ_i`` for a revolute and ``d_i`` for a prismatic joint; the other
+of the two is a constant. The end effector is the origin of frame ``N``.
 
 A table is stored as three arrays (a pytree, so it can be optimised and vmapped): ``a``,
 ``alpha`` and ``offset``, where ``offset_i`` is the constant one of ``(d_i, θ_i)``:
 ``d_i`` for an R joint and ``θ_i`` for a P joint. The joint-type string (``"RRP"``) is
 static.
 
-The equivalent :class:`~linkopt.Mechanism` (:func:`mechanism_definition`) has one body
-per link (``base`` = link 0 is the ground), one revolute/prismatic joint per DH joint
-with its axis ``z_{i-1}`` at a chosen rest configuration ``q_rest``, a motor on every
-joint and a named point ``tip`` at the origin of frame ``N``. Mechanism bodies are at
-the identity orientation at rest and motors are measured from rest, so a motor value is
-``q - q_rest`` (rad for R, file units for P). Each body's frame origin is written
-explicitly as the origin of its DH frame at rest, which makes the engine state of any
-configuration a closed-form function of ``q`` (:func:`engine_state`).
+The equivalent :class:`~linkopt.Mechanism` (:func:`mechanism_definition`, a serial
+chain of :mod:`linkopt._arms.chain`) has one body per link (``base`` = link 0 is the
+ground), one revolute/prismatic joint per DH joint with its axis ``z_{i-1}`` at a
+chosen rest configuration ``q_rest``, a motor on every joint and a named point ``tip``
+at the origin of frame ``N``. Mechanism bodies are at the identity orientation at rest
+and motors are measured from rest, so a motor value is ``q - q_rest`` (rad for R, file
+units for P). Each body's frame origin is written explicitly as the origin of its DH
+frame at rest, which makes the engine state of any configuration a closed-form function
+of ``q`` (:func:`engine_state`).
 """
 
 from __future__ import annotations
@@ -37,8 +37,8 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ..._engine import quaternion
-from ..._engine.loader import diameter
 from ..._errors import InputError
+from ..chain import chain_definition, chain_state, coordinate_output, joint_output, span
 
 JOINT_LETTERS = "RP"
 _Z = np.array([0.0, 0.0, 1.0])
@@ -63,7 +63,8 @@ def check_joint_types(types: str, where: str = "joint types") -> str:
     text = str(types).strip().upper()
     if not text or any(c not in JOINT_LETTERS for c in text):
         raise InputError(
-            f"{where}: expected a non-empty string of 'R' (revolute) and 'P' (prismatic), got {types!r}"
+            f"{where}: expected a non-empty string of 'R' (revolute) and 'P' "
+            f"(prismatic), got {types!r}"
         )
     return text
 
@@ -75,7 +76,8 @@ def table_from_arrays(types: str, a, alpha, offset) -> DHTable:
     for name, v in zip(("a", "alpha", "offset"), arrays):
         if v.shape != (len(types),) or not np.all(np.isfinite(v)):
             raise InputError(
-                f"DH table: {name}: expected {len(types)} finite numbers (one per joint of {types!r}), got {v.tolist()}"
+                f"DH table: {name}: expected {len(types)} finite numbers (one per "
+                f"joint of {types!r}), got {v.tolist()}"
             )
     return DHTable(*(jnp.asarray(v) for v in arrays))
 
@@ -163,13 +165,17 @@ def engine_state(
 ) -> Float[Array, " S"]:
     """The homogenised state of the equivalent Mechanism at joint values ``q``.
 
-    Body ``k`` (link ``k``) sits at the origin of frame ``k``; its orientation is the
-    rotation from its rest frame, ``R_k(q) R_k(q_rest)ᵀ``.
+    Body ``k`` (link ``k``) carries DH frame ``k`` and its origin is that frame's origin
+    at rest, so it sits at the origin of frame ``k``; its orientation is the rotation
+    from its rest frame, ``R_k(q) R_k(q_rest)ᵀ``
+    (:func:`linkopt._arms.chain.chain_state`).
     """
-    origins = frames(types, table, q)[:, :3, 3] / length_scale
-    now, rest = _orientations(types, table, q), _orientations(types, table, q_rest)
-    quats = quaternion.multiply(now, quaternion.conjugate(rest))
-    return jnp.concatenate([origins, quats], axis=1).ravel()
+    return chain_state(
+        _orientations(types, table, q),
+        frames(types, table, q)[:, :3, 3],
+        _orientations(types, table, q_rest),
+        length_scale,
+    )
 
 
 @partial(jax.jit, static_argnums=(0, 4))
@@ -197,10 +203,9 @@ def _output_coordinates(jac: np.ndarray, count: int) -> tuple[int, ...]:
     return tuple(best)
 
 
-def _outputs(types: str, jac: np.ndarray, tip: np.ndarray, bounds) -> list[dict]:
-    """Tip coordinates as outputs (all three for N ≥ 3), plus, for N > 3, the angles of
-    the last N - 3 revolute joints, so that #outputs equals the mobility N as the loader
-    requires."""
+def _coordinate_outputs(types: str, jac, tip, bounds) -> list[dict]:
+    """The tip coordinates that are outputs (all three for N ≥ 3), each ranging over
+    ``bounds`` (default a unit box around the rest tip) and the rest tip."""
     n = len(types)
     coords = (0, 1, 2) if n >= 3 else _output_coordinates(jac, n)
     lo, hi = (
@@ -208,26 +213,33 @@ def _outputs(types: str, jac: np.ndarray, tip: np.ndarray, bounds) -> list[dict]
         if bounds is None
         else (np.asarray(bounds[0], float), np.asarray(bounds[1], float))
     )
-    items = [
-        {
-            "name": _COORDS[c],
-            "point": "tip",
-            "coordinate": _COORDS[c],
-            "min": float(min(lo[c], tip[c])),
-            "max": float(max(hi[c], tip[c]) + 1e-9),
-        }
+    return [
+        coordinate_output(
+            _COORDS[c],
+            "tip",
+            _COORDS[c],
+            float(min(lo[c], tip[c])),
+            float(max(hi[c], tip[c]) + 1e-9),
+        )
         for c in coords
     ]
+
+
+def _outputs(types: str, jac: np.ndarray, tip: np.ndarray, bounds) -> list[dict]:
+    """Tip coordinates as outputs (all three for N ≥ 3), plus, for N > 3, the angles of
+    the last N - 3 revolute joints, so that #outputs equals the mobility N as the loader
+    requires."""
+    n = len(types)
     extra = [i for i, c in enumerate(types) if c == "R"][::-1][: max(0, n - 3)]
     if len(extra) < n - 3:
         raise InputError(
-            f"joint types {types!r}: an equivalent mechanism file of a {n}-joint arm needs {n - 3} revolute joints whose angles complete the outputs; it has {len(extra)}"
+            f"joint types {types!r}: an equivalent mechanism file of a {n}-joint arm "
+            f"needs {n - 3} revolute joints whose angles complete the outputs; it has "
+            f"{len(extra)}"
         )
-    items += [
-        {"name": f"q{i + 1}", "joint": f"joint{i + 1}", "min": -np.pi, "max": np.pi}
-        for i in sorted(extra)
+    return _coordinate_outputs(types, jac, tip, bounds) + [
+        joint_output(f"q{i + 1}", f"joint{i + 1}", -np.pi, np.pi) for i in sorted(extra)
     ]
-    return items
 
 
 def mechanism_definition(
@@ -250,45 +262,21 @@ def mechanism_definition(
     poses = np.asarray(frames(types, table, q_rest))
     origins, z_axes = poses[:, :3, 3], poses[:, :3, 2]
     jac = np.asarray(tip_jacobian(types, table, q_rest))
-    spread = diameter(origins)
-    bodies = [{"name": "base", "origin": origins[0].tolist()}]
-    bodies += [
-        {"name": f"link{k}", "origin": origins[k].tolist()}
-        for k in range(1, len(types) + 1)
-    ]
-    joints = [
-        {
-            "name": f"joint{k}",
-            "type": "revolute" if c == "R" else "prismatic",
-            "bodies": [bodies[k - 1]["name"], bodies[k]["name"]],
-            "anchor": origins[k - 1].tolist(),
-            "axis": (z_axes[k - 1] / np.linalg.norm(z_axes[k - 1])).tolist(),
-        }
-        for k, c in enumerate(types, start=1)
-    ]
-    head = {
-        "name": name,
-        "ground": "base",
-        "reference_length": float(spread) if spread > 1e-9 else 1.0,
-    }
-    if units:
-        head["units"] = units
-    return {
-        "mechanism": head,
-        "bodies": bodies,
-        "joints": joints,
-        "motors": [
-            {"name": f"q{k}", "joint": f"joint{k}"} for k in range(1, len(types) + 1)
-        ],
-        "points": [
-            {
-                "name": "tip",
-                "body": f"link{len(types)}",
-                "position": origins[-1].tolist(),
-            }
-        ],
-        "outputs": _outputs(types, jac, origins[-1], bounds),
-    }
+    n = len(types)
+    return chain_definition(
+        name,
+        ["base"] + [f"link{k}" for k in range(1, n + 1)],
+        [f"joint{k}" for k in range(1, n + 1)],
+        [f"q{k}" for k in range(1, n + 1)],
+        origins[:-1],
+        [z / np.linalg.norm(z) for z in z_axes[:-1]],
+        points=[("tip", n, origins[-1])],
+        outputs=_outputs(types, jac, origins[-1], bounds),
+        types=types,
+        origins=origins,
+        units=units,
+        reference_length=span(origins),
+    )
 
 
 def to_mechanism(

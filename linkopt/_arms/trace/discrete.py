@@ -85,7 +85,9 @@ def _point_problem(task: TraceTask, pts: np.ndarray) -> Problem:
         )
         return jnp.concatenate(rows)
 
-    violation = lambda x, sigma: 0.5 * jnp.sum(jnp.minimum(g(x, sigma), 0.0) ** 2)
+    def violation(x, sigma):
+        return 0.5 * jnp.sum(jnp.minimum(g(x, sigma), 0.0) ** 2)
+
     return Problem(
         jax.jit(g),
         jax.jit(jax.jacfwd(g)),

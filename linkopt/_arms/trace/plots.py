@@ -160,18 +160,20 @@ def solution_figure(
     for j, states in enumerate(critical_states(task, design)):
         for s in states[[0, 2, 3]]:
             draw_arm(ax, s, task, color=colors[j], alpha=0.85)
-    ax.set_title(
-        title
-        or f"{task.name}: {design.n_links} links, lengths {', '.join(f'{r:.3g}' for r in design.lengths)}"
-    )
-    _limits(ax, task, design)
+    lengths = ", ".join(f"{r:.3g}" for r in design.lengths)
+    ax.set_title(title or f"{task.name}: {design.n_links} links, lengths {lengths}")
+    set_limits(ax, task, design)
     return fig
 
 
-def _limits(ax, task: TraceTask, design: PlanarArm | None) -> None:
+def set_limits(ax, task: TraceTask, design: PlanarArm | None) -> None:
+    """Axis limits that show the path, obstacles, base regions and (with a design)
+    most of the arm's reach, plus a margin."""
     lo, hi = _view_points(task, design)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
+
+
 
 
 def swept_figure(
@@ -197,7 +199,7 @@ def swept_figure(
                 *np.vstack([poly, poly[:1]]).T, "--", color=colors[j], lw=1.0, zorder=4
             )
     ax.set_title(f"{task.name}: SV^{kind} bounds (dashed) and swept links (grey)")
-    _limits(ax, task, design)
+    set_limits(ax, task, design)
     return fig
 
 
@@ -209,9 +211,8 @@ def discretised_figure(task: TraceTask, cmp: DiscreteComparison):
     d = np.linalg.norm(cmp.curve - cmp.design.base, axis=1)
     worst = cmp.curve[np.argmax(np.maximum(d - a - b, abs(a - b) - d))]
     for ax, zoom in zip(axes, (False, True)):
-        if (
-            zoom
-        ):  # the exact annulus; the obstacle-free grid is too coarse at this scale
+        if zoom:
+            # the exact annulus; the obstacle-free grid is too coarse at this scale
             ax.add_patch(
                 Wedge(
                     cmp.design.base,
@@ -243,13 +244,14 @@ def discretised_figure(task: TraceTask, cmp: DiscreteComparison):
         ax.plot(
             out[0], out[1], color="tab:red", lw=3, zorder=7, label="curve outside RS"
         )
-        _limits(ax, task, cmp.design)
+        set_limits(ax, task, cmp.design)
         if zoom:
             w = max(20 * cmp.excursion, 0.02 * task.scale)
             ax.set_xlim(worst[0] - w, worst[0] + w)
             ax.set_ylim(worst[1] - w, worst[1] + w)
             ax.set_title(
-                f"zoom: up to {cmp.excursion:.2g} outside, {100 * cmp.fraction_outside:.1f} % of the curve"
+                f"zoom: up to {cmp.excursion:.2g} outside, "
+                f"{100 * cmp.fraction_outside:.1f} % of the curve"
             )
             ax.locator_params(nbins=4)
         else:

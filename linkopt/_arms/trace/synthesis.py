@@ -18,8 +18,8 @@ Constraints (all ``>= 0``, lengths in task units):
 * eq. 2: ``r_{n-1} + r_n - |p_far - s_{n-1}| - m`` and
   ``|p_close - s_{n-1}| - |r_{n-1} - r_n| - m`` with a small margin ``m`` that keeps the
   arm off the singular annulus boundary;
-* eqs. 3-4: obstacle discs (grown by Δ/2) clear of SV^over or SV^app (``_trace_swept``);
-  for 3 links also of the static proximal link;
+* eqs. 3-4: obstacle discs (grown by Δ/2) clear of SV^over or SV^app
+  (:mod:`~linkopt._arms.trace.swept`); for 3 links also of the static proximal link;
 * eq. 8: end-effector at ``p_closest`` farther than Δ from the first distal link (the
   paper imposes it when ``r_{n-1} > r_n``; we impose it always: otherwise the same
   distance is the end-effector's distance to the module at ``s_{n-1}``, a collision
@@ -109,69 +109,109 @@ def unpack(x: Float[Array, " V"], n: int, q: int):
     return x[:2], x[2 : 2 + n], phi
 
 
-def constraint_function(
+@dataclass(frozen=True)
+class _RowConstants:
+    """What the constraint rows of one (task, links, bound) need besides ``x``: margins
+    and the smoothing temperature in task units, obstacle centres and radii grown by
+    Δ/2 plus the clearance margin."""
+
+    task: TraceTask
+    n: int
+    kind: str
+    margin: float
+    temp: float
+    delta: float
+    centers: Float[Array, "o 2"]
+    grown: Float[Array, " o"]
+
+
+def _row_constants(
     task: TraceTask, n: int, kind: str, settings: TraceSettings
-) -> Callable:
-    """``g(x, sigma) -> (m,)``, feasible where every entry is ``>= 0`` (eqs. 2-11)."""
-    q, delta = len(task.primitives), task.link_diameter
-    margin = settings.reach_margin * task.scale
-    temp = settings.smoothing * task.scale
-    centers = jnp.asarray(task.obstacles[:, :2])
+) -> _RowConstants:
+    delta = task.link_diameter
     grown = (
         jnp.asarray(task.obstacles[:, 2])
         + delta / 2
         + settings.clearance_margin * task.scale
     )
+    return _RowConstants(
+        task,
+        n,
+        kind,
+        settings.reach_margin * task.scale,
+        settings.smoothing * task.scale,
+        delta,
+        jnp.asarray(task.obstacles[:, :2]),
+        grown,
+    )
 
-    def reach_rows(a, b, dmin, dmax):
-        gap = jnp.sqrt((a - b) ** 2 + 1e-12)
-        return jnp.stack([a + b - dmax - margin, dmin - gap - margin])
 
-    def primitive_rows(j, base, r, phi, sigma):
-        prim, a, b = task.primitives[j], r[-2], r[-1]
-        origin = geo.distal_origin(base, r, phi[j])
-        dmin, dmax = geo.distance_range(prim, origin)
-        rows = [reach_rows(a, b, dmin, dmax)]
-        for h in (
-            swept_support(kind, prim, origin, a, b, sigma, temp) if len(centers) else []
-        ):
-            rows.append(signed_distance(centers, h, temp) - grown)
-        close = geo.critical_points(prim, origin)["closest"]
-        elbow = geo.ik_elbow(origin, a, b, close, sigma)
-        rows.append(jnp.atleast_1d(geo.segment_distance(close, origin, elbow) - delta))
-        if n == 3:
-            rows.append(geo.segment_distance(centers, base, origin) - grown)
-            pts = geo.points(prim, jnp.linspace(0.0, 1.0, EQ9_SAMPLES))
-            rows.append(geo.segment_distance(pts, base, origin) - delta)
-        return rows
+def _reach_rows(c: _RowConstants, a, b, dmin, dmax):
+    """Eq. 2: the distance range to the distal origin inside the reachable annulus."""
+    gap = jnp.sqrt((a - b) ** 2 + 1e-12)
+    return jnp.stack([a + b - dmax - c.margin, dmin - gap - c.margin])
 
-    def transition_rows(j, base, r, phi, sigma):
-        point = jnp.asarray(task.primitives[j].end)
-        tau = jnp.linspace(0.0, 1.0, TRANSITION_SAMPLES + 2)[1:-1]
-        theta = phi[j] + tau * (phi[j + 1] - phi[j])
-        states = jax.vmap(
-            lambda th: geo.arm_states(base, r, th, point[None], sigma)[0]
-        )(theta)
-        d = jnp.linalg.norm(point - states[:, 1], axis=-1)
-        gap = jnp.sqrt((r[1] - r[2]) ** 2 + 1e-12)
-        rows = [r[1] + r[2] - d - margin, d - gap - margin]
-        if len(centers):
-            segs = geo.segment_distance(
-                centers[None, None], states[:, :-1, None], states[:, 1:, None]
-            )
-            rows.append((segs - grown).ravel())
-        rows.append(
-            geo.segment_distance(point, states[:, :-2], states[:, 1:-1]).ravel() - delta
+
+def _primitive_rows(c: _RowConstants, j: int, base, r, phi, sigma) -> list:
+    """Eqs. 2-4, 8 and (3 links) 9 of primitive ``j``."""
+    prim, a, b = c.task.primitives[j], r[-2], r[-1]
+    origin = geo.distal_origin(base, r, phi[j])
+    dmin, dmax = geo.distance_range(prim, origin)
+    rows = [_reach_rows(c, a, b, dmin, dmax)]
+    supports = (
+        swept_support(c.kind, prim, origin, a, b, sigma, c.temp)
+        if len(c.centers)
+        else []
+    )
+    for h in supports:
+        rows.append(signed_distance(c.centers, h, c.temp) - c.grown)
+    close = geo.critical_points(prim, origin)["closest"]
+    elbow = geo.ik_elbow(origin, a, b, close, sigma)
+    rows.append(jnp.atleast_1d(geo.segment_distance(close, origin, elbow) - c.delta))
+    if c.n == 3:
+        rows.append(geo.segment_distance(c.centers, base, origin) - c.grown)
+        pts = geo.points(prim, jnp.linspace(0.0, 1.0, EQ9_SAMPLES))
+        rows.append(geo.segment_distance(pts, base, origin) - c.delta)
+    return rows
+
+
+def _transition_rows(c: _RowConstants, j: int, base, r, phi, sigma) -> list:
+    """Eqs. 6-7, obstacle clearance and self-collision at interior samples of the
+    transition from primitive ``j`` to ``j + 1`` (3 links)."""
+    point = jnp.asarray(c.task.primitives[j].end)
+    tau = jnp.linspace(0.0, 1.0, TRANSITION_SAMPLES + 2)[1:-1]
+    theta = phi[j] + tau * (phi[j + 1] - phi[j])
+    states = jax.vmap(lambda th: geo.arm_states(base, r, th, point[None], sigma)[0])(
+        theta
+    )
+    d = jnp.linalg.norm(point - states[:, 1], axis=-1)
+    gap = jnp.sqrt((r[1] - r[2]) ** 2 + 1e-12)
+    rows = [r[1] + r[2] - d - c.margin, d - gap - c.margin]
+    if len(c.centers):
+        segs = geo.segment_distance(
+            c.centers[None, None], states[:, :-1, None], states[:, 1:, None]
         )
-        return rows
+        rows.append((segs - c.grown).ravel())
+    rows.append(
+        geo.segment_distance(point, states[:, :-2], states[:, 1:-1]).ravel() - c.delta
+    )
+    return rows
+
+
+def constraint_function(
+    task: TraceTask, n: int, kind: str, settings: TraceSettings
+) -> Callable:
+    """``g(x, sigma) -> (m,)``, feasible where every entry is ``>= 0`` (eqs. 2-11)."""
+    c = _row_constants(task, n, kind, settings)
+    q = len(task.primitives)
 
     def g(x, sigma):
         base, r, phi = unpack(x, n, q)
         rows = []
         for j in range(q):
-            rows += primitive_rows(j, base, r, phi, sigma)
+            rows += _primitive_rows(c, j, base, r, phi, sigma)
             if n == 3 and j < q - 1:
-                rows += transition_rows(j, base, r, phi, sigma)
+                rows += _transition_rows(c, j, base, r, phi, sigma)
         return jnp.concatenate([jnp.ravel(v) for v in rows])
 
     return g
@@ -190,7 +230,10 @@ def build_problem(
     task: TraceTask, n: int, kind: str, settings: TraceSettings
 ) -> Problem:
     g = constraint_function(task, n, kind, settings)
-    violation = lambda x, sigma: 0.5 * jnp.sum(jnp.minimum(g(x, sigma), 0.0) ** 2)
+
+    def violation(x, sigma):
+        return 0.5 * jnp.sum(jnp.minimum(g(x, sigma), 0.0) ** 2)
+
     return Problem(
         jax.jit(g),
         jax.jit(jax.jacfwd(g)),
@@ -248,6 +291,23 @@ def initial_guess(
     return np.concatenate([np.ravel(v) for v in x])
 
 
+def _feasible_start(problem: Problem, x0, sigma: int, bounds, settings) -> np.ndarray:
+    """Phase 1: L-BFGS-B on the squared constraint violation from ``x0``."""
+
+    def violation(x):
+        return tuple(np.asarray(v) for v in problem.violation(x, sigma))
+
+    phase1 = scipy.optimize.minimize(
+        violation,
+        x0,
+        jac=True,
+        bounds=bounds,
+        method="L-BFGS-B",
+        options={"maxiter": settings.max_iterations},
+    )
+    return np.asarray(phase1.x)
+
+
 def solve_nlp(
     task: TraceTask,
     problem: Problem,
@@ -268,30 +328,40 @@ def solve_nlp(
     """
     n = problem.n
     bounds = _bounds(task, n, region)
-    g = lambda x: np.asarray(problem.g(x, sigma))
-    phase1 = scipy.optimize.minimize(
-        lambda x: tuple(np.asarray(v) for v in problem.violation(x, sigma)),
-        x0,
-        jac=True,
-        bounds=bounds,
-        method="L-BFGS-B",
-        options={"maxiter": settings.max_iterations},
-    )
-    cost = lambda x: float(np.sum(x[2 : 2 + n]))
+
+    def g(x):
+        return np.asarray(problem.g(x, sigma))
+
+    def cost(x):
+        return float(np.sum(x[2 : 2 + n]))
+
+    def grad(x):
+        return np.concatenate([np.zeros(2), np.ones(n), np.zeros(len(x) - 2 - n)])
+
     tol = -settings.feasibility_tol * task.scale
-    best = {"x": np.asarray(phase1.x), "cost": np.inf, "feasible": False}
+    best = {
+        "x": _feasible_start(problem, x0, sigma, bounds, settings),
+        "cost": np.inf,
+        "feasible": False,
+    }
 
     def keep(x):
         if cost(x) < best["cost"] and g(x).min() >= tol:
             best.update(x=np.array(x), cost=cost(x), feasible=True)
 
     keep(best["x"])
-    grad = lambda x: np.concatenate([np.zeros(2), np.ones(n), np.zeros(len(x) - 2 - n)])
     cons = {
         "type": "ineq",
         "fun": g,
         "jac": lambda x: np.asarray(problem.jac(x, sigma)),
     }
+    _polish(cost, grad, cons, keep, best, bounds, task.scale, settings)
+    return best["x"], best["feasible"], cost(best["x"])
+
+
+def _polish(cost, grad, cons, keep, best: dict, bounds, scale: float, settings) -> None:
+    """Phase 2: SLSQP from the best feasible point so far, restarted there (fresh
+    Hessian) while it improves, at most ``POLISH_ROUNDS`` times; ``keep`` records."""
     for _ in range(POLISH_ROUNDS):
         before = best["cost"]
         res = scipy.optimize.minimize(
@@ -305,9 +375,8 @@ def solve_nlp(
             options={"maxiter": settings.max_iterations, "ftol": 1e-10},
         )
         keep(res.x)
-        if not best["feasible"] or before - best["cost"] <= 1e-6 * task.scale:
+        if not best["feasible"] or before - best["cost"] <= 1e-6 * scale:
             break
-    return best["x"], best["feasible"], cost(best["x"])
 
 
 def design_from(x: np.ndarray, n: int, sigma: int, q: int) -> PlanarArm:
@@ -386,9 +455,16 @@ def _stage(task, n, kind, settings, rng, attempts, say) -> list:
 
 
 def _describe(rec: dict) -> str:
-    head = f"{rec['links']} links, SV^{rec['swept']}, start {rec['restart']}, elbow {'up' if rec['sigma'] > 0 else 'down'}:"
+    elbow = "up" if rec["sigma"] > 0 else "down"
+    head = (
+        f"{rec['links']} links, SV^{rec['swept']}, start {rec['restart']}, "
+        f"elbow {elbow}:"
+    )
     if not rec["feasible"]:
         return f"{head} NLP infeasible ({rec['seconds']:.1f} s)"
     if not rec["verified"]:
-        return f"{head} length {rec['total_length']:.4g}, verification failed: {rec['failure']} ({rec['seconds']:.1f} s)"
+        return (
+            f"{head} length {rec['total_length']:.4g}, verification failed: "
+            f"{rec['failure']} ({rec['seconds']:.1f} s)"
+        )
     return f"{head} length {rec['total_length']:.4g}, verified ({rec['seconds']:.1f} s)"

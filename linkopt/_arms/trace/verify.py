@@ -22,6 +22,7 @@ A design is reported by synthesis only if :func:`verify` passes.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -103,7 +104,10 @@ def transition_states(
     theta = _proximal(design, j) + jnp.asarray(tau) * (
         _proximal(design, j + 1) - _proximal(design, j)
     )
-    one = lambda th: geo.arm_states(design.base, lengths, th, point, design.sigma)[0]
+
+    def one(th):
+        return geo.arm_states(design.base, lengths, th, point, design.sigma)[0]
+
     return np.asarray(jax.vmap(one)(theta))
 
 
@@ -213,20 +217,24 @@ def _check(
     if reach.min() < -tol:
         k = int(reach.argmin())
         failures.append(
-            f"{label}: end-effector outside the reachable annulus (eq. 2) at sample {k} by {-reach[k]:.3g}"
+            f"{label}: end-effector outside the reachable annulus (eq. 2) at sample "
+            f"{k} by {-reach[k]:.3g}"
         )
     if clear.size and clear.min() < 0:
         k, link, o = np.unravel_index(clear.argmin(), clear.shape)
         failures.append(
-            f"{label}: link {link + 1} clips obstacles[{o}] at sample {k} (clearance {clear.min():.3g})"
+            f"{label}: link {link + 1} clips obstacles[{o}] at sample {k} "
+            f"(clearance {clear.min():.3g})"
         )
     if selfd.size and selfd.min() < 0:
         failures.append(
-            f"{label}: end-effector within Δ of another link (eqs. 8-9), margin {selfd.min():.3g}"
+            f"{label}: end-effector within Δ of another link (eqs. 8-9), margin "
+            f"{selfd.min():.3g}"
         )
     if jstep > MAX_JOINT_STEP:
         failures.append(
-            f"{label}: a joint jumps {jstep:.3g} rad between samples (motion not continuous)"
+            f"{label}: a joint jumps {jstep:.3g} rad between samples (motion not "
+            "continuous)"
         )
     return {
         "clear": clear.min() if clear.size else np.inf,
@@ -244,14 +252,14 @@ def verify(task: TraceTask, design: PlanarArm) -> TraceVerification:
     segments, stats = [], []
     q, target = len(task.primitives), task.link_diameter / 32
     for j, prim in enumerate(task.primitives):
-        fn = lambda t, j=j: primitive_states(task, design, j, t)
+        fn = partial(primitive_states, task, design, j)
         _, states = dense_states(fn, _sample_count(prim.length, task), target)
         st = _check(task, design, f"primitives[{j}]", states, failures)
         segments.append(Segment("primitive", j, states, st["angles"]))
         stats.append(st)
         if j == q - 1:
             continue
-        fn = lambda tau, j=j: transition_states(task, design, j, tau)
+        fn = partial(transition_states, task, design, j)
         _, states = dense_states(fn, MIN_SAMPLES if design.n_links == 3 else 2, target)
         st = _check(task, design, f"transition {j}->{j + 1}", states, failures)
         segments.append(Segment("transition", j, states, st["angles"]))
