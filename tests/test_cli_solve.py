@@ -93,3 +93,31 @@ def test_negative_values_are_not_taken_for_options(capsys):
 def test_failed_solve_exits_one(capsys):
     assert main(["bk", str(MECHANISMS / "five_bar.toml"), "--outputs", "0,200"]) == 1
     assert "BK solve failed" in capsys.readouterr().err
+
+
+def test_fk_with_a_large_crank_angle_stays_on_the_rest_branch(capsys):
+    """Regression: ``fk jansen_1dof.toml --motors 3.14159265359`` reported
+    ``converged: true`` with the foot near (-60, -48), another assembly of the leg; the
+    rest branch (reached along a path) puts it at about (-33.7, -73.5)."""
+    path = str(MECHANISMS / "jansen_1dof.toml")
+    assert main(["fk", path, "--motors", "3.14159265359", "--json"]) == 0
+    fk = json.loads(capsys.readouterr().out)
+    assert fk["converged"] and fk["progress"] == 1.0
+    np.testing.assert_allclose(
+        fk["points"]["foot"][:2], [-33.7297, -73.5171], atol=1e-3
+    )
+
+
+def test_fk_past_the_reach_names_where_the_branch_stops(capsys):
+    """Pulling the five-bar's cranks apart stretches the distal links out before the
+    requested motors: exit 1, naming the motor values where the branch ends."""
+    path = str(MECHANISMS / "five_bar.toml")
+    assert main(["fk", path, "--motors", "0.9,-0.9", "--json"]) == 1
+    captured = capsys.readouterr()
+    fk = json.loads(captured.out)
+    assert not fk["converged"] and 0.0 < fk["progress"] < 1.0
+    left = fk["motors"]["left"]
+    assert left == pytest.approx(0.9 * fk["progress"], abs=1e-6)
+    error = captured.err.strip()
+    assert error.count("\n") == 0 and "FK solve failed" in error
+    assert f"left={left:.6g}" in error and "% of the way from the rest pose" in error

@@ -111,3 +111,59 @@ def test_design_vector_moves_mirrored_joints(five_bar, design):
     np.testing.assert_allclose(elbow_r[:2], design[1:])
     np.testing.assert_allclose(elbow_l[:2], [-design[1], design[2]])
     assert bool(linkopt.solve_fk(five_bar, np.zeros(2), design=design).converged)
+
+
+def _line_stays_assembled(motors, margin=2.0, samples=60, start=(0.0, 0.0)):
+    """Whether the straight line from ``start`` (default rest) to each motor pair keeps
+    the distal links ``margin`` short of stretched out (no forward singularity on the
+    way)."""
+    t = np.linspace(0.0, 1.0, samples)[:, None, None]
+    start = np.asarray(start)
+    e_l, e_r = elbows((start + t * (motors[None] - start)).reshape(-1, 2))
+    gap = np.linalg.norm(e_r - e_l, axis=-1).reshape(samples, -1)
+    return np.all(gap < 2 * L2 - margin, axis=0)
+
+
+def test_large_single_solves_stay_on_the_rest_branch(five_bar):
+    """Motors far from rest have two assemblies (tip on either side of the elbows).
+    Solved without a start state, each lands on the rest branch (the closed form with
+    the rest side), where one LM solve from the rest state can land on either."""
+    motors = np.random.default_rng(11).uniform(-1.4, 1.4, size=(400, 2))
+    motors = motors[_line_stays_assembled(motors)]
+    assert len(motors) > 100
+    solution = linkopt.solve_fk(five_bar, motors)
+    assert np.all(np.asarray(solution.converged))
+    tips = np.asarray(linkopt.point_positions(five_bar, solution.state))[:, 0, :2]
+    np.testing.assert_allclose(tips, forward(motors), atol=1e-8)
+    plain = linkopt.solve_fk(five_bar, motors, start=linkopt.rest_state(five_bar))
+    plain_tips = np.asarray(linkopt.point_positions(five_bar, plain.state))[:, 0, :2]
+    jumped = np.asarray(plain.converged) & np.any(
+        np.abs(plain_tips - forward(motors)) > 1e-3, axis=1
+    )
+    assert jumped.sum() > 0  # the plain solve does jump: the test above has teeth
+
+
+def test_a_single_solve_past_the_reach_says_how_far_it_got(five_bar):
+    """Pulling both cranks apart stretches the distal links out (a forward
+    singularity) before the requested motors: not converged, never another branch."""
+    motors = np.array([0.9, -0.9])
+    assert not _line_stays_assembled(motors[None], margin=0.0)[0]
+    solution = linkopt.solve_fk(five_bar, motors)
+    assert not bool(solution.converged)
+    progress = float(solution.progress)
+    assert 0.0 < progress < 1.0
+    reached = np.asarray(linkopt.motor_values(five_bar, solution.state))
+    np.testing.assert_allclose(reached, progress * motors, atol=1e-8)
+    assert _line_stays_assembled(reached[None], margin=0.0)[0]
+
+
+def test_path_rows_past_a_jump_are_subdivided_not_skipped(five_bar):
+    """Two rows far apart: the path continues between them in small steps and ends on
+    the rest branch, as the single solve does."""
+    motors = np.array([[0.0, 0.0], [1.3, 0.4], [-1.2, -1.0]])
+    assert _line_stays_assembled(motors[1:2])[0]
+    assert _line_stays_assembled(motors[2:], start=motors[1])[0]
+    path = linkopt.solve_fk_path(five_bar, motors)
+    assert np.all(np.asarray(path.converged))
+    tips = np.asarray(linkopt.point_positions(five_bar, path.state))[:, 0, :2]
+    np.testing.assert_allclose(tips, forward(motors), atol=1e-8)

@@ -209,3 +209,29 @@ def test_full_turn_returns_to_rest(jansen, full_turn):
     np.testing.assert_allclose(
         linkopt.motor_values(jansen, path.state[-1]), [0.0], atol=1e-10
     )
+
+
+def test_single_solves_over_a_full_turn_stay_on_the_rest_branch(jansen):
+    """Regression: ``fk --motors 3.14159265359`` from the rest pose landed on another
+    assembly of the leg (foot near (-60, -48)). Each crank angle, solved on its own
+    without a start state, must give the standard branch reached by continuity."""
+    thetas = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+    expected, previous = {}, _leg(0.0)
+    for theta in np.linspace(0.0, 2.0 * np.pi, 24 * 30, endpoint=False):
+        previous = _leg(theta, previous)
+        expected[round(float(theta), 9)] = previous
+    batch = linkopt.solve_fk(jansen, thetas[:, None])
+    assert np.all(np.asarray(batch.converged))
+    np.testing.assert_array_equal(np.asarray(batch.progress), 1.0)
+    joints = np.asarray(linkopt.joint_positions(jansen, batch.state))
+    foot = np.asarray(linkopt.point_positions(jansen, batch.state))[:, 0]
+    pose = _file_pose(jansen, joints, foot)
+    for k, theta in enumerate(thetas):
+        reference = expected[round(float(theta), 9)]
+        for key in "BCDEFG":
+            np.testing.assert_allclose(pose[key][k], reference[key], atol=1e-8)
+    for k in (0, 12, 23):  # one call each: the same answer as the batch
+        one = linkopt.solve_fk(jansen, thetas[k : k + 1])
+        np.testing.assert_allclose(one.state, batch.state[k], atol=1e-9)
+    half = linkopt.point_positions(jansen, linkopt.solve_fk(jansen, [np.pi]).state)
+    np.testing.assert_allclose(np.asarray(half)[0, :2], [-33.7297, -73.5171], atol=1e-3)

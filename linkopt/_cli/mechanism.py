@@ -82,9 +82,10 @@ def run_solve(args, kind: str) -> int:
     states = np.atleast_2d(np.asarray(solution.state))
     converged = np.atleast_1d(np.asarray(solution.converged))
     residual = np.atleast_1d(np.asarray(solution.residual))
+    progress = np.atleast_1d(np.asarray(solution.progress))
     records = [
-        payloads.configuration(mech, s, c, r)
-        for s, c, r in zip(states, converged, residual)
+        payloads.configuration(mech, s, c, r) | {"progress": float(f)}
+        for s, c, r, f in zip(states, converged, residual, progress)
     ]
     payload = (
         {"converged": bool(converged.all()), "path": records} if is_path else records[0]
@@ -94,7 +95,7 @@ def run_solve(args, kind: str) -> int:
     else:
         _print_records(records, kind, is_path)
     if not converged.all():
-        _report_failure(kind, is_path, converged, residual)
+        _report_failure(kind, is_path, records)
         return 1
     return 0
 
@@ -118,12 +119,19 @@ def _print_records(records: list[dict], kind: str, is_path: bool) -> None:
                 print(f"  {n:<16} ({p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g})")
 
 
-def _report_failure(kind: str, is_path: bool, converged, residual) -> None:
-    first = int(np.argmin(converged))
+def _report_failure(kind: str, is_path: bool, records: list[dict]) -> None:
+    """One line: where the continuation stopped on the rest pose's branch."""
+    first = next(k for k, rec in enumerate(records) if not rec["converged"])
+    record = records[first]
     where = f" at row {first + 1}" if is_path else ""
+    origin = "the previous row" if is_path and first > 0 else "the rest pose"
+    values = record["motors"] if kind == "fk" else record["outputs"]
+    reached = ", ".join(f"{n}={v:.6g}" for n, v in values.items())
     print(
-        f"linkopt: error: {kind.upper()} solve failed{where}: residual "
-        f"{residual[first]:.2e} (no assembly reached from the start state)",
+        f"linkopt: error: {kind.upper()} solve failed{where}: the rest pose's assembly "
+        f"branch stops at {reached}, {100 * record['progress']:.0f} % of the way from "
+        f"{origin} (no assembly past it on this branch, or a singularity); residual "
+        f"{record['residual']:.2e}",
         file=sys.stderr,
     )
 

@@ -6,6 +6,16 @@ angles) and return homogenised states. Every solve is jitted with the mechanism 
 static argument; a leading batch axis on ``a``/``b`` (and optionally the start state)
 is vmapped, so a batch never recompiles for a new design vector.
 
+Branches: a solve without a start state reaches the requested values by continuation
+from the rest pose (:func:`continue_to`): bounded steps, each predicted to first order
+(``s + ds/dv Δv``) and corrected by Levenberg–Marquardt, a step accepted only when the
+corrector lands near the prediction, halved otherwise. The answer is then on the rest
+pose's assembly branch, or the solve reports ``converged = False`` with the fraction
+of the way it reached (``Solution.progress``): past that value there is no assembly on
+this branch, or the branch passes a singularity. Path solves continue the same way from
+row to row. A solve given a start state is one plain LM solve from it, for callers
+(samplers, maps, sensitivities) whose start is already next to the answer.
+
 Derivatives (paper eq. 2): the solved state is attached to its inputs by
 :func:`implicit_state`, whose JVP is the implicit-function-theorem tangent
 ``ṡ = -(JᵀJ)⁻¹ Jᵀ (∂C/∂a ȧ + ∂C/∂p ṗ)`` with ``J = ∂C/∂s``. For ``f_FK = 0`` this is
@@ -24,11 +34,31 @@ from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, Bool, Float, Int
 
 from . import jacobian, lm
-from .constraints import bk_residual, fk_residual
+from .constraints import (
+    bk_residual,
+    fk_residual,
+    homogenised_motor_values,
+    homogenised_output_values,
+)
 from .geometry import Geometry, design_vector, geometry, rest_state
 from .model import Mechanism
 
 _RESIDUALS = {"fk": fk_residual, "bk": bk_residual}
+_VALUES = {"fk": homogenised_motor_values, "bk": homogenised_output_values}
+
+#: Largest change of any motor or output in one continuation step (homogenised: rad, or
+#: reference lengths). Small enough that the first-order prediction tells the rest
+#: branch from another assembly of the same values.
+MAX_STEP = 0.2
+#: Smallest step, same units; a continuation that must shrink below it stops there.
+MIN_STEP = 1e-6
+#: A step is accepted when the corrector moves the predicted state by at most this
+#: fraction of the predicted move (plus ``PREDICTION_SLACK``): on the branch the
+#: correction shrinks with the step squared, a jump to another assembly does not.
+PREDICTION_RATIO = 0.5
+PREDICTION_SLACK = 1e-7
+#: Cap on continuation steps (accepted and rejected) per solve.
+MAX_STEPS = 400
 
 
 class Solution(NamedTuple):
@@ -37,7 +67,10 @@ class Solution(NamedTuple):
     state: Float[Array, "... S"]  # homogenised state
     converged: Bool[Array, ...]
     residual: Float[Array, ...]  # max |C| at state (homogenised)
-    iterations: Int[Array, ...]
+    iterations: Int[Array, ...]  # LM iterations, summed over continuation steps
+    #: fraction of the way from the start's values to the requested ones that the
+    #: continuation reached on the start's branch (1 when converged)
+    progress: Float[Array, ...]
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1))
@@ -84,7 +117,106 @@ def solve_single(
         ),
     )
     state = implicit_state(mech, kind, geom, values, result.x)
-    return Solution(state, result.converged, result.residual, result.iterations)
+    progress = result.converged.astype(jnp.float64)
+    return Solution(
+        state, result.converged, result.residual, result.iterations, progress
+    )
+
+
+def _lm(mech: Mechanism, kind: str, geom: Geometry, values, start) -> lm.LMResult:
+    settings = mech.solver
+    return lm.solve(
+        lambda s: _RESIDUALS[kind](mech, geom, values, s),
+        start,
+        tolerance=settings.tolerance,
+        max_iterations=settings.max_iterations,
+        initial_damping=settings.initial_damping,
+        linearise=lambda s: jacobian.normal_equations(mech, geom, kind, values, s),
+    )
+
+
+def predict(mech: Mechanism, kind: str, geom: Geometry, values, state):
+    """First-order prediction of the state solved at ``values``, from a state solved
+    at nearby values: ``s + ds = s - (JᵀJ)⁻¹ Jᵀ C(values, s)``.
+
+    The residual is affine in the values (unit slope on the motor or output rows) and
+    ``C`` vanishes at the old values, so ``Jᵀ C(values, s) = Jᵀ ∂C/∂v Δv``: this is the
+    tangent ``ds/dv Δv`` of the implicit function theorem (least squares where rows
+    are redundant), built from the LM solver's own normal equations."""
+    _, hessian, gradient = jacobian.normal_equations(mech, geom, kind, values, state)
+    system = hessian + 1e-12 * jnp.eye(hessian.shape[0])
+    return state - cho_solve(cho_factor(system), gradient)
+
+
+class _Walk(NamedTuple):
+    """Continuation carry: ``fraction`` of the way done at ``state``, next ``step``."""
+
+    fraction: Float[Array, ""]
+    step: Float[Array, ""]
+    state: Float[Array, " S"]
+    iterations: Int[Array, ""]
+    steps: Int[Array, ""]
+    stuck: Bool[Array, ""]
+
+
+def _advance(mech, kind, geom, v_from, delta, bounds, walk: _Walk) -> _Walk:
+    """One predictor-corrector step; the step doubles after a success, halves after a
+    failure, and the walk is stuck when it would fall below ``bounds[0]``."""
+    smallest, largest = bounds
+    target = jnp.minimum(walk.fraction + walk.step, 1.0)
+    values = v_from + target * delta
+    predicted = predict(mech, kind, geom, values, walk.state)
+    result = _lm(mech, kind, geom, values, predicted)
+    correction = jnp.max(jnp.abs(result.x - predicted))
+    move = jnp.max(jnp.abs(predicted - walk.state))
+    limit = PREDICTION_RATIO * move + PREDICTION_SLACK
+    ok = result.converged & (correction <= limit)
+    step = jnp.where(ok, jnp.minimum(2.0 * walk.step, largest), 0.5 * walk.step)
+    return _Walk(
+        fraction=jnp.where(ok, target, walk.fraction),
+        step=step,
+        state=jnp.where(ok, result.x, walk.state),
+        iterations=walk.iterations + result.iterations,
+        steps=walk.steps + 1,
+        stuck=(~ok) & (step < smallest),
+    )
+
+
+def continue_to(
+    mech: Mechanism, kind: str, geom: Geometry, v_from, state, v_to
+) -> Solution:
+    """Continuation from ``state`` (solved at values ``v_from``) to values ``v_to``, all
+    homogenised, along the straight line between them (module docstring).
+
+    Not converged when the branch has no assembly past some value, or passes a
+    singularity, on the way: ``progress`` says how far it got, and ``state`` is the
+    last state reached on the branch."""
+    fixed_geom = jax.lax.stop_gradient(geom)
+    v_from = jax.lax.stop_gradient(jnp.asarray(v_from, dtype=jnp.float64))
+    fixed_to = jax.lax.stop_gradient(v_to)
+    delta = fixed_to - v_from
+    span = jnp.maximum(jnp.max(jnp.abs(delta)), MIN_STEP)
+    largest = jnp.minimum(1.0, MAX_STEP / span)
+    bounds = (MIN_STEP / span, largest)
+    walk = _Walk(
+        fraction=jnp.where(jnp.max(jnp.abs(delta)) > 0, 0.0, 1.0),
+        step=largest,
+        state=jax.lax.stop_gradient(state),
+        iterations=jnp.zeros((), dtype=jnp.int32),
+        steps=jnp.zeros((), dtype=jnp.int32),
+        stuck=jnp.zeros((), dtype=bool),
+    )
+    walk = jax.lax.while_loop(
+        lambda w: (w.fraction < 1.0) & ~w.stuck & (w.steps < MAX_STEPS),
+        lambda w: _advance(mech, kind, fixed_geom, v_from, delta, bounds, w),
+        walk,
+    )
+    residual = jnp.max(
+        jnp.abs(_RESIDUALS[kind](mech, fixed_geom, fixed_to, walk.state))
+    )
+    converged = (walk.fraction >= 1.0) & (residual <= mech.solver.tolerance)
+    final = implicit_state(mech, kind, geom, v_to, walk.state)
+    return Solution(final, converged, residual, walk.iterations, walk.fraction)
 
 
 def _scale(mech: Mechanism, kind: str):
@@ -109,36 +241,60 @@ def _solve(mech: Mechanism, kind: str, values, start, design) -> Solution:
 
 
 @partial(jax.jit, static_argnums=(0, 1))
+def _solve_from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
+    values, start, geom = _prepare(mech, kind, values, None, design)
+    v_rest = _VALUES[kind](mech, geom, start)
+
+    def one(v):
+        return continue_to(mech, kind, geom, v_rest, start, v)
+
+    return one(values) if values.ndim == 1 else jax.vmap(one)(values)
+
+
+@partial(jax.jit, static_argnums=(0, 1))
 def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, start, design)
 
-    def advance(previous, v):
-        solution = solve_single(mech, kind, geom, v, previous)
-        return jnp.where(solution.converged, solution.state, previous), solution
+    def advance(carry, v):
+        v_from, state = carry
+        solution = continue_to(mech, kind, geom, v_from, state, v)
+        reached = v_from + solution.progress * (v - v_from)
+        return (reached, jax.lax.stop_gradient(solution.state)), solution
 
-    _, solutions = jax.lax.scan(advance, start, values)
+    v_start = _VALUES[kind](mech, geom, start)
+    _, solutions = jax.lax.scan(advance, (v_start, start), values)
     return solutions
 
 
 def solve_fk(mech: Mechanism, motors, *, start=None, design=None) -> Solution:
     """Forward kinematics: motors ``(M,)`` or a batch ``(N, M)`` -> states.
 
-    ``start`` is the warm start (homogenised state ``(S,)`` or ``(N, S)``; default the
-    rest state); ``design`` the design vector (default the file's). Differentiable in
-    ``motors`` and ``design`` through the implicit function theorem.
+    Without ``start``, each solve continues from the rest pose to its motor values, so
+    its answer is on the rest pose's assembly branch or it is not converged (module
+    docstring). ``start`` is a warm start instead (homogenised state ``(S,)`` or
+    ``(N, S)``), solved from by one LM solve; ``design`` the design vector (default the
+    file's). Differentiable in ``motors`` and ``design`` through the implicit function
+    theorem.
     """
+    if start is None:
+        return _solve_from_rest(mech, "fk", motors, design)
     return _solve(mech, "fk", motors, start, design)
 
 
 def solve_bk(mech: Mechanism, outputs, *, start=None, design=None) -> Solution:
     """Backward kinematics: outputs ``(K,)`` or ``(N, K)`` -> states (motors read off
-    them)."""
+    them); ``start`` as for :func:`solve_fk`."""
+    if start is None:
+        return _solve_from_rest(mech, "bk", outputs, design)
     return _solve(mech, "bk", outputs, start, design)
 
 
 def solve_fk_path(mech: Mechanism, motors, *, start=None, design=None) -> Solution:
-    """Continuation along motor values ``(T, M)``: each solve starts from the last
-    converged state, so the mechanism stays on the assembly branch of ``start``."""
+    """Continuation along motor values ``(T, M)`` from ``start`` (default the rest
+    state, which must be assembled): each row is reached from the previous one in
+    predictor-corrector steps that are subdivided until they stay on the branch of
+    ``start``; a row the branch cannot reach is not converged, and later rows continue
+    from the last state reached."""
     return _solve_path(mech, "fk", motors, start, design)
 
 
