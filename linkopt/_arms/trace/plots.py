@@ -174,8 +174,6 @@ def set_limits(ax, task: TraceTask, design: PlanarArm | None) -> None:
     ax.set_ylim(lo[1], hi[1])
 
 
-
-
 def swept_figure(
     task: TraceTask, design: PlanarArm, verification: TraceVerification, kind: str
 ):
