@@ -14,14 +14,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Float
 
 from .. import checks
 from . import geometry as geo
-from .synthesis import Problem, TraceSettings, initial_guess, solve_nlp
+from .synthesis import Problem, TraceSettings, initial_guess, problem_of, solve_nlp
 from .task import TraceTask
 from .verify import PlanarArm, TraceVerification, verify
 
@@ -85,16 +84,7 @@ def _point_problem(task: TraceTask, pts: np.ndarray) -> Problem:
         )
         return jnp.concatenate(rows)
 
-    def violation(x, sigma):
-        return 0.5 * jnp.sum(jnp.minimum(g(x, sigma), 0.0) ** 2)
-
-    return Problem(
-        jax.jit(g),
-        jax.jit(jax.jacfwd(g)),
-        jax.jit(jax.value_and_grad(violation)),
-        2,
-        "points",
-    )
+    return problem_of(g, 2, "points")
 
 
 def discretised_design(

@@ -226,10 +226,9 @@ class Problem:
     kind: str
 
 
-def build_problem(
-    task: TraceTask, n: int, kind: str, settings: TraceSettings
-) -> Problem:
-    g = constraint_function(task, n, kind, settings)
+def problem_of(g: Callable, n: int, kind: str) -> Problem:
+    """The NLP of constraint rows ``g(x, sigma) >= 0``: jitted rows, their Jacobian and
+    the squared violation with its gradient."""
 
     def violation(x, sigma):
         return 0.5 * jnp.sum(jnp.minimum(g(x, sigma), 0.0) ** 2)
@@ -241,6 +240,12 @@ def build_problem(
         n,
         kind,
     )
+
+
+def build_problem(
+    task: TraceTask, n: int, kind: str, settings: TraceSettings
+) -> Problem:
+    return problem_of(constraint_function(task, n, kind, settings), n, kind)
 
 
 def _bounds(task: TraceTask, n: int, region: int) -> list[tuple]:
