@@ -36,93 +36,97 @@ def test_shipped_tasks_load(name):
     assert task.arm.num_joints >= 2 and len(task.targets) >= 3
 
 
-@pytest.mark.parametrize(
-    "old, new, where",
-    [
-        (
-            'type = "link"',
-            'type = "elbow"',
-            "modules[2].type: unknown module type 'elbow'",
-        ),
-        (
-            "length = { min = 0.1, max = 0.5 }",
-            "length = { min = 0.5, max = 0.1 }",
-            "modules[2].length: needs min < max",
-        ),
-        (
-            "twist = 1.5707963267948966",
-            "twist = 'x'",
-            "modules[2].twist: expected a finite number",
-        ),
-        ("mass = 0.2", "", "modules[2].mass: missing required field"),
-        (
-            "axis = [1.0, 0.0, 0.0]",
-            "axis = [0.0, 0.0, 0.0]",
-            "targets[0].axis: zero-length axis",
-        ),
-        (
-            "position = [0.3, 0.1, 0.1]",
-            "position = [0.3, 0.1]",
-            "targets[0].position: expected a list of 3",
-        ),
-        (
-            "torque_limit = 9.0",
-            "torque_limit = -1.0",
-            "[task].torque_limit: expected a positive number",
-        ),
-        (
-            'type = "tool"\nlength = 0.2',
-            'type = "joint"',
-            "the last module, and only it, must be the 'tool'",
-        ),
-        (
-            "[[targets]]",
-            "[[obstacles]]\ntype = 'box'\ncenter = [0,0,0]\nsize = [1,1,1]\n[[targets]]",
-            "[workspace]: missing table",
-        ),
-        (
-            "[[targets]]",
-            "[[obstacles]]\ntype = 'cone'\n[[targets]]",
-            "obstacles[0].type: unknown obstacle type 'cone'",
-        ),
-        (
-            "[[targets]]",
-            "[weights]\npath = -3\n[[targets]]",
-            "[weights].path: expected a number >= 0",
-        ),
-        (
-            "[[targets]]",
-            "[solver]\nstarts = 0.5\n[[targets]]",
-            "[solver].starts: expected a positive integer",
-        ),
-        (
-            "[[targets]]",
-            "[solver]\nseed = -1\n[[targets]]",
-            "[solver].seed: expected a non-negative integer",
-        ),
-        (
-            'type = "link"',
-            'type = ["link"]',
-            "modules[2].type: unknown module type ['link']",
-        ),
-        (
-            "[[targets]]",
-            "[[obstacles]]\ntype = ['box']\n[[targets]]",
-            "obstacles[0].type: unknown obstacle type ['box']",
-        ),
-        ("[task]", "workspace = 1\n[task]", "[workspace]: expected a table"),
-        (
-            "[[targets]]",
-            "[[obstacles]]\ntype = 'box'\ncenter = [0,0,0]\nsize = [1,1,1]\norientation = [[1,0,0],[0,1,0],[0,1,0]]\n[workspace]\nlower = [-1,-1,-1]\nupper = [1,1,1]\n[[targets]]",
-            "obstacles[0].orientation: expected a 3x3 rotation matrix",
-        ),
-        (
-            "[[targets]]",
-            "[[obstacles]]\ntype = 'sphere'\ncenter = [0,0,0]\nradius = 1\norientation = [[1,0,0],[0,1,0],[0,0,1]]\n[workspace]\nlower = [-1,-1,-1]\nupper = [1,1,1]\n[[targets]]",
-            "orientation",
-        ),
-    ],
-)
+BAD_FIELDS = [
+    (
+        'type = "link"',
+        'type = "elbow"',
+        "modules[2].type: unknown module type 'elbow'",
+    ),
+    (
+        "length = { min = 0.1, max = 0.5 }",
+        "length = { min = 0.5, max = 0.1 }",
+        "modules[2].length: needs min < max",
+    ),
+    (
+        "twist = 1.5707963267948966",
+        "twist = 'x'",
+        "modules[2].twist: expected a finite number",
+    ),
+    ("mass = 0.2", "", "modules[2].mass: missing required field"),
+    (
+        "axis = [1.0, 0.0, 0.0]",
+        "axis = [0.0, 0.0, 0.0]",
+        "targets[0].axis: zero-length axis",
+    ),
+    (
+        "position = [0.3, 0.1, 0.1]",
+        "position = [0.3, 0.1]",
+        "targets[0].position: expected a list of 3",
+    ),
+    (
+        "torque_limit = 9.0",
+        "torque_limit = -1.0",
+        "[task].torque_limit: expected a positive number",
+    ),
+    (
+        'type = "tool"\nlength = 0.2',
+        'type = "joint"',
+        "the last module, and only it, must be the 'tool'",
+    ),
+    (
+        "[[targets]]",
+        "[[obstacles]]\ntype = 'box'\ncenter = [0,0,0]\nsize = [1,1,1]\n[[targets]]",
+        "[workspace]: missing table",
+    ),
+    (
+        "[[targets]]",
+        "[[obstacles]]\ntype = 'cone'\n[[targets]]",
+        "obstacles[0].type: unknown obstacle type 'cone'",
+    ),
+    (
+        "[[targets]]",
+        "[weights]\npath = -3\n[[targets]]",
+        "[weights].path: expected a number >= 0",
+    ),
+    (
+        "[[targets]]",
+        "[solver]\nstarts = 0.5\n[[targets]]",
+        "[solver].starts: expected a positive integer",
+    ),
+    (
+        "[[targets]]",
+        "[solver]\nseed = -1\n[[targets]]",
+        "[solver].seed: expected a non-negative integer",
+    ),
+    (
+        'type = "link"',
+        'type = ["link"]',
+        "modules[2].type: unknown module type ['link']",
+    ),
+    (
+        "[[targets]]",
+        "[[obstacles]]\ntype = ['box']\n[[targets]]",
+        "obstacles[0].type: unknown obstacle type ['box']",
+    ),
+    ("[task]", "workspace = 1\n[task]", "[workspace]: expected a table"),
+    (
+        "[[targets]]",
+        "[[obstacles]]\ntype = 'box'\ncenter = [0,0,0]\nsize = [1,1,1]\n"
+        "orientation = [[1,0,0],[0,1,0],[0,1,0]]\n"
+        "[workspace]\nlower = [-1,-1,-1]\nupper = [1,1,1]\n[[targets]]",
+        "obstacles[0].orientation: expected a 3x3 rotation matrix",
+    ),
+    (
+        "[[targets]]",
+        "[[obstacles]]\ntype = 'sphere'\ncenter = [0,0,0]\nradius = 1\n"
+        "orientation = [[1,0,0],[0,1,0],[0,0,1]]\n"
+        "[workspace]\nlower = [-1,-1,-1]\nupper = [1,1,1]\n[[targets]]",
+        "orientation",
+    ),
+]
+
+
+@pytest.mark.parametrize("old, new, where", BAD_FIELDS)
 def test_bad_fields_name_file_and_field(old, new, where):
     assert old in GOOD
     with pytest.raises(MechanismFileError) as err:
@@ -156,7 +160,10 @@ def test_corrupt_mesh_obstacle_is_rejected_while_loading(tmp_path):
     (tmp_path / "rock.stl").write_bytes(
         b"solid rock\nthis is not an STL file\n\x00\x01"
     )
-    mesh = "[[obstacles]]\ntype = 'mesh'\npath = 'rock.stl'\n[workspace]\nlower = [-1, -1, -1]\nupper = [1, 1, 1]\n"
+    mesh = (
+        "[[obstacles]]\ntype = 'mesh'\npath = 'rock.stl'\n"
+        "[workspace]\nlower = [-1, -1, -1]\nupper = [1, 1, 1]\n"
+    )
     path = tmp_path / "task.toml"
     path.write_text(GOOD + mesh)
     with pytest.raises(MechanismFileError) as err:
@@ -168,7 +175,9 @@ def test_corrupt_mesh_obstacle_is_rejected_while_loading(tmp_path):
 def test_box_orientation_is_read_as_rows():
     text = GOOD.replace(
         "[[targets]]",
-        "[[obstacles]]\ntype = 'box'\ncenter = [0.5,0,0]\nsize = [0.1,0.2,0.3]\norientation = [[0,-1,0],[1,0,0],[0,0,1]]\n[workspace]\nlower = [-1,-1,-1]\nupper = [1,1,1]\n[[targets]]",
+        "[[obstacles]]\ntype = 'box'\ncenter = [0.5,0,0]\nsize = [0.1,0.2,0.3]\n"
+        "orientation = [[0,-1,0],[1,0,0],[0,0,1]]\n"
+        "[workspace]\nlower = [-1,-1,-1]\nupper = [1,1,1]\n[[targets]]",
         1,
     )
     (box,) = loads_task(text, "tiny.toml").obstacles

@@ -2,6 +2,7 @@
 family, motor kind and output kind, at perturbed (off-manifold) states and designs."""
 
 import tomllib
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -10,9 +11,9 @@ import pytest
 from conftest import MECHANISMS, ROOT
 
 import linkopt
-from linkopt._engine import jacobian as _jacobian
-from linkopt._engine import loader as _loader
 from linkopt._engine.constraints import bk_residual, fk_residual
+from linkopt._engine.jacobian import linearise, normal_equations, state_jacobian
+from linkopt._engine.loader import build
 
 FILES = [
     MECHANISMS / "five_bar.toml",
@@ -38,9 +39,10 @@ VARIANTS = [(path, None) for path in FILES] + [(FILES[-1], _tait_bryan_variant)]
     "path, variant", VARIANTS, ids=[p.stem for p in FILES] + ["tait_bryan_outputs"]
 )
 def test_linearise_matches_jacfwd(path, variant):
-    # the all-families file is arbitrary geometry, not an assemblable linkage: no mobility check
+    # the all-families file is arbitrary geometry, not an assemblable linkage: no
+    # mobility check
     data = tomllib.loads(path.read_text())
-    mech = _loader.build(variant(data) if variant else data, str(path), check=False)
+    mech = build(variant(data) if variant else data, str(path), check=False)
     rng = np.random.default_rng(3)
     design = mech.design.p0 + rng.normal(0, 0.01, mech.design.size) * (
         mech.design.upper - mech.design.lower
@@ -53,16 +55,16 @@ def test_linearise_matches_jacfwd(path, variant):
             ("bk", bk_residual, mech.num_outputs),
         ):
             values = jnp.asarray(rng.normal(0, 0.1, size))
-            value, jac = _jacobian.linearise(mech, geom, kind, values, state)
+            value, jac = linearise(mech, geom, kind, values, state)
             np.testing.assert_allclose(
                 value, residual(mech, geom, values, state), atol=1e-13
             )
             np.testing.assert_allclose(
                 jac,
-                jax.jacfwd(lambda s: residual(mech, geom, values, s))(state),
+                jax.jacfwd(partial(residual, mech, geom, values))(state),
                 atol=1e-12,
             )
-            c, jtj, jtc = _jacobian.normal_equations(mech, geom, kind, values, state)
+            c, jtj, jtc = normal_equations(mech, geom, kind, values, state)
             np.testing.assert_allclose(jtj, jac.T @ jac, atol=1e-11)
             np.testing.assert_allclose(jtc, jac.T @ value, atol=1e-11)
 
@@ -73,7 +75,7 @@ def test_jacobian_is_differentiable_in_design():
 
     def probe(p):
         return jnp.sum(
-            _jacobian.state_jacobian(mech, linkopt.geometry(mech, p), "fk", state) ** 2
+            state_jacobian(mech, linkopt.geometry(mech, p), "fk", state) ** 2
         )
 
     def reference(p):

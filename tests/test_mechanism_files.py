@@ -3,7 +3,6 @@ errors."""
 
 import ast
 import importlib
-import json
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +10,6 @@ import pytest
 from conftest import MECHANISMS
 
 import linkopt
-from linkopt._cli import main as cli
 
 SHIPPED = sorted(MECHANISMS.glob("*.toml"))
 FIVE_BAR = (MECHANISMS / "five_bar.toml").read_text()
@@ -58,7 +56,8 @@ BROKEN = {
     "unknown_joint_type": (
         edit('type = "revolute"', 'type = "hinge"'),
         "joints[0].type",
-        "unknown joint type 'hinge'; expected one of ['revolute', 'spherical', 'universal', 'prismatic', 'cylindrical', 'fixed']",
+        "unknown joint type 'hinge'; expected one of ['revolute', 'spherical', "
+        "'universal', 'prismatic', 'cylindrical', 'fixed']",
     ),
     "missing_anchor": (
         edit("anchor = [-20.0, 0.0, 0.0]\n", ""),
@@ -173,7 +172,7 @@ BROKEN |= {
 
 
 @pytest.mark.parametrize("name", sorted(BROKEN))
-def test_broken_file_reports_file_field_and_expectation(name, tmp_path, capsys):
+def test_broken_file_reports_file_field_and_expectation(name, tmp_path):
     text, where, message = BROKEN[name]
     path = tmp_path / f"{name}.toml"
     path.write_text(text)
@@ -184,120 +183,6 @@ def test_broken_file_reports_file_field_and_expectation(name, tmp_path, capsys):
         rendered.startswith(str(path)) and where in rendered and message in rendered
     ), rendered
     assert "\n" not in rendered
-    assert cli.main(["check", str(path)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and message in err and err.startswith("linkopt: error:")
-
-
-def test_missing_file_is_a_clear_error(tmp_path, capsys):
-    assert cli.main(["check", str(tmp_path / "nope.toml")]) == 2
-    assert "nope.toml: file not found" in capsys.readouterr().err
-
-
-def test_check_json_reports_required_keys(capsys):
-    assert cli.main(["check", str(MECHANISMS / "five_bar.toml"), "--json"]) == 0
-    info = json.loads(capsys.readouterr().out)
-    assert (
-        info["state_size"] == 35
-        and info["mobility"] == 2
-        and info["design_parameters"] == 3
-    )
-    assert info["constraint_rows"]["fk"] == 38 and info[
-        "reference_length"
-    ] == pytest.approx(74.0)
-    assert set(info["motors"]) == {"left", "right"} and set(info["outputs"]) == {
-        "x",
-        "y",
-    }
-    assert info["joints"]["tip"]["anchor"] == [0.0, 70.0, 0.0]
-
-
-def test_fk_json_and_bk_round_trip_via_cli(capsys):
-    path = str(MECHANISMS / "five_bar.toml")
-    assert cli.main(["fk", path, "--motors", "0.2,-0.1", "--json"]) == 0
-    fk = json.loads(capsys.readouterr().out)
-    for key in (
-        "converged",
-        "residual",
-        "motors",
-        "outputs",
-        "joints",
-        "points",
-        "f_sing",
-        "sigma_min_fk",
-        "sigma_min_bk",
-    ):
-        assert key in fk
-    assert fk["converged"] and fk["residual"] <= 1e-10
-    assert fk["f_sing"] == pytest.approx(
-        1 / fk["sigma_min_fk"] + 1 / fk["sigma_min_bk"]
-    )
-    outputs = f"{fk['outputs']['x']!r},{fk['outputs']['y']!r}"
-    assert cli.main(["bk", path, "--outputs", outputs, "--json"]) == 0
-    bk = json.loads(capsys.readouterr().out)
-    assert bk["motors"]["left"] == pytest.approx(0.2, abs=1e-9) and bk["motors"][
-        "right"
-    ] == pytest.approx(-0.1, abs=1e-9)
-    np.testing.assert_allclose(bk["points"]["ee"], fk["points"]["ee"], atol=1e-9)
-
-
-def test_fk_csv_path_via_cli(tmp_path, capsys):
-    csv_path = tmp_path / "motors.csv"
-    csv_path.write_text("left,right\n0,0\n0.1,-0.05\n0.2,-0.1\n")
-    assert (
-        cli.main(
-            [
-                "fk",
-                str(MECHANISMS / "five_bar.toml"),
-                "--motors",
-                str(csv_path),
-                "--json",
-            ]
-        )
-        == 0
-    )
-    result = json.loads(capsys.readouterr().out)
-    assert result["converged"] and len(result["path"]) == 3
-    assert result["path"][2]["motors"]["left"] == pytest.approx(0.2)
-
-
-@pytest.mark.parametrize(
-    "args, message",
-    [
-        (["fk", "--motors", "0.1"], "expected 2 finite numbers (left, right)"),
-        (["bk", "--outputs", "a,b"], "expected 2 comma-separated numbers (x, y)"),
-    ],
-)
-def test_bad_values_are_rejected(args, message, capsys):
-    assert cli.main([args[0], str(MECHANISMS / "five_bar.toml"), *args[1:]]) == 2
-    assert message in capsys.readouterr().err
-
-
-def test_bad_csv_header_names_file_and_line(tmp_path, capsys):
-    csv_path = tmp_path / "m.csv"
-    csv_path.write_text("a,b\n0,0\n")
-    assert (
-        cli.main(["fk", str(MECHANISMS / "five_bar.toml"), "--motors", str(csv_path)])
-        == 2
-    )
-    assert f"{csv_path}: line 1: header" in capsys.readouterr().err
-
-
-def test_negative_values_are_not_taken_for_options(capsys):
-    assert (
-        cli.main(
-            ["fk", str(MECHANISMS / "five_bar.toml"), "--motors", "-0.1,0.1", "--json"]
-        )
-        == 0
-    )
-    assert json.loads(capsys.readouterr().out)["motors"]["left"] == pytest.approx(-0.1)
-
-
-def test_failed_solve_exits_one(capsys):
-    assert (
-        cli.main(["bk", str(MECHANISMS / "five_bar.toml"), "--outputs", "0,200"]) == 1
-    )
-    assert "BK solve failed" in capsys.readouterr().err
 
 
 JANSEN = (MECHANISMS / "jansen_1dof.toml").read_text()

@@ -1,6 +1,6 @@
 """The constraint engine (paper 001, Sec. II-III).
 
-In pipeline order: a mechanism file is read (``toml``, ``loader``) into one
+In pipeline order: a mechanism file is read (``fields``, ``loader``) into one
 :class:`~linkopt._engine.model.Mechanism` (``model``); bodies in maximal coordinates
 (``quaternion``) are tied by joint residual rows (``joints``, ``constraints``) whose
 Jacobians are written out (``jacobian``); Levenberg–Marquardt (``lm``) solves forward

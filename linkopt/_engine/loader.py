@@ -1,21 +1,20 @@
 """Mechanism definition files (TOML): parsing and validation, before any solving.
 
 Every problem is reported as one :class:`MechanismFileError` naming the file, the
-table/field and what was expected. Nothing missing is silently replaced by a default;
-the only optional fields are those documented in the README with their defaults
-(``reference_length``, ``[solver]``, ``axis`` of a fixed joint, ``[symmetry]``,
-``[[parameters]]``, ``mirror``).
+table/field and what was expected (through the shared :class:`~.fields.Reader`).
+Nothing missing is silently replaced by a default; the only optional fields are those
+documented in the README with their defaults (``reference_length``, ``[solver]``,
+``axis`` of a fixed joint, ``[symmetry]``, ``[[parameters]]``, ``mirror``).
 """
 
 from __future__ import annotations
 
-import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
+from jaxtyping import Float
 
-from .._errors import MechanismFileError
+from .fields import Reader, parse_text, parse_toml
 from .model import (
     AXIAL_JOINTS,
     COORDINATES,
@@ -43,133 +42,6 @@ ORTHOGONAL_TOL = 1e-9
 MIRROR_TOL = 1e-9
 
 
-class Reader:
-    """Typed field access that raises with the file and field path."""
-
-    def __init__(self, source: str):
-        self.source = source
-
-    def fail(self, where: str, message: str) -> MechanismFileError:
-        return MechanismFileError(self.source, where, message)
-
-    def table(
-        self, data: dict, key: str, where: str, allowed: set[str], required: set[str]
-    ) -> dict:
-        unknown = sorted(set(data) - allowed)
-        if unknown:
-            raise self.fail(
-                f"{where}.{unknown[0]}",
-                f"unknown field; expected one of {sorted(allowed)}",
-            )
-        missing = sorted(required - set(data))
-        if missing:
-            raise self.fail(f"{where}.{missing[0]}", "missing required field")
-        return data
-
-    def string(self, data: dict, key: str, where: str) -> str:
-        value = data[key]
-        if not isinstance(value, str) or not value:
-            raise self.fail(
-                f"{where}.{key}", f"expected a non-empty string, got {value!r}"
-            )
-        return value
-
-    def number(self, data: dict, key: str, where: str) -> float:
-        value = data[key]
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, (int, float))
-            or not math.isfinite(value)
-        ):
-            raise self.fail(
-                f"{where}.{key}", f"expected a finite number, got {value!r}"
-            )
-        return float(value)
-
-    def positive(self, data: dict, key: str, where: str) -> float:
-        value = self.number(data, key, where)
-        if value <= 0:
-            raise self.fail(
-                f"{where}.{key}", f"expected a positive number, got {value!r}"
-            )
-        return value
-
-    def vector(self, data: dict, key: str, where: str) -> np.ndarray:
-        value = data[key]
-        ok = isinstance(value, list) and len(value) == 3
-        ok = ok and all(
-            not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
-            for v in value
-        )
-        if not ok:
-            raise self.fail(
-                f"{where}.{key}", f"expected a list of 3 finite numbers, got {value!r}"
-            )
-        return np.asarray(value, dtype=float)
-
-    def direction(self, data: dict, key: str, where: str) -> np.ndarray:
-        vec = self.vector(data, key, where)
-        norm = np.linalg.norm(vec)
-        if norm < 1e-12:
-            raise self.fail(
-                f"{where}.{key}", "zero-length axis; expected a non-zero direction"
-            )
-        return vec / norm
-
-    def entries(self, data: dict, key: str, required: bool) -> list[dict]:
-        if key not in data:
-            if required:
-                raise self.fail(f"[[{key}]]", "missing; at least one entry is required")
-            return []
-        value = data[key]
-        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            raise self.fail(f"[[{key}]]", "expected an array of tables ([[...]])")
-        if required and not value:
-            raise self.fail(f"[[{key}]]", "empty; at least one entry is required")
-        return value
-
-    def names(self, items: list[dict], table: str) -> dict[str, int]:
-        index: dict[str, int] = {}
-        for k, item in enumerate(items):
-            where = f"{table}[{k}]"
-            if "name" not in item:
-                raise self.fail(f"{where}.name", "missing required field")
-            name = self.string(item, "name", where)
-            if name in index:
-                raise self.fail(
-                    f"{where}.name",
-                    f"duplicated name {name!r} (also {table}[{index[name]}])",
-                )
-            index[name] = k
-        return index
-
-    def lookup(self, names: dict[str, int], value, where: str, kind: str) -> int:
-        if not isinstance(value, str) or value not in names:
-            raise self.fail(
-                where, f"unknown {kind} {value!r}; expected one of {sorted(names)}"
-            )
-        return names[value]
-
-
-def parse_text(path: Path) -> dict:
-    source = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise MechanismFileError(source, "", "file not found") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise MechanismFileError(source, "", f"cannot read file ({err})") from None
-    return parse_toml(text, source)
-
-
-def parse_toml(text: str, source: str) -> dict:
-    """TOML text -> tables; malformed TOML is one :class:`MechanismFileError` line."""
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise MechanismFileError(source, "", f"invalid TOML: {err}") from None
-
-
 def load(path: str | Path) -> Mechanism:
     """Read, validate and assemble a mechanism definition file."""
     path = Path(path)
@@ -185,22 +57,8 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
     """Validate a parsed definition and build the :class:`Mechanism`; ``check=False``
     skips the mobility/rest-singularity check (for test geometry only)."""
     rd = Reader(source)
-    unknown = sorted(set(data) - TOP_LEVEL)
-    if unknown:
-        raise rd.fail(unknown[0], f"unknown table; expected one of {sorted(TOP_LEVEL)}")
-    if "mechanism" not in data or not isinstance(data["mechanism"], dict):
-        raise rd.fail("[mechanism]", "missing table")
-    head = rd.table(
-        data["mechanism"],
-        "mechanism",
-        "[mechanism]",
-        {"name", "ground", "reference_length", "units"},
-        {"name", "ground"},
-    )
-    bodies = rd.entries(data, "bodies", required=True)
-    body_index = rd.names(bodies, "bodies")
-    for k, body in enumerate(bodies):
-        rd.table(body, "bodies", f"bodies[{k}]", {"name", "origin"}, {"name"})
+    head = _read_head(rd, data)
+    bodies, body_index = _read_bodies(rd, data)
     ground = rd.lookup(body_index, head["ground"], "[mechanism].ground", "body")
     joints = _read_joints(rd, data, body_index)
     origins = _body_origins(rd, bodies, joints, ground)
@@ -216,29 +74,11 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
     mech = Mechanism(
         name=rd.string(head, "name", "[mechanism]"),
         source=source,
-        body_names=tuple(b["name"] for b in bodies),
-        ground=ground,
-        body_origins=origins,
-        joint_names=tuple(j["name"] for j in joints),
-        joint_types=tuple(j["type"] for j in joints),
-        joint_bodies=np.array([j["bodies"] for j in joints], dtype=int).reshape(-1, 2),
-        anchors=anchors,
-        axes=np.array([j["axis"] for j in joints]),
-        axes2=np.array([j["axis2"] for j in joints]),
-        point_names=tuple(p["name"] for p in points),
-        point_bodies=np.array([p["body"] for p in points], dtype=int),
-        point_joints=np.array([p["joint"] for p in points], dtype=int),
-        point_positions=np.array([p["position"] for p in points]).reshape(-1, 3),
-        motor_names=tuple(m["name"] for m in motors),
-        motor_joints=np.array([m["joint"] for m in motors], dtype=int),
-        motor_linear=np.array([m["linear"] for m in motors], dtype=bool),
-        output_names=tuple(o["name"] for o in outputs),
-        output_kinds=tuple(o["kind"] for o in outputs),
-        output_points=np.array([o["point"] for o in outputs], dtype=int),
-        output_coords=np.array([o["coord"] for o in outputs], dtype=int),
-        output_joints=np.array([o["joint"] for o in outputs], dtype=int),
-        output_min=np.array([o["min"] for o in outputs], dtype=float),
-        output_max=np.array([o["max"] for o in outputs], dtype=float),
+        **_body_fields(bodies, ground, origins),
+        **_joint_fields(joints, anchors),
+        **_point_fields(points),
+        **_motor_fields(motors),
+        **_output_fields(outputs),
         design=design,
         length_scale=scale,
         solver=solver,
@@ -253,94 +93,183 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
     return mech
 
 
+def _read_head(rd: Reader, data: dict) -> dict:
+    """The known top-level tables and the ``[mechanism]`` table."""
+    rd.top_level(data, TOP_LEVEL)
+    if "mechanism" not in data or not isinstance(data["mechanism"], dict):
+        raise rd.fail("[mechanism]", "missing table")
+    return rd.keys(
+        data["mechanism"],
+        "[mechanism]",
+        {"name", "ground", "reference_length", "units"},
+        {"name", "ground"},
+    )
+
+
+def _read_bodies(rd: Reader, data: dict) -> tuple[list[dict], dict[str, int]]:
+    bodies = rd.entries(data, "bodies", required=True)
+    body_index = rd.names(bodies, "bodies")
+    for k, body in enumerate(bodies):
+        rd.keys(body, f"bodies[{k}]", {"name", "origin"}, {"name"})
+    return bodies, body_index
+
+
+def _body_fields(bodies: list[dict], ground: int, origins: np.ndarray) -> dict:
+    return {
+        "body_names": tuple(b["name"] for b in bodies),
+        "ground": ground,
+        "body_origins": origins,
+    }
+
+
+def _joint_fields(joints: list[dict], anchors: np.ndarray) -> dict:
+    pairs = np.array([j["bodies"] for j in joints], dtype=int).reshape(-1, 2)
+    return {
+        "joint_names": tuple(j["name"] for j in joints),
+        "joint_types": tuple(j["type"] for j in joints),
+        "joint_bodies": pairs,
+        "anchors": anchors,
+        "axes": np.array([j["axis"] for j in joints]),
+        "axes2": np.array([j["axis2"] for j in joints]),
+    }
+
+
+def _point_fields(points: list[dict]) -> dict:
+    positions = np.array([p["position"] for p in points]).reshape(-1, 3)
+    return {
+        "point_names": tuple(p["name"] for p in points),
+        "point_bodies": np.array([p["body"] for p in points], dtype=int),
+        "point_joints": np.array([p["joint"] for p in points], dtype=int),
+        "point_positions": positions,
+    }
+
+
+def _motor_fields(motors: list[dict]) -> dict:
+    return {
+        "motor_names": tuple(m["name"] for m in motors),
+        "motor_joints": np.array([m["joint"] for m in motors], dtype=int),
+        "motor_linear": np.array([m["linear"] for m in motors], dtype=bool),
+    }
+
+
+def _output_fields(outputs: list[dict]) -> dict:
+    return {
+        "output_names": tuple(o["name"] for o in outputs),
+        "output_kinds": tuple(o["kind"] for o in outputs),
+        "output_points": np.array([o["point"] for o in outputs], dtype=int),
+        "output_coords": np.array([o["coord"] for o in outputs], dtype=int),
+        "output_joints": np.array([o["joint"] for o in outputs], dtype=int),
+        "output_min": np.array([o["min"] for o in outputs], dtype=float),
+        "output_max": np.array([o["max"] for o in outputs], dtype=float),
+    }
+
+
 def _read_joints(rd: Reader, data: dict, body_index: dict[str, int]) -> list[dict]:
     items = rd.entries(data, "joints", required=True)
     rd.names(items, "joints")
-    joints = []
-    for k, item in enumerate(items):
-        where = f"joints[{k}]"
-        rd.table(
-            item,
-            "joints",
-            where,
-            {"name", "type", "bodies", "anchor", "axis", "axis2"},
-            {"name", "type", "bodies", "anchor"},
+    return [
+        _read_joint(rd, item, f"joints[{k}]", body_index)
+        for k, item in enumerate(items)
+    ]
+
+
+def _read_joint(rd: Reader, item: dict, where: str, body_index: dict[str, int]) -> dict:
+    rd.keys(
+        item,
+        where,
+        {"name", "type", "bodies", "anchor", "axis", "axis2"},
+        {"name", "type", "bodies", "anchor"},
+    )
+    kind = item["type"]
+    if kind not in JOINT_ROWS:
+        raise rd.fail(
+            f"{where}.type",
+            f"unknown joint type {kind!r}; expected one of {list(JOINT_ROWS)}",
         )
-        kind = item["type"]
-        if kind not in JOINT_ROWS:
-            raise rd.fail(
-                f"{where}.type",
-                f"unknown joint type {kind!r}; expected one of {list(JOINT_ROWS)}",
-            )
-        pair = item["bodies"]
-        if not isinstance(pair, list) or len(pair) != 2:
-            raise rd.fail(
-                f"{where}.bodies", f"expected a list of two body names, got {pair!r}"
-            )
-        bi = rd.lookup(body_index, pair[0], f"{where}.bodies", "body")
-        bj = rd.lookup(body_index, pair[1], f"{where}.bodies", "body")
-        if bi == bj:
-            raise rd.fail(
-                f"{where}.bodies",
-                f"a joint must connect two different bodies, got {pair!r}",
-            )
-        axis = np.zeros(3)
-        axis2 = np.zeros(3)
-        if kind in AXIAL_JOINTS:
-            if "axis" not in item:
-                raise rd.fail(
-                    f"{where}.axis", f"missing required field for a {kind} joint"
-                )
-            axis = rd.direction(item, "axis", where)
-        elif kind == "fixed":
-            axis = (
-                rd.direction(item, "axis", where)
-                if "axis" in item
-                else np.array([0.0, 0.0, 1.0])
-            )
-        elif (
-            "axis" in item or "axis2" in item
-        ):  # spherical: an optional frame for angle outputs
-            for key in ("axis", "axis2"):
-                if key not in item:
-                    raise rd.fail(
-                        f"{where}.{key}",
-                        "a spherical joint's frame for angle outputs needs both axis and axis2",
-                    )
-            axis = rd.direction(item, "axis", where)
-        if kind in ("universal", "spherical") and (
-            kind == "universal" or "axis2" in item
-        ):
-            if "axis2" not in item:
-                raise rd.fail(
-                    f"{where}.axis2", "missing required field for a universal joint"
-                )
-            axis2 = rd.direction(item, "axis2", where)
-            if abs(axis @ axis2) > ORTHOGONAL_TOL:
-                raise rd.fail(
-                    f"{where}.axis2", "must be perpendicular to axis at the rest pose"
-                )
-        elif "axis2" in item:
-            raise rd.fail(
-                f"{where}.axis2",
-                "only universal and spherical joints have a second axis",
-            )
-        joints.append(
-            {
-                "name": item["name"],
-                "type": kind,
-                "bodies": (bi, bj),
-                "anchor": rd.vector(item, "anchor", where),
-                "axis": axis,
-                "axis2": axis2,
-            }
+    pair = _joint_bodies(rd, item, where, body_index)
+    axis = _first_axis(rd, item, where, kind)
+    axis2 = _second_axis(rd, item, where, kind, axis)
+    return {
+        "name": item["name"],
+        "type": kind,
+        "bodies": pair,
+        "anchor": rd.vector(item, "anchor", where),
+        "axis": axis,
+        "axis2": axis2,
+    }
+
+
+def _joint_bodies(
+    rd: Reader, item: dict, where: str, body_index: dict[str, int]
+) -> tuple[int, int]:
+    """The indices of the two different bodies a joint connects."""
+    pair = item["bodies"]
+    if not isinstance(pair, list) or len(pair) != 2:
+        raise rd.fail(
+            f"{where}.bodies", f"expected a list of two body names, got {pair!r}"
         )
-    return joints
+    bi = rd.lookup(body_index, pair[0], f"{where}.bodies", "body")
+    bj = rd.lookup(body_index, pair[1], f"{where}.bodies", "body")
+    if bi == bj:
+        raise rd.fail(
+            f"{where}.bodies",
+            f"a joint must connect two different bodies, got {pair!r}",
+        )
+    return bi, bj
+
+
+def _first_axis(
+    rd: Reader, item: dict, where: str, kind: str
+) -> Float[np.ndarray, " 3"]:
+    """``axis``: required for axial joints, ``z`` by default for a fixed one, and for
+    a spherical joint part of an optional frame for its angle outputs (else zero)."""
+    if kind in AXIAL_JOINTS:
+        if "axis" not in item:
+            raise rd.fail(f"{where}.axis", f"missing required field for a {kind} joint")
+        return rd.direction(item, "axis", where)
+    if kind == "fixed":
+        if "axis" in item:
+            return rd.direction(item, "axis", where)
+        return np.array([0.0, 0.0, 1.0])
+    if "axis" in item or "axis2" in item:  # spherical: an optional frame
+        for key in ("axis", "axis2"):
+            if key not in item:
+                raise rd.fail(
+                    f"{where}.{key}",
+                    "a spherical joint's frame for angle outputs needs both axis "
+                    "and axis2",
+                )
+        return rd.direction(item, "axis", where)
+    return np.zeros(3)
+
+
+def _second_axis(
+    rd: Reader, item: dict, where: str, kind: str, axis: np.ndarray
+) -> Float[np.ndarray, " 3"]:
+    """``axis2`` of a universal joint (or of a spherical joint's frame),
+    perpendicular to ``axis``; zero for the other joints."""
+    if kind in ("universal", "spherical") and (kind == "universal" or "axis2" in item):
+        if "axis2" not in item:
+            raise rd.fail(
+                f"{where}.axis2", "missing required field for a universal joint"
+            )
+        axis2 = rd.direction(item, "axis2", where)
+        if abs(axis @ axis2) > ORTHOGONAL_TOL:
+            raise rd.fail(
+                f"{where}.axis2", "must be perpendicular to axis at the rest pose"
+            )
+        return axis2
+    if "axis2" in item:
+        raise rd.fail(
+            f"{where}.axis2",
+            "only universal and spherical joints have a second axis",
+        )
+    return np.zeros(3)
 
 
 def _body_origins(
     rd: Reader, bodies: list[dict], joints: list[dict], ground: int
-) -> np.ndarray:
+) -> Float[np.ndarray, "B 3"]:
     """Each body's frame origin at rest: ``origin`` if given, else the centroid of its
     joint anchors. Every body must reach the ground through joints."""
     origins = np.zeros((len(bodies), 3))
@@ -383,18 +312,13 @@ def _read_points(
     points = []
     for k, item in enumerate(items):
         where = f"points[{k}]"
-        rd.table(
-            item,
-            "points",
-            where,
-            {"name", "body", "position", "joint"},
-            {"name", "body"},
-        )
+        rd.keys(item, where, {"name", "body", "position", "joint"}, {"name", "body"})
         body = rd.lookup(body_index, item["body"], f"{where}.body", "body")
         if ("position" in item) == ("joint" in item):
             raise rd.fail(
                 where,
-                "give exactly one of 'position' (a rest position) or 'joint' (follow that joint's anchor)",
+                "give exactly one of 'position' (a rest position) or 'joint' "
+                "(follow that joint's anchor)",
             )
         if "joint" in item:
             joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
@@ -419,13 +343,14 @@ def _read_motors(rd: Reader, data: dict, joints: list[dict]) -> list[dict]:
     motors, used = [], {}
     for k, item in enumerate(items):
         where = f"motors[{k}]"
-        rd.table(item, "motors", where, {"name", "joint"}, {"name", "joint"})
+        rd.keys(item, where, {"name", "joint"}, {"name", "joint"})
         joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
         kind = joints[joint]["type"]
         if kind not in MOTOR_JOINTS:
             raise rd.fail(
                 f"{where}.joint",
-                f"joint {item['joint']!r} is {kind}; a motor drives a {' or '.join(MOTOR_JOINTS)} joint",
+                f"joint {item['joint']!r} is {kind}; a motor drives a "
+                f"{' or '.join(MOTOR_JOINTS)} joint",
             )
         if joint in used:
             raise rd.fail(
@@ -446,64 +371,89 @@ def _read_outputs(
     rd.names(items, "outputs")
     point_index = {p["name"]: k for k, p in enumerate(points)}
     joint_index = {j["name"]: k for k, j in enumerate(joints)}
-    outputs = []
-    for k, item in enumerate(items):
-        where = f"outputs[{k}]"
-        rd.table(
-            item,
-            "outputs",
-            where,
-            {"name", "point", "coordinate", "joint", "angle", "min", "max"},
-            {"name", "min", "max"},
+    return [
+        _read_output(rd, item, f"outputs[{k}]", point_index, joint_index, joints)
+        for k, item in enumerate(items)
+    ]
+
+
+def _read_output(
+    rd: Reader,
+    item: dict,
+    where: str,
+    point_index: dict[str, int],
+    joint_index: dict[str, int],
+    joints: list[dict],
+) -> dict:
+    """One output: a point's Cartesian coordinate or a joint angle, with its range."""
+    rd.keys(
+        item,
+        where,
+        {"name", "point", "coordinate", "joint", "angle", "min", "max"},
+        {"name", "min", "max"},
+    )
+    low, high = rd.number(item, "min", where), rd.number(item, "max", where)
+    if low >= high:
+        raise rd.fail(
+            f"{where}.min",
+            f"target range needs min < max, got min={low} and max={high}",
         )
-        low, high = rd.number(item, "min", where), rd.number(item, "max", where)
-        if low >= high:
-            raise rd.fail(
-                f"{where}.min",
-                f"target range needs min < max, got min={low} and max={high}",
-            )
-        entry = {
-            "name": item["name"],
-            "min": low,
-            "max": high,
-            "point": -1,
-            "coord": -1,
-            "joint": -1,
-        }
-        if "point" in item and "joint" not in item:
-            if "coordinate" not in item:
-                raise rd.fail(
-                    f"{where}.coordinate",
-                    "missing required field for a point output (x, y or z)",
-                )
-            if item["coordinate"] not in ("x", "y", "z"):
-                raise rd.fail(
-                    f"{where}.coordinate",
-                    f"expected 'x', 'y' or 'z', got {item['coordinate']!r}",
-                )
-            entry.update(
-                kind="position",
-                point=rd.lookup(point_index, item["point"], f"{where}.point", "point"),
-                coord="xyz".index(item["coordinate"]),
-            )
-        elif "joint" in item and "point" not in item:
-            if "coordinate" in item:
-                raise rd.fail(
-                    f"{where}.coordinate", "an angle output has no coordinate"
-                )
-            joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
-            entry.update(
-                kind="angle",
-                joint=joint,
-                coord=_angle_index(rd, item, where, joints[joint]),
-            )
-        else:
-            raise rd.fail(
-                where,
-                "give either 'point' and 'coordinate' (a Cartesian output) or 'joint' (an angle output)",
-            )
-        outputs.append(entry)
-    return outputs
+    entry = {
+        "name": item["name"],
+        "min": low,
+        "max": high,
+        "point": -1,
+        "coord": -1,
+        "joint": -1,
+    }
+    if "point" in item and "joint" not in item:
+        entry.update(_point_output(rd, item, where, point_index))
+    elif "joint" in item and "point" not in item:
+        entry.update(_angle_output(rd, item, where, joint_index, joints))
+    else:
+        raise rd.fail(
+            where,
+            "give either 'point' and 'coordinate' (a Cartesian output) or 'joint' "
+            "(an angle output)",
+        )
+    return entry
+
+
+def _point_output(
+    rd: Reader, item: dict, where: str, point_index: dict[str, int]
+) -> dict:
+    if "coordinate" not in item:
+        raise rd.fail(
+            f"{where}.coordinate",
+            "missing required field for a point output (x, y or z)",
+        )
+    if item["coordinate"] not in ("x", "y", "z"):
+        raise rd.fail(
+            f"{where}.coordinate",
+            f"expected 'x', 'y' or 'z', got {item['coordinate']!r}",
+        )
+    return {
+        "kind": "position",
+        "point": rd.lookup(point_index, item["point"], f"{where}.point", "point"),
+        "coord": "xyz".index(item["coordinate"]),
+    }
+
+
+def _angle_output(
+    rd: Reader,
+    item: dict,
+    where: str,
+    joint_index: dict[str, int],
+    joints: list[dict],
+) -> dict:
+    if "coordinate" in item:
+        raise rd.fail(f"{where}.coordinate", "an angle output has no coordinate")
+    joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
+    return {
+        "kind": "angle",
+        "joint": joint,
+        "coord": _angle_index(rd, item, where, joints[joint]),
+    }
 
 
 def _angle_index(rd: Reader, item: dict, where: str, joint: dict) -> int:
@@ -521,19 +471,21 @@ def _angle_index(rd: Reader, item: dict, where: str, joint: dict) -> int:
     if kind not in ("universal", "spherical"):
         raise rd.fail(
             f"{where}.joint",
-            f"an angle output needs a revolute, cylindrical, universal or spherical joint, {name!r} is {kind}",
+            "an angle output needs a revolute, cylindrical, universal or spherical "
+            f"joint, {name!r} is {kind}",
         )
     if kind == "spherical" and not np.any(joint["axis2"]):
         raise rd.fail(
             f"{where}.joint",
-            f"spherical joint {name!r} needs axis and axis2 (the frame its angles are measured in) for an angle output",
+            f"spherical joint {name!r} needs axis and axis2 (the frame its angles "
+            "are measured in) for an angle output",
         )
     count = 2 if kind == "universal" else 3
     if "angle" not in item:
         raise rd.fail(
             f"{where}.angle",
-            f"missing required field for an angle of a {kind} joint: 1 (about axis), 2 (about axis2)"
-            + (", 3 (about axis x axis2)" if count == 3 else ""),
+            f"missing required field for an angle of a {kind} joint: 1 (about axis), "
+            "2 (about axis2)" + (", 3 (about axis x axis2)" if count == 3 else ""),
         )
     value = item["angle"]
     if isinstance(value, bool) or value not in range(1, count + 1):
@@ -543,7 +495,7 @@ def _angle_index(rd: Reader, item: dict, where: str, joint: dict) -> int:
     return int(value) - 1
 
 
-def diameter(points: np.ndarray) -> float:
+def diameter(points: Float[np.ndarray, "N 3"]) -> float:
     """Largest distance between two of ``points (N, 3)``: the default reference length
     (over the joint anchors) and the one the arm builders give for their bodies."""
     points = np.asarray(points, dtype=float)
@@ -565,12 +517,8 @@ def _reference_length(rd: Reader, head: dict, anchors: np.ndarray) -> float:
 def _read_symmetry(rd: Reader, data: dict):
     if "symmetry" not in data:
         return None
-    table = rd.table(
-        data["symmetry"],
-        "symmetry",
-        "[symmetry]",
-        {"normal", "point"},
-        {"normal", "point"},
+    table = rd.keys(
+        data["symmetry"], "[symmetry]", {"normal", "point"}, {"normal", "point"}
     )
     return rd.direction(table, "normal", "[symmetry]"), rd.vector(
         table, "point", "[symmetry]"
@@ -600,7 +548,8 @@ def _joint_group(
         if np.linalg.norm(joints[index][key] - joints[group[0]][key]) > tolerance:
             raise rd.fail(
                 where,
-                f"joints moved together must share their {key} at rest; {name!r} differs from {names[0]!r}",
+                f"joints moved together must share their {key} at rest; {name!r} "
+                f"differs from {names[0]!r}",
             )
     if len(set(group)) != len(group):
         raise rd.fail(where, "a joint is listed twice")
@@ -615,71 +564,14 @@ def _read_design(
     items = rd.entries(data, "parameters", required=False)
     rd.names(items, "parameters")
     joint_index = {j["name"]: k for k, j in enumerate(joints)}
-    count = len(joints)
-    matrix = np.zeros((6 * count, len(items)))
+    matrix = np.zeros((6 * len(joints), len(items)))
     p0, lower, upper, owner = [], [], [], {}
     for k, item in enumerate(items):
         where = f"parameters[{k}]"
-        rd.table(
-            item,
-            "parameters",
-            where,
-            {"name", "joint", "coordinate", "min", "max", "mirror"},
-            {"name", "joint", "coordinate", "min", "max"},
+        value, low, high, driven = _read_parameter(
+            rd, item, where, joint_index, joints, symmetry, scale
         )
-        coord = item["coordinate"]
-        if coord not in COORDINATES:
-            raise rd.fail(
-                f"{where}.coordinate",
-                f"expected one of {list(COORDINATES)}, got {coord!r}",
-            )
-        is_axis = coord.startswith("axis_")
-        c = "xyz".index(coord[-1])
-        group = _joint_group(
-            rd, item["joint"], f"{where}.joint", joint_index, joints, is_axis, scale
-        )
-        joint = group[0]
-        if is_axis and any(joints[g]["type"] not in AXIAL_JOINTS for g in group):
-            raise rd.fail(
-                f"{where}.coordinate",
-                f"{item['joint']!r}: only revolute, universal, prismatic and cylindrical joints have a movable axis",
-            )
-        value = (joints[joint]["axis"] if is_axis else joints[joint]["anchor"])[c]
-        low, high = rd.number(item, "min", where), rd.number(item, "max", where)
-        if not low < high:
-            raise rd.fail(
-                f"{where}.min", f"bounds need min < max, got min={low} and max={high}"
-            )
-        if not low <= value <= high:
-            raise rd.fail(
-                f"{where}.min",
-                f"the rest value {value:g} of {joints[joint]['name']}.{coord} lies outside [{low:g}, {high:g}]",
-            )
-        base = 3 * count if is_axis else 0
-        driven = [(base + 3 * g + c, 1.0) for g in group]
-        if "mirror" in item:
-            mirrors = _joint_group(
-                rd,
-                item["mirror"],
-                f"{where}.mirror",
-                joint_index,
-                joints,
-                is_axis,
-                scale,
-            )
-            for mirror in mirrors:
-                driven += _mirror_rows(
-                    rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, group
-                )
-        for row, _ in driven:
-            if row in owner:
-                raise rd.fail(
-                    where,
-                    f"drives a coordinate already driven by parameters[{owner[row]}]",
-                )
-        for row, weight in driven:
-            owner[row] = k
-            matrix[row, k] = weight
+        _claim_rows(rd, where, k, driven, owner, matrix)
         p0.append(value)
         lower.append(low)
         upper.append(high)
@@ -694,6 +586,94 @@ def _read_design(
         matrix,
         is_length,
     )
+
+
+def _read_parameter(
+    rd: Reader,
+    item: dict,
+    where: str,
+    joint_index: dict[str, int],
+    joints: list[dict],
+    symmetry,
+    scale: float,
+) -> tuple[float, float, float, list[tuple[int, float]]]:
+    """One parameter: its rest value, bounds and the (row, weight) pairs of the flat
+    geometry it drives, mirror twins included."""
+    rd.keys(
+        item,
+        where,
+        {"name", "joint", "coordinate", "min", "max", "mirror"},
+        {"name", "joint", "coordinate", "min", "max"},
+    )
+    coord = item["coordinate"]
+    if coord not in COORDINATES:
+        raise rd.fail(
+            f"{where}.coordinate",
+            f"expected one of {list(COORDINATES)}, got {coord!r}",
+        )
+    is_axis = coord.startswith("axis_")
+    c = "xyz".index(coord[-1])
+    group = _joint_group(
+        rd, item["joint"], f"{where}.joint", joint_index, joints, is_axis, scale
+    )
+    joint = group[0]
+    if is_axis and any(joints[g]["type"] not in AXIAL_JOINTS for g in group):
+        raise rd.fail(
+            f"{where}.coordinate",
+            f"{item['joint']!r}: only revolute, universal, prismatic and cylindrical "
+            "joints have a movable axis",
+        )
+    value = (joints[joint]["axis"] if is_axis else joints[joint]["anchor"])[c]
+    low, high = _parameter_bounds(rd, item, where, value, joints[joint]["name"])
+    base = 3 * len(joints) if is_axis else 0
+    driven = [(base + 3 * g + c, 1.0) for g in group]
+    if "mirror" in item:
+        mirrors = _joint_group(
+            rd, item["mirror"], f"{where}.mirror", joint_index, joints, is_axis, scale
+        )
+        for mirror in mirrors:
+            driven += _mirror_rows(
+                rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, group
+            )
+    return value, low, high, driven
+
+
+def _parameter_bounds(
+    rd: Reader, item: dict, where: str, value: float, joint_name: str
+) -> tuple[float, float]:
+    """``min < max``, with the rest value between them."""
+    low, high = rd.number(item, "min", where), rd.number(item, "max", where)
+    if not low < high:
+        raise rd.fail(
+            f"{where}.min", f"bounds need min < max, got min={low} and max={high}"
+        )
+    if not low <= value <= high:
+        raise rd.fail(
+            f"{where}.min",
+            f"the rest value {value:g} of {joint_name}.{item['coordinate']} lies "
+            f"outside [{low:g}, {high:g}]",
+        )
+    return low, high
+
+
+def _claim_rows(
+    rd: Reader,
+    where: str,
+    k: int,
+    driven: list[tuple[int, float]],
+    owner: dict[int, int],
+    matrix: Float[np.ndarray, "rows n_p"],
+) -> None:
+    """Parameter ``k`` takes the rows it drives; no row has two parameters."""
+    for row, _ in driven:
+        if row in owner:
+            raise rd.fail(
+                where,
+                f"drives a coordinate already driven by parameters[{owner[row]}]",
+            )
+    for row, weight in driven:
+        owner[row] = k
+        matrix[row, k] = weight
 
 
 def _mirror_rows(rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, group):
@@ -729,16 +709,15 @@ def _mirror_rows(rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, 
 
 
 def _read_solver(rd: Reader, data: dict) -> SolverSettings:
+    defaults = SolverSettings()
     if "solver" not in data:
-        return SolverSettings()
-    table = rd.table(
+        return defaults
+    table = rd.keys(
         data["solver"],
-        "solver",
         "[solver]",
         {"max_iterations", "tolerance", "initial_damping"},
         set(),
     )
-    defaults = SolverSettings()
     iterations = table.get("max_iterations", defaults.max_iterations)
     if (
         isinstance(iterations, bool)
@@ -769,22 +748,16 @@ def _read_evaluation(rd: Reader, data: dict) -> EvaluationSettings:
     if "evaluation" not in data:
         return defaults
     fields = set(EvaluationSettings.__dataclass_fields__)
-    table = rd.table(data["evaluation"], "evaluation", "[evaluation]", fields, set())
+    table = rd.keys(data["evaluation"], "[evaluation]", fields, set())
     values = {}
-    for key, value in table.items():
+    for key, _ in table.items():
         default = getattr(defaults, key)
-        where = f"[evaluation].{key}"
-        if default is None:
-            value = rd.positive(table, key, "[evaluation]")
-        elif isinstance(default, bool):
-            if not isinstance(value, bool):
-                raise rd.fail(where, f"expected true or false, got {value!r}")
+        if isinstance(default, bool):
+            values[key] = rd.boolean(table, key, "[evaluation]")
         elif isinstance(default, int):
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise rd.fail(where, f"expected a positive integer, got {value!r}")
-        else:
-            value = rd.positive(table, key, "[evaluation]")
-        values[key] = value
+            values[key] = rd.positive_integer(table, key, "[evaluation]")
+        else:  # a float, or None: an optional positive number
+            values[key] = rd.positive(table, key, "[evaluation]")
     settings = EvaluationSettings(**values)
     if settings.samples_per_dimension < 2:
         raise rd.fail(

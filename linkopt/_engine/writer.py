@@ -71,9 +71,7 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
     data = copy.deepcopy(mech.raw)
     data["mechanism"]["reference_length"] = float(mech.length_scale)
     for body, origin in zip(data["bodies"], mech.body_origins):
-        body["origin"] = [
-            float(v) for v in origin
-        ]  # same body frames, so the same f_sing
+        body["origin"] = [float(v) for v in origin]  # same frames, so the same f_sing
     data.setdefault("evaluation", {})["alpha_minus"] = float(alpha_minus)
     for k, joint in enumerate(data["joints"]):
         joint["anchor"] = [float(v) for v in anchors[k]]

@@ -21,13 +21,14 @@ Format (lengths in metres, masses in kg, angles in radians unless named ``..._de
     [[targets]]               # in the order they are visited
     position = [0.4, 0.0, 0.6]
     axis = [0.0, 0.0, 1.0]    # optional tip axis (eq. 3)
-    # orientation = [[1,0,0],[0,1,0],[0,0,1]]   # optional full orientation (eq. 4), rows
+    # orientation = [[1,0,0],[0,1,0],[0,0,1]]  # optional orientation (eq. 4), rows
     # approach = { local = [1,0,0], direction = [0,0,-1], angle_deg = 30 }  # tool axis
     #   ``local`` within ``angle_deg`` of the world ``direction`` (Sec. III-E)
 
-    [[obstacles]]             # box {center, size, orientation?} | sphere {center, radius}
-    type = "box"              # | capsule {a, b, radius} | mesh {path, center?, scale?}
-    #   a box's orientation: rotation matrix (rows) whose columns are its edge directions
+    [[obstacles]]             # box {center, size, orientation?}
+    type = "box"              # | sphere {center, radius} | capsule {a, b, radius}
+    #                         # | mesh {path, center?, scale?}
+    #   a box's orientation: rotation matrix (rows), its columns the edge directions
 
     [workspace]               # required with obstacles: the voxel grid of the SDF
     lower = [-1, -1, -1]
@@ -48,8 +49,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from jaxtyping import Float
 
-from ..._engine.loader import Reader, parse_text, parse_toml
+from ..._engine.fields import Reader, is_number_list, parse_text, parse_toml
 from .model import LENGTH_SLOTS, SLOTS, Arm, Module, make_arm
 from .sdf import Obstacle, load_mesh
 
@@ -87,9 +89,8 @@ class Target:
     position: np.ndarray  # (3,)
     axis: np.ndarray | None = None  # (3,) unit
     orientation: np.ndarray | None = None  # (3, 3)
-    approach: tuple[np.ndarray, np.ndarray, float] | None = (
-        None  # (local, world, cos(angle))
-    )
+    # (local axis, world direction, cos(angle))
+    approach: tuple[np.ndarray, np.ndarray, float] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,7 +128,7 @@ def _slot(
         return (-1, 0.0)
     value = item[slot]
     if isinstance(value, dict):
-        rd.table(value, slot, f"{where}.{slot}", {"min", "max", "init"}, {"min", "max"})
+        rd.keys(value, f"{where}.{slot}", {"min", "max", "init"}, {"min", "max"})
         low, high = (
             rd.number(value, "min", f"{where}.{slot}"),
             rd.number(value, "max", f"{where}.{slot}"),
@@ -161,9 +162,8 @@ def _read_modules(rd: Reader, data: dict) -> tuple[tuple[Module, ...], list, lis
                 f"unknown module type {kind!r}; expected one of {list(SLOTS)}",
             )
         needs_mass = kind in ("joint", "link", "tool")
-        rd.table(
+        rd.keys(
             item,
-            "modules",
             where,
             {"type", "name", "mass", *SLOTS[kind]},
             {"type"} | ({"mass"} if needs_mass else set()),
@@ -190,20 +190,12 @@ def _read_modules(rd: Reader, data: dict) -> tuple[tuple[Module, ...], list, lis
     return tuple(modules), names, bounds
 
 
-def _unit(rd: Reader, data: dict, key: str, where: str) -> np.ndarray:
-    return rd.direction(data, key, where)
-
-
-def _read_orientation(rd: Reader, value, where: str) -> np.ndarray:
+def _read_orientation(rd: Reader, value, where: str) -> Float[np.ndarray, "3 3"]:
+    """A rotation matrix given as its three rows."""
     ok = (
         isinstance(value, list)
         and len(value) == 3
-        and all(isinstance(r, list) and len(r) == 3 for r in value)
-    )
-    ok = ok and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-        for r in value
-        for v in r
+        and all(is_number_list(r, 3) for r in value)
     )
     matrix = np.asarray(value, dtype=float) if ok else None
     if (
@@ -221,44 +213,47 @@ def _read_targets(rd: Reader, data: dict) -> tuple[Target, ...]:
     targets = []
     for k, item in enumerate(rd.entries(data, "targets", required=True)):
         where = f"targets[{k}]"
-        rd.table(
+        rd.keys(
             item,
-            "targets",
             where,
             {"position", "axis", "orientation", "approach"},
             {"position"},
         )
-        axis = _unit(rd, item, "axis", where) if "axis" in item else None
+        axis = rd.direction(item, "axis", where) if "axis" in item else None
         orientation = (
             _read_orientation(rd, item["orientation"], f"{where}.orientation")
             if "orientation" in item
             else None
         )
-        approach = None
-        if "approach" in item:
-            cone = item["approach"]
-            if not isinstance(cone, dict):
-                raise rd.fail(
-                    f"{where}.approach",
-                    "expected a table {local, direction, angle_deg}",
-                )
-            rd.table(
-                cone,
-                "approach",
-                f"{where}.approach",
-                {"local", "direction", "angle_deg"},
-                {"local", "direction", "angle_deg"},
-            )
-            angle = rd.positive(cone, "angle_deg", f"{where}.approach")
-            approach = (
-                _unit(rd, cone, "local", f"{where}.approach"),
-                _unit(rd, cone, "direction", f"{where}.approach"),
-                math.cos(math.radians(angle)),
-            )
+        approach = (
+            _read_approach(rd, item["approach"], f"{where}.approach")
+            if "approach" in item
+            else None
+        )
         targets.append(
             Target(rd.vector(item, "position", where), axis, orientation, approach)
         )
     return tuple(targets)
+
+
+def _read_approach(
+    rd: Reader, cone, where: str
+) -> tuple[Float[np.ndarray, " 3"], Float[np.ndarray, " 3"], float]:
+    """The approach cone ``(local axis, world direction, cos(angle))``."""
+    if not isinstance(cone, dict):
+        raise rd.fail(where, "expected a table {local, direction, angle_deg}")
+    rd.keys(
+        cone,
+        where,
+        {"local", "direction", "angle_deg"},
+        {"local", "direction", "angle_deg"},
+    )
+    angle = rd.positive(cone, "angle_deg", where)
+    return (
+        rd.direction(cone, "local", where),
+        rd.direction(cone, "direction", where),
+        math.cos(math.radians(angle)),
+    )
 
 
 def _read_obstacles(rd: Reader, data: dict, base: Path) -> tuple[Obstacle, ...]:
@@ -269,46 +264,51 @@ def _read_obstacles(rd: Reader, data: dict, base: Path) -> tuple[Obstacle, ...]:
         if not isinstance(kind, str) or kind not in OBSTACLE_FIELDS:
             raise rd.fail(
                 f"{where}.type",
-                f"unknown obstacle type {kind!r}; expected one of {list(OBSTACLE_FIELDS)}",
+                f"unknown obstacle type {kind!r}; expected one of "
+                f"{list(OBSTACLE_FIELDS)}",
             )
         required, optional = OBSTACLE_FIELDS[kind]
-        rd.table(
-            item,
-            "obstacles",
-            where,
-            {"type"} | required | optional,
-            {"type"} | required,
-        )
-        args = {"kind": kind}
-        for key in ("center", "size", "a", "b"):
-            if key in item:
-                args[key] = tuple(rd.vector(item, key, where))
-        if "size" in args and min(args["size"]) <= 0:
-            raise rd.fail(
-                f"{where}.size",
-                f"expected positive edge lengths, got {list(args['size'])}",
-            )
-        for key in ("radius", "scale"):
-            if key in item:
-                args[key] = rd.positive(item, key, where)
-        if "orientation" in item:
-            args["orientation"] = tuple(
-                tuple(float(v) for v in row)
-                for row in _read_orientation(
-                    rd, item["orientation"], f"{where}.orientation"
-                )
-            )
-        if kind == "mesh":
-            path = base / rd.string(item, "path", where)
-            if not path.is_file():
-                raise rd.fail(f"{where}.path", f"mesh file {str(path)!r} not found")
-            try:
-                load_mesh(str(path))
-            except ValueError as err:
-                raise rd.fail(f"{where}.path", str(err)) from None
-            args["path"] = str(path)
-        obstacles.append(Obstacle(**args))
+        rd.keys(item, where, {"type"} | required | optional, {"type"} | required)
+        obstacles.append(Obstacle(**_obstacle_args(rd, item, where, kind, base)))
     return tuple(obstacles)
+
+
+def _obstacle_args(rd: Reader, item: dict, where: str, kind: str, base: Path) -> dict:
+    """The :class:`Obstacle` fields of one ``[[obstacles]]`` entry."""
+    args = {"kind": kind}
+    for key in ("center", "size", "a", "b"):
+        if key in item:
+            args[key] = tuple(rd.vector(item, key, where))
+    if "size" in args and min(args["size"]) <= 0:
+        raise rd.fail(
+            f"{where}.size",
+            f"expected positive edge lengths, got {list(args['size'])}",
+        )
+    for key in ("radius", "scale"):
+        if key in item:
+            args[key] = rd.positive(item, key, where)
+    if "orientation" in item:
+        args["orientation"] = tuple(
+            tuple(float(v) for v in row)
+            for row in _read_orientation(
+                rd, item["orientation"], f"{where}.orientation"
+            )
+        )
+    if kind == "mesh":
+        args["path"] = _mesh_path(rd, item, where, base)
+    return args
+
+
+def _mesh_path(rd: Reader, item: dict, where: str, base: Path) -> str:
+    """The mesh file, relative to the task file's folder, checked to load."""
+    path = base / rd.string(item, "path", where)
+    if not path.is_file():
+        raise rd.fail(f"{where}.path", f"mesh file {str(path)!r} not found")
+    try:
+        load_mesh(str(path))
+    except ValueError as err:
+        raise rd.fail(f"{where}.path", str(err)) from None
+    return str(path)
 
 
 def _options(
@@ -317,7 +317,7 @@ def _options(
     table = data.get(key, {})
     if not isinstance(table, dict):
         raise rd.fail(f"[{key}]", "expected a table")
-    rd.table(table, key, f"[{key}]", set(defaults), set())
+    rd.keys(table, f"[{key}]", set(defaults), set())
     out = dict(defaults)
     for name in table:
         value = rd.number(table, name, f"[{key}]")
@@ -341,17 +341,18 @@ def _read_workspace(rd: Reader, data: dict, obstacles) -> tuple:
         if obstacles:
             raise rd.fail(
                 "[workspace]",
-                "missing table; obstacles need the voxel grid's lower and upper corners",
+                "missing table; obstacles need the voxel grid's lower and upper "
+                "corners",
             )
         return None, 0.02, 0.04
     if not isinstance(data["workspace"], dict):
         raise rd.fail(
             "[workspace]",
-            f"expected a table {{lower, upper, voxel?, clearance?}}, got {data['workspace']!r}",
+            "expected a table {lower, upper, voxel?, clearance?}, "
+            f"got {data['workspace']!r}",
         )
-    table = rd.table(
+    table = rd.keys(
         data["workspace"],
-        "workspace",
         "[workspace]",
         {"lower", "upper", "voxel", "clearance"},
         {"lower", "upper"},
@@ -363,7 +364,8 @@ def _read_workspace(rd: Reader, data: dict, obstacles) -> tuple:
     if np.any(lower >= upper):
         raise rd.fail(
             "[workspace].upper",
-            f"must exceed lower in every coordinate, got lower={list(lower)} upper={list(upper)}",
+            "must exceed lower in every coordinate, "
+            f"got lower={list(lower)} upper={list(upper)}",
         )
     voxel = rd.positive(table, "voxel", "[workspace]") if "voxel" in table else 0.02
     clearance = (
@@ -378,14 +380,11 @@ def parse_task(data: dict, source: str, base: Path = Path(".")) -> Task:
     """Validate a parsed task file and build the :class:`Task` (arm compiled and
     checked)."""
     rd = Reader(source)
-    unknown = sorted(set(data) - TOP_LEVEL)
-    if unknown:
-        raise rd.fail(unknown[0], f"unknown table; expected one of {sorted(TOP_LEVEL)}")
+    rd.top_level(data, TOP_LEVEL)
     if not isinstance(data.get("task"), dict):
         raise rd.fail("[task]", "missing table")
-    head = rd.table(
+    head = rd.keys(
         data["task"],
-        "task",
         "[task]",
         {"name", "gravity", "torque_limit", "module_radius", "payload"},
         {"name", "gravity", "torque_limit", "module_radius"},

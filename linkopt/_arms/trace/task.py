@@ -55,8 +55,7 @@ from pathlib import Path
 import numpy as np
 from jaxtyping import Float
 
-from ..._engine.loader import parse_text, parse_toml
-from ..._errors import MechanismFileError
+from ..._engine.fields import Reader, parse_text, parse_toml
 
 KINDS = ("line", "arc", "circle")
 FIELDS = {
@@ -65,6 +64,7 @@ FIELDS = {
     "circle": ({"type", "center", "radius", "direction"}, {"start"}),
 }
 TOP_LEVEL = {"task", "primitives", "obstacles", "base_regions"}
+HEAD_FIELDS = {"name", "link_diameter", "min_link_length", "max_link_length"}
 REL_TOL = 1e-6
 
 
@@ -121,63 +121,6 @@ def _outline(p: Primitive) -> np.ndarray:
     return p.center + p.radius * np.stack([np.cos(ang), np.sin(ang)], axis=1)
 
 
-class _Fields:
-    """Typed field access raising with the file and field path."""
-
-    def __init__(self, source: str):
-        self.source = source
-
-    def fail(self, where: str, message: str) -> MechanismFileError:
-        return MechanismFileError(self.source, where, message)
-
-    def check_keys(
-        self, data, where: str, required: set[str], optional: set[str]
-    ) -> None:
-        if not isinstance(data, dict):
-            raise self.fail(where, f"expected a table, got {data!r}")
-        unknown = sorted(set(data) - required - optional)
-        if unknown:
-            raise self.fail(
-                f"{where}.{unknown[0]}",
-                f"unknown field; expected one of {sorted(required | optional)}",
-            )
-        missing = sorted(required - set(data))
-        if missing:
-            raise self.fail(f"{where}.{missing[0]}", "missing required field")
-
-    def number(self, data: dict, key: str, where: str, positive: bool = False) -> float:
-        v = data[key]
-        if (
-            isinstance(v, bool)
-            or not isinstance(v, (int, float))
-            or not math.isfinite(v)
-        ):
-            raise self.fail(f"{where}.{key}", f"expected a finite number, got {v!r}")
-        if positive and v <= 0:
-            raise self.fail(f"{where}.{key}", f"expected a positive number, got {v!r}")
-        return float(v)
-
-    def point(self, data: dict, key: str, where: str) -> np.ndarray:
-        v = data[key]
-        ok = isinstance(v, list) and len(v) == 2
-        ok = ok and all(
-            not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x)
-            for x in v
-        )
-        if not ok:
-            raise self.fail(
-                f"{where}.{key}",
-                f"expected a list of 2 finite numbers [x, y], got {v!r}",
-            )
-        return np.asarray(v, dtype=float)
-
-    def entries(self, data: dict, key: str) -> list:
-        v = data.get(key, [])
-        if not isinstance(v, list):
-            raise self.fail(key, "expected an array of tables ([[" + key + "]])")
-        return v
-
-
 def load_task(path: str | Path) -> TraceTask:
     """Read and validate a task file; raises :class:`MechanismFileError` on bad
     input."""
@@ -192,25 +135,19 @@ def loads_task(text: str, source: str = "<string>") -> TraceTask:
 
 def parse_task(data: dict, source: str) -> TraceTask:
     """Validate parsed task TOML (as :func:`loads_task`)."""
-    rd = _Fields(source)
-    unknown = sorted(set(data) - TOP_LEVEL)
-    if unknown:
-        raise rd.fail(unknown[0], f"unknown table; expected one of {sorted(TOP_LEVEL)}")
+    rd = Reader(source)
+    rd.top_level(data, TOP_LEVEL)
     if "task" not in data:
         raise rd.fail("task", "missing required table [task]")
-    head = data["task"]
-    rd.check_keys(
-        head, "task", {"name", "link_diameter"}, {"min_link_length", "max_link_length"}
-    )
-    if not isinstance(head["name"], str) or not head["name"]:
-        raise rd.fail("task.name", f"expected a non-empty string, got {head['name']!r}")
-    diameter = rd.number(head, "link_diameter", "task", positive=True)
+    head = rd.table(data["task"], "task", HEAD_FIELDS, {"name", "link_diameter"})
+    name = rd.string(head, "name", "task")
+    diameter = rd.positive(head, "link_diameter", "task", as_written=True)
     min_link = (
-        rd.number(head, "min_link_length", "task", positive=True)
+        rd.positive(head, "min_link_length", "task", as_written=True)
         if "min_link_length" in head
         else 2 * diameter
     )
-    raw = rd.entries(data, "primitives")
+    raw = rd.array(data, "primitives")
     if not raw:
         raise rd.fail("primitives", "expected at least one [[primitives]] entry")
     prims = tuple(
@@ -219,10 +156,10 @@ def parse_task(data: dict, source: str) -> TraceTask:
     obstacles = _read_obstacles(rd, data)
     regions = _read_regions(rd, data)
     task = TraceTask(
-        head["name"], source, prims, obstacles, regions, diameter, min_link, np.inf
+        name, source, prims, obstacles, regions, diameter, min_link, np.inf
     )
     max_link = (
-        rd.number(head, "max_link_length", "task", positive=True)
+        rd.positive(head, "max_link_length", "task", as_written=True)
         if "max_link_length" in head
         else 4 * task.scale
     )
@@ -237,7 +174,7 @@ def parse_task(data: dict, source: str) -> TraceTask:
     return task
 
 
-def _read_primitive(rd: _Fields, item, where: str) -> Primitive:
+def _read_primitive(rd: Reader, item, where: str) -> Primitive:
     if not isinstance(item, dict) or "type" not in item:
         raise rd.fail(
             f"{where}.type", f"missing required field; expected one of {list(KINDS)}"
@@ -249,7 +186,7 @@ def _read_primitive(rd: _Fields, item, where: str) -> Primitive:
             f"unknown primitive type {kind!r}; expected one of {list(KINDS)}",
         )
     required, optional = FIELDS[kind]
-    rd.check_keys(item, where, required, optional)
+    rd.keys(item, where, required | optional, required)
     if kind == "line":
         a, b = rd.point(item, "start", where), rd.point(item, "end", where)
         if np.linalg.norm(b - a) <= 0:
@@ -268,16 +205,17 @@ def _read_primitive(rd: _Fields, item, where: str) -> Primitive:
 
 
 def _circle(
-    rd: _Fields, item: dict, where: str, center: np.ndarray, sign: float
+    rd: Reader, item: dict, where: str, center: np.ndarray, sign: float
 ) -> Primitive:
-    radius = rd.number(item, "radius", where, positive=True)
+    radius = rd.positive(item, "radius", where, as_written=True)
     start = (
         rd.point(item, "start", where) if "start" in item else center + [radius, 0.0]
     )
     if abs(np.linalg.norm(start - center) - radius) > REL_TOL * max(radius, 1.0):
         raise rd.fail(
             f"{where}.start",
-            f"expected a point on the circle (distance {radius:g} from center), got distance {np.linalg.norm(start - center):g}",
+            f"expected a point on the circle (distance {radius:g} from center), "
+            f"got distance {np.linalg.norm(start - center):g}",
         )
     angle0 = math.atan2(*(start - center)[::-1])
     return Primitive(
@@ -286,7 +224,7 @@ def _circle(
 
 
 def _arc(
-    rd: _Fields, item: dict, where: str, center: np.ndarray, sign: float
+    rd: Reader, item: dict, where: str, center: np.ndarray, sign: float
 ) -> Primitive:
     a, b = rd.point(item, "start", where), rd.point(item, "end", where)
     radius = float(np.linalg.norm(a - center))
@@ -295,7 +233,8 @@ def _arc(
     if abs(np.linalg.norm(b - center) - radius) > REL_TOL * max(radius, 1.0):
         raise rd.fail(
             f"{where}.end",
-            f"expected a point at the start's distance {radius:g} from center, got {np.linalg.norm(b - center):g}",
+            f"expected a point at the start's distance {radius:g} from center, "
+            f"got {np.linalg.norm(b - center):g}",
         )
     if np.linalg.norm(b - a) <= REL_TOL * radius:
         raise rd.fail(
@@ -307,36 +246,37 @@ def _arc(
     return Primitive("arc", a, b, center, radius, angle0, sign * sweep)
 
 
-def _read_obstacles(rd: _Fields, data: dict) -> np.ndarray:
+def _read_obstacles(rd: Reader, data: dict) -> np.ndarray:
     rows = []
-    for k, item in enumerate(rd.entries(data, "obstacles")):
+    for k, item in enumerate(rd.array(data, "obstacles")):
         where = f"obstacles[{k}]"
-        rd.check_keys(item, where, {"center", "radius"}, set())
+        rd.table(item, where, {"center", "radius"}, {"center", "radius"})
         rows.append(
             [
                 *rd.point(item, "center", where),
-                rd.number(item, "radius", where, positive=True),
+                rd.positive(item, "radius", where, as_written=True),
             ]
         )
     return np.asarray(rows, dtype=float).reshape(-1, 3)
 
 
-def _read_regions(rd: _Fields, data: dict) -> np.ndarray:
+def _read_regions(rd: Reader, data: dict) -> np.ndarray:
     rows = []
-    for k, item in enumerate(rd.entries(data, "base_regions")):
+    for k, item in enumerate(rd.array(data, "base_regions")):
         where = f"base_regions[{k}]"
-        rd.check_keys(item, where, {"min", "max"}, set())
+        rd.table(item, where, {"min", "max"}, {"min", "max"})
         lo, hi = rd.point(item, "min", where), rd.point(item, "max", where)
         if np.any(hi <= lo):
             raise rd.fail(
                 f"{where}.max",
-                f"expected max > min in x and y, got min {lo.tolist()} max {hi.tolist()}",
+                "expected max > min in x and y, "
+                f"got min {lo.tolist()} max {hi.tolist()}",
             )
         rows.append([*lo, *hi])
     return np.asarray(rows, dtype=float).reshape(-1, 4)
 
 
-def _check_connected(rd: _Fields, task: TraceTask) -> None:
+def _check_connected(rd: Reader, task: TraceTask) -> None:
     tol = REL_TOL * task.scale
     for k in range(len(task.primitives) - 1):
         gap = np.linalg.norm(task.primitives[k].end - task.primitives[k + 1].start)
@@ -344,12 +284,13 @@ def _check_connected(rd: _Fields, task: TraceTask) -> None:
             end = task.primitives[k].end.tolist()
             raise rd.fail(
                 f"primitives[{k + 1}].start",
-                f"expected the end of primitives[{k}] {end} (primitives must be connected), gap {gap:g}",
+                f"expected the end of primitives[{k}] {end} (primitives must be "
+                f"connected), gap {gap:g}",
             )
 
 
-def _check_obstacles_outside_circles(rd: _Fields, task: TraceTask) -> None:
-    for k, (x, y, r) in enumerate(task.obstacles):
+def _check_obstacles_outside_circles(rd: Reader, task: TraceTask) -> None:
+    for k, (x, y, _) in enumerate(task.obstacles):
         for j, p in enumerate(task.primitives):
             if (
                 p.kind != "line"
@@ -357,5 +298,6 @@ def _check_obstacles_outside_circles(rd: _Fields, task: TraceTask) -> None:
             ):
                 raise rd.fail(
                     f"obstacles[{k}].center",
-                    f"inside the circle of primitives[{j}] ({p.kind}); the task must keep obstacles outside circles and arcs' circles",
+                    f"inside the circle of primitives[{j}] ({p.kind}); the task must "
+                    "keep obstacles outside circles and arcs' circles",
                 )
