@@ -7,7 +7,7 @@ units.
 
 from typing import TYPE_CHECKING
 
-from . import _config  # noqa: F401  (float64 and the compilation cache, before any array)
+from . import _config  # noqa: F401  (float64 and the compilation cache, first)
 
 # name → (module, attribute). Imported on first use (PEP 562), so that a process that
 # needs one part (a worker evaluating designs, ``linkopt check``) does not pay for the
