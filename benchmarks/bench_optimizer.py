@@ -68,9 +68,9 @@ def run(seed: int, workers: int, cache: Path) -> dict:
             str(workers),
         ]
         env = {**os.environ, "LINKOPT_CACHE_DIR": str(cache)}
-        subprocess.run(
-            cmd, cwd=ROOT, check=True, capture_output=True, text=True, env=env
-        )
+        done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env)
+        if done.returncode not in (0, 1):  # 1: finished, but not verified
+            raise RuntimeError(f"{' '.join(cmd)} failed:\n{done.stderr}")
         seconds = time.perf_counter() - began
         summary = json.loads((Path(out) / "summary.json").read_text())
         with open(Path(out) / "history.csv") as f:

@@ -1,4 +1,5 @@
-"""``linkopt optimize``: bad settings exit 2 with one line before any run starts."""
+"""``linkopt optimize``: bad settings exit 2 with one line before any run starts; a
+run that ends with no verified design exits 1 and says so."""
 
 import pytest
 from conftest import MECHANISMS
@@ -13,6 +14,7 @@ from linkopt._cli.main import main
         ["--particles", "0"],
         ["--tolerance", "0"],
         ["--improvement", "1"],
+        ["--resolution", "0"],
     ],
 )
 def test_optimize_command_rejects_bad_settings_with_one_line(flags, tmp_path, capsys):
@@ -31,3 +33,28 @@ def test_optimize_command_rejects_bad_settings_with_one_line(flags, tmp_path, ca
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("linkopt: error: --"), err
     assert not (tmp_path / "run").exists()
+
+
+def test_a_run_that_ends_unverified_exits_one_and_says_so(
+    tmp_path, monkeypatch, capsys
+):
+    """The run and its outputs are stood in for (they have their own tests): only the
+    exit status and the message on an unverified result are under test here."""
+    import linkopt._design.run as run
+
+    summary = {
+        "iterations": 1,
+        "f_design": 3.0,
+        "regularizer": 0.0,
+        "verified": False,
+        "initial_verified": False,
+        "design": {},
+        "optimized_file": str(tmp_path / "run" / "optimized.toml"),
+    }
+    monkeypatch.setattr(run, "optimize", lambda *args, **kwargs: None)
+    monkeypatch.setattr(run, "write_outputs", lambda *args, **kwargs: summary)
+    out = tmp_path / "run"
+    assert main(["optimize", str(MECHANISMS / "five_bar.toml"), "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("linkopt: error: the optimised design does not pass")
+    assert str(out / "verification.json") in err[-1]

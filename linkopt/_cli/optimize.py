@@ -46,6 +46,10 @@ def _check_arguments(args, mech) -> None:
             )
     if args.seed < 0:
         raise InputError(f"--seed: expected a non-negative integer, got {args.seed}")
+    if args.resolution < 8:  # checked here, not after the run when plotting
+        raise InputError(
+            f"--resolution: expected at least 8 cells per axis, got {args.resolution}"
+        )
     if not (args.tolerance > 0 and 0 <= args.improvement < 1 and args.patience >= 0):
         raise InputError(
             "--tolerance must be > 0, --improvement in [0, 1), --patience >= 0; "
@@ -117,6 +121,14 @@ def run_optimize(args) -> int:
         f"{out / 'mechanism.png'}",
         file=sys.stderr,
     )
+    if not summary["verified"]:
+        print(
+            f"linkopt: error: the optimised design does not pass verification (see "
+            f"{out / 'verification.json'}); more --iterations or another --seed may "
+            "find one that does",
+            file=sys.stderr,
+        )
+        return 1
     return 0
 
 
