@@ -103,18 +103,13 @@ def solve_single(
 ) -> Solution:
     """One LM solve of ``C(values, s) = 0`` from ``start`` (all homogenised); the
     iteration cap defaults to the file's ``[solver] max_iterations``."""
-    fixed_geom = jax.lax.stop_gradient(geom)
-    fixed_values = jax.lax.stop_gradient(values)
-    settings = mech.solver
-    result = lm.solve(
-        lambda s: _RESIDUALS[kind](mech, fixed_geom, fixed_values, s),
+    result = _lm(
+        mech,
+        kind,
+        jax.lax.stop_gradient(geom),
+        jax.lax.stop_gradient(values),
         jax.lax.stop_gradient(start),
-        tolerance=settings.tolerance,
-        max_iterations=max_iterations or settings.max_iterations,
-        initial_damping=settings.initial_damping,
-        linearise=lambda s: jacobian.normal_equations(
-            mech, fixed_geom, kind, fixed_values, s
-        ),
+        max_iterations,
     )
     state = implicit_state(mech, kind, geom, values, result.x)
     progress = result.converged.astype(jnp.float64)
@@ -123,13 +118,21 @@ def solve_single(
     )
 
 
-def _lm(mech: Mechanism, kind: str, geom: Geometry, values, start) -> lm.LMResult:
+def _lm(
+    mech: Mechanism,
+    kind: str,
+    geom: Geometry,
+    values,
+    start,
+    max_iterations: int | None = None,
+) -> lm.LMResult:
+    """LM on ``C(values, s)`` from ``start`` with the file's ``[solver]`` settings."""
     settings = mech.solver
     return lm.solve(
         lambda s: _RESIDUALS[kind](mech, geom, values, s),
         start,
         tolerance=settings.tolerance,
-        max_iterations=settings.max_iterations,
+        max_iterations=max_iterations or settings.max_iterations,
         initial_damping=settings.initial_damping,
         linearise=lambda s: jacobian.normal_equations(mech, geom, kind, values, s),
     )
