@@ -41,3 +41,49 @@ def test_check_json_reports_required_keys(capsys):
         "y",
     }
     assert info["joints"]["tip"]["anchor"] == [0.0, 70.0, 0.0]
+
+
+def _one_error(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0, err
+    return err
+
+
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        (
+            lambda text: text.replace('type = "revolute"', 'type = ["revolute"]', 1),
+            "joints[0].type: expected a joint type string",
+        ),
+        (
+            lambda text: text + "deep = " + "[" * 5000 + "]" * 5000 + "\n",
+            "invalid TOML: arrays or tables nested too deeply",
+        ),
+    ],
+    ids=["a list for a joint type", "pathologically nested TOML"],
+)
+def test_malformed_toml_values_exit_2_naming_the_field(edit, words, tmp_path, capsys):
+    """Regression: these raised TypeError and RecursionError tracebacks."""
+    path = tmp_path / "broken.toml"
+    path.write_text(edit((MECHANISMS / "five_bar.toml").read_text()))
+    assert main(["check", str(path)]) == 2
+    err = _one_error(capsys)
+    assert err.startswith(f"linkopt: error: {path}") and words in err
+
+
+def test_an_internal_error_is_one_line_and_exit_3(monkeypatch, capsys):
+    """A bug (not bad input) is one ``internal error`` line; ``--debug`` shows the
+    traceback instead."""
+
+    def broken(*args, **kwargs):
+        raise ValueError("something\ninside broke")
+
+    monkeypatch.setattr("linkopt._cli.mechanism.load", broken)
+    path = str(MECHANISMS / "five_bar.toml")
+    assert main(["check", path]) == 3
+    err = _one_error(capsys)
+    assert err.startswith("linkopt: internal error: ValueError: something inside")
+    assert "--debug" in err
+    with pytest.raises(ValueError, match="inside broke"):
+        main(["--debug", "check", path])

@@ -121,3 +121,12 @@ def test_fk_past_the_reach_names_where_the_branch_stops(capsys):
     error = captured.err.strip()
     assert error.count("\n") == 0 and "FK solve failed" in error
     assert f"left={left:.6g}" in error and "% of the way from the rest pose" in error
+
+
+def test_a_csv_that_is_not_utf8_exits_2_naming_the_file(tmp_path, capsys):
+    """Regression: a binary file given as ``--motors`` raised UnicodeDecodeError."""
+    path = tmp_path / "motors.csv"
+    path.write_bytes(b"\xff\xfe\x00left,right\n")
+    assert main(["fk", str(MECHANISMS / "five_bar.toml"), "--motors", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and f"{path}: not a UTF-8 text file" in err

@@ -33,6 +33,11 @@ def _parser() -> argparse.ArgumentParser:
         prog="linkopt",
         description="Singularity-aware design of closed-loop spatial linkages.",
     )
+    parser.add_argument(
+        "--debug",
+        action="store_true",
+        help="show the Python traceback of an internal error",
+    )
     sub = parser.add_subparsers(dest="command", required=True)
     for family in (mechanism_commands, evaluation_commands, optimize_commands):
         family.register(sub)
@@ -73,6 +78,16 @@ def main(argv: list[str] | None = None) -> int:
         # `linkopt check ... | head`: the reader left, nothing to report
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except Exception as err:  # a bug, not the user's input: one line, exit 3
+        if args.debug:
+            raise
+        text = " ".join(str(err).split())
+        print(
+            f"linkopt: internal error: {type(err).__name__}: {text} (rerun with "
+            "--debug for the traceback)",
+            file=sys.stderr,
+        )
+        return 3
 
 
 if __name__ == "__main__":

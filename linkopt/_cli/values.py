@@ -64,6 +64,11 @@ def _csv_rows(arg: str, path: Path) -> list[list[str]]:
         lines = path.read_text(encoding="utf-8").splitlines()
     except OSError as err:
         raise InputError(f"{arg}: cannot read CSV file ({err.strerror})") from None
+    except UnicodeDecodeError as err:
+        raise InputError(
+            f"{arg}: not a UTF-8 text file (byte {err.start}); expected a CSV file of "
+            "numbers"
+        ) from None
     return [r for r in csv.reader(lines) if any(c.strip() for c in r)]
 
 

@@ -37,6 +37,10 @@ def parse_toml(text: str, source: str) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise MechanismFileError(source, "", f"invalid TOML: {err}") from None
+    except RecursionError:  # tomllib recurses once per level of nested arrays/tables
+        raise MechanismFileError(
+            source, "", "invalid TOML: arrays or tables nested too deeply"
+        ) from None
 
 
 def is_finite_number(value) -> bool:

@@ -181,6 +181,11 @@ def _read_joint(rd: Reader, item: dict, where: str, body_index: dict[str, int]) 
         {"name", "type", "bodies", "anchor"},
     )
     kind = item["type"]
+    if not isinstance(kind, str):
+        raise rd.fail(
+            f"{where}.type",
+            f"expected a joint type string, one of {list(JOINT_ROWS)}, got {kind!r}",
+        )
     if kind not in JOINT_ROWS:
         raise rd.fail(
             f"{where}.type",
