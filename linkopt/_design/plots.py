@@ -43,6 +43,29 @@ def _window(points: np.ndarray, low, high, pad: float):
     return low - pad * span, high + pad * span
 
 
+def _windows(mech: Mechanism, evaluation: Evaluation, rest, design):
+    """The maps' motor window (the samples and the rest pose, at least ±0.3, padded)
+    and output window (the target range and the rest outputs, padded 20 %), and the
+    rest outputs."""
+    samples = np.concatenate(
+        [np.asarray(evaluation.ik_motors), np.asarray(evaluation.adv_motors)]
+    )
+    motors = _window(
+        np.vstack([samples * mech.motor_scale, np.zeros((1, mech.num_motors))]),
+        -0.3,
+        0.3,
+        PADDING,
+    )
+    rest_out = np.asarray(output_values(mech, rest, design=design))
+    outputs = _window(
+        np.vstack([rest_out, mech.output_min, mech.output_max]),
+        mech.output_min,
+        mech.output_max,
+        0.2,
+    )
+    return motors, outputs, rest_out
+
+
 def space_maps(
     mech: Mechanism, evaluation: Evaluation, resolution: int, design=None
 ) -> tuple[Map2D, Map2D]:
@@ -51,18 +74,8 @@ def space_maps(
     if mech.num_motors != 2 or mech.num_outputs != 2:
         raise ValueError("space maps need exactly two motors and two outputs")
     rest = rest_state(mech)
-    sample_motors = (
-        np.concatenate([evaluation.ik_motors, evaluation.adv_motors]) * mech.motor_scale
-    )
-    m_low, m_high = _window(
-        np.vstack([sample_motors, np.zeros((1, 2))]), -0.3, 0.3, PADDING
-    )
-    rest_out = np.asarray(output_values(mech, rest, design=design))
-    o_low, o_high = _window(
-        np.vstack([rest_out, mech.output_min, mech.output_max]),
-        mech.output_min,
-        mech.output_max,
-        0.2,
+    (m_low, m_high), (o_low, o_high), rest_out = _windows(
+        mech, evaluation, rest, design
     )
     motors = motor_map(
         mech,
@@ -120,18 +133,8 @@ def section_maps(mech: Mechanism, evaluation: Evaluation, resolution: int, desig
         raise ValueError("sections need exactly three motors and three outputs")
     rest = rest_state(mech)
     ik_motors = np.asarray(evaluation.ik_motors) * mech.motor_scale
-    sample_motors = np.concatenate(
-        [ik_motors, np.asarray(evaluation.adv_motors) * mech.motor_scale]
-    )
-    m_low, m_high = _window(
-        np.vstack([sample_motors, np.zeros((1, 3))]), -0.3, 0.3, PADDING
-    )
-    rest_out = np.asarray(output_values(mech, rest, design=design))
-    o_low, o_high = _window(
-        np.vstack([rest_out, mech.output_min, mech.output_max]),
-        mech.output_min,
-        mech.output_max,
-        0.2,
+    (m_low, m_high), (o_low, o_high), rest_out = _windows(
+        mech, evaluation, rest, design
     )
     b_cuts = [
         mech.output_min[2],
