@@ -4,8 +4,21 @@ kernel)."""
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
 
 import linkopt
+
+#: Generated-input tests (hypothesis) are reproducible and bounded: the same examples
+#: on every run, no example database, no deadline (the first example may compile).
+settings.register_profile(
+    "linkopt",
+    derandomize=True,
+    database=None,
+    deadline=None,
+    max_examples=60,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+settings.load_profile("linkopt")
 
 ROOT = Path(__file__).resolve().parent.parent
 MECHANISMS = ROOT / "mechanisms"
