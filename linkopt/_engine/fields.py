@@ -10,6 +10,8 @@ tables; :func:`parse_text` and :func:`parse_toml` turn a file or its text into t
 from __future__ import annotations
 
 import math
+import re
+import sys
 import tomllib
 from pathlib import Path
 
@@ -43,13 +45,30 @@ def parse_toml(text: str, source: str) -> dict:
         ) from None
 
 
+#: Longest ``repr`` of a value quoted in a message; longer ones are cut with "...".
+SHOWN_CHARS = 60
+
+
+def shown(value) -> str:
+    """``repr(value)`` for a message: one line (``repr`` escapes newlines), cut to
+    :data:`SHOWN_CHARS` characters."""
+    text = repr(value)
+    return text if len(text) <= SHOWN_CHARS else text[: SHOWN_CHARS - 3] + "..."
+
+
+def field_name(key: str) -> str:
+    """A key as a message names it: bare where TOML allows it bare, else quoted."""
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else repr(key)
+
+
 def is_finite_number(value) -> bool:
-    """An int or float (not a bool, which TOML keeps apart) that is finite."""
-    return (
-        not isinstance(value, bool)
-        and isinstance(value, (int, float))
-        and math.isfinite(value)
-    )
+    """An int or float (not a bool, which TOML keeps apart) that is finite; an int
+    (TOML integers have no size limit) too large for a float is not."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    if isinstance(value, int):
+        return abs(value) <= sys.float_info.max
+    return math.isfinite(value)
 
 
 def is_number_list(value, size: int) -> bool:
@@ -80,7 +99,8 @@ class Reader:
         unknown = sorted(set(data) - allowed)
         if unknown:
             raise self.fail(
-                unknown[0], f"unknown table; expected one of {sorted(allowed)}"
+                field_name(unknown[0]),
+                f"unknown table; expected one of {sorted(allowed)}",
             )
 
     def keys(
@@ -90,7 +110,7 @@ class Reader:
         unknown = sorted(set(data) - allowed)
         if unknown:
             raise self.fail(
-                f"{where}.{unknown[0]}",
+                f"{where}.{field_name(unknown[0])}",
                 f"unknown field; expected one of {sorted(allowed)}",
             )
         missing = sorted(required - set(data))
@@ -101,28 +121,30 @@ class Reader:
     def table(self, data, where: str, allowed: set[str], required: set[str]) -> dict:
         """As :meth:`keys`, for a value not yet known to be a table."""
         if not isinstance(data, dict):
-            raise self.fail(where, f"expected a table, got {data!r}")
+            raise self.fail(where, f"expected a table, got {shown(data)}")
         return self.keys(data, where, allowed, required)
 
     def string(self, data: dict, key: str, where: str) -> str:
         value = data[key]
         if not isinstance(value, str) or not value:
             raise self.fail(
-                f"{where}.{key}", f"expected a non-empty string, got {value!r}"
+                f"{where}.{key}", f"expected a non-empty string, got {shown(value)}"
             )
         return value
 
     def boolean(self, data: dict, key: str, where: str) -> bool:
         value = data[key]
         if not isinstance(value, bool):
-            raise self.fail(f"{where}.{key}", f"expected true or false, got {value!r}")
+            raise self.fail(
+                f"{where}.{key}", f"expected true or false, got {shown(value)}"
+            )
         return value
 
     def number(self, data: dict, key: str, where: str) -> float:
         value = data[key]
         if not is_finite_number(value):
             raise self.fail(
-                f"{where}.{key}", f"expected a finite number, got {value!r}"
+                f"{where}.{key}", f"expected a finite number, got {shown(value)}"
             )
         return float(value)
 
@@ -134,17 +156,15 @@ class Reader:
         of trace task files."""
         value = self.number(data, key, where)
         if value <= 0:
-            shown = data[key] if as_written else value
-            raise self.fail(
-                f"{where}.{key}", f"expected a positive number, got {shown!r}"
-            )
+            text = repr(data[key] if as_written else value)
+            raise self.fail(f"{where}.{key}", f"expected a positive number, got {text}")
         return value
 
     def positive_integer(self, data: dict, key: str, where: str) -> int:
         value = data[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise self.fail(
-                f"{where}.{key}", f"expected a positive integer, got {value!r}"
+                f"{where}.{key}", f"expected a positive integer, got {shown(value)}"
             )
         return value
 
@@ -152,7 +172,8 @@ class Reader:
         value = data[key]
         if not is_number_list(value, 3):
             raise self.fail(
-                f"{where}.{key}", f"expected a list of 3 finite numbers, got {value!r}"
+                f"{where}.{key}",
+                f"expected a list of 3 finite numbers, got {shown(value)}",
             )
         return np.asarray(value, dtype=float)
 
@@ -162,19 +183,51 @@ class Reader:
         if not is_number_list(value, 2):
             raise self.fail(
                 f"{where}.{key}",
-                f"expected a list of 2 finite numbers [x, y], got {value!r}",
+                f"expected a list of 2 finite numbers [x, y], got {shown(value)}",
             )
         return np.asarray(value, dtype=float)
 
     def direction(self, data: dict, key: str, where: str) -> Float[np.ndarray, " 3"]:
-        """A non-zero 3-vector, normalised."""
+        """A non-zero 3-vector, normalised. Components so large that the length would
+        overflow (``[1e200, 1e200, 0]``) are scaled first; shorter than ``1e-12`` is
+        zero."""
         vec = self.vector(data, key, where)
-        norm = np.linalg.norm(vec)
+        largest = float(np.max(np.abs(vec)))
+        if largest > 1e150:  # its sum of squares would overflow
+            vec = vec / largest
+        norm = np.linalg.norm(vec) if largest > 1e-150 else 0.0
         if norm < 1e-12:
             raise self.fail(
                 f"{where}.{key}", "zero-length axis; expected a non-zero direction"
             )
         return vec / norm
+
+    def bounded(
+        self, data: dict, key: str, where: str, low: float, high: float
+    ) -> float:
+        """A finite number in ``[low, high]``: the range a setting can take before it
+        stops meaning anything (each format states its bounds and why)."""
+        value = self.number(data, key, where)
+        if not low <= value <= high:
+            raise self.fail(
+                f"{where}.{key}",
+                f"expected a number from {low:g} to {high:g}, got {shown(data[key])}",
+            )
+        return value
+
+    def integer(self, data: dict, key: str, where: str, low: int, high: int) -> int:
+        """An integer (not a bool, nor a float such as ``3.0``) in ``[low, high]``."""
+        value = data[key]
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(
+                f"{where}.{key}", f"expected an integer, got {shown(value)}"
+            )
+        if not low <= value <= high:
+            raise self.fail(
+                f"{where}.{key}",
+                f"expected an integer from {low} to {high}, got {shown(value)}",
+            )
+        return value
 
     def entries(self, data: dict, key: str, required: bool) -> list[dict]:
         """The array of tables ``[[key]]``; ``required``: at least one entry."""
@@ -184,7 +237,10 @@ class Reader:
             return []
         value = data[key]
         if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            raise self.fail(f"[[{key}]]", "expected an array of tables ([[...]])")
+            raise self.fail(
+                f"[[{key}]]",
+                f"expected an array of tables ([[{key}]]), got {shown(value)}",
+            )
         if required and not value:
             raise self.fail(f"[[{key}]]", "empty; at least one entry is required")
         return value
@@ -208,7 +264,7 @@ class Reader:
             if name in index:
                 raise self.fail(
                     f"{where}.name",
-                    f"duplicated name {name!r} (also {table}[{index[name]}])",
+                    f"duplicated name {shown(name)} (also {table}[{index[name]}])",
                 )
             index[name] = k
         return index
@@ -217,6 +273,7 @@ class Reader:
         """The index of the ``kind`` named ``value``."""
         if not isinstance(value, str) or value not in names:
             raise self.fail(
-                where, f"unknown {kind} {value!r}; expected one of {sorted(names)}"
+                where,
+                f"unknown {kind} {shown(value)}; expected one of {sorted(names)}",
             )
         return names[value]

@@ -5,6 +5,28 @@ table/field and what was expected (through the shared :class:`~.fields.Reader`).
 Nothing missing is silently replaced by a default; the only optional fields are those
 documented in the README with their defaults (``reference_length``, ``[solver]``,
 ``axis`` of a fixed joint, ``[symmetry]``, ``[[parameters]]``, ``mirror``).
+
+Every field is checked for its TOML type, and every number for being finite and of a
+magnitude the solver can work with, before anything is computed from it, so that an
+absurd value is named where it is written and never surfaces later as a wrong mobility
+or a singular rest pose. The bounds (the constants below):
+
+* the reference length ``L`` (given, or the span of the joint anchors) lies in
+  [1e-12, 1e12] file units, and a given one within a factor 1e3 of the span: the
+  solver works on lengths divided by ``L``, and the five-bar's rest check and FK still
+  hold at ``L`` = 1e-4 to 1e4 times its span but not at 1e-6 or 1e6 (the rank and
+  σ_min tests and the LM tolerance are absolute in homogenised units);
+* every position (anchors, body origins, point positions, the symmetry point,
+  Cartesian output ranges and anchor-parameter bounds) is at most 1e6 reference
+  lengths and 1e12 file units from the world origin in each coordinate: far past any
+  real layout (the five-bar still solves 1e8 reference lengths away), far below where
+  squares of lengths overflow;
+* angle-output ranges lie within ±1e3 rad, axis-parameter bounds within ±1e6 (the axis
+  is normalised, so beyond that its direction no longer changes in float64);
+* the ``[solver]`` and ``[evaluation]`` settings lie in :data:`SETTING_RANGES`, and a
+  target grid has at most :data:`MAX_TARGETS` targets.
+
+Axes and the symmetry normal are directions: any finite non-zero vector is one.
 """
 
 from __future__ import annotations
@@ -14,7 +36,14 @@ from pathlib import Path
 import numpy as np
 from jaxtyping import Float
 
-from .fields import Reader, parse_text, parse_toml
+from .fields import (
+    Reader,
+    field_name,
+    is_number_list,
+    parse_text,
+    parse_toml,
+    shown,
+)
 from .model import (
     AXIAL_JOINTS,
     COORDINATES,
@@ -40,6 +69,35 @@ TOP_LEVEL = {
 }
 ORTHOGONAL_TOL = 1e-9
 MIRROR_TOL = 1e-9
+#: Smallest and largest reference length (file units).
+REFERENCE_LENGTHS = (1e-12, 1e12)
+#: A given reference length lies within this factor of the joint anchors' span.
+SCALE_RATIO = 1e3
+#: Largest coordinate of a position: in reference lengths, and in file units.
+MAX_EXTENT = 1e6
+MAX_COORDINATE = 1e12
+#: Largest |bound| of an angle-output range (rad).
+MAX_ANGLE = 1e3
+#: ``[solver]`` and ``[evaluation]`` numbers: (smallest, largest). The LM tolerance is
+#: on max |C| in homogenised units (float64 resolves ~1e-16 of a reference length); the
+#: LM gives up at a damping of 1e12; a trust radius of 10 rad or reference lengths is
+#: already past any single step.
+SETTING_RANGES: dict[str, tuple[float, float]] = {
+    "max_iterations": (1, 10_000),
+    "tolerance": (1e-16, 1e-2),
+    "initial_damping": (1e-16, 1e6),
+    "samples_per_dimension": (2, 100),
+    "alpha_factor": (1e-6, 1e6),
+    "motion_weight": (1e-12, 1e6),
+    "range_weight": (1e-12, 1e6),
+    "regularizer_weight": (1e-12, 1e6),
+    "max_step": (1e-9, 10.0),
+    "ik_iterations": (1, 10_000),
+    "adversarial_iterations": (1, 10_000),
+    "alpha_minus": (1e-12, 1e12),
+}
+#: Most IK targets of an evaluation (the grid's and ``[evaluation].targets``).
+MAX_TARGETS = 100_000
 
 
 def load(path: str | Path) -> Mechanism:
@@ -61,18 +119,20 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
     bodies, body_index = _read_bodies(rd, data)
     ground = rd.lookup(body_index, head["ground"], "[mechanism].ground", "body")
     joints = _read_joints(rd, data, body_index)
-    origins = _body_origins(rd, bodies, joints, ground)
-    points = _read_points(rd, data, body_index, joints)
-    motors = _read_motors(rd, data, joints)
-    outputs = _read_outputs(rd, data, points, joints)
     anchors = np.array([j["anchor"] for j in joints])
     scale = _reference_length(rd, head, anchors)
-    symmetry = _read_symmetry(rd, data)
+    for k, joint in enumerate(joints):
+        _check_position(rd, f"joints[{k}].anchor", joint["anchor"], scale)
+    origins = _body_origins(rd, bodies, joints, ground, scale)
+    points = _read_points(rd, data, body_index, joints, scale)
+    motors = _read_motors(rd, data, joints)
+    outputs = _read_outputs(rd, data, points, joints, scale)
+    symmetry = _read_symmetry(rd, data, scale)
     design = _read_design(rd, data, joints, symmetry, scale)
     solver = _read_solver(rd, data)
-    evaluation = _read_evaluation(rd, data)
+    evaluation = _read_evaluation(rd, data, outputs, scale)
     mech = Mechanism(
-        name=rd.string(head, "name", "[mechanism]"),
+        name=head["name"],
         source=source,
         **_body_fields(bodies, ground, origins),
         **_joint_fields(joints, anchors),
@@ -96,14 +156,18 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
 def _read_head(rd: Reader, data: dict) -> dict:
     """The known top-level tables and the ``[mechanism]`` table."""
     rd.top_level(data, TOP_LEVEL)
-    if "mechanism" not in data or not isinstance(data["mechanism"], dict):
+    if "mechanism" not in data:
         raise rd.fail("[mechanism]", "missing table")
-    return rd.keys(
+    head = rd.table(
         data["mechanism"],
         "[mechanism]",
         {"name", "ground", "reference_length", "units"},
         {"name", "ground"},
     )
+    rd.string(head, "name", "[mechanism]")
+    if "units" in head:
+        rd.string(head, "units", "[mechanism]")
+    return head
 
 
 def _read_bodies(rd: Reader, data: dict) -> tuple[list[dict], dict[str, int]]:
@@ -164,6 +228,37 @@ def _output_fields(outputs: list[dict]) -> dict:
     }
 
 
+def _position_limit(scale: float | None) -> tuple[float, str]:
+    """The largest coordinate of a position (file units) and how it is worded; before
+    the reference length is known (``None``), the absolute bound alone."""
+    if scale is None:
+        return MAX_COORDINATE, f"{MAX_COORDINATE:g} file units"
+    limit = min(MAX_COORDINATE, MAX_EXTENT * scale)
+    return limit, (
+        f"{limit:g} file units ({MAX_EXTENT:g} reference lengths of {scale:g}, "
+        f"at most {MAX_COORDINATE:g})"
+    )
+
+
+def _check_position(rd: Reader, where: str, values, scale: float | None) -> None:
+    """Coordinates (a number or a vector, file units) within the position bound."""
+    limit, words = _position_limit(scale)
+    largest = float(np.max(np.abs(values)))
+    if largest > limit:
+        raise rd.fail(
+            where, f"expected coordinates of magnitude at most {words}, got {largest:g}"
+        )
+
+
+def _position(
+    rd: Reader, item: dict, key: str, where: str, scale: float | None
+) -> Float[np.ndarray, " 3"]:
+    """``item[key]``: a position, 3 finite numbers within the position bound."""
+    vec = rd.vector(item, key, where)
+    _check_position(rd, f"{where}.{key}", vec, scale)
+    return vec
+
+
 def _read_joints(rd: Reader, data: dict, body_index: dict[str, int]) -> list[dict]:
     items = rd.entries(data, "joints", required=True)
     rd.names(items, "joints")
@@ -184,12 +279,13 @@ def _read_joint(rd: Reader, item: dict, where: str, body_index: dict[str, int]) 
     if not isinstance(kind, str):
         raise rd.fail(
             f"{where}.type",
-            f"expected a joint type string, one of {list(JOINT_ROWS)}, got {kind!r}",
+            f"expected a joint type string, one of {list(JOINT_ROWS)}, got "
+            f"{shown(kind)}",
         )
     if kind not in JOINT_ROWS:
         raise rd.fail(
             f"{where}.type",
-            f"unknown joint type {kind!r}; expected one of {list(JOINT_ROWS)}",
+            f"unknown joint type {shown(kind)}; expected one of {list(JOINT_ROWS)}",
         )
     pair = _joint_bodies(rd, item, where, body_index)
     axis = _first_axis(rd, item, where, kind)
@@ -198,7 +294,7 @@ def _read_joint(rd: Reader, item: dict, where: str, body_index: dict[str, int]) 
         "name": item["name"],
         "type": kind,
         "bodies": pair,
-        "anchor": rd.vector(item, "anchor", where),
+        "anchor": _position(rd, item, "anchor", where, None),
         "axis": axis,
         "axis2": axis2,
     }
@@ -211,14 +307,15 @@ def _joint_bodies(
     pair = item["bodies"]
     if not isinstance(pair, list) or len(pair) != 2:
         raise rd.fail(
-            f"{where}.bodies", f"expected a list of two body names, got {pair!r}"
+            f"{where}.bodies",
+            f"expected a list of two body names, got {shown(pair)}",
         )
     bi = rd.lookup(body_index, pair[0], f"{where}.bodies", "body")
     bj = rd.lookup(body_index, pair[1], f"{where}.bodies", "body")
     if bi == bj:
         raise rd.fail(
             f"{where}.bodies",
-            f"a joint must connect two different bodies, got {pair!r}",
+            f"a joint must connect two different bodies, got {shown(pair)}",
         )
     return bi, bj
 
@@ -273,7 +370,7 @@ def _second_axis(
 
 
 def _body_origins(
-    rd: Reader, bodies: list[dict], joints: list[dict], ground: int
+    rd: Reader, bodies: list[dict], joints: list[dict], ground: int, scale: float
 ) -> Float[np.ndarray, "B 3"]:
     """Each body's frame origin at rest: ``origin`` if given, else the centroid of its
     joint anchors. Every body must reach the ground through joints."""
@@ -286,7 +383,7 @@ def _body_origins(
                 f"body {body['name']!r} has no joint; every body must be connected",
             )
         origins[b] = (
-            rd.vector(body, "origin", f"bodies[{b}]")
+            _position(rd, body, "origin", f"bodies[{b}]", scale)
             if "origin" in body
             else np.mean(anchors, axis=0)
         )
@@ -309,7 +406,11 @@ def _body_origins(
 
 
 def _read_points(
-    rd: Reader, data: dict, body_index: dict[str, int], joints: list[dict]
+    rd: Reader,
+    data: dict,
+    body_index: dict[str, int],
+    joints: list[dict],
+    scale: float,
 ) -> list[dict]:
     items = rd.entries(data, "points", required=False)
     rd.names(items, "points")
@@ -334,7 +435,7 @@ def _read_points(
                 )
             position = joints[joint]["anchor"]
         else:
-            joint, position = -1, rd.vector(item, "position", where)
+            joint, position = -1, _position(rd, item, "position", where, scale)
         points.append(
             {"name": item["name"], "body": body, "joint": joint, "position": position}
         )
@@ -370,14 +471,14 @@ def _read_motors(rd: Reader, data: dict, joints: list[dict]) -> list[dict]:
 
 
 def _read_outputs(
-    rd: Reader, data: dict, points: list[dict], joints: list[dict]
+    rd: Reader, data: dict, points: list[dict], joints: list[dict], scale: float
 ) -> list[dict]:
     items = rd.entries(data, "outputs", required=True)
     rd.names(items, "outputs")
     point_index = {p["name"]: k for k, p in enumerate(points)}
     joint_index = {j["name"]: k for k, j in enumerate(joints)}
     return [
-        _read_output(rd, item, f"outputs[{k}]", point_index, joint_index, joints)
+        _read_output(rd, item, f"outputs[{k}]", point_index, joint_index, joints, scale)
         for k, item in enumerate(items)
     ]
 
@@ -389,6 +490,7 @@ def _read_output(
     point_index: dict[str, int],
     joint_index: dict[str, int],
     joints: list[dict],
+    scale: float,
 ) -> dict:
     """One output: a point's Cartesian coordinate or a joint angle, with its range."""
     rd.keys(
@@ -421,7 +523,20 @@ def _read_output(
             "give either 'point' and 'coordinate' (a Cartesian output) or 'joint' "
             "(an angle output)",
         )
+    _check_value(rd, f"{where}.min", [low, high], entry["kind"], scale)
     return entry
+
+
+def _check_value(rd: Reader, where: str, values, kind: str, scale: float) -> None:
+    """Values of an output (``kind`` "position" or "angle") within its bound."""
+    if kind == "position":
+        _check_position(rd, where, values, scale)
+    elif float(np.max(np.abs(values))) > MAX_ANGLE:
+        raise rd.fail(
+            where,
+            f"expected angles of magnitude at most {MAX_ANGLE:g} rad, got "
+            f"{float(np.max(np.abs(values))):g}",
+        )
 
 
 def _point_output(
@@ -435,7 +550,7 @@ def _point_output(
     if item["coordinate"] not in ("x", "y", "z"):
         raise rd.fail(
             f"{where}.coordinate",
-            f"expected 'x', 'y' or 'z', got {item['coordinate']!r}",
+            f"expected 'x', 'y' or 'z', got {shown(item['coordinate'])}",
         )
     return {
         "kind": "position",
@@ -492,12 +607,7 @@ def _angle_index(rd: Reader, item: dict, where: str, joint: dict) -> int:
             f"missing required field for an angle of a {kind} joint: 1 (about axis), "
             "2 (about axis2)" + (", 3 (about axis x axis2)" if count == 3 else ""),
         )
-    value = item["angle"]
-    if isinstance(value, bool) or value not in range(1, count + 1):
-        raise rd.fail(
-            f"{where}.angle", f"expected an integer from 1 to {count}, got {value!r}"
-        )
-    return int(value) - 1
+    return rd.integer(item, "angle", where, 1, count) - 1
 
 
 def diameter(points: Float[np.ndarray, "N 3"]) -> float:
@@ -508,26 +618,45 @@ def diameter(points: Float[np.ndarray, "N 3"]) -> float:
 
 
 def _reference_length(rd: Reader, head: dict, anchors: np.ndarray) -> float:
-    if "reference_length" in head:
-        return rd.positive(head, "reference_length", "[mechanism]")
     span = diameter(anchors)
+    if "reference_length" in head:
+        return _given_reference_length(rd, head, span)
     if span <= 0:
         raise rd.fail(
             "[mechanism].reference_length",
             "all joint anchors coincide; give a positive reference_length",
         )
+    if span < REFERENCE_LENGTHS[0]:
+        raise rd.fail(
+            "[mechanism].reference_length",
+            f"the joint anchors span only {span:g} file units, below "
+            f"{REFERENCE_LENGTHS[0]:g}; give a reference_length",
+        )
     return span
 
 
-def _read_symmetry(rd: Reader, data: dict):
+def _given_reference_length(rd: Reader, head: dict, span: float) -> float:
+    """``reference_length`` in :data:`REFERENCE_LENGTHS`, within a factor
+    :data:`SCALE_RATIO` of the anchors' ``span`` (unless they all coincide)."""
+    scale = rd.bounded(head, "reference_length", "[mechanism]", *REFERENCE_LENGTHS)
+    if span > 0 and not span / SCALE_RATIO <= scale <= span * SCALE_RATIO:
+        raise rd.fail(
+            "[mechanism].reference_length",
+            f"{scale:g} is not within a factor {SCALE_RATIO:g} of the span of the "
+            f"joint anchors ({span:g}); lengths divided by it would be too large or "
+            "too small for the solver",
+        )
+    return scale
+
+
+def _read_symmetry(rd: Reader, data: dict, scale: float):
     if "symmetry" not in data:
         return None
-    table = rd.keys(
+    table = rd.table(
         data["symmetry"], "[symmetry]", {"normal", "point"}, {"normal", "point"}
     )
-    return rd.direction(table, "normal", "[symmetry]"), rd.vector(
-        table, "point", "[symmetry]"
-    )
+    normal = rd.direction(table, "normal", "[symmetry]")
+    return normal, _position(rd, table, "point", "[symmetry]", scale)
 
 
 def _reflect(point: np.ndarray, symmetry) -> np.ndarray:
@@ -614,7 +743,7 @@ def _read_parameter(
     if coord not in COORDINATES:
         raise rd.fail(
             f"{where}.coordinate",
-            f"expected one of {list(COORDINATES)}, got {coord!r}",
+            f"expected one of {list(COORDINATES)}, got {shown(coord)}",
         )
     is_axis = coord.startswith("axis_")
     c = "xyz".index(coord[-1])
@@ -625,11 +754,12 @@ def _read_parameter(
     if is_axis and any(joints[g]["type"] not in AXIAL_JOINTS for g in group):
         raise rd.fail(
             f"{where}.coordinate",
-            f"{item['joint']!r}: only revolute, universal, prismatic and cylindrical "
-            "joints have a movable axis",
+            f"{shown(item['joint'])}: only revolute, universal, prismatic and "
+            "cylindrical joints have a movable axis",
         )
     value = (joints[joint]["axis"] if is_axis else joints[joint]["anchor"])[c]
     low, high = _parameter_bounds(rd, item, where, value, joints[joint]["name"])
+    _check_bound_magnitude(rd, f"{where}.min", (low, high), is_axis, scale)
     base = 3 * len(joints) if is_axis else 0
     driven = [(base + 3 * g + c, 1.0) for g in group]
     if "mirror" in item:
@@ -655,10 +785,25 @@ def _parameter_bounds(
     if not low <= value <= high:
         raise rd.fail(
             f"{where}.min",
-            f"the rest value {value:g} of {joint_name}.{item['coordinate']} lies "
-            f"outside [{low:g}, {high:g}]",
+            f"the rest value {value:g} of {field_name(joint_name)}."
+            f"{item['coordinate']} lies outside [{low:g}, {high:g}]",
         )
     return low, high
+
+
+def _check_bound_magnitude(
+    rd: Reader, where: str, bounds: tuple[float, float], is_axis: bool, scale: float
+) -> None:
+    """Anchor-parameter bounds are positions; axis-component ones at most
+    :data:`MAX_EXTENT`."""
+    if not is_axis:
+        _check_position(rd, where, bounds, scale)
+    elif max(abs(b) for b in bounds) > MAX_EXTENT:
+        raise rd.fail(
+            where,
+            f"expected axis-component bounds of magnitude at most {MAX_EXTENT:g}, "
+            f"got min={bounds[0]:g} and max={bounds[1]:g}",
+        )
 
 
 def _claim_rows(
@@ -713,60 +858,92 @@ def _mirror_rows(rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, 
     return [(base + 3 * mirror + d, weights[d]) for d in range(3) if weights[d] != 0.0]
 
 
+def _setting(rd: Reader, table: dict, key: str, where: str, default):
+    """One ``[solver]``/``[evaluation]`` value of the type of its ``default``, in
+    :data:`SETTING_RANGES`."""
+    if isinstance(default, bool):
+        return rd.boolean(table, key, where)
+    low, high = SETTING_RANGES[key]
+    if isinstance(default, int):
+        return rd.integer(table, key, where, int(low), int(high))
+    return rd.bounded(table, key, where, low, high)
+
+
+def _known(defaults) -> set[str]:
+    """The fields of a settings table this loader reads: flags, ``targets`` and the
+    numbers it has a range for."""
+    return {
+        key
+        for key in defaults.__dataclass_fields__
+        if key in SETTING_RANGES
+        or key == "targets"
+        or isinstance(getattr(defaults, key), bool)
+    }
+
+
 def _read_solver(rd: Reader, data: dict) -> SolverSettings:
     defaults = SolverSettings()
     if "solver" not in data:
         return defaults
-    table = rd.keys(
-        data["solver"],
-        "[solver]",
-        {"max_iterations", "tolerance", "initial_damping"},
-        set(),
-    )
-    iterations = table.get("max_iterations", defaults.max_iterations)
-    if (
-        isinstance(iterations, bool)
-        or not isinstance(iterations, int)
-        or iterations < 1
-    ):
-        raise rd.fail(
-            "[solver].max_iterations",
-            f"expected a positive integer, got {iterations!r}",
-        )
-    tolerance = (
-        rd.positive(table, "tolerance", "[solver]")
-        if "tolerance" in table
-        else defaults.tolerance
-    )
-    damping = (
-        rd.positive(table, "initial_damping", "[solver]")
-        if "initial_damping" in table
-        else defaults.initial_damping
-    )
-    return SolverSettings(
-        max_iterations=iterations, tolerance=tolerance, initial_damping=damping
-    )
+    table = rd.table(data["solver"], "[solver]", _known(defaults), set())
+    values = {
+        key: _setting(rd, table, key, "[solver]", getattr(defaults, key))
+        for key in table
+    }
+    return SolverSettings(**values)
 
 
-def _read_evaluation(rd: Reader, data: dict) -> EvaluationSettings:
+def _read_evaluation(
+    rd: Reader, data: dict, outputs: list[dict], scale: float
+) -> EvaluationSettings:
     defaults = EvaluationSettings()
     if "evaluation" not in data:
         return defaults
-    fields = set(EvaluationSettings.__dataclass_fields__)
-    table = rd.keys(data["evaluation"], "[evaluation]", fields, set())
-    values = {}
-    for key, _ in table.items():
-        default = getattr(defaults, key)
-        if isinstance(default, bool):
-            values[key] = rd.boolean(table, key, "[evaluation]")
-        elif isinstance(default, int):
-            values[key] = rd.positive_integer(table, key, "[evaluation]")
-        else:  # a float, or None: an optional positive number
-            values[key] = rd.positive(table, key, "[evaluation]")
+    table = rd.table(data["evaluation"], "[evaluation]", _known(defaults), set())
+    values = {
+        key: _setting(rd, table, key, "[evaluation]", getattr(defaults, key))
+        for key in table
+        if key != "targets"
+    }
+    if "targets" in table:
+        values["targets"] = _read_targets(rd, table["targets"], outputs, scale)
     settings = EvaluationSettings(**values)
-    if settings.samples_per_dimension < 2:
+    grid = settings.samples_per_dimension ** len(outputs)
+    if grid + len(settings.targets) > MAX_TARGETS:
         raise rd.fail(
             "[evaluation].samples_per_dimension",
-            "expected at least 2 (the range's two ends)",
+            f"{settings.samples_per_dimension} per output for {len(outputs)} outputs "
+            f"makes {grid} targets; expected at most {MAX_TARGETS} in all",
         )
     return settings
+
+
+def _read_targets(
+    rd: Reader, value, outputs: list[dict], scale: float
+) -> tuple[tuple[float, ...], ...]:
+    """``[evaluation].targets``: lists of one value per output (file units), each
+    inside the outputs' ranges (the adversarial samples search the range)."""
+    where = "[evaluation].targets"
+    if not isinstance(value, list) or len(value) > MAX_TARGETS:
+        raise rd.fail(
+            where,
+            f"expected a list of at most {MAX_TARGETS} targets, got {shown(value)}",
+        )
+    targets = []
+    for k, target in enumerate(value):
+        if not is_number_list(target, len(outputs)):
+            raise rd.fail(
+                f"{where}[{k}]",
+                f"expected a list of {len(outputs)} finite numbers (one per output), "
+                f"got {shown(target)}",
+            )
+        for output, v in zip(outputs, target):
+            _check_value(rd, f"{where}[{k}]", [v], output["kind"], scale)
+            if not output["min"] <= v <= output["max"]:
+                raise rd.fail(
+                    f"{where}[{k}]",
+                    f"expected a target inside the output range: {output['name']} "
+                    f"in [{output['min']:g}, {output['max']:g}], got {v:g}",
+                )
+        targets.append(tuple(float(v) for v in target))
+    return tuple(targets)

@@ -63,7 +63,10 @@ class EvaluationSettings:
     it had to shorten (:mod:`linkopt._design.sampling`), and a step that jumps onto
     another assembly branch is rejected. ``alpha_minus``: an absolute α₋ that overrides
     ``alpha_factor`` (written into optimised files so that they are judged by the
-    threshold they were optimised for).
+    threshold they were optimised for). ``targets``: IK targets (file units) added to
+    the grid's, one tuple of output values each; an optimisation's verification rounds
+    add the places where its design failed ``linkopt verify``
+    (:mod:`linkopt._design.run`), and its optimised file keeps them.
     """
 
     samples_per_dimension: int = 3
@@ -76,6 +79,7 @@ class EvaluationSettings:
     ik_iterations: int = 40
     adversarial_iterations: int = 40
     alpha_minus: float | None = None
+    targets: tuple[tuple[float, ...], ...] = ()
 
 
 @dataclass(frozen=True)
