@@ -201,7 +201,7 @@ def test_a_failing_write_outputs_leaves_the_earlier_outputs(
     for name in ("optimized.toml", "summary.json"):
         (tmp_path / name).write_text("earlier run")
 
-    def crash(mech, stage, *_):
+    def crash(mech, current, stage, *_):
         assert (stage / "optimized.toml").is_file()
         raise RuntimeError("verification failed")
 

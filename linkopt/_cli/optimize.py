@@ -28,6 +28,8 @@ _SUMMARY_KEYS = (
     "regularizer",
     "verified",
     "initial_verified",
+    "verification_rounds",
+    "capped_samples",
     "design",
     "optimized_file",
 )
@@ -44,6 +46,11 @@ def _check_arguments(args, mech) -> None:
             raise InputError(
                 f"--{flag}: expected a positive integer, got {getattr(args, flag)}"
             )
+    if args.verify_rounds < 0:
+        raise InputError(
+            "--verify-rounds: expected a non-negative integer, "
+            f"got {args.verify_rounds}"
+        )
     if args.seed < 0:
         raise InputError(f"--seed: expected a non-negative integer, got {args.seed}")
     if args.resolution < 8:  # checked here, not after the run when plotting
@@ -57,13 +64,33 @@ def _check_arguments(args, mech) -> None:
         )
 
 
-def _progress(iterations: int):
-    """The per-iteration progress line (stderr) of a run capped at ``iterations``."""
+def _round_line(record: dict) -> str:
+    """The progress line of a verification round (:mod:`linkopt._design.rounds`)."""
+    head = (
+        f"verification {record['round'] + 1} after iteration "
+        f"{record['iteration'] - 1}: coverage {record['coverage']:.3f}, max f_sing "
+        f"{record['max_f_sing']:.4g} (threshold {record['threshold']:.4g})"
+    )
+    if record["passed"]:
+        return head + ": passed"
+    if record["added_targets"]:
+        places = "; ".join(
+            ", ".join(f"{v:.6g}" for v in t) for t in record["added_targets"]
+        )
+        return head + f": failed; going on with IK targets added at ({places})"
+    return head + ": failed; no verification rounds left"
+
+
+def _progress():
+    """The per-iteration progress line (stderr) and each verification round's."""
 
     def report(record: dict) -> None:
+        if "passed" in record:
+            print(_round_line(record), file=sys.stderr, flush=True)
+            return
         done = record["iteration"] + 1
         elapsed = record["wall_time"]
-        remaining = elapsed / done * (iterations - done)
+        remaining = elapsed / done * (record["limit"] - done)
         print(
             f"iteration {record['iteration']:4d}  best f_design "
             f"{record['best_f_design_overall']:.4e}"
@@ -91,6 +118,7 @@ def run_optimize(args) -> int:
         tolerance=args.tolerance,
         patience=args.patience,
         improvement=args.improvement,
+        verify_rounds=args.verify_rounds,
     )
     with locked_run_folder(args.out, args.resume, "--out"):
         run = optimize(
@@ -98,7 +126,7 @@ def run_optimize(args) -> int:
             args.out,
             settings,
             resume=args.resume,
-            progress=_progress(settings.iterations),
+            progress=_progress(),
             workers=args.workers,
         )
         print(
@@ -226,5 +254,15 @@ def _add_stopping_options(opt, d) -> None:
         help=(
             "relative drop of the returned design's total that counts as improving "
             f"(default {d.improvement:g})"
+        ),
+    )
+    opt.add_argument(
+        "--verify-rounds",
+        type=int,
+        default=d.verify_rounds,
+        help=(
+            "times a run whose design fails verification goes on, with IK targets "
+            f"added where it failed (default {d.verify_rounds}; 0: verify only at "
+            "the end)"
         ),
     )

@@ -44,9 +44,22 @@ _REQUIRED = (
     "history",
     "stalled",
     "finished",
+    "limit",
+    "rounds",
     *ARRAYS,
 )
 _WRITTEN_BY = "a checkpoint written by linkopt optimize"
+_ROUND_KEYS = (
+    "round",
+    "iteration",
+    "design",
+    "passed",
+    "coverage",
+    "max_f_sing",
+    "threshold",
+    "added_targets",
+    "verification",
+)
 
 
 def encode(run: SwarmRun, mech: Mechanism, settings: OptimizerSettings) -> dict:
@@ -64,6 +77,8 @@ def encode(run: SwarmRun, mech: Mechanism, settings: OptimizerSettings) -> dict:
         "result_pos": None if run.result_pos is None else run.result_pos.tolist(),
         "result_total": run.result_total,
         "result_feasible": run.result_feasible,
+        "limit": run.limit,
+        "rounds": list(run.rounds),
         **arrays,
     }
 
@@ -156,6 +171,10 @@ def decode(
     result = _result(path, data, size, required=finished)
     if finished and iteration == 0:
         raise _bad(path, "iteration", "at least 1 in a finished run", iteration)
+    limit = _count(path, data, "limit")
+    least = max(settings.iterations, iteration + (not finished))
+    if limit < least:
+        raise _bad(path, "limit", f"an iteration count of at least {least}", limit)
     return SwarmRun(
         **arrays,
         iteration=iteration,
@@ -165,7 +184,42 @@ def decode(
         stalled=_count(path, data, "stalled"),
         finished=finished,
         **result,
+        limit=limit,
+        rounds=_rounds(path, data["rounds"], iteration, size, mech.num_outputs),
     )
+
+
+def _rounds(path: Path, rounds, iteration: int, size: int, outputs: int) -> tuple:
+    """The verification rounds (:mod:`linkopt._design.rounds`): numbered in order, each
+    at a finished iteration, with its design, outcome and added targets."""
+    if not isinstance(rounds, list):
+        raise _bad(path, "rounds", "a list of verification rounds", rounds)
+    last = 0
+    for k, record in enumerate(rounds):
+        where = f"rounds[{k}]"
+        if not isinstance(record, dict):
+            raise _bad(path, where, "an object", record)
+        missing = [key for key in _ROUND_KEYS if key not in record]
+        if missing:
+            raise _bad(path, where, f"the fields {', '.join(_ROUND_KEYS)}", record)
+        if record["round"] != k or isinstance(record["round"], bool):
+            raise _bad(path, f"{where}.round", str(k), record["round"])
+        step = record["iteration"]
+        if not _is_integer(step) or not last < step <= iteration:
+            raise _bad(path, f"{where}.iteration", f"in {last + 1}..{iteration}", step)
+        last = step
+        _flag(path, f"{where}.passed", record["passed"])
+        _array(path, f"{where}.design", record["design"], (size,))
+        for key in ("coverage", "max_f_sing", "threshold"):
+            _number(path, f"{where}.{key}", record[key])
+        added = record["added_targets"]
+        if not isinstance(added, list):
+            raise _bad(path, f"{where}.added_targets", "a list of targets", added)
+        if added:
+            _array(path, f"{where}.added_targets", added, (len(added), outputs))
+        if not isinstance(record["verification"], dict):
+            raise _bad(path, f"{where}.verification", "an object", record)
+    return tuple(rounds)
 
 
 def _result(path: Path, data: dict, size: int, required: bool) -> dict:

@@ -10,7 +10,9 @@ length) is reported separately; the optimiser minimises their sum.
 Targets: a grid of ``samples_per_dimension`` values per output spanning each range,
 keeping the points on the box's boundary and, with ``interior = true``, the interior
 ones too (3 per dimension, 2 outputs: 9 targets; 4 per dimension: 16; 3 per dimension,
-3 outputs: 27, as the paper's Table I). IK starts from the rest pose for every target.
+3 outputs: 27, as the paper's Table I), then any ``[evaluation].targets`` the file
+adds (an optimisation's verification rounds add them: :mod:`linkopt._design.run`). IK
+starts from the rest pose for every target.
 A batch of ``D`` designs is ``D·T`` independent lanes, each an IK minimisation followed
 by an adversarial one from its result, run through
 :func:`linkopt._design.sampling.minimise_queue` with ``QUEUE_WIDTH`` slots.
@@ -19,6 +21,13 @@ by an adversarial one from its result, run through
 costs more in a wider batch (we think because a few dozen lanes' matrices stay in the
 CPU caches, and because the trial solve's inner loop runs to its slowest lane), more
 than the per-step overhead that favours width saves.
+
+Each minimisation stops at its cap (``ik_iterations``, ``adversarial_iterations``: 40
+by default), where the paper runs BFGS to convergence: under ``vmap`` every slot waits
+for the slowest lane, so one lane that never converges (a target out of reach) would
+hold up the batch. A capped adversarial sample may stop below the ``f_sing`` it would
+reach, so ``f_design`` can read low; :func:`capped` counts the capped samples, and an
+optimisation verifies its design densely before it stops.
 
 ``α₋`` is ``alpha_factor`` times ``f_sing`` at the rest pose of the file's *initial*
 design, fixed for the whole optimisation so that a design cannot move its own threshold.
@@ -33,7 +42,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, Float, Int
 
 from .._engine import programs
 from .._engine.constraints import output_residual
@@ -67,6 +76,8 @@ class Evaluation(NamedTuple):
     adv_states: Float[Array, "T S"]
     adv_f_sing: Float[Array, " T"]
     adv_culled: Float[Array, " T"]
+    ik_iterations: Int[Array, " T"]
+    adv_iterations: Int[Array, " T"]
 
     @property
     def total(self):
@@ -86,7 +97,20 @@ def targets(mech: Mechanism) -> np.ndarray:
     on_boundary = np.any(
         np.isclose(grid, mech.output_min) | np.isclose(grid, mech.output_max), axis=1
     )
-    return grid if settings.interior else grid[on_boundary]
+    grid = grid if settings.interior else grid[on_boundary]
+    extra = np.asarray(settings.targets, dtype=float).reshape(-1, mech.num_outputs)
+    return np.concatenate([grid, extra])
+
+
+def capped(mech: Mechanism, ev: Evaluation) -> tuple[int, int]:
+    """How many IK and adversarial minimisations of ``ev`` (one design or a batch) ran
+    to their iteration cap (module docstring); one that converged on its last allowed
+    iteration counts as capped."""
+    settings = mech.evaluation
+    return (
+        int(np.sum(np.asarray(ev.ik_iterations) >= settings.ik_iterations)),
+        int(np.sum(np.asarray(ev.adv_iterations) >= settings.adversarial_iterations)),
+    )
 
 
 @cache
@@ -152,6 +176,8 @@ def _evaluation(
         adv_states=per(adv_samples.state),
         adv_f_sing=per(adv_sing),
         adv_culled=adv_culled,
+        ik_iterations=per(ik_samples.iterations),
+        adv_iterations=per(adv_samples.iterations),
     )
 
 

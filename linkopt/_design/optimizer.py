@@ -34,6 +34,10 @@ total has not dropped by more than ``improvement`` (relative) for ``patience``
 iterations, or at ``iterations``. ``improvement`` = 1e-3 is our choice: the paper says
 only that it stops when the objective stops improving, and regulariser gains below 0.1 %
 do not change a design in any way a user would notice.
+
+Before a run stops, it verifies its design densely (:mod:`linkopt._design.run`): where
+verification fails, the failing places become IK targets and :func:`reopen` continues
+the run for up to ``iterations`` more iterations, at most ``verify_rounds`` times.
 """
 
 from __future__ import annotations
@@ -74,6 +78,8 @@ class OptimizerSettings:
     tolerance: float = 1e-12
     patience: int = 3
     improvement: float = 1e-3
+    #: times a run whose design fails verification goes on with added targets
+    verify_rounds: int = 3
 
     def inertia(self, iteration: int) -> float:
         fraction = min(iteration / self.inertia_iterations, 1.0)
@@ -106,6 +112,15 @@ class SwarmRun:
     result_pos: Float[np.ndarray, " n_p"] | None = None  # returned (module docstring)
     result_total: float = float("inf")
     result_feasible: bool = False
+    #: the iteration count at which the run stops at the latest (:func:`reopen`)
+    limit: int = 0
+    #: the verification rounds so far (:mod:`linkopt._design.run`), oldest first
+    rounds: tuple[dict, ...] = ()
+
+    @property
+    def added_targets(self) -> tuple[tuple[float, ...], ...]:
+        """The IK targets (file units) that the verification rounds added."""
+        return tuple(tuple(t) for r in self.rounds for t in r["added_targets"])
 
 
 def start(mech: Mechanism, settings: OptimizerSettings) -> SwarmRun:
@@ -130,6 +145,24 @@ def start(mech: Mechanism, settings: OptimizerSettings) -> SwarmRun:
         best_cost=float("inf"),
         rng_state=rng.bit_generator.state,
         history=(),
+        limit=settings.iterations,
+    )
+
+
+def reopen(run: SwarmRun, settings: OptimizerSettings) -> SwarmRun:
+    """The finished ``run`` continued for up to ``settings.iterations`` more iterations
+    once a verification round has added IK targets: every best is forgotten (their
+    costs were of the old targets), so the next evaluation, of the same positions,
+    scores them again."""
+    return dataclasses.replace(
+        run,
+        pbest_cost=np.full_like(run.pbest_cost, np.inf),
+        best_cost=float("inf"),
+        stalled=0,
+        finished=False,
+        result_total=float("inf"),
+        result_feasible=False,
+        limit=run.iteration + settings.iterations,
     )
 
 
@@ -222,6 +255,7 @@ def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray) -> SwarmRun:
         "singularity": float(ev.singularity[best]),
         "swarm_best_total": run.best_cost,
         "evaluations": (run.iteration + 1) * len(costs),
+        "limit": run.limit,
     }
     record["best_design"] = [float(v) for v in run.result_pos]
     record["best_f_design_overall"] = float(
@@ -234,7 +268,7 @@ def _converged(run: SwarmRun, settings: OptimizerSettings) -> bool:
     """Whether the run stops after this iteration (module docstring)."""
     return (
         run.result_feasible and run.stalled >= settings.patience
-    ) or run.iteration + 1 >= settings.iterations
+    ) or run.iteration + 1 >= run.limit
 
 
 def _move(

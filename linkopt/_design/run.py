@@ -17,6 +17,10 @@ unique names, and the final outputs are staged and moved in together once all ar
 written, ``summary.json`` last, so a failed or killed ``write_outputs`` leaves the
 folder's earlier outputs (or none) rather than a part of new ones.
 
+Before a run stops it verifies its design, and goes on with added IK targets where
+verification fails (:mod:`linkopt._design.rounds`); the checkpoint holds the rounds, so
+a resumed run evaluates the same targets.
+
 Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.csv``,
 ``verification.json`` (``linkopt verify`` on the initial and optimised designs),
 ``summary.json``, and the figures ``spaces_initial.png``, ``spaces_optimized.png``,
@@ -44,8 +48,9 @@ from .._engine.writer import write_design
 from .._errors import InputError
 from .._folders import check_path, run_folder, staged, write_atomic
 from .checkpoint import CHECKPOINT, HISTORY_FIELDS, check_match, decode, encode, read
-from .evaluation import Evaluation, alpha_minus, evaluate
+from .evaluation import Evaluation, alpha_minus, capped, evaluate, targets
 from .optimizer import OptimizerSettings, SwarmRun, best_design, start, step
+from .rounds import verification_round, wants_round, with_targets
 from .workers import Workers
 
 
@@ -116,8 +121,10 @@ def optimize(
     progress: Callable[[dict], None] | None = None,
     workers: int = 1,
 ) -> SwarmRun:
-    """Run (or resume) the optimiser, checkpointing after every iteration; ``workers``
-    processes share the particles (:mod:`linkopt._design.workers`).
+    """Run (or resume) the optimiser, checkpointing after every iteration and every
+    verification round (:mod:`linkopt._design.rounds`); ``workers`` processes share
+    the particles (:mod:`linkopt._design.workers`). ``progress`` gets each iteration's
+    history record and each round's record (which has a ``"passed"`` key).
 
     ``out`` is locked for the call (:func:`locked_run_folder`): another process on it
     gets :class:`~linkopt.InputError`. A checkpoint to resume is checked in full before
@@ -126,14 +133,23 @@ def optimize(
         run = prepare(out, mech, settings, resume)
         offset = run.history[-1]["wall_time"] if run.history else 0.0
         began = time.perf_counter()
-        with Workers(mech, workers) as pool:
-            while not run.finished:
-                run = step(mech, run, settings, pool)
-                run = _timed(run, offset + time.perf_counter() - began)
-                save_checkpoint(out, run, mech, settings)
-                if progress is not None:
-                    progress(run.history[-1])
-    return run
+        while True:
+            current = with_targets(mech, run.added_targets)
+            if not run.finished:
+                with Workers(current, workers) as pool:
+                    while not run.finished:
+                        run = step(current, run, settings, pool)
+                        run = _timed(run, offset + time.perf_counter() - began)
+                        save_checkpoint(out, run, mech, settings)
+                        if progress is not None:
+                            progress(run.history[-1])
+            if not wants_round(run, settings):
+                return run
+            with one_blas_thread():
+                run = verification_round(current, run, settings)
+            save_checkpoint(out, run, mech, settings)
+            if progress is not None:
+                progress(run.rounds[-1])
 
 
 def _verification(mech: Mechanism, design, resolution: int | None) -> dict:
@@ -178,11 +194,15 @@ def _optimized_outputs(
     verify_resolution: int | None,
 ) -> tuple[dict, Evaluation]:
     """The optimised design's verification and evaluation (returned), its space plot,
-    the convergence plot and the drawing of both designs (written)."""
+    the convergence plot and the drawing of both designs (written); ``mech`` has the
+    targets of the run's verification rounds, whose last verification serves when it
+    was of ``design`` at the same resolution."""
     from . import plots
 
     with one_blas_thread():
-        checked = _verification(mech, design, verify_resolution)
+        checked = _last_round(run, design, verify_resolution)
+        if checked is None:
+            checked = _verification(mech, design, verify_resolution)
         final = evaluate(mech, design)
         if _has_space_plots(mech):
             plots.plot_spaces(
@@ -204,8 +224,20 @@ def _optimized_outputs(
     return checked, final
 
 
+def _last_round(
+    run: SwarmRun, design: np.ndarray, verify_resolution: int | None
+) -> dict | None:
+    """The verification of ``design`` by the run's last round, if it verified this
+    design at the default resolution."""
+    if verify_resolution is not None or not run.rounds:
+        return None
+    last = run.rounds[-1]
+    return last["verification"] if last["design"] == design.tolist() else None
+
+
 def _design_outputs(
     mech: Mechanism,
+    current: Mechanism,
     out: Path,
     run: SwarmRun,
     design: np.ndarray,
@@ -214,8 +246,9 @@ def _design_outputs(
     workers: int,
 ) -> tuple[dict, Evaluation]:
     """Both designs' verifications (``{"initial": ..., "optimized": ...}``), the
-    optimised design's evaluation, and the figures; with ``workers`` > 1 the initial
-    design's in a spawned process (module docstring)."""
+    optimised design's evaluation (with the targets of ``current``: the file's and the
+    run's rounds'), and the figures; with ``workers`` > 1 the initial design's in a
+    spawned process (module docstring)."""
     side = (
         ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
         if workers > 1
@@ -225,7 +258,7 @@ def _design_outputs(
     try:
         initial = side.submit(_initial_outputs, *args) if side is not None else None
         checked, final = _optimized_outputs(
-            mech, out, run, design, resolution, verify_resolution
+            current, out, run, design, resolution, verify_resolution
         )
         checks = {
             "initial": initial.result()
@@ -261,6 +294,12 @@ def _summary(
         "regularizer": float(final.regularizer),
         "verified": checks["optimized"]["passed"],
         "initial_verified": checks["initial"]["passed"],
+        "verification_rounds": [
+            {k: v for k, v in r.items() if k != "verification"} for r in run.rounds
+        ],
+        "targets": len(targets(mech)),
+        "added_targets": [list(t) for t in run.added_targets],
+        "capped_samples": dict(zip(("ik", "adversarial"), capped(mech, final))),
         "settings": settings.to_dict(),
     }
 
@@ -286,9 +325,10 @@ def write_outputs(
     design = best_design(run)
     if design is None:
         raise InputError(f"{out}: the run has not finished an iteration yet")
+    current = with_targets(mech, run.added_targets)
     with locked_run_folder(out), staged(out, marker="summary.json") as stage:
         write_design(
-            mech,
+            current,
             design,
             alpha_minus(mech),
             stage / "optimized.toml",
@@ -298,10 +338,10 @@ def write_outputs(
             ),
         )
         checks, final = _design_outputs(
-            mech, stage, run, design, resolution, verify_resolution, workers
+            mech, current, stage, run, design, resolution, verify_resolution, workers
         )
         (stage / "verification.json").write_text(json.dumps(checks, indent=2))
-        summary = _summary(mech, run, settings, design, final, checks)
+        summary = _summary(current, run, settings, design, final, checks)
         (stage / "summary.json").write_text(json.dumps(summary, indent=2))
     summary["optimized_file"] = str(out / "optimized.toml")
     return summary
