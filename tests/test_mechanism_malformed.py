@@ -450,6 +450,11 @@ MALFORMED = {
         "[evaluation].targets[1]",
         "expected a list of 2 finite numbers (one per output), got [1.0]",
     ),
+    "target_outside_the_range": (
+        five_bar(put(("evaluation", "targets"), [[0.0, 40.0], [0.0, 90.0]])),
+        "[evaluation].targets[1]",
+        "expected a target inside the output range: y in [15, 80], got 90",
+    ),
     # integers too large for a float
     "huge_int_anchor": (
         five_bar(put(("joints", 0, "anchor"), [HUGE, 0, 0])),
