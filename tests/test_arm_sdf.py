@@ -173,3 +173,31 @@ def test_rotated_box_is_drawn_with_its_turned_edges():
     np.testing.assert_allclose(
         np.abs(ends[..., :2]).max(axis=(0, 1)), [0.05, 0.2], atol=1e-12
     )
+
+
+def test_a_grid_over_the_limit_is_refused_before_allocating():
+    from linkopt import InputError
+
+    with pytest.raises(InputError, match="voxel grid of 8e\\+15 cells") as err:
+        build_field((BOX,), [-1, -1, -1], [1, 1, 1], 1e-5)
+    assert "\n" not in str(err.value) and "use a larger voxel" in str(err.value)
+    field = build_field((BOX,), [-1, -1, -1], [1, 1, 1], 0.1, max_cells=10_000)
+    assert field.values.shape == (21, 21, 21)
+
+
+def test_unknown_obstacle_kind_is_an_input_error():
+    from linkopt import InputError
+    from linkopt._arms.codesign.sdf import obstacle_distance
+
+    with pytest.raises(InputError, match="'cone'"):
+        obstacle_distance(Obstacle("cone"), np.zeros((1, 3)))
+
+
+def test_open_mesh_is_an_input_error(tmp_path):
+    from linkopt import InputError
+    from linkopt._arms.codesign.sdf import load_mesh
+
+    path = tmp_path / "tri.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(InputError, match="not a closed \\(watertight\\) surface"):
+        load_mesh(str(path))

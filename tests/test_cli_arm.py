@@ -89,3 +89,38 @@ def test_other_arm_commands_reject_a_negative_seed(command, tmp_path, capsys):
         capsys.readouterr().err
         == "linkopt: error: --seed: expected a non-negative integer, got -1\n"
     )
+
+
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        (["--starts", "100000"], "--starts: 100000 exceeds the limit of 1000"),
+        (["--workers", "1000"], "--workers: 1000 exceeds the limit of 64"),
+    ],
+)
+def test_arm_design_unbounded_arguments_exit_2(extra, words, tmp_path, capsys):
+    test_arm_design_bad_arguments_exit_2_with_one_line(extra, words, tmp_path, capsys)
+
+
+def test_arm_simplify_min_joints_beyond_the_arm_exits_2(task_file, tmp_path, capsys):
+    argv = ["arm", "simplify", str(task_file), "--out", str(tmp_path / "run")]
+    assert main([*argv, "--min-joints", "3"]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        "linkopt: error: --min-joints: expected at most the task's 2 joints, got 3\n"
+    )
+    assert not (tmp_path / "run").exists()
+
+
+def test_arm_design_meaningless_task_exits_2(tmp_path, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text(
+        ARM.replace('name = "tiny"', 'name = "tiny"\npayload = -1.0')
+        + "[[targets]]\nposition = [0.3, 0.1, 0.1]\n"
+    )
+    assert main(["arm", "design", str(path), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        f"linkopt: error: {path}: [task].payload: expected a payload (kg) >= 0, "
+        "got -1.0\n"
+    )

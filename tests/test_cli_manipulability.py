@@ -97,3 +97,49 @@ def test_manipulability_bad_input_exits_2_with_one_line(tmp_path, capsys):
         == 2
     )
     assert "missing.csv: cannot read" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        (
+            ["--precision", "0"],
+            "--precision: expected a finite positive number, got 0.0",
+        ),
+        (["--precision", "nan"], "--precision: expected a finite positive number"),
+        (["--precision", "1e300"], "--precision: 1e+300 exceeds the limit of 1e+12"),
+        (["--size-damping", "-1"], "--size-damping: expected a finite non-negative"),
+        (["--starts", "1000000"], "--starts: 1000000 exceeds the limit of 1000"),
+        (["--iterations", "0"], "--iterations: expected a positive integer, got 0"),
+        (["--joints", "0"], "--joints: expected a number of joints between 1 and 8"),
+        (
+            ["--joints", "R" * 13],
+            "--joints: 'RRRRRRRRRRRRR': 13 joints exceed the limit",
+        ),
+    ],
+)
+def test_manipulability_flags_are_checked_before_work(extra, words, tmp_path, capsys):
+    argv = ["arm", "manipulability", str(tmp_path / "never_read.csv")]
+    assert main([*argv, "--out", str(tmp_path / "o"), *extra]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"linkopt: error: {words}") and err.count("\n") == 1
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("1, 0, 0\n1e200, 0, 0\n", "line 2: expected coordinates of magnitude at most"),
+        ("1, 0, nan\n", "line 1: expected 3 finite numbers"),
+        ("x,y,z\n" + "0.1, 0.2, 0.3\n" * 10_001, "more than 10000 task points"),
+    ],
+)
+def test_points_file_with_absurd_content_exits_2(text, words, tmp_path, capsys):
+    points = tmp_path / "points.csv"
+    points.write_text(text)
+    assert (
+        main(["arm", "manipulability", str(points), "--out", str(tmp_path / "o")]) == 2
+    )
+    err = capsys.readouterr().err
+    assert err.startswith(f"linkopt: error: {points}: ") and words in err
+    assert err.count("\n") == 1

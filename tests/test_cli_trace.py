@@ -94,3 +94,37 @@ def test_trace_file_names_are_safe_whatever_the_task_name():
     assert "/" not in file_stem("x/y") and np.all(
         [c not in file_stem("a:b*?") for c in ":*?"]
     )
+
+
+def test_cli_refuses_unbounded_flags_before_work(tmp_path, capsys):
+    task = tmp_path / "never_read.toml"
+    for extra, words in (
+        (["--restarts", "100000"], "--restarts: 100000 exceeds the limit of 1000"),
+        (["--best-of", "1000"], "--best-of: 1000 exceeds the limit of 100"),
+        (["--discretised", "1000000"], "--discretised: 1000000 exceeds the limit"),
+    ):
+        argv = ["arm", "trace", str(task), "--out", str(tmp_path / "o"), *extra]
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"linkopt: error: {words}") and err.count("\n") == 1
+    assert not (tmp_path / "o").exists()
+
+
+def test_cli_refuses_absurd_task_values(tmp_path, capsys):
+    for text, where in (
+        (
+            SMALL.replace("end = [0.3, 0.1]", "end = [1e308, 0.1]", 1),
+            "primitives[0].end",
+        ),
+        (
+            SMALL.replace("link_diameter = 0.02", "link_diameter = 1e-12"),
+            "link_diameter",
+        ),
+        (SMALL.replace("radius = 0.03", "radius = -0.03"), "obstacles[0].radius"),
+    ):
+        path = tmp_path / "task.toml"
+        path.write_text(text)
+        assert main(["arm", "trace", str(path), "--out", str(tmp_path / "o")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"linkopt: error: {path}: ") and where in err
+        assert err.count("\n") == 1

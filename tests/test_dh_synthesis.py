@@ -245,3 +245,10 @@ def test_enumeration_skips_strings_without_an_engine_model():
         linkopt.InputError, match="seed: expected a non-negative integer"
     ):
         syn.synthesize_config("RR", TASK[:2], syn.DHSynthesisSettings(seed=-1))
+
+
+def test_zero_precision_is_refused_before_work():
+    with pytest.raises(linkopt.InputError, match="precision: expected a finite"):
+        syn.synthesize_config("RR", TASK[:2], syn.DHSynthesisSettings(precision=0.0))
+    with pytest.raises(linkopt.InputError, match="starts: 5000 exceeds the limit"):
+        syn.synthesize_config("RR", TASK[:2], syn.DHSynthesisSettings(starts=5000))

@@ -455,3 +455,27 @@ def test_discretised_design_misses_the_curve_between_its_points():
     )
     assert 0 < cmp.fraction_outside < 0.2
     assert not cmp.verification.passed
+
+
+def test_too_many_primitives_are_refused():
+    lines = "".join(
+        '[[primitives]]\ntype = "line"\n'
+        f"start = [0.3, {0.1 * (k % 2)}]\nend = [0.3, {0.1 * ((k + 1) % 2)}]\n"
+        for k in range(101)
+    )
+    with pytest.raises(MechanismFileError, match="primitives: 101 primitives exceed"):
+        loads_task(HEAD + lines, "many.toml")
+
+
+def test_unknown_search_settings_are_input_errors():
+    from linkopt import InputError
+    from linkopt._arms.trace.swept import swept_support
+    from linkopt._arms.trace.synthesis import TraceSettings, synthesize
+
+    task = loads_task(SMALL, "small.toml")
+    with pytest.raises(InputError, match="swept: unknown swept-area bound 'hull'"):
+        swept_support("hull", task.primitives[0], None, 0.1, 0.1, 1)
+    with pytest.raises(InputError, match="settings: swept"):
+        synthesize(task, settings=TraceSettings(swept=("hull",)))
+    with pytest.raises(InputError, match="settings: links"):
+        synthesize(task, settings=TraceSettings(links=(4,)))

@@ -33,6 +33,7 @@ from .._arms import checks
 from .._arms.codesign import nlp
 from .._arms.codesign.model import mechanism_definition
 from .._engine.writer import dumps
+from .._errors import InputError
 from .._folders import run_folder, staged
 
 
@@ -166,12 +167,19 @@ def _write_constraints(
     )
 
 
+#: Limits of the flags: ``--starts`` as the task's ``[solver] starts``; each worker is
+#: a process holding its own JAX runtime (hundreds of MB).
+MAX_WORKERS = 64
+
+
 def _check_arguments(args) -> None:
+    from .._arms.codesign.task import LIMITS
+
     if args.starts is not None:
-        checks.count(args.starts, "--starts")
+        checks.count(args.starts, "--starts", maximum=LIMITS["solver"]["starts"])
     if args.seed is not None:
         checks.seed(args.seed, "--seed")
-    checks.count(args.workers, "--workers")
+    checks.count(args.workers, "--workers", maximum=MAX_WORKERS)
     if hasattr(args, "min_joints"):
         checks.count(args.min_joints, "--min-joints")
 
@@ -181,7 +189,14 @@ def _task(args):
     from .._arms.codesign.task import load_task
 
     _check_arguments(args)
-    return load_task(args.task)
+    task = load_task(args.task)
+    joints = task.arm.num_joints
+    if hasattr(args, "min_joints") and args.min_joints > joints:
+        raise InputError(
+            f"--min-joints: expected at most the task's {joints} joints, got "
+            f"{args.min_joints}"
+        )
+    return task
 
 
 def _solve(args, task):

@@ -30,6 +30,7 @@ from .._arms import checks
 from .._arms.dh.drawing import draw
 from .._arms.dh.points import read_points
 from .._arms.dh.synthesis import (
+    LIMITS,
     DHSynthesis,
     DHSynthesisSettings,
     configurations,
@@ -149,12 +150,22 @@ def _settings(args) -> DHSynthesisSettings:
     )
 
 
-def run(args) -> int:
+def _check_flags(args) -> None:
+    """Every flag meaningful and within :data:`~linkopt._arms.dh.synthesis.LIMITS`,
+    before any work."""
+    checks.number(
+        args.precision, "--precision", positive=True, maximum=LIMITS["weights"]
+    )
+    checks.number(args.size_damping, "--size-damping", maximum=LIMITS["weights"])
     checks.seed(args.seed, "--seed")
-    checks.count(args.starts, "--starts")
-    checks.count(args.iterations, "--iterations")
-    points = read_points(args.points)
+    checks.count(args.starts, "--starts", maximum=LIMITS["starts"])
+    checks.count(args.iterations, "--iterations", maximum=LIMITS["max_iterations"])
+
+
+def run(args) -> int:
+    _check_flags(args)
     joints = _joints_argument(args.joints)
+    points = read_points(args.points)
     settings = _settings(args)
     with run_folder(args.out) as out:
         print(

@@ -73,6 +73,26 @@ def register(arm_subparsers) -> None:
     p.set_defaults(run=run)
 
 
+#: Limits of the flags (a 2-core machine: each restart solves up to 8 NLPs, each
+#: discretised point adds constraints to a dense SLSQP problem).
+MAX_RESTARTS = 1000
+MAX_BEST_OF = 100
+MAX_DISCRETISED = 10_000
+
+
+def _check_flags(args) -> None:
+    """Every flag meaningful and within its limit, before any work."""
+    checks.seed(args.seed, "--seed")
+    checks.count(args.restarts, "--restarts", maximum=MAX_RESTARTS)
+    checks.count(args.best_of, "--best-of", maximum=MAX_BEST_OF)
+    if args.discretised < 0 or args.discretised == 1:
+        raise InputError(
+            "--discretised: expected 0 (off) or at least 2 points, "
+            f"got {args.discretised}"
+        )
+    checks.count(args.discretised, "--discretised", minimum=0, maximum=MAX_DISCRETISED)
+
+
 def _say(msg: str) -> None:
     print(f"linkopt arm trace: {msg}", file=sys.stderr, flush=True)
 
@@ -81,14 +101,7 @@ def run(args) -> int:
     from .._arms.trace.synthesis import TraceSettings, synthesize
     from .._arms.trace.task import load_task
 
-    checks.seed(args.seed, "--seed")
-    checks.count(args.restarts, "--restarts")
-    checks.count(args.best_of, "--best-of")
-    if args.discretised < 0 or args.discretised == 1:
-        raise InputError(
-            "--discretised: expected 0 (off) or at least 2 points, "
-            f"got {args.discretised}"
-        )
+    _check_flags(args)
     task = load_task(args.task)
     with run_folder(args.out) as out:
         result = synthesize(

@@ -44,6 +44,7 @@ from ..._engine.geometry import Geometry
 from ..._engine.kinematics import implicit_state
 from ..._engine.loader import build
 from ..._engine.model import Mechanism
+from ..._errors import InputError
 from ..chain import chain_definition, chain_state, joint_output, span
 
 #: Continuous slots of each module kind, in order, and whether each is a length.
@@ -141,7 +142,9 @@ def module_transform(module: Module, d, theta=None) -> Frame:
         return compose(frame, _rot(0, s[1]))
     if module.kind == "tool":
         return compose(_trans(jnp.stack([s[0], zero, zero])), _rot(1, jnp.pi / 2))
-    raise ValueError(f"unknown module kind {module.kind!r}")
+    raise InputError(
+        f"arm module: unknown kind {module.kind!r}; expected one of {list(SLOTS)}"
+    )
 
 
 def chain(
@@ -243,6 +246,14 @@ def mechanism_definition(arm: Arm, d) -> dict:
     )
 
 
+def _check_module(module: Module, k: int) -> None:
+    if module.kind not in SLOTS or len(module.slots) != len(SLOTS[module.kind]):
+        raise InputError(
+            f"arm module {k}: expected a kind of {list(SLOTS)} with its slots, got "
+            f"{module.kind!r} with {len(module.slots)} slots"
+        )
+
+
 def make_arm(
     name: str,
     modules: tuple[Module, ...],
@@ -256,7 +267,9 @@ def make_arm(
     source: str = "<arm>",
 ) -> Arm:
     """Build an :class:`Arm` and its engine model at ``d0`` (validated by the
-    loader)."""
+    loader); modules of an unknown kind or slot count are an :class:`InputError`."""
+    for k, module in enumerate(modules):
+        _check_module(module, k)
     d0 = np.asarray(d0, dtype=float)
     mech = build(_definition(name, modules, d0, None), source)
     return Arm(

@@ -110,7 +110,11 @@ def prepare(task: Task, arm: Arm | None = None) -> Problem:
     field = None
     if task.obstacles:
         field = build_field(
-            task.obstacles, task.workspace[0], task.workspace[1], task.voxel
+            task.obstacles,
+            task.workspace[0],
+            task.workspace[1],
+            task.voxel,
+            max_cells=task.max_cells,
         )
     axis = np.array([t.axis if t.axis is not None else np.zeros(3) for t in targets])
     rotation = np.array(

@@ -40,6 +40,20 @@ Optional tables with the paper's defaults: ``[weights]`` path 500, joints 200, l
 torque 20, obstacle 5000; ``[tolerances]`` position 5e-4, tip 1e-3, rotation 1e-2;
 ``[solver]`` starts 8, seed 0, max_iterations 300, waypoints_per_target 4.
 Every problem raises one :class:`~linkopt.MechanismFileError` naming file and field.
+
+Physically meaningless values are refused: a link's or tool's ``length`` (fixed or its
+bounds) must be positive; masses, the payload, weights and tolerances >= 0; the torque
+limit, module radius, obstacle sizes and radii, voxel and clearance > 0; an approach
+cone's ``angle_deg`` in (0, 180]. Absurd magnitudes and unbounded work are refused
+before anything is built (limits for a 2-core, 24 GiB machine): lengths and coordinates
+at most :data:`MAX_LENGTH` (1 km), angles at most :data:`MAX_ANGLE` (4π rad), every
+other number at most 1e6 (weights 1e9); at most :data:`MAX_MODULES` modules;
+``[solver]`` starts <= 1000, max_iterations <= 100000, waypoints_per_target <= 100, and
+at most :data:`MAX_VARIABLES` NLP variables (waypoints × joints + design parameters:
+SLSQP's matrices are dense in them); the voxel grid of the SDF (and a mesh's
+voxelisation) at most ``[workspace] max_cells`` voxels (default
+:data:`~linkopt._arms.codesign.sdf.MAX_CELLS`, about 4 GB while it is built); task files
+at most 16 MiB.
 """
 
 from __future__ import annotations
@@ -52,8 +66,17 @@ import numpy as np
 from jaxtyping import Float
 
 from ..._engine.fields import Reader, is_number_list, parse_text, parse_toml
+from ..._errors import InputError, MechanismFileError
+from .. import limits
 from .model import LENGTH_SLOTS, SLOTS, Arm, Module, make_arm
-from .sdf import Obstacle, load_mesh
+from .sdf import (
+    MAX_CELLS,
+    Obstacle,
+    grid_cells,
+    grid_limit_message,
+    load_mesh,
+    mesh_cells,
+)
 
 TOP_LEVEL = {
     "task",
@@ -74,6 +97,16 @@ WEIGHTS = {
 }
 TOLERANCES = {"position": 5e-4, "tip": 1e-3, "rotation": 1e-2}
 SOLVER = {"starts": 8, "seed": 0, "max_iterations": 300, "waypoints_per_target": 4}
+#: Largest value of each option (module docstring); ``seed`` is unbounded.
+LIMITS = {
+    "weights": 1e9,
+    "tolerances": limits.MAX_MAGNITUDE,
+    "solver": {"starts": 1000, "max_iterations": 100_000, "waypoints_per_target": 100},
+}
+MAX_LENGTH = 1e3
+MAX_ANGLE = 4 * math.pi
+MAX_MODULES = 200
+MAX_VARIABLES = 2000
 OBSTACLE_FIELDS = {
     "box": ({"center", "size"}, {"orientation"}),
     "sphere": ({"center", "radius"}, set()),
@@ -110,6 +143,7 @@ class Task:
     workspace: tuple[np.ndarray, np.ndarray] | None = None
     voxel: float = 0.02
     clearance: float = 0.04
+    max_cells: int = MAX_CELLS
 
 
 def _slot(
@@ -130,15 +164,15 @@ def _slot(
     if isinstance(value, dict):
         rd.keys(value, f"{where}.{slot}", {"min", "max", "init"}, {"min", "max"})
         low, high = (
-            rd.number(value, "min", f"{where}.{slot}"),
-            rd.number(value, "max", f"{where}.{slot}"),
+            _slot_value(rd, value, "min", f"{where}.{slot}", slot),
+            _slot_value(rd, value, "max", f"{where}.{slot}", slot),
         )
         if low >= high:
             raise rd.fail(
                 f"{where}.{slot}", f"needs min < max, got min={low} and max={high}"
             )
         init = (
-            rd.number(value, "init", f"{where}.{slot}")
+            _slot_value(rd, value, "init", f"{where}.{slot}", slot)
             if "init" in value
             else 0.5 * (low + high)
         )
@@ -147,11 +181,22 @@ def _slot(
         names.append(f"{item.get('name', where)}.{slot}")
         bounds.append((init, low, high, slot in LENGTH_SLOTS))
         return (len(names) - 1, init)
-    return (-1, rd.number(item, slot, where))
+    return (-1, _slot_value(rd, item, slot, where, slot))
+
+
+def _slot_value(rd: Reader, data: dict, key: str, where: str, slot: str) -> float:
+    """A slot's value or bound: a length > 0, a coordinate or an angle of bounded
+    magnitude (module docstring)."""
+    if slot == "length":
+        return limits.positive(rd, data, key, where, MAX_LENGTH)
+    if slot in LENGTH_SLOTS:
+        return limits.number(rd, data, key, where, MAX_LENGTH, " m")
+    return limits.number(rd, data, key, where, MAX_ANGLE, " rad")
 
 
 def _read_modules(rd: Reader, data: dict) -> tuple[tuple[Module, ...], list, list]:
     items = rd.entries(data, "modules", required=True)
+    limits.count_limit(rd, "[[modules]]", len(items), MAX_MODULES, "modules")
     modules, names, bounds = [], [], []
     for k, item in enumerate(items):
         where = f"modules[{k}]"
@@ -168,9 +213,13 @@ def _read_modules(rd: Reader, data: dict) -> tuple[tuple[Module, ...], list, lis
             {"type", "name", "mass", *SLOTS[kind]},
             {"type"} | ({"mass"} if needs_mass else set()),
         )
-        mass = rd.number(item, "mass", where) if "mass" in item else 0.0
-        if mass < 0:
-            raise rd.fail(f"{where}.mass", f"expected a mass >= 0, got {mass}")
+        if "name" in item:
+            rd.string(item, "name", where)
+        mass = (
+            limits.non_negative(rd, item, "mass", where, "mass")
+            if "mass" in item
+            else 0.0
+        )
         slots = tuple(
             _slot(rd, item, s, where, names, bounds, s == "length") for s in SLOTS[kind]
         )
@@ -219,7 +268,7 @@ def _read_targets(rd: Reader, data: dict) -> tuple[Target, ...]:
             {"position", "axis", "orientation", "approach"},
             {"position"},
         )
-        axis = rd.direction(item, "axis", where) if "axis" in item else None
+        axis = limits.direction(rd, item, "axis", where) if "axis" in item else None
         orientation = (
             _read_orientation(rd, item["orientation"], f"{where}.orientation")
             if "orientation" in item
@@ -230,9 +279,8 @@ def _read_targets(rd: Reader, data: dict) -> tuple[Target, ...]:
             if "approach" in item
             else None
         )
-        targets.append(
-            Target(rd.vector(item, "position", where), axis, orientation, approach)
-        )
+        position = limits.vector(rd, item, "position", where, MAX_LENGTH)
+        targets.append(Target(position, axis, orientation, approach))
     return tuple(targets)
 
 
@@ -249,14 +297,21 @@ def _read_approach(
         {"local", "direction", "angle_deg"},
     )
     angle = rd.positive(cone, "angle_deg", where)
+    if angle > 180:
+        raise rd.fail(
+            f"{where}.angle_deg", f"expected an angle in (0, 180] degrees, got {angle}"
+        )
     return (
-        rd.direction(cone, "local", where),
-        rd.direction(cone, "direction", where),
+        limits.direction(rd, cone, "local", where),
+        limits.direction(rd, cone, "direction", where),
         math.cos(math.radians(angle)),
     )
 
 
-def _read_obstacles(rd: Reader, data: dict, base: Path) -> tuple[Obstacle, ...]:
+def _read_obstacles(
+    rd: Reader, data: dict, base: Path, meshes: dict
+) -> tuple[Obstacle, ...]:
+    """The obstacles; ``meshes`` receives each mesh obstacle's index -> bounds."""
     obstacles = []
     for k, item in enumerate(rd.entries(data, "obstacles", required=False)):
         where = f"obstacles[{k}]"
@@ -269,7 +324,10 @@ def _read_obstacles(rd: Reader, data: dict, base: Path) -> tuple[Obstacle, ...]:
             )
         required, optional = OBSTACLE_FIELDS[kind]
         rd.keys(item, where, {"type"} | required | optional, {"type"} | required)
-        obstacles.append(Obstacle(**_obstacle_args(rd, item, where, kind, base)))
+        args = _obstacle_args(rd, item, where, kind, base)
+        if kind == "mesh":
+            args["path"], meshes[k] = args["path"]
+        obstacles.append(Obstacle(**args))
     return tuple(obstacles)
 
 
@@ -278,15 +336,16 @@ def _obstacle_args(rd: Reader, item: dict, where: str, kind: str, base: Path) ->
     args = {"kind": kind}
     for key in ("center", "size", "a", "b"):
         if key in item:
-            args[key] = tuple(rd.vector(item, key, where))
+            args[key] = tuple(limits.vector(rd, item, key, where, MAX_LENGTH))
     if "size" in args and min(args["size"]) <= 0:
         raise rd.fail(
             f"{where}.size",
             f"expected positive edge lengths, got {list(args['size'])}",
         )
-    for key in ("radius", "scale"):
-        if key in item:
-            args[key] = rd.positive(item, key, where)
+    if "radius" in item:
+        args["radius"] = limits.positive(rd, item, "radius", where, MAX_LENGTH)
+    if "scale" in item:
+        args["scale"] = limits.positive(rd, item, "scale", where)
     if "orientation" in item:
         args["orientation"] = tuple(
             tuple(float(v) for v in row)
@@ -299,16 +358,24 @@ def _obstacle_args(rd: Reader, item: dict, where: str, kind: str, base: Path) ->
     return args
 
 
-def _mesh_path(rd: Reader, item: dict, where: str, base: Path) -> str:
-    """The mesh file, relative to the task file's folder, checked to load."""
+def _mesh_path(rd: Reader, item: dict, where: str, base: Path) -> tuple:
+    """The mesh file, relative to the task file's folder, checked to load (a closed
+    surface, finite); returns ``(path, bounds (2, 3))``."""
     path = base / rd.string(item, "path", where)
     if not path.is_file():
         raise rd.fail(f"{where}.path", f"mesh file {str(path)!r} not found")
+    limits.file_size(path, lambda m: rd.fail(f"{where}.path", m), "mesh file")
     try:
-        load_mesh(str(path))
-    except ValueError as err:
+        mesh = load_mesh(str(path))
+    except InputError as err:
         raise rd.fail(f"{where}.path", str(err)) from None
-    return str(path)
+    bounds = np.asarray(mesh.bounds, dtype=float)
+    if np.abs(bounds).max() * item.get("scale", 1.0) > MAX_LENGTH:
+        raise rd.fail(
+            f"{where}.path",
+            f"mesh extends beyond {MAX_LENGTH:g} m from the origin (after scale)",
+        )
+    return str(path), bounds
 
 
 def _options(
@@ -321,6 +388,7 @@ def _options(
     out = dict(defaults)
     for name in table:
         value = rd.number(table, name, f"[{key}]")
+        _option_limit(rd, table, key, name)
         if value < 0 or (
             integer and (value != int(value) or (name != "seed" and value < 1))
         ):
@@ -336,6 +404,16 @@ def _options(
     return out
 
 
+def _option_limit(rd: Reader, table: dict, key: str, name: str) -> None:
+    """An option within its table's limit (:data:`LIMITS`)."""
+    limit = LIMITS[key].get(name) if isinstance(LIMITS[key], dict) else LIMITS[key]
+    if limit is not None and table[name] > limit:
+        raise rd.fail(
+            f"[{key}].{name}",
+            f"{table[name]!r} exceeds the limit of {limit:g}",
+        )
+
+
 def _read_workspace(rd: Reader, data: dict, obstacles) -> tuple:
     if "workspace" not in data:
         if obstacles:
@@ -344,7 +422,7 @@ def _read_workspace(rd: Reader, data: dict, obstacles) -> tuple:
                 "missing table; obstacles need the voxel grid's lower and upper "
                 "corners",
             )
-        return None, 0.02, 0.04
+        return None, 0.02, 0.04, MAX_CELLS
     if not isinstance(data["workspace"], dict):
         raise rd.fail(
             "[workspace]",
@@ -354,12 +432,12 @@ def _read_workspace(rd: Reader, data: dict, obstacles) -> tuple:
     table = rd.keys(
         data["workspace"],
         "[workspace]",
-        {"lower", "upper", "voxel", "clearance"},
+        {"lower", "upper", "voxel", "clearance", "max_cells"},
         {"lower", "upper"},
     )
     lower, upper = (
-        rd.vector(table, "lower", "[workspace]"),
-        rd.vector(table, "upper", "[workspace]"),
+        limits.vector(rd, table, "lower", "[workspace]", MAX_LENGTH),
+        limits.vector(rd, table, "upper", "[workspace]", MAX_LENGTH),
     )
     if np.any(lower >= upper):
         raise rd.fail(
@@ -367,13 +445,63 @@ def _read_workspace(rd: Reader, data: dict, obstacles) -> tuple:
             "must exceed lower in every coordinate, "
             f"got lower={list(lower)} upper={list(upper)}",
         )
-    voxel = rd.positive(table, "voxel", "[workspace]") if "voxel" in table else 0.02
+    voxel = (
+        limits.positive(rd, table, "voxel", "[workspace]", MAX_LENGTH)
+        if "voxel" in table
+        else 0.02
+    )
     clearance = (
-        rd.positive(table, "clearance", "[workspace]")
+        limits.positive(rd, table, "clearance", "[workspace]", MAX_LENGTH)
         if "clearance" in table
         else 2.0 * voxel
     )
-    return (lower, upper), voxel, clearance
+    max_cells = (
+        rd.positive_integer(table, "max_cells", "[workspace]")
+        if "max_cells" in table
+        else MAX_CELLS
+    )
+    return (lower, upper), voxel, clearance, max_cells
+
+
+def _check_grids(rd: Reader, task: dict, meshes: dict) -> None:
+    """The SDF's voxel grid and every mesh's voxelisation within ``max_cells``
+    (``task``: the :class:`Task` fields read so far)."""
+    if not task["obstacles"]:
+        return
+    lower, upper = task["workspace"]
+    voxel, max_cells = task["voxel"], task["max_cells"]
+    message = grid_limit_message(grid_cells(lower, upper, voxel), max_cells)
+    if message:
+        raise rd.fail(
+            "[workspace].voxel",
+            f"{message}; use a larger voxel or a smaller workspace, or raise "
+            "[workspace].max_cells",
+        )
+    for k, bounds in meshes.items():
+        cells = mesh_cells(bounds, task["obstacles"][k].scale, voxel)
+        message = grid_limit_message(cells, max_cells)
+        if message:
+            raise rd.fail(
+                f"obstacles[{k}].path",
+                f"the mesh's {message}; use a larger voxel or scale, or raise "
+                "[workspace].max_cells",
+            )
+
+
+def _check_size(rd: Reader, task: dict, modules: tuple, design: int) -> None:
+    """At most :data:`MAX_VARIABLES` NLP variables (module docstring)."""
+    waypoints = task["solver"]["waypoints_per_target"] * len(task["targets"])
+    joints = sum(m.kind == "joint" for m in modules)
+    variables = waypoints * joints + design
+    if variables > MAX_VARIABLES:
+        raise rd.fail(
+            "[solver].waypoints_per_target",
+            f"the NLP would have {variables} variables ({waypoints} waypoints x "
+            f"{joints} joints + {design} design parameters; SLSQP's dense matrices "
+            f"need ~{8 * variables**2 / 1e6:.3g} MB and ~{variables**3:.2g} flops per "
+            f"iteration), over the limit of {MAX_VARIABLES}; use fewer "
+            "waypoints_per_target or targets",
+        )
 
 
 def parse_task(data: dict, source: str, base: Path = Path(".")) -> Task:
@@ -395,7 +523,8 @@ def parse_task(data: dict, source: str, base: Path = Path(".")) -> Task:
         if bounds
         else (np.zeros(0),) * 3 + (np.zeros(0, bool),)
     )
-    payload = rd.number(head, "payload", "[task]") if "payload" in head else 0.0
+    fields = _read_rest(rd, data, head, base)
+    _check_size(rd, fields, modules, len(names))
     arm = make_arm(
         rd.string(head, "name", "[task]"),
         modules,
@@ -404,32 +533,43 @@ def parse_task(data: dict, source: str, base: Path = Path(".")) -> Task:
         lower,
         upper,
         is_length,
-        rd.positive(head, "torque_limit", "[task]"),
-        rd.positive(head, "module_radius", "[task]"),
+        limits.positive(rd, head, "torque_limit", "[task]"),
+        limits.positive(rd, head, "module_radius", "[task]", MAX_LENGTH),
         source,
     )
-    obstacles = _read_obstacles(rd, data, base)
-    workspace, voxel, clearance = _read_workspace(rd, data, obstacles)
-    return Task(
-        name=arm.name,
-        source=source,
-        arm=arm,
-        targets=_read_targets(rd, data),
-        obstacles=obstacles,
-        gravity=rd.vector(head, "gravity", "[task]"),
-        payload=payload,
-        weights=_options(rd, data, "weights", WEIGHTS),
-        tolerances=_options(rd, data, "tolerances", TOLERANCES),
-        solver=_options(rd, data, "solver", SOLVER, integer=True),
-        workspace=workspace,
-        voxel=voxel,
-        clearance=clearance,
-    )
+    return Task(name=arm.name, source=source, arm=arm, **fields)
+
+
+def _read_rest(rd: Reader, data: dict, head: dict, base: Path) -> dict:
+    """Every :class:`Task` field but the arm, checked (before the arm is built)."""
+    meshes: dict = {}
+    obstacles = _read_obstacles(rd, data, base, meshes)
+    workspace, voxel, clearance, max_cells = _read_workspace(rd, data, obstacles)
+    fields = {
+        "targets": _read_targets(rd, data),
+        "obstacles": obstacles,
+        "gravity": limits.vector(rd, head, "gravity", "[task]"),
+        "payload": (
+            limits.non_negative(rd, head, "payload", "[task]", "payload (kg)")
+            if "payload" in head
+            else 0.0
+        ),
+        "weights": _options(rd, data, "weights", WEIGHTS),
+        "tolerances": _options(rd, data, "tolerances", TOLERANCES),
+        "solver": _options(rd, data, "solver", SOLVER, integer=True),
+        "workspace": workspace,
+        "voxel": voxel,
+        "clearance": clearance,
+        "max_cells": max_cells,
+    }
+    _check_grids(rd, fields, meshes)
+    return fields
 
 
 def load_task(path: str | Path) -> Task:
     """Read and validate an arm task file."""
     path = Path(path)
+    limits.file_size(path, lambda m: MechanismFileError(str(path), "", m), "task file")
     return parse_task(parse_text(path), str(path), path.parent)
 
 

@@ -1,5 +1,10 @@
 """Task points of a DH synthesis read from a CSV/text file (``linkopt arm
-manipulability POINTS``)."""
+manipulability POINTS``).
+
+Limits (checked before the synthesis): at most :data:`MAX_POINTS` points, each
+coordinate at most :data:`~linkopt._arms.limits.MAX_MAGNITUDE` in magnitude (the cost
+squares distances), files at most 16 MiB (checked before reading).
+"""
 
 from __future__ import annotations
 
@@ -9,6 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from ..._errors import InputError
+from .. import limits
+
+#: The synthesis has one joint vector per point among its unknowns.
+MAX_POINTS = 10_000
 
 _SPLIT = re.compile(r"[,;\s]+")
 
@@ -32,6 +41,7 @@ def read_points(path: str | Path) -> np.ndarray:
                 f"{path}: line {number}: expected 3 finite numbers (x, y, z), "
                 f"got {text!r}"
             )
+        _check_row(path, number, values, len(rows))
         rows.append(values)
         header_allowed = False
     if not rows:
@@ -39,7 +49,20 @@ def read_points(path: str | Path) -> np.ndarray:
     return np.array(rows)
 
 
+def _check_row(path: Path, number: int, values: list[float], count: int) -> None:
+    if max(abs(v) for v in values) > limits.MAX_MAGNITUDE:
+        raise InputError(
+            f"{path}: line {number}: expected coordinates of magnitude at most "
+            f"{limits.MAX_MAGNITUDE:g}, got {values}"
+        )
+    if count >= MAX_POINTS:
+        raise InputError(
+            f"{path}: line {number}: more than {MAX_POINTS} task points (the limit)"
+        )
+
+
 def _lines(path: Path) -> list[str]:
+    limits.file_size(path, lambda m: InputError(f"{path}: {m}"), "task-point file")
     try:
         return path.read_text(encoding="utf-8").splitlines()
     except (OSError, UnicodeDecodeError) as err:

@@ -65,6 +65,15 @@ from .. import checks
 from . import table as dh
 
 _SMOOTH_ABS = 1e-4  # δ of the smoothed |x| in L, relative to the task scale
+#: Largest settings (:func:`_check_settings`): weights of eq. 10 and counts of work.
+LIMITS = {
+    "weights": 1e12,
+    "starts": 1000,
+    "max_iterations": 1_000_000,
+    "precision_rounds": 20,
+    "polish_iterations": 10_000,
+}
+MAX_JOINTS = 12  # of an R/P string (a number N: at most 8, 2^N strings)
 _POOL = 512  # random joint vectors per start for the initial per-target joint guesses
 
 
@@ -299,21 +308,24 @@ def cost_weights(
 
 
 def _check_settings(settings: DHSynthesisSettings) -> None:
+    """Every setting meaningful and bounded (:data:`LIMITS`): ``precision`` > 0 (at 0
+    the precision continuation cannot raise it), ``reach_tolerance`` > 0."""
+    where = "synthesis settings: "
     for name in ("precision", "size_damping", "b", "reach_tolerance"):
-        value = getattr(settings, name)
-        positive = name == "reach_tolerance"
-        if not np.isfinite(value) or value < 0 or (positive and value == 0):
-            sign = "positive" if positive else "non-negative"
-            raise InputError(
-                f"synthesis settings: {name}: expected a finite {sign} number, got "
-                f"{value!r}"
-            )
-    if settings.starts < 1 or settings.max_iterations < 1:
-        raise InputError(
-            "synthesis settings: starts and max_iterations must be at least 1, got "
-            f"{settings.starts} and {settings.max_iterations}"
+        checks.number(
+            getattr(settings, name),
+            where + name,
+            positive=name in ("precision", "reach_tolerance"),
+            maximum=LIMITS["weights"],
         )
-    checks.seed(settings.seed, "synthesis settings: seed")
+    for name in ("starts", "max_iterations", "precision_rounds", "polish_iterations"):
+        checks.count(
+            getattr(settings, name),
+            where + name,
+            minimum=int(name in ("starts", "max_iterations")),
+            maximum=LIMITS[name],
+        )
+    checks.seed(settings.seed, where + "seed")
 
 
 def _reach(
@@ -383,12 +395,12 @@ def synthesize_config(
     )
 
 
-def all_configurations(n: int) -> list[str]:
+def all_configurations(n: int, where: str = "joints") -> list[str]:
     """The ``2^n`` R/P strings of ``n`` joints (paper Sec. V), P before R in each
     place."""
     if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or not 1 <= n <= 8:
         raise InputError(
-            "joints: expected a number of joints between 1 and 8 or an R/P string, "
+            f"{where}: expected a number of joints between 1 and 8 or an R/P string, "
             f"got {n!r}"
         )
     return ["".join(c) for c in itertools.product("PR", repeat=int(n))]
@@ -409,8 +421,12 @@ def configurations(joints: str | int, where: str = "joints") -> list[str]:
     if isinstance(joints, str) and joints.strip().isdigit():
         joints = int(joints.strip())
     if not isinstance(joints, str):
-        return [t for t in all_configurations(joints) if has_engine_model(t)]
+        return [t for t in all_configurations(joints, where) if has_engine_model(t)]
     types = dh.check_joint_types(joints, where)
+    if len(types) > MAX_JOINTS:
+        raise InputError(
+            f"{where}: {types!r}: {len(types)} joints exceed the limit of {MAX_JOINTS}"
+        )
     if not has_engine_model(types):
         raise InputError(
             f"{where}: {types!r}: a {len(types)}-joint arm needs at least "

@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ..._errors import InputError
 from . import geometry as geo
 from .task import Primitive
 
@@ -120,6 +121,9 @@ def app_support(
     return [sv1, sv2]
 
 
+BOUNDS = ("over", "app")
+
+
 def swept_support(
     kind: str, prim: Primitive, origin, a, b, sigma, temp: float = 0.0
 ) -> list[Float[Array, " K"]]:
@@ -129,7 +133,9 @@ def swept_support(
         return over_support(prim, origin, a)
     if kind == "app":
         return app_support(prim, origin, a, b, sigma, temp)
-    raise ValueError(f"unknown swept-area bound {kind!r}; expected 'over' or 'app'")
+    raise InputError(
+        f"swept: unknown swept-area bound {kind!r}; expected one of {list(BOUNDS)}"
+    )
 
 
 def outline(h: Float[Array, " K"]) -> Float[np.ndarray, "K 2"]:

@@ -52,9 +52,10 @@ import numpy as np
 import scipy.optimize
 from jaxtyping import Array, Float
 
+from ..._errors import InputError
 from .. import checks
 from . import geometry as geo
-from .swept import signed_distance, swept_support
+from .swept import BOUNDS, signed_distance, swept_support
 from .task import TraceTask
 from .verify import PlanarArm, TraceVerification, verify
 
@@ -394,6 +395,21 @@ def design_from(x: np.ndarray, n: int, sigma: int, q: int) -> PlanarArm:
     )
 
 
+def check_settings(settings: TraceSettings) -> None:
+    """:class:`InputError` for settings the search cannot use (before any work)."""
+    checks.count(settings.restarts, "settings: restarts")
+    checks.count(settings.best_of, "settings: best_of")
+    checks.count(settings.max_iterations, "settings: max_iterations")
+    for name in ("reach_margin", "clearance_margin", "smoothing", "feasibility_tol"):
+        checks.number(getattr(settings, name), f"settings: {name}", maximum=1.0)
+    if not settings.links or any(n not in (2, 3) for n in settings.links):
+        raise InputError(f"settings: links: expected 2 and/or 3, got {settings.links}")
+    if not settings.swept or any(k not in BOUNDS for k in settings.swept):
+        raise InputError(
+            f"settings: swept: expected some of {list(BOUNDS)}, got {settings.swept}"
+        )
+
+
 def synthesize(
     task: TraceTask,
     seed: int = 0,
@@ -407,6 +423,7 @@ def synthesize(
     which is the paper's feasibility-first rule). ``progress`` receives one line per NLP
     solve. ``seed`` must be a non-negative integer (else :class:`InputError`)."""
     rng = np.random.default_rng(checks.seed(seed))
+    check_settings(settings)
     start, attempts = time.perf_counter(), []
     say = progress or (lambda _msg: None)
     for n in settings.links:

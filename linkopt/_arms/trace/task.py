@@ -43,6 +43,13 @@ File layout (lengths in one unit, e.g. metres)::
 Consecutive primitives must meet (end of one = start of the next, within 1e-6 of the
 task size); as the paper assumes, no obstacle may lie inside a circle or the circle of
 an arc of the path.
+
+Limits (checked before any work, for a 2-core, 24 GiB machine): every coordinate, radius
+and length at most 1e6 in magnitude (:data:`~linkopt._arms.limits.MAX_MAGNITUDE`), the
+link diameter at least :data:`MIN_DIAMETER_FRACTION` of the task size (the verifier
+samples the path every Δ/16), at most :data:`MAX_PRIMITIVES` primitives,
+:data:`MAX_OBSTACLES` obstacles and :data:`MAX_REGIONS` base regions (the NLP's
+constraints grow with their product), task files at most 16 MiB.
 """
 
 from __future__ import annotations
@@ -56,6 +63,8 @@ import numpy as np
 from jaxtyping import Float
 
 from ..._engine.fields import Reader, parse_text, parse_toml
+from ..._errors import MechanismFileError
+from .. import limits
 
 KINDS = ("line", "arc", "circle")
 FIELDS = {
@@ -66,6 +75,10 @@ FIELDS = {
 TOP_LEVEL = {"task", "primitives", "obstacles", "base_regions"}
 HEAD_FIELDS = {"name", "link_diameter", "min_link_length", "max_link_length"}
 REL_TOL = 1e-6
+MAX_PRIMITIVES = 100
+MAX_OBSTACLES = 1000
+MAX_REGIONS = 100
+MIN_DIAMETER_FRACTION = 1e-6
 
 
 @dataclass(frozen=True)
@@ -125,6 +138,7 @@ def load_task(path: str | Path) -> TraceTask:
     """Read and validate a task file; raises :class:`MechanismFileError` on bad
     input."""
     path = Path(path)
+    limits.file_size(path, lambda m: MechanismFileError(str(path), "", m), "task file")
     return parse_task(parse_text(path), str(path))
 
 
@@ -141,15 +155,18 @@ def parse_task(data: dict, source: str) -> TraceTask:
         raise rd.fail("task", "missing required table [task]")
     head = rd.table(data["task"], "task", HEAD_FIELDS, {"name", "link_diameter"})
     name = rd.string(head, "name", "task")
-    diameter = rd.positive(head, "link_diameter", "task", as_written=True)
+    diameter = limits.positive(rd, head, "link_diameter", "task", as_written=True)
     min_link = (
-        rd.positive(head, "min_link_length", "task", as_written=True)
+        limits.positive(rd, head, "min_link_length", "task", as_written=True)
         if "min_link_length" in head
         else 2 * diameter
     )
     raw = rd.array(data, "primitives")
     if not raw:
         raise rd.fail("primitives", "expected at least one [[primitives]] entry")
+    limits.count_limit(rd, "primitives", len(raw), MAX_PRIMITIVES, "primitives")
+    for key, most in (("obstacles", MAX_OBSTACLES), ("base_regions", MAX_REGIONS)):
+        limits.count_limit(rd, key, len(rd.array(data, key)), most, key)
     prims = tuple(
         _read_primitive(rd, item, f"primitives[{k}]") for k, item in enumerate(raw)
     )
@@ -158,8 +175,9 @@ def parse_task(data: dict, source: str) -> TraceTask:
     task = TraceTask(
         name, source, prims, obstacles, regions, diameter, min_link, np.inf
     )
+    _check_diameter(rd, task)
     max_link = (
-        rd.positive(head, "max_link_length", "task", as_written=True)
+        limits.positive(rd, head, "max_link_length", "task", as_written=True)
         if "max_link_length" in head
         else 4 * task.scale
     )
@@ -172,6 +190,16 @@ def parse_task(data: dict, source: str) -> TraceTask:
     _check_connected(rd, task)
     _check_obstacles_outside_circles(rd, task)
     return task
+
+
+def _check_diameter(rd: Reader, task: TraceTask) -> None:
+    """Δ at least :data:`MIN_DIAMETER_FRACTION` of the task size."""
+    if task.link_diameter < MIN_DIAMETER_FRACTION * task.scale:
+        raise rd.fail(
+            "task.link_diameter",
+            f"expected at least {MIN_DIAMETER_FRACTION:g} of the task size "
+            f"{task.scale:g}, got {task.link_diameter:g}",
+        )
 
 
 def _read_primitive(rd: Reader, item, where: str) -> Primitive:
@@ -188,7 +216,10 @@ def _read_primitive(rd: Reader, item, where: str) -> Primitive:
     required, optional = FIELDS[kind]
     rd.keys(item, where, required | optional, required)
     if kind == "line":
-        a, b = rd.point(item, "start", where), rd.point(item, "end", where)
+        a, b = (
+            limits.point(rd, item, "start", where),
+            limits.point(rd, item, "end", where),
+        )
         if np.linalg.norm(b - a) <= 0:
             raise rd.fail(f"{where}.end", "a line segment needs end != start")
         return Primitive("line", a, b, 0.5 * (a + b), 0.0, 0.0, 0.0)
@@ -198,7 +229,7 @@ def _read_primitive(rd: Reader, item, where: str) -> Primitive:
             f"{where}.direction", f'expected "cw" or "ccw", got {direction!r}'
         )
     sign = 1.0 if direction == "ccw" else -1.0
-    center = rd.point(item, "center", where)
+    center = limits.point(rd, item, "center", where)
     if kind == "circle":
         return _circle(rd, item, where, center, sign)
     return _arc(rd, item, where, center, sign)
@@ -207,9 +238,11 @@ def _read_primitive(rd: Reader, item, where: str) -> Primitive:
 def _circle(
     rd: Reader, item: dict, where: str, center: np.ndarray, sign: float
 ) -> Primitive:
-    radius = rd.positive(item, "radius", where, as_written=True)
+    radius = limits.positive(rd, item, "radius", where, as_written=True)
     start = (
-        rd.point(item, "start", where) if "start" in item else center + [radius, 0.0]
+        limits.point(rd, item, "start", where)
+        if "start" in item
+        else center + [radius, 0.0]
     )
     if abs(np.linalg.norm(start - center) - radius) > REL_TOL * max(radius, 1.0):
         raise rd.fail(
@@ -226,7 +259,7 @@ def _circle(
 def _arc(
     rd: Reader, item: dict, where: str, center: np.ndarray, sign: float
 ) -> Primitive:
-    a, b = rd.point(item, "start", where), rd.point(item, "end", where)
+    a, b = limits.point(rd, item, "start", where), limits.point(rd, item, "end", where)
     radius = float(np.linalg.norm(a - center))
     if radius <= 0:
         raise rd.fail(f"{where}.center", "an arc needs start != center")
@@ -253,8 +286,8 @@ def _read_obstacles(rd: Reader, data: dict) -> np.ndarray:
         rd.table(item, where, {"center", "radius"}, {"center", "radius"})
         rows.append(
             [
-                *rd.point(item, "center", where),
-                rd.positive(item, "radius", where, as_written=True),
+                *limits.point(rd, item, "center", where),
+                limits.positive(rd, item, "radius", where, as_written=True),
             ]
         )
     return np.asarray(rows, dtype=float).reshape(-1, 3)
@@ -265,7 +298,10 @@ def _read_regions(rd: Reader, data: dict) -> np.ndarray:
     for k, item in enumerate(rd.array(data, "base_regions")):
         where = f"base_regions[{k}]"
         rd.table(item, where, {"min", "max"}, {"min", "max"})
-        lo, hi = rd.point(item, "min", where), rd.point(item, "max", where)
+        lo, hi = (
+            limits.point(rd, item, "min", where),
+            limits.point(rd, item, "max", where),
+        )
         if np.any(hi <= lo):
             raise rd.fail(
                 f"{where}.max",
