@@ -15,6 +15,9 @@ from linkopt._cli.main import main
         ["--tolerance", "0"],
         ["--improvement", "1"],
         ["--resolution", "0"],
+        ["--particles", "1000000000"],
+        ["--workers", "1000000"],
+        ["--verify-rounds", "-1"],
     ],
 )
 def test_optimize_command_rejects_bad_settings_with_one_line(flags, tmp_path, capsys):
@@ -48,6 +51,8 @@ def test_a_run_that_ends_unverified_exits_one_and_says_so(
         "regularizer": 0.0,
         "verified": False,
         "initial_verified": False,
+        "verification_rounds": [],
+        "capped_samples": {"ik": 0, "adversarial": 0},
         "design": {},
         "optimized_file": str(tmp_path / "run" / "optimized.toml"),
     }

@@ -22,6 +22,11 @@ from .._engine.loader import load
 from .._errors import InputError
 
 WORKERS = max(1, min(2, os.cpu_count() or 1))
+#: Most sample lanes (particles x IK targets) one iteration may evaluate: the five-bar's
+#: 20 x 9 = 180 lanes take about 1 s per iteration on 2 cores, so 2e5 lanes are about
+#: 20 minutes per iteration there, and more on a larger mechanism.
+MAX_LANES = 200_000
+MAX_WORKERS = 64
 _SUMMARY_KEYS = (
     "iterations",
     "f_design",
@@ -51,6 +56,12 @@ def _check_arguments(args, mech) -> None:
             "--verify-rounds: expected a non-negative integer, "
             f"got {args.verify_rounds}"
         )
+    if args.workers > MAX_WORKERS:
+        raise InputError(
+            f"--workers: expected at most {MAX_WORKERS} processes (each holds its own "
+            f"JAX runtime), got {args.workers}"
+        )
+    _check_work(args, mech)
     if args.seed < 0:
         raise InputError(f"--seed: expected a non-negative integer, got {args.seed}")
     if args.resolution < 8:  # checked here, not after the run when plotting
@@ -79,6 +90,22 @@ def _round_line(record: dict) -> str:
         )
         return head + f": failed; going on with IK targets added at ({places})"
     return head + ": failed; no verification rounds left"
+
+
+def _check_work(args, mech) -> None:
+    """Refuse a swarm whose iterations would not finish on this machine (``MAX_LANES``),
+    before any work, with the estimate."""
+    from .._design.evaluation import targets
+
+    count = len(targets(mech))
+    lanes = args.particles * count
+    if lanes > MAX_LANES:
+        hours = lanes / 180 / 3600
+        raise InputError(
+            f"--particles: {args.particles} particles x {count} IK targets make "
+            f"{lanes:.3g} sample lanes per iteration (about {hours:.2g} h each on "
+            f"2 cores); expected at most {MAX_LANES} lanes"
+        )
 
 
 def _progress():
