@@ -171,6 +171,7 @@ def decode(
     result = _result(path, data, size, required=finished)
     if finished and iteration == 0:
         raise _bad(path, "iteration", "at least 1 in a finished run", iteration)
+    history = _history(path, data["history"], iteration)
     limit = _count(path, data, "limit")
     least = max(settings.iterations, iteration + (not finished))
     if limit < least:
@@ -180,7 +181,7 @@ def decode(
         iteration=iteration,
         best_cost=_number(path, "best_cost", data["best_cost"]),
         rng_state=_rng_state(path, data["rng_state"]),
-        history=_history(path, data["history"], iteration),
+        history=history,
         stalled=_count(path, data, "stalled"),
         finished=finished,
         **result,
