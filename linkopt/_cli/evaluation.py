@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .._design.evaluation import alpha_minus, evaluate
+from .._design.maps import MAX_CELLS, check_count, check_plot_resolution
 from .._engine.loader import load
 from .._engine.readout import output_values
 from .._errors import InputError
@@ -108,11 +109,23 @@ def run_plot(args) -> int:
         raise InputError(
             f"--resolution: expected at least 8 cells per axis, got {args.resolution}"
         )
+    max_cells = check_count(args.max_cells, "--max-cells", 1)
+    spaces = mech.num_motors == mech.num_outputs and mech.num_motors in (2, 3)
+    if spaces:  # the maps' cost, before any solve
+        check_plot_resolution(
+            mech,
+            args.resolution,
+            where="--resolution",
+            max_cells=max_cells,
+            raise_with="--max-cells",
+        )
+    label = _label(args.label, design)
     out = output_folder(args.out, "--out")  # before any solve: a bad --out is exit 2
-    label = args.label or ("initial" if design is None else "design")
     stem = Path(args.file).stem
-    if mech.num_motors == mech.num_outputs and mech.num_motors in (2, 3):
-        _plot_spaces(mech, design, args.resolution, out / f"{stem}_{label}.png")
+    if spaces:
+        _plot_spaces(
+            mech, design, args.resolution, max_cells, out / f"{stem}_{label}.png"
+        )
     else:
         print(
             f"{args.file}: space plots need 2 or 3 motors and outputs, the file has "
@@ -127,7 +140,18 @@ def run_plot(args) -> int:
     return 0
 
 
-def _plot_spaces(mech, design, resolution: int, path: Path) -> None:
+def _label(label: str | None, design) -> str:
+    """``--label``, a plain file-name part (default 'initial', or 'design')."""
+    if label is None:
+        return "initial" if design is None else "design"
+    if not label or label in (".", "..") or any(c in label for c in "/\\\0"):
+        raise InputError(
+            f"--label: expected a file-name part without '/', got {label!r}"
+        )
+    return label
+
+
+def _plot_spaces(mech, design, resolution: int, max_cells: int, path: Path) -> None:
     """Evaluate the design and draw its motor- and end-effector-space maps."""
     from .._design.plots import plot_spaces
 
@@ -138,7 +162,11 @@ def _plot_spaces(mech, design, resolution: int, path: Path) -> None:
         f"solving the {resolution}x{resolution} motor and end-effector {grids} ...",
         file=sys.stderr,
     )
-    print(plot_spaces(mech, ev, path, resolution=resolution, design=design))
+    print(
+        plot_spaces(
+            mech, ev, path, resolution=resolution, design=design, max_cells=max_cells
+        )
+    )
 
 
 def verification_payload(mech, result) -> dict:
@@ -160,7 +188,7 @@ def verification_payload(mech, result) -> dict:
 
 
 def run_verify(args) -> int:
-    from .._design.verify import verify
+    from .._design.verify import check_resolution, verify
 
     mech = load(args.file)
     design = design_arg(mech, args.design)
@@ -169,7 +197,16 @@ def run_verify(args) -> int:
             "--resolution: expected at least 2 points per output, "
             f"got {args.resolution}"
         )
-    payload = verification_payload(mech, verify(mech, design, args.resolution))
+    max_cells = check_count(args.max_cells, "--max-cells", 1)
+    resolution = check_resolution(
+        mech,
+        args.resolution,
+        max_cells=max_cells,
+        where="--resolution",
+        raise_with="--max-cells",
+    )
+    result = verify(mech, design, resolution, max_cells=max_cells)
+    payload = verification_payload(mech, result)
     if args.json:
         print(json.dumps(payload, indent=2))
     else:
@@ -211,6 +248,18 @@ def register(subparsers) -> None:
     _register_verify(subparsers)
 
 
+def _add_max_cells(cmd) -> None:
+    cmd.add_argument(
+        "--max-cells",
+        type=int,
+        default=MAX_CELLS,
+        help=(
+            f"refuse a grid of more cells (default {MAX_CELLS}); the estimated "
+            "memory is capped too (12 GiB)"
+        ),
+    )
+
+
 def _register_plot(subparsers) -> None:
     plot = subparsers.add_parser(
         "plot", help="motor- and end-effector-space maps and a drawing (PNG)"
@@ -224,6 +273,7 @@ def _register_plot(subparsers) -> None:
     plot.add_argument(
         "--label", help="file-name label (default 'initial', or 'design' with --design)"
     )
+    _add_max_cells(plot)
     plot.set_defaults(run=run_plot)
 
 
@@ -239,6 +289,7 @@ def _register_verify(subparsers) -> None:
         type=int,
         help="grid points per output (default 41, or 13 for 3 outputs)",
     )
+    _add_max_cells(verify_cmd)
     verify_cmd.add_argument(
         "--json", action="store_true", help="machine-readable output"
     )

@@ -7,7 +7,8 @@ Each command family lives in its own module with a ``register(subparsers)``:
 :mod:`.manipulability` and :mod:`.trace`. This module assembles the parser and handles
 what every command shares.
 
-Bad input exits with status 2 and one line on stderr; a failed solve exits with 1.
+Bad input exits with status 2 and one line on stderr (argparse's own errors too: the
+usage text is left to ``--help``); a failed solve exits with 1.
 """
 
 from __future__ import annotations
@@ -28,8 +29,23 @@ from . import trace as trace_commands
 _VALUE_OPTIONS = ("--motors", "--outputs", "--design")
 
 
+class _UsageError(Exception):
+    """A command line argparse rejects: ``prog`` and argparse's message."""
+
+    def __init__(self, prog: str, message: str):
+        super().__init__(f"{prog}: error: {message}")
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (no usage text) and exit 2 through
+    :func:`main`; its sub-command parsers are of the same class."""
+
+    def error(self, message: str):
+        raise _UsageError(self.prog, " ".join(message.split()))
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="linkopt",
         description="Singularity-aware design of closed-loop spatial linkages.",
     )
@@ -68,7 +84,11 @@ def _join_value_options(argv: list[str]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    args = _parser().parse_args(_join_value_options(list(argv)))
+    try:
+        args = _parser().parse_args(_join_value_options(list(argv)))
+    except _UsageError as err:
+        print(err, file=sys.stderr)
+        return 2
     try:
         return args.run(args)
     except LinkoptError as err:

@@ -11,10 +11,17 @@ import sys
 
 import numpy as np
 
-from .._engine.kinematics import solve_bk, solve_bk_path, solve_fk, solve_fk_path
+from .._design.maps import check_count
+from .._engine.kinematics import (
+    MAX_VALUE,
+    solve_bk,
+    solve_bk_path,
+    solve_fk,
+    solve_fk_path,
+)
 from .._engine.loader import load
 from . import payloads
-from .values import read_values
+from .values import MAX_ROWS, read_values
 
 
 def _print_table(title: str, items: dict) -> None:
@@ -73,7 +80,11 @@ def run_solve(args, kind: str) -> int:
     mech = load(args.file)
     names = mech.motor_names if kind == "fk" else mech.output_names
     what = "motors" if kind == "fk" else "outputs"
-    values, is_path = read_values(getattr(args, what), names, what)
+    scale = mech.motor_scale if kind == "fk" else mech.output_scale
+    max_rows = check_count(args.max_rows, "--max-rows", 1)
+    values, is_path = read_values(
+        getattr(args, what), names, what, MAX_VALUE * scale, max_rows
+    )
     if is_path:
         solver = solve_fk_path if kind == "fk" else solve_bk_path
     else:
@@ -170,6 +181,12 @@ def register(subparsers) -> None:
                 f"comma-separated {what} (file units, radians), or a CSV file of rows "
                 "solved as one continuation path"
             ),
+        )
+        cmd.add_argument(
+            "--max-rows",
+            type=int,
+            default=MAX_ROWS,
+            help=f"refuse a CSV file of more rows (default {MAX_ROWS})",
         )
         cmd.add_argument("--json", action="store_true", help="machine-readable output")
         cmd.set_defaults(run=run)

@@ -2,7 +2,10 @@
 ``--design``.
 
 Each reader raises :class:`~linkopt.InputError` with one line naming the option or the
-file (and row) and what was expected.
+file (and row) and what was expected. Values are finite and, where ``bounds`` are
+given, within ``±bounds`` (the solvers' range, :data:`linkopt._engine.kinematics.
+MAX_VALUE` homogenised units); a CSV file holds at most ``max_rows`` data rows and
+``MAX_CSV_BYTES`` bytes, checked before it is parsed.
 """
 
 from __future__ import annotations
@@ -15,9 +18,20 @@ import numpy as np
 from .._engine.loader import load
 from .._errors import InputError
 
+#: Largest CSV file read (bytes): a path of :data:`MAX_ROWS` rows of a few numbers each
+#: is well under it, and a larger file is refused before it is read into memory.
+MAX_CSV_BYTES = 64 * 2**20
+#: Default cap on a CSV path's data rows (``--max-rows``): each row is a continuation
+#: solve and a record of every joint and point, read off by a few calls of some
+#: milliseconds each, so 10 000 rows is about a minute.
+MAX_ROWS = 10_000
 
-def parse_row(text: str, names: tuple[str, ...], where: str) -> list[float]:
-    """One row of ``len(names)`` comma-separated finite numbers."""
+
+def parse_row(
+    text: str, names: tuple[str, ...], where: str, bounds=None
+) -> list[float]:
+    """One row of ``len(names)`` comma-separated finite numbers, each within
+    ``±bounds`` when given."""
     expected, what = len(names), ", ".join(names)
     cells = [c.strip() for c in text.split(",") if c.strip() != ""]
     try:
@@ -25,42 +39,85 @@ def parse_row(text: str, names: tuple[str, ...], where: str) -> list[float]:
     except ValueError:
         raise InputError(
             f"{where}: expected {expected} comma-separated numbers ({what}), "
-            f"got {text!r}"
+            f"got {_shown(text)}"
         ) from None
     if len(values) != expected or not np.all(np.isfinite(values)):
         raise InputError(
             f"{where}: expected {expected} finite numbers ({what}), "
-            f"got {len(values)}: {text!r}"
+            f"got {len(values)}: {_shown(text)}"
         )
+    if bounds is not None:
+        _check_bounds(values, names, where, bounds)
     return values
 
 
-def read_values(arg: str, names: tuple[str, ...], what: str) -> tuple[np.ndarray, bool]:
+def _shown(text: str, limit: int = 80) -> str:
+    """``text`` quoted, cut to ``limit`` characters (a line of the message)."""
+    return repr(text) if len(text) <= limit else repr(text[:limit]) + "..."
+
+
+def _check_bounds(values: list[float], names, where: str, bounds) -> None:
+    outside = np.abs(values) > np.asarray(bounds)
+    if np.any(outside):
+        k = int(np.argmax(outside))
+        raise InputError(
+            f"{where}: {names[k]} = {values[k]:g} is out of range: expected "
+            f"|{names[k]}| <= {float(np.asarray(bounds)[k]):g}"
+        )
+
+
+def read_values(
+    arg: str,
+    names: tuple[str, ...],
+    what: str,
+    bounds=None,
+    max_rows: int = MAX_ROWS,
+) -> tuple[np.ndarray, bool]:
     """Values from ``v1,v2,...`` or a CSV file of rows (optional header); returns
     (values, is_path)."""
     path = Path(arg)
-    if not (arg.lower().endswith(".csv") or path.is_file()):
-        return np.array(parse_row(arg, names, f"--{what}")), False
+    if not (arg.lower().endswith(".csv") or _is_file(path)):
+        return np.array(parse_row(arg, names, f"--{what}", bounds)), False
     rows = _csv_rows(arg, path)
     if rows and rows[0] and not _is_number(rows[0][0]):
         header = [c.strip() for c in rows[0]]
         if header != list(names):
             raise InputError(
-                f"{arg}: line 1: header {header} does not match the {what} "
-                f"{list(names)}"
+                f"{arg}: line 1: header {_shown(str(header))} does not match the "
+                f"{what} {list(names)}"
             )
         rows = rows[1:]
     if not rows:
         raise InputError(f"{arg}: no data rows")
+    if len(rows) > max_rows:
+        raise InputError(
+            f"{arg}: {len(rows)} data rows, more than the limit of {max_rows} "
+            "(raise it with --max-rows)"
+        )
     values = [
-        parse_row(",".join(r), names, f"{arg}: row {k + 1}") for k, r in enumerate(rows)
+        parse_row(",".join(r), names, f"{arg}: row {k + 1}", bounds)
+        for k, r in enumerate(rows)
     ]
     return np.array(values), True
+
+
+def _is_file(path: Path) -> bool:
+    """``path.is_file()``, False where the name cannot be a file (too long)."""
+    try:
+        return path.is_file()
+    except (OSError, ValueError):
+        return False
 
 
 def _csv_rows(arg: str, path: Path) -> list[list[str]]:
     """The non-blank rows of a CSV file."""
     try:
+        size = path.stat().st_size
+        if size > MAX_CSV_BYTES:
+            raise InputError(
+                f"{arg}: {size / 2**20:.0f} MiB, larger than the limit of "
+                f"{MAX_CSV_BYTES // 2**20} MiB for a CSV file of values"
+            )
         lines = path.read_text(encoding="utf-8").splitlines()
     except OSError as err:
         raise InputError(f"{arg}: cannot read CSV file ({err.strerror})") from None
@@ -69,7 +126,10 @@ def _csv_rows(arg: str, path: Path) -> list[list[str]]:
             f"{arg}: not a UTF-8 text file (byte {err.start}); expected a CSV file of "
             "numbers"
         ) from None
-    return [r for r in csv.reader(lines) if any(c.strip() for c in r)]
+    try:
+        return [r for r in csv.reader(lines) if any(c.strip() for c in r)]
+    except csv.Error as err:
+        raise InputError(f"{arg}: not a CSV file of numbers ({err})") from None
 
 
 def _is_number(text: str) -> bool:
@@ -82,24 +142,32 @@ def _is_number(text: str) -> bool:
 
 def design_arg(mech, text: str | None) -> np.ndarray | None:
     """``--design``: comma-separated values in parameter order, or a mechanism file
-    whose parameters (same names) hold the design."""
+    whose parameters (same names) hold the design; either within the parameters'
+    bounds."""
     if text is None:
         return None
     names = mech.design.names
     if text.lower().endswith(".toml"):
+        if not _is_file(Path(text)):
+            raise InputError(f"--design: {text}: no such mechanism file")
         other = load(text)
         if other.design.names != names:
             raise InputError(
                 f"{text}: parameters {list(other.design.names)} do not match those "
                 f"of {mech.source}: {list(names)}"
             )
-        return other.design.p0
+        return _within_bounds(mech, other.design.p0, text)
     values = np.array(parse_row(text, names, "--design"))
+    return _within_bounds(mech, values, "--design")
+
+
+def _within_bounds(mech, values: np.ndarray, where: str) -> np.ndarray:
+    names = mech.design.names
     outside = (values < mech.design.lower) | (values > mech.design.upper)
     if np.any(outside):
         k = int(np.argmax(outside))
         raise InputError(
-            f"--design: {names[k]} = {values[k]:g} is outside its bounds "
+            f"{where}: {names[k]} = {values[k]:g} is outside its bounds "
             f"[{mech.design.lower[k]:g}, {mech.design.upper[k]:g}]"
         )
     return values

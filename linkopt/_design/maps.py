@@ -13,20 +13,150 @@ are compiled and a wave of more than ``chunk`` cells never costs twice its size.
 plots' maps use ``chunk`` = the grid side: a 2-D wave holds at most about twice that
 many cells, where waves padded to multiples of four grid sides made the plots slower
 for the same pixels.
+
+Budget: a grid's cost grows as its side to the power of its dimension, so callers check
+it before anything is allocated (:func:`grid_cost`, :func:`check_budget`;
+:func:`check_plot_resolution` for the plots' maps, and
+:func:`linkopt._design.verify.check_resolution` for ``verify``). The limits,
+:data:`MAX_CELLS` and :data:`MAX_BYTES`, are sized for a 2-core machine with 24 GiB.
 """
 
 from __future__ import annotations
 
+import math
+from numbers import Integral
 from typing import NamedTuple
 
 import numpy as np
 
+from .._engine.constraints import constraint_rows
 from .._engine.kinematics import solve_bk, solve_fk
 from .._engine.model import Mechanism
 from .._engine.readout import motor_values, output_values
 from .._engine.singularity import f_sing
+from .._errors import InputError
 
 MAX_JUMP = 0.25
+
+#: Default cap on the cells of one dense grid: 100 000 cells (a 316² verify grid, a
+#: 46³ one) at ``SECONDS_PER_CELL`` is about 8 minutes on one core for the five-bar;
+#: ``verify``'s default grid has 1681 cells and ``plot``'s 3600.
+MAX_CELLS = 100_000
+#: Cap on a grid's estimated peak memory: half of a 24 GiB machine, leaving the rest to
+#: the interpreter, jax's compiled code and a second process. It binds before the cell
+#: cap for larger states (σ_min of every cell is one batch: ~120 kB a five-bar cell).
+MAX_BYTES = 12 * 2**30
+#: Solve time per cell, seconds, at state size 35 (scaled by (size / 35)²): the
+#: five-bar's verify grids at 41² and 81² took 11-14 ms a cell, compilation included,
+#: on a 2-core machine running three such processes; rounded to 5 ms for one.
+SECONDS_PER_CELL = 5e-3
+#: Python's overhead per visited cell: a dict entry, its tuple key and a state view.
+CELL_OVERHEAD = 400
+
+
+class GridCost(NamedTuple):
+    """An estimate of one continuation grid, made before it is allocated."""
+
+    cells: int
+    bytes: int  # peak memory
+    seconds: float  # on one core
+
+
+def check_count(value, where: str, minimum: int) -> int:
+    """``value`` as an int, when it is a whole number (not a bool) ≥ ``minimum``."""
+    if isinstance(value, bool) or not isinstance(value, Integral):
+        raise InputError(
+            f"{where}: expected a whole number >= {minimum}, got {value!r}"
+        )
+    if value < minimum:
+        raise InputError(f"{where}: expected at least {minimum}, got {value}")
+    return int(value)
+
+
+def grid_cost(
+    mech: Mechanism, shape: tuple[int, ...], chunk: int, read_cells: int, grids=1
+) -> GridCost:
+    """Cost of :func:`continuation_grid` over ``shape`` (``grids`` of them, one after
+    the other), then σ_min of ``read_cells`` states in one batch.
+
+    Memory: per cell the inputs, the state, the status and the parent's state
+    (``CELL_OVERHEAD`` for the Python objects); per cell of the largest padded wave
+    the solver's Jacobian and normal equations; per state read both Jacobians and
+    four n × n factors each. Time: ``SECONDS_PER_CELL`` scaled by (n / 35)².
+    """
+    cells = math.prod(int(v) for v in shape)
+    n = mech.state_size
+    rows = max(constraint_rows(mech)[k] for k in ("fk", "bk"))
+    wave = 2 * max(chunk, len(shape) * cells // max(shape))  # a padded wave
+    per_cell = 8 * (2 * len(shape) + 2 * n + 1) + CELL_OVERHEAD
+    solving = 8 * wave * (3 * rows * n + 4 * n * n)
+    reading = 8 * read_cells * 2 * (rows * n + 5 * n * n)
+    seconds = grids * cells * SECONDS_PER_CELL * (n / 35) ** 2
+    return GridCost(cells, cells * per_cell + max(solving, reading), seconds)
+
+
+def _duration(seconds: float) -> str:
+    for unit, size in (("days", 86400), ("h", 3600), ("min", 60)):
+        if seconds >= size:
+            return f"{seconds / size:.3g} {unit}"
+    return f"{seconds:.2g} s"
+
+
+def check_budget(
+    cost: GridCost,
+    what: str,
+    *,
+    max_cells: int = MAX_CELLS,
+    max_bytes: int = MAX_BYTES,
+    raise_with: str = "max_cells",
+) -> None:
+    """:class:`InputError` naming ``what`` and the estimate when ``cost`` exceeds the
+    cell or memory limit (``raise_with``: what raises the cell limit)."""
+    if cost.cells <= max_cells and cost.bytes <= max_bytes:
+        return
+    over = (
+        f"the limit of {max_cells} cells (raise it with {raise_with})"
+        if cost.cells > max_cells
+        else f"the memory limit of {max_bytes / 2**30:.3g} GiB"
+    )
+    raise InputError(
+        f"{what}: {cost.cells:.4g} grid cells, estimated {cost.bytes / 2**30:.3g} GiB "
+        f"of memory and {_duration(cost.seconds)} on one core; over {over}"
+    )
+
+
+#: Steps of the third axis of :func:`sections` (its ``depth``), and the most cells on
+#: that axis (the steps, three cuts and the start value).
+SECTION_DEPTH = 9
+SECTION_CELLS = SECTION_DEPTH + 4
+
+
+def check_plot_resolution(
+    mech: Mechanism,
+    resolution,
+    *,
+    where: str = "resolution",
+    max_cells: int = MAX_CELLS,
+    max_bytes: int = MAX_BYTES,
+    raise_with: str = "max_cells",
+) -> int:
+    """The plots' maps (:func:`linkopt._design.plots.plot_spaces`) at ``resolution``
+    cells per axis: :class:`InputError` before any work when it is not a whole number
+    ≥ 2 or the largest grid is over budget (:func:`check_budget`); two motors and
+    outputs solve two ``resolution²`` grids, three two ``resolution² × 13`` grids."""
+    resolution = check_count(resolution, where, 2)
+    shape = (resolution, resolution)
+    if mech.num_motors == 3:
+        shape += (SECTION_CELLS,)
+    cost = grid_cost(mech, shape, resolution, resolution**2, grids=2)
+    check_budget(
+        cost,
+        f"{where}: {resolution} cells per axis",
+        max_cells=max_cells,
+        max_bytes=max_bytes,
+        raise_with=raise_with,
+    )
+    return resolution
 
 
 class Map2D(NamedTuple):
@@ -96,6 +226,7 @@ def continuation_grid(
 
 
 def _axes(low, high, resolution):
+    resolution = check_count(resolution, "resolution", 2)
     return [np.linspace(lo, hi, resolution) for lo, hi in zip(low, high)]
 
 
@@ -129,7 +260,7 @@ def sections(
     start_state,
     start_values,
     design=None,
-    depth: int = 9,
+    depth: int = SECTION_DEPTH,
 ) -> list[Map2D]:
     """2-D sections of a 3-D motor (``kind="fk"``) or output (``"bk"``) space at the
     given values ``cuts`` of the third variable.
@@ -139,8 +270,11 @@ def sections(
     value), so every section shows the start state's assembly branch, reached through
     the third dimension, and not a branch found by a fresh solve at the cut.
     """
-    if len(low) != 3:
-        raise ValueError("sections need exactly three motors or outputs")
+    if len(low) != 3 or len(high) != 3 or len(start_values) != 3:
+        raise InputError(
+            "sections: low, high and start_values need three values each (three "
+            f"motors or outputs), got {len(low)}, {len(high)} and {len(start_values)}"
+        )
     third = np.unique(
         np.concatenate(
             [

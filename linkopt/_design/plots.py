@@ -23,14 +23,24 @@ from jaxtyping import Bool, Float  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
 from .._engine.geometry import rest_state  # noqa: E402
+from .._engine.kinematics import check_design  # noqa: E402
 from .._engine.model import Mechanism  # noqa: E402
 from .._engine.readout import (  # noqa: E402
     joint_positions,
     output_values,
     point_positions,
 )
+from .._errors import InputError  # noqa: E402
 from .evaluation import Evaluation  # noqa: E402
-from .maps import Map2D, motor_map, output_map, sections  # noqa: E402
+from .maps import (  # noqa: E402
+    MAX_BYTES,
+    MAX_CELLS,
+    Map2D,
+    check_plot_resolution,
+    motor_map,
+    output_map,
+    sections,
+)
 
 MAGENTA = "#ff00ff"
 PADDING = 0.35
@@ -71,8 +81,7 @@ def space_maps(
 ) -> tuple[Map2D, Map2D]:
     """Continuation maps around the target range and the samples (two motors, two
     outputs)."""
-    if mech.num_motors != 2 or mech.num_outputs != 2:
-        raise ValueError("space maps need exactly two motors and two outputs")
+    _check_spaces(mech, (2,), "space maps")
     rest = rest_state(mech)
     (m_low, m_high), (o_low, o_high), rest_out = _windows(
         mech, evaluation, rest, design
@@ -129,8 +138,7 @@ def section_maps(mech: Mechanism, evaluation: Evaluation, resolution: int, desig
     the third variable (output: the range's ends and middle; motor: the smallest, median
     and largest third motor value of the IK samples). Returns
     ``[(motor_map, output_map, motor_cut, output_cut)]``, one per section."""
-    if mech.num_motors != 3 or mech.num_outputs != 3:
-        raise ValueError("sections need exactly three motors and three outputs")
+    _check_spaces(mech, (3,), "sections")
     rest = rest_state(mech)
     ik_motors = np.asarray(evaluation.ik_motors) * mech.motor_scale
     (m_low, m_high), (o_low, o_high), rest_out = _windows(
@@ -234,12 +242,19 @@ def _rows(
         return [
             _Row(motors, outputs, "", "", every_ik, np.ones(len(samples.adv_a), bool))
         ]
-    if mech.num_motors == 3 and mech.num_outputs == 3:
-        return _section_rows(mech, evaluation, resolution, design, samples)
-    raise ValueError(
-        "space plots need 2 or 3 motors and as many outputs, "
-        f"not {mech.num_motors} and {mech.num_outputs}"
-    )
+    _check_spaces(mech, (3,), "space plots")
+    return _section_rows(mech, evaluation, resolution, design, samples)
+
+
+def _check_spaces(mech: Mechanism, counts: tuple[int, ...], what: str) -> None:
+    """:class:`InputError` unless the mechanism has ``counts`` motors and as many
+    outputs."""
+    if mech.num_motors != mech.num_outputs or mech.num_motors not in counts:
+        expected = " or ".join(map(str, counts))
+        raise InputError(
+            f"{mech.source}: {what} need {expected} motors and as many outputs, the "
+            f"file has {mech.num_motors} and {mech.num_outputs}"
+        )
 
 
 def _colour_norm(rows: list[_Row]) -> LogNorm:
@@ -336,10 +351,19 @@ def plot_spaces(
     resolution: int = 60,
     design=None,
     title: str = "",
+    max_cells: int = MAX_CELLS,
+    max_bytes: int = MAX_BYTES,
 ) -> Path:
     """Motor space (left) and end-effector space (right), as the paper's Fig. 2/4/6; for
     three motors and outputs, one row per 2-D section (:func:`section_maps`), each
-    showing the samples whose third coordinate is nearest to that section."""
+    showing the samples whose third coordinate is nearest to that section.
+
+    The mechanism, ``resolution`` (a whole number ≥ 2, within the limits of
+    :func:`linkopt._design.maps.check_plot_resolution`) and ``design`` are checked
+    before any work."""
+    _check_spaces(mech, (2, 3), "space plots")
+    check_plot_resolution(mech, resolution, max_cells=max_cells, max_bytes=max_bytes)
+    check_design(mech, design)
     samples = _samples(mech, evaluation, design)
     rows = _rows(mech, evaluation, resolution, design, samples)
     norm = _colour_norm(rows)

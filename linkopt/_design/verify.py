@@ -5,6 +5,11 @@ gridded (``resolution`` points per output) and solved by backward-kinematics
 continuation from the rest pose (:func:`linkopt._design.maps.continuation_grid`,
 batched). A design passes when every cell is reached on the rest branch (coverage 1) and
 every cell has ``f_sing < α₋``, the threshold below which the culled metric is zero.
+
+A grid of ``resolution^K`` cells is costed before it is allocated
+(:func:`check_resolution`, against :data:`linkopt._design.maps.MAX_CELLS` and
+``MAX_BYTES``); a caller about to start a long run calls it first, so a resolution that
+verification would refuse fails at once.
 """
 
 from __future__ import annotations
@@ -14,12 +19,19 @@ from typing import NamedTuple
 import numpy as np
 
 from .._engine.geometry import rest_state
-from .._engine.kinematics import solve_bk, solve_bk_path
+from .._engine.kinematics import check_design, solve_bk, solve_bk_path
 from .._engine.model import Mechanism
 from .._engine.readout import output_values
 from .._engine.singularity import singular_values
 from .evaluation import alpha_minus
-from .maps import continuation_grid
+from .maps import (
+    MAX_BYTES,
+    MAX_CELLS,
+    check_budget,
+    check_count,
+    continuation_grid,
+    grid_cost,
+)
 
 ENTRY_STEPS = 40
 
@@ -46,11 +58,59 @@ def _entry_state(mech: Mechanism, design, box_point: np.ndarray):
     return np.asarray(solution.state[-1]), bool(np.all(np.asarray(solution.converged)))
 
 
-def verify(mech: Mechanism, design=None, resolution: int | None = None) -> Verification:
-    """Grid the target range and check coverage and singularity distance (see module
-    doc)."""
+def default_resolution(mech: Mechanism) -> int:
+    """Grid points per output when none is given: 41 for up to two outputs, else 13."""
+    return 41 if mech.num_outputs <= 2 else 13
+
+
+def _chunk(resolution: int, k: int) -> int:
+    return max(64, 2 * resolution ** max(k - 1, 1))
+
+
+def check_resolution(
+    mech: Mechanism,
+    resolution: int | None = None,
+    *,
+    max_cells: int = MAX_CELLS,
+    max_bytes: int = MAX_BYTES,
+    where: str = "resolution",
+    raise_with: str = "max_cells",
+) -> int:
+    """The resolution :func:`verify` uses (``None``: :func:`default_resolution`);
+    :class:`~linkopt.InputError` naming ``where`` before any work when it is not a
+    whole number ≥ 2, or when the grid's estimated cells or memory exceed the limits
+    (the message gives the estimate, the limit and ``raise_with``, what raises it)."""
+    if resolution is None:
+        resolution = default_resolution(mech)
+    resolution = check_count(resolution, where, 2)
     k = mech.num_outputs
-    resolution = resolution or (41 if k <= 2 else 13)
+    cells = resolution**k
+    cost = grid_cost(mech, (resolution,) * k, _chunk(resolution, k), cells)
+    check_budget(
+        cost,
+        f"{where}: {resolution} points per output ({k} outputs)",
+        max_cells=max_cells,
+        max_bytes=max_bytes,
+        raise_with=raise_with,
+    )
+    return resolution
+
+
+def verify(
+    mech: Mechanism,
+    design=None,
+    resolution: int | None = None,
+    *,
+    max_cells: int = MAX_CELLS,
+    max_bytes: int = MAX_BYTES,
+) -> Verification:
+    """Grid the target range and check coverage and singularity distance (see module
+    doc); ``resolution`` and the limits are checked first (:func:`check_resolution`)."""
+    check_design(mech, design)
+    resolution = check_resolution(
+        mech, resolution, max_cells=max_cells, max_bytes=max_bytes
+    )
+    k = mech.num_outputs
     axes = [
         np.linspace(lo, hi, resolution)
         for lo, hi in zip(mech.output_min, mech.output_max)
@@ -66,7 +126,7 @@ def verify(mech: Mechanism, design=None, resolution: int | None = None) -> Verif
             return solve_bk(mech, v, start=s, design=design)
 
         states, feasible = continuation_grid(
-            solve, values, cell, state, chunk=max(64, 2 * resolution ** max(k - 1, 1))
+            solve, values, cell, state, chunk=_chunk(resolution, k)
         )
     else:
         states, feasible = np.zeros(shape + state.shape), np.zeros(shape, dtype=bool)

@@ -14,25 +14,29 @@ from pathlib import Path
 
 import numpy as np
 
+from .._errors import InputError
+from .kinematics import check_design
 from .model import Mechanism
 
 
-def _value(v) -> str:
+def _value(v, key: str = "") -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, int):
         return str(v)
     if isinstance(v, float):
         if not math.isfinite(v):
-            raise ValueError(f"cannot write {v!r} to TOML")
+            raise InputError(f"{key}: cannot write {v!r} to a mechanism file")
         return repr(v)
     if isinstance(v, str):
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_value(x) for x in v) + "]"
+        return "[" + ", ".join(_value(x, key) for x in v) + "]"
     if isinstance(v, dict):
-        return "{ " + ", ".join(f"{k} = {_value(x)}" for k, x in v.items()) + " }"
-    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+        return "{ " + ", ".join(f"{k} = {_value(x, key)}" for k, x in v.items()) + " }"
+    raise InputError(
+        f"{key}: cannot write a {type(v).__name__} value to a mechanism file"
+    )
 
 
 def dumps(data: dict) -> str:
@@ -42,7 +46,7 @@ def dumps(data: dict) -> str:
     for key, value in data.items():
         if isinstance(value, dict):
             lines.append(f"[{key}]")
-            lines += [f"{k} = {_value(v)}" for k, v in value.items()]
+            lines += [f"{k} = {_value(v, f'{key}.{k}')}" for k, v in value.items()]
             lines.append("")
         elif (
             isinstance(value, list)
@@ -51,10 +55,10 @@ def dumps(data: dict) -> str:
         ):
             for entry in value:
                 lines.append(f"[[{key}]]")
-                lines += [f"{k} = {_value(v)}" for k, v in entry.items()]
+                lines += [f"{k} = {_value(v, f'{key}.{k}')}" for k, v in entry.items()]
                 lines.append("")
         else:
-            lines.insert(0, f"{key} = {_value(value)}")
+            lines.insert(0, f"{key} = {_value(value, key)}")
     return "\n".join(lines)
 
 
@@ -83,7 +87,15 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
 def write_design(
     mech: Mechanism, design, alpha_minus: float, path: str | Path, header: str = ""
 ) -> Path:
-    """Write ``design`` as a mechanism file that every command accepts."""
+    """Write ``design`` (``(P,)`` finite numbers) as a mechanism file that every command
+    accepts; ``alpha_minus`` a finite number."""
+    check_design(mech, design)
+    if design is None:
+        raise InputError("design: expected the design to write, got None")
+    if not isinstance(alpha_minus, (int, float, np.floating, np.integer)) or not (
+        math.isfinite(alpha_minus)
+    ):
+        raise InputError(f"alpha_minus: expected a finite number, got {alpha_minus!r}")
     path = Path(path)
     comment = "".join(f"# {line}\n" for line in header.splitlines())
     path.write_text(
