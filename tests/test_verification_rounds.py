@@ -142,3 +142,14 @@ def test_capped_counts_the_minimisations_that_ran_to_their_cap(five_bar):
     assert adversarial == int(np.sum(np.asarray(ev.adv_iterations) == cap))
     assert 0 <= ik <= len(targets(five_bar)) and adversarial >= 1
     assert np.all(np.asarray(ev.adv_iterations) <= cap)
+
+
+def test_an_optimised_file_keeps_the_added_targets(five_bar, tmp_path):
+    from linkopt import load
+    from linkopt._engine.writer import write_design
+
+    added = with_targets(five_bar, [[-40.0, 75.125], [0.0, 32.875]])
+    path = write_design(added, five_bar.design.p0, 24.0, tmp_path / "optimized.toml")
+    back = load(path)
+    assert back.evaluation.targets == added.evaluation.targets
+    np.testing.assert_array_equal(targets(back), targets(added))

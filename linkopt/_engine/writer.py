@@ -77,6 +77,10 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
     for body, origin in zip(data["bodies"], mech.body_origins):
         body["origin"] = [float(v) for v in origin]  # same frames, so the same f_sing
     data.setdefault("evaluation", {})["alpha_minus"] = float(alpha_minus)
+    if mech.evaluation.targets:  # the file's and those an optimisation added
+        data["evaluation"]["targets"] = [
+            [float(v) for v in t] for t in mech.evaluation.targets
+        ]
     for k, joint in enumerate(data["joints"]):
         joint["anchor"] = [float(v) for v in anchors[k]]
         if "axis" in joint:
