@@ -37,6 +37,9 @@ def test_evaluate_command_json(capsys):
     sample = result["samples"][4]
     assert sample["target"] == {"x": 0.0, "y": 47.5}
     assert abs(sample["ik"]["reached"]["y"] - 47.5) < 1e-8
+    # the initial five-bar has unreachable corners: their IK samples run to the cap
+    caps = result["capped_samples"]
+    assert 1 <= caps["ik"] <= 9 and 0 <= caps["adversarial"] <= 9
 
 
 def test_bad_design_argument(capsys):

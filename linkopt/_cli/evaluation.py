@@ -55,7 +55,7 @@ def _sample(mech, ev, t: int, goal, ik_out, adv_out) -> dict:
 
 def evaluation_payload(mech, ev) -> dict:
     """What ``linkopt evaluate`` reports (``--json``) for one evaluation."""
-    from .._design.evaluation import targets
+    from .._design.evaluation import capped, targets
 
     ik_out = np.asarray(output_values(mech, ev.ik_states))
     adv_out = np.asarray(output_values(mech, ev.adv_states))
@@ -69,6 +69,7 @@ def evaluation_payload(mech, ev) -> dict:
         "singularity": float(ev.singularity),
         "regularizer": float(ev.regularizer),
         "alpha_minus": alpha_minus(mech),
+        "capped_samples": dict(zip(("ik", "adversarial"), capped(mech, ev))),
         "samples": samples,
     }
 
@@ -96,6 +97,15 @@ def run_evaluate(args) -> int:
             f"  {target:<22} {reached:<22} {sample['ik']['f_bk']:9.2e} "
             f"{sample['ik']['f_sing']:10.4g} {sample['adversarial']['f_sing']:10.4g} "
             f"{sample['adversarial']['culled']:9.3g}"
+        )
+    caps = payload["capped_samples"]
+    if caps["ik"] or caps["adversarial"]:
+        settings = mech.evaluation
+        print(
+            f"  {caps['ik']} IK and {caps['adversarial']} adversarial minimisations "
+            f"ran to their caps ({settings.ik_iterations} and "
+            f"{settings.adversarial_iterations} iterations): their f_design share may "
+            "read low; `linkopt verify` checks the whole range"
         )
     return 0
 
