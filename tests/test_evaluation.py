@@ -1,6 +1,8 @@
 """Design evaluation on the five-bar against its closed-form workspace and
 singularities."""
 
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -230,3 +232,20 @@ def test_a_design_far_from_singularities_scores_zero():
     ev = evaluate(mech)
     assert float(ev.f_design) < 1e-6
     assert float(np.max(ev.adv_culled)) == 0.0
+
+
+@pytest.mark.parametrize(
+    "design, field",
+    [
+        ([1.0], "design"),
+        ([[1.0, 2.0]], "design[0]"),
+        ([[20.0, 40.0, float("nan")]], "design[0]"),
+        ("abc", "design"),
+        ([[[1.0, 2.0, 3.0]]], "design"),
+    ],
+)
+def test_a_malformed_design_is_refused_naming_it(five_bar, design, field):
+    from linkopt import InputError
+
+    with pytest.raises(InputError, match=rf"^{re.escape(field)}: expected"):
+        evaluate(five_bar, design)

@@ -47,6 +47,7 @@ from jaxtyping import Array, Float, Int
 from .._engine import programs
 from .._engine.constraints import output_residual
 from .._engine.geometry import design_vector, geometry, rest_state
+from .._engine.kinematics import check_design
 from .._engine.model import Mechanism
 from .._engine.singularity import f_sing_value
 from .metrics import culled, thresholds
@@ -224,8 +225,22 @@ def _evaluate(mech: Mechanism, designs, alpha) -> Evaluation:
     return _evaluate_batch(mech, designs, alpha)
 
 
+def _is_batch(design) -> bool:
+    """Whether ``design`` is a 2-D stack of numbers (rows checked one by one)."""
+    try:
+        return design is not None and np.ndim(design) == 2
+    except ValueError:  # ragged: check_design names it
+        return False
+
+
 def evaluate(mech: Mechanism, design=None) -> Evaluation:
-    """Evaluate a design ``(n_p,)`` or a batch of designs ``(N, n_p)`` (file units)."""
+    """Evaluate a design ``(n_p,)`` or a batch of designs ``(N, n_p)`` (file units);
+    :class:`~linkopt.InputError` for any other shape or a value that is not finite."""
+    if _is_batch(design):
+        for k, row in enumerate(np.asarray(design)):
+            check_design(mech, row, name=f"design[{k}]")
+    else:
+        check_design(mech, design)
     designs = jnp.asarray(design_vector(mech, design), dtype=jnp.float64)
     alpha = jnp.asarray(alpha_minus(mech), dtype=jnp.float64)
     return programs.call(
