@@ -159,3 +159,11 @@ def test_sigma_min_matches_svd_on_every_shipped_mechanism(name):
     exact = np.linalg.svd(jac, compute_uv=False)[..., -1]
     sigma = np.asarray(linkopt.singular_values(mech, states))
     np.testing.assert_allclose(sigma, exact, rtol=1e-4)
+
+
+def test_a_state_of_the_wrong_shape_is_refused_naming_it(five_bar):
+    state = np.asarray(linkopt.rest_state(five_bar))
+    for bad in (state[:3], state[None, :-1], "x", [[1.0, 2.0], [3.0]]):
+        with pytest.raises(linkopt.InputError, match=r"^state: expected"):
+            linkopt.singular_values(five_bar, bad)
+    assert np.asarray(linkopt.singular_values(five_bar, state[None])).shape == (1, 2)

@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._errors import InputError
 from . import jacobian
 from .geometry import Geometry, design_vector, geometry
 from .model import Mechanism
@@ -108,8 +109,27 @@ def _sigmas(mech: Mechanism, state, design):
 
 
 def singular_values(mech: Mechanism, state, *, design=None) -> Float[Array, "... 2"]:
-    """``(σ_min^FK, σ_min^BK)`` of a homogenised state or a batch ``(N, S)`` of them."""
+    """``(σ_min^FK, σ_min^BK)`` of a homogenised state or a batch ``(N, S)`` of them;
+    :class:`~linkopt.InputError` for any other shape (outside a trace). Non-finite
+    states are allowed: maps pass unreached cells too, and get NaN for them."""
+    if not isinstance(state, jax.core.Tracer):
+        _check_shape(mech, state)
     return _sigmas(mech, state, design)
+
+
+def _check_shape(mech: Mechanism, state) -> None:
+    size = mech.state_size
+    try:
+        shape = np.shape(state)
+        numeric = np.asarray(state).dtype.kind in "iuf"
+    except ValueError:  # ragged
+        shape, numeric = None, False
+    stacked = shape is not None and len(shape) == 2 and shape[0] >= 1
+    if not numeric or not (shape == (size,) or (stacked and shape[1] == size)):
+        raise InputError(
+            f"state: expected a homogenised state ({size},) or (N, {size}) of "
+            f"numbers, got {shape if numeric else type(state).__name__}"
+        )
 
 
 def f_sing(mech: Mechanism, state, *, design=None) -> Float[Array, ...]:
