@@ -97,21 +97,20 @@ def vector(
     rd: Reader, data: dict, key: str, where: str, limit: float = MAX_MAGNITUDE
 ) -> Float[np.ndarray, " 3"]:
     """A list of 3 finite numbers of magnitude at most ``limit``."""
-    value = rd.vector(data, key, where)
-    if not _entries_ok(data[key], 3, limit):
-        raise rd.fail(
-            f"{where}.{key}",
-            f"expected coordinates of magnitude at most {limit:g}, got {data[key]!r}",
-        )
-    return value
+    return _bounded(rd, rd.vector(data, key, where), 3, data, key, where, limit)
 
 
 def point(
     rd: Reader, data: dict, key: str, where: str, limit: float = MAX_MAGNITUDE
 ) -> Float[np.ndarray, " 2"]:
     """A planar point ``[x, y]`` of magnitude at most ``limit``."""
-    value = rd.point(data, key, where)
-    if not _entries_ok(data[key], 2, limit):
+    return _bounded(rd, rd.point(data, key, where), 2, data, key, where, limit)
+
+
+def _bounded(rd: Reader, value, size, data, key, where, limit) -> np.ndarray:
+    """``value`` (read from ``data[key]`` as ``size`` coordinates), refused when an
+    entry's magnitude exceeds ``limit``."""
+    if not _entries_ok(data[key], size, limit):
         raise rd.fail(
             f"{where}.{key}",
             f"expected coordinates of magnitude at most {limit:g}, got {data[key]!r}",
