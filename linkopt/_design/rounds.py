@@ -77,10 +77,6 @@ def failing_places(mech: Mechanism, check: Verification) -> list[list[float]]:
 def _record(run: SwarmRun, check: Verification, added: list) -> dict:
     """The round's record (module docstring); ``verification`` is what
     ``verification.json`` holds for the design."""
-    verification = {
-        k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple)) else v)
-        for k, v in check._asdict().items()
-    }
     return {
         "round": len(run.rounds),
         "iteration": run.iteration,
@@ -90,7 +86,7 @@ def _record(run: SwarmRun, check: Verification, added: list) -> dict:
         "max_f_sing": float(check.max_f_sing),
         "threshold": float(check.threshold),
         "added_targets": added,
-        "verification": verification,
+        "verification": check.as_json(),
     }
 
 

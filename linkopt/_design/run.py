@@ -155,11 +155,7 @@ def optimize(
 def _verification(mech: Mechanism, design, resolution: int | None) -> dict:
     from .verify import verify
 
-    result = verify(mech, design, resolution)
-    return {
-        k: (v.tolist() if isinstance(v, np.ndarray) else v)
-        for k, v in result._asdict().items()
-    }
+    return verify(mech, design, resolution).as_json()
 
 
 def _has_space_plots(mech: Mechanism) -> bool:

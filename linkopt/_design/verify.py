@@ -48,6 +48,14 @@ class Verification(NamedTuple):
     unreached_example: np.ndarray | None  # (K,) one unreached cell, if any
     grid_shape: tuple[int, ...]
 
+    def as_json(self) -> dict:
+        """The fields as JSON-ready values (arrays and the grid shape as lists), as
+        ``verification.json`` and a run's verification rounds hold them."""
+        return {
+            k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple)) else v)
+            for k, v in self._asdict().items()
+        }
+
 
 def _entry_state(mech: Mechanism, design, box_point: np.ndarray):
     """Bring the rest pose into the box along a straight output path (continuation)."""
