@@ -73,19 +73,17 @@ def read_values(
     bounds=None,
     max_rows: int = MAX_ROWS,
 ) -> tuple[np.ndarray, bool]:
-    """Values from ``v1,v2,...`` or a CSV file of rows (optional header); returns
-    (values, is_path)."""
+    """Values from ``v1,v2,...`` or a CSV file of rows; returns (values, is_path).
+
+    A CSV header (optional) names the columns: every one of ``names`` once, in any
+    order; the values come back in ``names`` order."""
     path = Path(arg)
     if not (arg.lower().endswith(".csv") or _is_file(path)):
         return np.array(parse_row(arg, names, f"--{what}", bounds)), False
     rows = _csv_rows(arg, path)
+    order = list(range(len(names)))
     if rows and rows[0] and not _is_number(rows[0][0]):
-        header = [c.strip() for c in rows[0]]
-        if header != list(names):
-            raise InputError(
-                f"{arg}: line 1: header {_shown(str(header))} does not match the "
-                f"{what} {list(names)}"
-            )
+        order = _header_order([c.strip() for c in rows[0]], names, arg, what)
         rows = rows[1:]
     if not rows:
         raise InputError(f"{arg}: no data rows")
@@ -94,11 +92,40 @@ def read_values(
             f"{arg}: {len(rows)} data rows, more than the limit of {max_rows} "
             "(raise it with --max-rows)"
         )
-    values = [
-        parse_row(",".join(r), names, f"{arg}: row {k + 1}", bounds)
-        for k, r in enumerate(rows)
-    ]
-    return np.array(values), True
+    columns = tuple(names[k] for k in order)
+    column_bounds = None if bounds is None else np.asarray(bounds)[order]
+    values = np.array(
+        [
+            parse_row(",".join(r), columns, f"{arg}: row {k + 1}", column_bounds)
+            for k, r in enumerate(rows)
+        ]
+    )
+    return values[:, np.argsort(order)], True
+
+
+def _header_order(
+    header: list[str], names: tuple[str, ...], arg: str, what: str
+) -> list[int]:
+    """The index in ``names`` of each header column: every name once, in any
+    order."""
+    unknown = [h for h in header if h not in names]
+    if unknown:
+        raise InputError(
+            f"{arg}: line 1: header column {_shown(unknown[0])} is not one of the "
+            f"{what} {list(names)} (any order)"
+        )
+    repeated = [h for h in header if header.count(h) > 1]
+    if repeated:
+        raise InputError(
+            f"{arg}: line 1: header column {_shown(repeated[0])} appears twice"
+        )
+    missing = [n for n in names if n not in header]
+    if missing:
+        raise InputError(
+            f"{arg}: line 1: header lacks the {what} {missing}; expected "
+            f"{list(names)} (any order)"
+        )
+    return [names.index(h) for h in header]
 
 
 def _is_file(path: Path) -> bool:

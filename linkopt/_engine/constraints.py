@@ -2,10 +2,11 @@
 
 Row order (static for a mechanism): one unit-norm row per body quaternion, six rows
 pinning the ground (origin and quaternion vector part), the passive rows of every joint
-grouped by family in :data:`linkopt._engine.model.JOINT_ROWS` order, then one row per
-motor (FK) or per output (BK). Backward kinematics keeps every motor's joint as a
-passive joint and swaps the motor rows for output rows, so with as many motors as
-outputs both Jacobians have the same shape. All inputs are homogenised.
+grouped by family in :data:`linkopt._engine.model.JOINT_ROWS` order, one gauge row per
+idle spin (:func:`gauge_rows`), then one row per motor (FK) or per output (BK).
+Backward kinematics keeps every motor's joint as a passive joint and swaps the motor
+rows for output rows, so with as many motors as outputs both Jacobians have the same
+shape. All inputs are homogenised.
 
 The entry points that the samplers call many times (``fk_residual``,
 ``output_residual``, ``homogenised_output_values``) are jitted with the mechanism (and
@@ -70,7 +71,42 @@ def passive_residual(
         if index.size:
             family = jax.vmap(joint_types.FAMILIES[kind])
             rows.append(family(*_joint_frames(mech, geom, state, index)).ravel())
+    if mech.idle_bodies.size:
+        rows.append(gauge_rows(mech, geom, q)[0])
     return jnp.concatenate(rows)
+
+
+def idle_axes(mech: Mechanism, geom: Geometry) -> Float[Array, "I 3"]:
+    """Unit axis ``d`` of each idle body, body-local (= world at rest), from its first
+    to its second ball joint; it follows the design's anchors."""
+    start = jnp.stack([geom.anchors[int(k)] for k in mech.idle_joints[:, 0]])
+    end = jnp.stack([geom.anchors[int(k)] for k in mech.idle_joints[:, 1]])
+    d = end - start
+    return d / jnp.sqrt(jnp.sum(d * d, axis=1, keepdims=True))
+
+
+def gauge_rows(
+    mech: Mechanism, geom: Geometry, q: Float[Array, "B 4"]
+) -> tuple[Float[Array, " I"], Float[Array, "I 4"]]:
+    """The gauge row ``2 v·d`` of each idle body (``q = (w, v)`` its quaternion, ``d``
+    its :func:`idle_axes`) and its gradient ``(0, 2d)`` in ``q``.
+
+    Write ``q = q_swing ⊗ q_twist`` with the twist ``(c, t d)`` about the body-local
+    axis and the swing ``(a, s)``, ``s ⟂ d``: then ``v·d = a t``, so the row is zero
+    exactly when the twist is (for a swing under 180°, ``a ≠ 0``): it picks the
+    spin-free pose of the rod and leaves its direction, the only thing the two ball
+    joints see, free. It is polynomial in ``q`` (smooth everywhere, no normalisation).
+    A spin ``ε`` about ``d`` changes it by ``w ε`` to first order (``(v × d)·d = 0``),
+    while the ball joints' rows do not change at all: the row is independent of them
+    wherever ``w ≠ 0``, i.e. while the rod is turned less than 180° from its rest
+    direction, the limit of this gauge (past it, ``w → 0`` and the row stops fixing
+    the spin). The factor 2 gives it unit slope per radian of spin at rest, like the
+    angle rows of the other joints, so the homogenised σ_min stays on one scale.
+    """
+    d = idle_axes(mech, geom)
+    vector = jnp.stack([q[int(b), 1:] for b in mech.idle_bodies])
+    gradient = jnp.concatenate([jnp.zeros((d.shape[0], 1)), 2.0 * d], axis=1)
+    return 2.0 * jnp.sum(vector * d, axis=1), gradient
 
 
 def _combine(size: int, parts) -> Float[Array, " K"]:
@@ -144,20 +180,23 @@ def homogenised_joint_positions(
     return x[body] + rotate(q[body], geom.anchors - geom.origins[body])
 
 
-def _output_rows(mech: Mechanism, geom: Geometry, state, outputs):
-    positional = np.flatnonzero(mech.output_points >= 0)
-    angular = np.flatnonzero((mech.output_joints >= 0) & (mech.output_coords < 0))
-    tait_bryan = np.flatnonzero((mech.output_joints >= 0) & (mech.output_coords >= 0))
+def _output_rows(mech: Mechanism, geom: Geometry, state, outputs, table=None):
+    """Values (``outputs`` None) or wrapped errors of the outputs of ``table`` (the
+    BK outputs unless given), homogenised, in table order."""
+    table = mech.output_table if table is None else table
+    kinds = np.array(table.kinds, dtype=object)
+    angular = np.flatnonzero((kinds == "angle") & (table.coords < 0))
+    tait_bryan = np.flatnonzero((kinds == "angle") & (table.coords >= 0))
 
     def coords(index):
         world = _point_world(mech, geom, state)[
-            mech.output_points[index], mech.output_coords[index]
+            table.points[index], table.coords[index]
         ]
         return world if outputs is None else world - outputs[index]
 
     def angles(index):
         _, qi, _, _, qj, _, n, u, _ = _joint_frames(
-            mech, geom, state, mech.output_joints[index]
+            mech, geom, state, table.joints[index]
         )
         if outputs is None:
             return jax.vmap(joint_types.relative_angle)(qi, qj, n, u)
@@ -165,18 +204,47 @@ def _output_rows(mech: Mechanism, geom: Geometry, state, outputs):
 
     def sequence(index):
         _, qi, _, _, qj, _, n, _, n2 = _joint_frames(
-            mech, geom, state, mech.output_joints[index]
+            mech, geom, state, table.joints[index]
         )
-        every = jax.vmap(joint_types.tait_bryan)(qi, qj, n, n2)
-        value = jnp.stack(
-            [every[g, int(k)] for g, k in enumerate(mech.output_coords[index])]
+        return _pick_angle(qi, qj, n, n2, table.coords[index], outputs, index)
+
+    def orientation(index):
+        _, q = body_frames(state)
+        pair, frame = table.bodies[index], jnp.asarray(table.frames[index])
+        qi, qj = q[pair[:, 0]], q[pair[:, 1]]
+        return _pick_angle(
+            qi, qj, frame[:, 0], frame[:, 1], table.coords[index], outputs, index
         )
-        return value if outputs is None else joint_types.wrap(value - outputs[index])
+
+    def displacement(index):
+        frames = _joint_frames(mech, geom, state, table.joints[index])
+        value = jax.vmap(joint_types.slide)(*frames[:7])
+        return value if outputs is None else value - outputs[index]
 
     return _combine(
-        mech.num_outputs,
-        [(positional, coords), (angular, angles), (tait_bryan, sequence)],
+        table.size,
+        [
+            (table.of("position"), coords),
+            (angular, angles),
+            (tait_bryan, sequence),
+            (table.of("orientation"), orientation),
+            (table.of("displacement"), displacement),
+        ],
     )
+
+
+def _pick_angle(qi, qj, e1, e2, which: np.ndarray, outputs, index):
+    """Tait–Bryan angle ``which[g]`` (static 0..2) of ``q_j`` relative to ``q_i`` in
+    the frame ``(e1, e2)`` per member (:func:`~.joints.tait_bryan`), or its wrapped
+    error against ``outputs[index]``."""
+    every = jax.vmap(joint_types.tait_bryan)(qi, qj, e1, e2)
+    value = jnp.stack([every[g, int(k)] for g, k in enumerate(which)])
+    return value if outputs is None else joint_types.wrap(value - outputs[index])
+
+
+def reported_values(mech: Mechanism, geom: Geometry, state) -> Float[Array, " E"]:
+    """Values of the reported outputs (homogenised; rad for angles)."""
+    return _output_rows(mech, geom, state, None, mech.reported_table)
 
 
 @partial(jax.jit, static_argnums=0)
@@ -217,6 +285,7 @@ def bk_residual(mech: Mechanism, geom: Geometry, outputs, state) -> Float[Array,
 def constraint_rows(mech: Mechanism) -> dict[str, int]:
     """Row counts of the passive part and of ``C_FK`` / ``C_BK``."""
     passive = mech.num_bodies + 6 + sum(JOINT_ROWS[t] for t in mech.joint_types)
+    passive += mech.idle_bodies.size  # one gauge row per idle spin
     return {
         "passive": passive,
         "fk": passive + mech.num_motors,

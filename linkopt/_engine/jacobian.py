@@ -44,6 +44,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from . import joints as joint_types
+from .constraints import gauge_rows
 from .geometry import Geometry
 from .model import JOINT_ROWS, Mechanism
 from .quaternion import rotate
@@ -270,6 +271,10 @@ def _passive_groups(mech: Mechanism, geom: Geometry, x, q) -> list[_Rows]:
                     ),
                 )
             )
+    if mech.idle_bodies.size:  # gauge rows of idle spins (constraints.gauge_rows)
+        values, dq = gauge_rows(mech, geom, q)
+        block = _q_block(dq)[:, None, :]
+        groups.append(_Rows(values[:, None], ((mech.idle_bodies, block),)))
     return groups
 
 
@@ -306,10 +311,11 @@ def _motor_groups(mech: Mechanism, geom: Geometry, x, q, motors):
 
 def _output_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
     """Output rows (values, or errors against ``outputs``) and their raw row order."""
-    groups, order = [], []
+    groups, order = _orientation_groups(mech, geom, x, q, outputs)
     positional = np.flatnonzero(mech.output_points >= 0)
-    angular = np.flatnonzero((mech.output_joints >= 0) & (mech.output_coords < 0))
-    tait_bryan = np.flatnonzero((mech.output_joints >= 0) & (mech.output_coords >= 0))
+    angle = np.array(mech.output_kinds, dtype=object) == "angle"
+    angular = np.flatnonzero(angle & (mech.output_coords < 0))
+    tait_bryan = np.flatnonzero(angle & (mech.output_coords >= 0))
     if positional.size:
         points = mech.output_points[positional]
         coords = mech.output_coords[positional]
@@ -356,6 +362,42 @@ def _output_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
             )
         )
         order.append(tait_bryan)
+    return groups, order
+
+
+def _orientation_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
+    """Orientation and displacement output rows (see ``_output_groups``): the
+    Tait–Bryan angles of one body relative to another in a fixed frame, and the slide
+    of a prismatic/cylindrical joint (the linear motor's row)."""
+    groups, order = [], []
+    table = mech.output_table
+    turned, slid = table.of("orientation"), table.of("displacement")
+    if turned.size:
+        pair = table.bodies[turned]
+        frame = jnp.asarray(table.frames[turned])
+        target = None if outputs is None else _take(outputs, turned)
+        value, ji, jj = _tait_bryan_row(
+            _take(q, pair[:, 0]),
+            _take(q, pair[:, 1]),
+            frame[:, 0],
+            frame[:, 1],
+            table.coords[turned],
+            target,
+        )
+        blocks = ((pair[:, 0], ji[:, None]), (pair[:, 1], jj[:, None]))
+        groups.append(_Rows(value[:, None], blocks))
+        order.append(turned)
+    if slid.size:
+        joints = table.joints[slid]
+        f = _frames(mech, geom, x, q, joints)
+        d = (f.xj + rotate(f.qj, f.rj)) - (f.xi + rotate(f.qi, f.ri))
+        value, ji, jj = _slide_row(f, d, f.n)
+        if outputs is not None:
+            value = value - _take(outputs, slid)
+        bodies = mech.joint_bodies[joints]
+        blocks = ((bodies[:, 0], ji[:, None]), (bodies[:, 1], jj[:, None]))
+        groups.append(_Rows(value[:, None], blocks))
+        order.append(slid)
     return groups, order
 
 

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 from jaxtyping import Float
 
+from .design_space import read_design, read_symmetry
 from .fields import (
     Reader,
     field_name,
@@ -46,12 +47,12 @@ from .fields import (
 )
 from .model import (
     AXIAL_JOINTS,
-    COORDINATES,
     JOINT_ROWS,
     MOTOR_JOINTS,
-    DesignSpace,
+    OUTPUT_KINDS,
     EvaluationSettings,
     Mechanism,
+    OutputTable,
     SolverSettings,
 )
 
@@ -68,7 +69,6 @@ TOP_LEVEL = {
     "evaluation",
 }
 ORTHOGONAL_TOL = 1e-9
-MIRROR_TOL = 1e-9
 #: Smallest and largest reference length (file units).
 REFERENCE_LENGTHS = (1e-12, 1e12)
 #: A given reference length lies within this factor of the joint anchors' span.
@@ -114,6 +114,9 @@ def loads(text: str, source: str = "<string>") -> Mechanism:
 def build(data: dict, source: str, check: bool = True) -> Mechanism:
     """Validate a parsed definition and build the :class:`Mechanism`; ``check=False``
     skips the mobility/rest-singularity check (for test geometry only)."""
+    from .assembly import prepare  # [mechanism].assemble, [[lengths]], body frames
+
+    data = prepare(data, source)
     rd = Reader(source)
     head = _read_head(rd, data)
     bodies, body_index = _read_bodies(rd, data)
@@ -126,9 +129,14 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
     origins = _body_origins(rd, bodies, joints, ground, scale)
     points = _read_points(rd, data, body_index, joints, scale)
     motors = _read_motors(rd, data, joints)
-    outputs = _read_outputs(rd, data, points, joints, scale)
-    symmetry = _read_symmetry(rd, data, scale)
-    design = _read_design(rd, data, joints, symmetry, scale)
+    outputs, reported = _read_outputs(rd, data, points, joints, scale)
+    symmetry = read_symmetry(
+        rd, data, lambda t, key, at: _position(rd, t, key, at, scale)
+    )
+    design = read_design(
+        rd, data, joints, body_index, symmetry, scale,
+        lambda at, values: _check_position(rd, at, values, scale),
+    )  # fmt: skip
     solver = _read_solver(rd, data)
     evaluation = _read_evaluation(rd, data, outputs, scale)
     mech = Mechanism(
@@ -138,19 +146,80 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
         **_joint_fields(joints, anchors),
         **_point_fields(points),
         **_motor_fields(motors),
-        **_output_fields(outputs),
+        **_output_fields(outputs, reported),
         design=design,
         length_scale=scale,
         solver=solver,
         evaluation=evaluation,
         symmetry=symmetry,
         raw=data,
+        **idle_spins(joints, points, outputs + reported, ground, len(bodies), scale),
     )
     if check:
         from .mobility import check_mobility  # needs JAX; kept out of pure parsing
 
         check_mobility(mech)
     return mech
+
+
+#: Largest distance of a named point from an idle body's axis, in reference lengths.
+IDLE_TOL = 1e-9
+
+
+def idle_spins(
+    joints: list[dict],
+    points: list[dict],
+    outputs: list[dict],
+    ground: int,
+    num_bodies: int,
+    scale: float,
+) -> dict:
+    """The ``idle_bodies`` / ``idle_joints`` fields: bodies whose spin about their own
+    axis moves no other body and no output (issue 20, part 4).
+
+    Structural test, at load: a body other than the ground is idle when it has exactly
+    two joints, both spherical, at distinct anchors (a rod between two ball joints, as
+    in a Clavel delta), none of its named points lies off the line through them
+    (farther than :data:`IDLE_TOL` reference lengths), and no output reads its
+    orientation (an orientation output of the body or an angle of one of its joints).
+    Motors never touch it (they drive revolute or prismatic joints). A point given on
+    the axis stays on it only while the design keeps it there; off it, the point
+    follows the gauge (the rod turned without twist). A body with three
+    or more collinear ball joints is left alone: a design parameter could move them
+    off their line and make the spin a real constraint. A body with one ball joint
+    only (a free pendulum) has three idle freedoms, not handled: mobility then counts
+    them and the load fails with the mobility message.
+    """
+    idle, pairs = [], []
+    for body in range(num_bodies):
+        mine = [k for k, j in enumerate(joints) if body in j["bodies"]]
+        if body == ground or len(mine) != 2:
+            continue
+        if any(joints[k]["type"] != "spherical" for k in mine):
+            continue
+        start, end = (np.asarray(joints[k]["anchor"], dtype=float) for k in mine)
+        if np.linalg.norm(end - start) <= IDLE_TOL * scale:
+            continue
+        if _sees_spin(body, mine, start, end, points, outputs, scale):
+            continue
+        idle.append(body)
+        pairs.append(mine)
+    return {
+        "idle_bodies": np.array(idle, dtype=int),
+        "idle_joints": np.array(pairs, dtype=int).reshape(-1, 2),
+    }
+
+
+def _sees_spin(body, mine, start, end, points, outputs, scale) -> bool:
+    """Whether a named point off the axis ``start``-``end`` or an output of ``body``
+    would move with its spin."""
+    axis = (end - start) / np.linalg.norm(end - start)
+    for p in points:
+        if p["body"] == body:
+            offset = np.asarray(p["position"], dtype=float) - start
+            if np.linalg.norm(offset - (offset @ axis) * axis) > IDLE_TOL * scale:
+                return True
+    return any(o["joint"] in mine or body in o["bodies"] for o in outputs)
 
 
 def _read_head(rd: Reader, data: dict) -> dict:
@@ -216,7 +285,8 @@ def _motor_fields(motors: list[dict]) -> dict:
     }
 
 
-def _output_fields(outputs: list[dict]) -> dict:
+def _output_fields(outputs: list[dict], reported: list[dict] = ()) -> dict:
+    """The Mechanism fields of the BK ``outputs`` and of the ``reported`` ones."""
     return {
         "output_names": tuple(o["name"] for o in outputs),
         "output_kinds": tuple(o["kind"] for o in outputs),
@@ -225,7 +295,22 @@ def _output_fields(outputs: list[dict]) -> dict:
         "output_joints": np.array([o["joint"] for o in outputs], dtype=int),
         "output_min": np.array([o["min"] for o in outputs], dtype=float),
         "output_max": np.array([o["max"] for o in outputs], dtype=float),
+        "output_bodies": _output_table(outputs).bodies,
+        "output_frames": _output_table(outputs).frames,
+        "reported": _output_table(list(reported)),
     }
+
+
+def _output_table(outputs: list[dict]) -> OutputTable:
+    return OutputTable(
+        names=tuple(o["name"] for o in outputs),
+        kinds=tuple(o["kind"] for o in outputs),
+        points=np.array([o["point"] for o in outputs], dtype=int),
+        coords=np.array([o["coord"] for o in outputs], dtype=int),
+        joints=np.array([o["joint"] for o in outputs], dtype=int),
+        bodies=np.array([o["bodies"] for o in outputs], dtype=int).reshape(-1, 2),
+        frames=np.array([o["frame"] for o in outputs], dtype=float).reshape(-1, 2, 3),
+    )
 
 
 def _position_limit(scale: float | None) -> tuple[float, str]:
@@ -472,64 +557,150 @@ def _read_motors(rd: Reader, data: dict, joints: list[dict]) -> list[dict]:
 
 def _read_outputs(
     rd: Reader, data: dict, points: list[dict], joints: list[dict], scale: float
-) -> list[dict]:
+) -> tuple[list[dict], list[dict]]:
+    """The BK outputs and the reported ones (``reported = true``), each in file
+    order; BK and the evaluation settings see the BK outputs only."""
     items = rd.entries(data, "outputs", required=True)
     rd.names(items, "outputs")
-    point_index = {p["name"]: k for k, p in enumerate(points)}
-    joint_index = {j["name"]: k for k, j in enumerate(joints)}
-    return [
-        _read_output(rd, item, f"outputs[{k}]", point_index, joint_index, joints, scale)
+    names = {
+        "point": {p["name"]: k for k, p in enumerate(points)},
+        "joint": {j["name"]: k for k, j in enumerate(joints)},
+        "body": {b["name"]: k for k, b in enumerate(data["bodies"])},
+    }
+    ground = names["body"][data["mechanism"]["ground"]]
+    every = [
+        _read_output(rd, item, f"outputs[{k}]", names, joints, ground, scale)
         for k, item in enumerate(items)
     ]
+    outputs = [o for o in every if not o["reported"]]
+    if not outputs:
+        raise rd.fail(
+            "[[outputs]]",
+            "every output is reported; BK needs outputs without 'reported = true'",
+        )
+    return outputs, [o for o in every if o["reported"]]
+
+
+#: Fields of an ``[[outputs]]`` entry.
+OUTPUT_FIELDS = {
+    "name",
+    "kind",
+    "point",
+    "coordinate",
+    "joint",
+    "angle",
+    "body",
+    "relative_to",
+    "axis",
+    "axis2",
+    "reported",
+    "min",
+    "max",
+}
 
 
 def _read_output(
     rd: Reader,
     item: dict,
     where: str,
-    point_index: dict[str, int],
-    joint_index: dict[str, int],
+    names: dict[str, dict[str, int]],
     joints: list[dict],
+    ground: int,
     scale: float,
 ) -> dict:
-    """One output: a point's Cartesian coordinate or a joint angle, with its range."""
-    rd.keys(
-        item,
-        where,
-        {"name", "point", "coordinate", "joint", "angle", "min", "max"},
-        {"name", "min", "max"},
-    )
+    """One output: a point's Cartesian coordinate, a joint angle, a body's
+    orientation angle or a joint's displacement, with its range (optional for a
+    reported output)."""
+    rd.keys(item, where, OUTPUT_FIELDS, {"name"})
+    reported = rd.boolean(item, "reported", where) if "reported" in item else False
+    entry = {
+        "name": item["name"],
+        "reported": reported,
+        "point": -1,
+        "coord": -1,
+        "joint": -1,
+        "bodies": (-1, -1),
+        "frame": np.zeros((2, 3)),
+    }
+    kind = _output_kind(rd, item, where, names["joint"], joints)
+    if kind == "position":
+        entry.update(_point_output(rd, item, where, names["point"]))
+    elif kind == "orientation":
+        entry.update(_orientation_output(rd, item, where, names["body"], ground))
+    else:
+        entry.update(_angle_output(rd, item, where, names["joint"], joints, kind))
+    entry.update(_output_range(rd, item, where, entry["kind"], reported, scale))
+    return entry
+
+
+def _output_kind(
+    rd: Reader, item: dict, where: str, joint_index: dict[str, int], joints: list[dict]
+) -> str:
+    """``kind`` if given, else "position" for a ``point``, "angle" for a ``joint``
+    ("displacement" if it is prismatic)."""
+    if "kind" in item:
+        kind = item["kind"]
+        if kind not in OUTPUT_KINDS:
+            raise rd.fail(
+                f"{where}.kind",
+                f"unknown output kind {shown(kind)}; expected one of "
+                f"{list(OUTPUT_KINDS)}",
+            )
+    elif "point" in item and "joint" not in item:
+        kind = "position"
+    elif "joint" in item and "point" not in item:
+        joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
+        kind = "displacement" if joints[joint]["type"] == "prismatic" else "angle"
+    else:
+        raise rd.fail(
+            where,
+            "give either 'point' and 'coordinate' (a Cartesian output), 'joint' (an "
+            "angle or displacement output) or kind = \"orientation\" and 'body'",
+        )
+    allowed = {
+        "position": {"point", "coordinate"},
+        "angle": {"joint", "angle"},
+        "displacement": {"joint"},
+        "orientation": {"body", "relative_to", "angle", "axis", "axis2"},
+    }[kind] | {"name", "kind", "reported", "min", "max"}
+    extra = sorted(set(item) - allowed)
+    if extra:
+        raise rd.fail(
+            f"{where}.{field_name(extra[0])}",
+            f"unknown field; expected one of {sorted(allowed)} (a {kind} output)",
+        )
+    needs = {"position": "point", "angle": "joint", "displacement": "joint"}
+    needs["orientation"] = "body"
+    if needs[kind] not in item:
+        raise rd.fail(
+            f"{where}.{needs[kind]}", f"missing required field for a {kind} output"
+        )
+    return kind
+
+
+def _output_range(
+    rd: Reader, item: dict, where: str, kind: str, reported: bool, scale: float
+) -> dict:
+    """``min < max`` (file units, rad), required unless the output is reported."""
+    if reported and "min" not in item and "max" not in item:
+        return {"min": float("nan"), "max": float("nan")}
+    for key in ("min", "max"):
+        if key not in item:
+            raise rd.fail(f"{where}.{key}", "missing required field")
     low, high = rd.number(item, "min", where), rd.number(item, "max", where)
     if low >= high:
         raise rd.fail(
             f"{where}.min",
             f"target range needs min < max, got min={low} and max={high}",
         )
-    entry = {
-        "name": item["name"],
-        "min": low,
-        "max": high,
-        "point": -1,
-        "coord": -1,
-        "joint": -1,
-    }
-    if "point" in item and "joint" not in item:
-        entry.update(_point_output(rd, item, where, point_index))
-    elif "joint" in item and "point" not in item:
-        entry.update(_angle_output(rd, item, where, joint_index, joints))
-    else:
-        raise rd.fail(
-            where,
-            "give either 'point' and 'coordinate' (a Cartesian output) or 'joint' "
-            "(an angle output)",
-        )
-    _check_value(rd, f"{where}.min", [low, high], entry["kind"], scale)
-    return entry
+    _check_value(rd, f"{where}.min", [low, high], kind, scale)
+    return {"min": low, "max": high}
 
 
 def _check_value(rd: Reader, where: str, values, kind: str, scale: float) -> None:
-    """Values of an output (``kind`` "position" or "angle") within its bound."""
-    if kind == "position":
+    """Values of an output (a length or an angle, :data:`OUTPUT_KINDS`) within its
+    bound."""
+    if OUTPUT_KINDS[kind]:
         _check_position(rd, where, values, scale)
     elif float(np.max(np.abs(values))) > MAX_ANGLE:
         raise rd.fail(
@@ -537,6 +708,72 @@ def _check_value(rd: Reader, where: str, values, kind: str, scale: float) -> Non
             f"expected angles of magnitude at most {MAX_ANGLE:g} rad, got "
             f"{float(np.max(np.abs(values))):g}",
         )
+
+
+#: Names of the orientation angles, in the order of :func:`~.joints.tait_bryan`.
+ORIENTATION_ANGLES = ("roll", "pitch", "yaw")
+
+
+def _orientation_output(
+    rd: Reader, item: dict, where: str, body_index: dict[str, int], ground: int
+) -> dict:
+    """A Tait–Bryan angle of ``body`` relative to ``relative_to`` (default the
+    ground): ``R_refᵀ R_body = Rot(e1, roll) Rot(e2, pitch) Rot(e1 × e2, yaw)`` with
+    the frame ``e1 = axis``, ``e2 = axis2`` (default x and y, so x-y'-z''), the
+    convention of a spherical joint's angle outputs."""
+    body = rd.lookup(body_index, item["body"], f"{where}.body", "body")
+    reference = ground
+    if "relative_to" in item:
+        reference = rd.lookup(
+            body_index, item["relative_to"], f"{where}.relative_to", "body"
+        )
+    if reference == body:
+        raise rd.fail(
+            f"{where}.relative_to",
+            f"the orientation of {item['body']!r} relative to itself is always zero",
+        )
+    if "angle" not in item:
+        raise rd.fail(
+            f"{where}.angle",
+            f"missing required field for an orientation: one of "
+            f"{list(ORIENTATION_ANGLES)} (or 1, 2, 3)",
+        )
+    return {
+        "kind": "orientation",
+        "bodies": (reference, body),
+        "frame": _orientation_frame(rd, item, where),
+        "coord": _orientation_index(rd, item, where),
+    }
+
+
+def _orientation_index(rd: Reader, item: dict, where: str) -> int:
+    """0, 1, 2 for ``angle`` = "roll"/1, "pitch"/2, "yaw"/3."""
+    value = item["angle"]
+    if isinstance(value, str):
+        if value not in ORIENTATION_ANGLES:
+            raise rd.fail(
+                f"{where}.angle",
+                f"expected one of {list(ORIENTATION_ANGLES)} or 1, 2, 3, got "
+                f"{shown(value)}",
+            )
+        return ORIENTATION_ANGLES.index(value)
+    return rd.integer(item, "angle", where, 1, 3) - 1
+
+
+def _orientation_frame(rd: Reader, item: dict, where: str) -> np.ndarray:
+    """``(e1, e2)``: ``axis`` and ``axis2`` (both or neither, perpendicular), by
+    default the world x and y axes."""
+    if "axis" not in item and "axis2" not in item:
+        return np.eye(3)[:2]
+    for key in ("axis", "axis2"):
+        if key not in item:
+            raise rd.fail(
+                f"{where}.{key}", "an orientation's frame needs both axis and axis2"
+            )
+    e1, e2 = rd.direction(item, "axis", where), rd.direction(item, "axis2", where)
+    if abs(e1 @ e2) > ORTHOGONAL_TOL:
+        raise rd.fail(f"{where}.axis2", "must be perpendicular to axis")
+    return np.stack([e1, e2])
 
 
 def _point_output(
@@ -565,10 +802,19 @@ def _angle_output(
     where: str,
     joint_index: dict[str, int],
     joints: list[dict],
+    kind: str = "angle",
 ) -> dict:
-    if "coordinate" in item:
-        raise rd.fail(f"{where}.coordinate", "an angle output has no coordinate")
+    """An angle of a joint or (``kind`` "displacement") the slide of a prismatic or
+    cylindrical joint along its axis, zero at rest (file units)."""
     joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
+    if kind == "displacement":
+        if joints[joint]["type"] not in ("prismatic", "cylindrical"):
+            raise rd.fail(
+                f"{where}.joint",
+                "a displacement output needs a prismatic or cylindrical joint, "
+                f"{joints[joint]['name']!r} is {joints[joint]['type']}",
+            )
+        return {"kind": "displacement", "joint": joint, "coord": -1}
     return {
         "kind": "angle",
         "joint": joint,
@@ -592,7 +838,8 @@ def _angle_index(rd: Reader, item: dict, where: str, joint: dict) -> int:
         raise rd.fail(
             f"{where}.joint",
             "an angle output needs a revolute, cylindrical, universal or spherical "
-            f"joint, {name!r} is {kind}",
+            f"joint, {name!r} is {kind}"
+            + (" (its travel is kind = 'displacement')" if kind == "prismatic" else ""),
         )
     if kind == "spherical" and not np.any(joint["axis2"]):
         raise rd.fail(
@@ -647,215 +894,6 @@ def _given_reference_length(rd: Reader, head: dict, span: float) -> float:
             "too small for the solver",
         )
     return scale
-
-
-def _read_symmetry(rd: Reader, data: dict, scale: float):
-    if "symmetry" not in data:
-        return None
-    table = rd.table(
-        data["symmetry"], "[symmetry]", {"normal", "point"}, {"normal", "point"}
-    )
-    normal = rd.direction(table, "normal", "[symmetry]")
-    return normal, _position(rd, table, "point", "[symmetry]", scale)
-
-
-def _reflect(point: np.ndarray, symmetry) -> np.ndarray:
-    normal, origin = symmetry
-    return point - 2.0 * ((point - origin) @ normal) * normal
-
-
-def _joint_group(
-    rd: Reader,
-    value,
-    where: str,
-    joint_index: dict[str, int],
-    joints: list[dict],
-    is_axis: bool,
-    scale: float,
-) -> list[int]:
-    """A joint name, or a list of joints that coincide at rest and move as one."""
-    names = value if isinstance(value, list) and value else [value]
-    group = [rd.lookup(joint_index, name, where, "joint") for name in names]
-    key = "axis" if is_axis else "anchor"
-    tolerance = MIRROR_TOL if is_axis else MIRROR_TOL * scale
-    for name, index in zip(names[1:], group[1:]):
-        if np.linalg.norm(joints[index][key] - joints[group[0]][key]) > tolerance:
-            raise rd.fail(
-                where,
-                f"joints moved together must share their {key} at rest; {name!r} "
-                f"differs from {names[0]!r}",
-            )
-    if len(set(group)) != len(group):
-        raise rd.fail(where, "a joint is listed twice")
-    return group
-
-
-def _read_design(
-    rd: Reader, data: dict, joints: list[dict], symmetry, scale: float
-) -> DesignSpace:
-    """Free parameters; each drives one coordinate of a joint (or of coincident
-    joints)."""
-    items = rd.entries(data, "parameters", required=False)
-    rd.names(items, "parameters")
-    joint_index = {j["name"]: k for k, j in enumerate(joints)}
-    matrix = np.zeros((6 * len(joints), len(items)))
-    p0, lower, upper, owner = [], [], [], {}
-    for k, item in enumerate(items):
-        where = f"parameters[{k}]"
-        value, low, high, driven = _read_parameter(
-            rd, item, where, joint_index, joints, symmetry, scale
-        )
-        _claim_rows(rd, where, k, driven, owner, matrix)
-        p0.append(value)
-        lower.append(low)
-        upper.append(high)
-    is_length = np.array(
-        [not str(i["coordinate"]).startswith("axis_") for i in items], dtype=bool
-    )
-    return DesignSpace(
-        tuple(i["name"] for i in items),
-        np.array(p0, dtype=float),
-        np.array(lower, dtype=float),
-        np.array(upper, dtype=float),
-        matrix,
-        is_length,
-    )
-
-
-def _read_parameter(
-    rd: Reader,
-    item: dict,
-    where: str,
-    joint_index: dict[str, int],
-    joints: list[dict],
-    symmetry,
-    scale: float,
-) -> tuple[float, float, float, list[tuple[int, float]]]:
-    """One parameter: its rest value, bounds and the (row, weight) pairs of the flat
-    geometry it drives, mirror twins included."""
-    rd.keys(
-        item,
-        where,
-        {"name", "joint", "coordinate", "min", "max", "mirror"},
-        {"name", "joint", "coordinate", "min", "max"},
-    )
-    coord = item["coordinate"]
-    if coord not in COORDINATES:
-        raise rd.fail(
-            f"{where}.coordinate",
-            f"expected one of {list(COORDINATES)}, got {shown(coord)}",
-        )
-    is_axis = coord.startswith("axis_")
-    c = "xyz".index(coord[-1])
-    group = _joint_group(
-        rd, item["joint"], f"{where}.joint", joint_index, joints, is_axis, scale
-    )
-    joint = group[0]
-    if is_axis and any(joints[g]["type"] not in AXIAL_JOINTS for g in group):
-        raise rd.fail(
-            f"{where}.coordinate",
-            f"{shown(item['joint'])}: only revolute, universal, prismatic and "
-            "cylindrical joints have a movable axis",
-        )
-    value = (joints[joint]["axis"] if is_axis else joints[joint]["anchor"])[c]
-    low, high = _parameter_bounds(rd, item, where, value, joints[joint]["name"])
-    _check_bound_magnitude(rd, f"{where}.min", (low, high), is_axis, scale)
-    base = 3 * len(joints) if is_axis else 0
-    driven = [(base + 3 * g + c, 1.0) for g in group]
-    if "mirror" in item:
-        mirrors = _joint_group(
-            rd, item["mirror"], f"{where}.mirror", joint_index, joints, is_axis, scale
-        )
-        for mirror in mirrors:
-            driven += _mirror_rows(
-                rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, group
-            )
-    return value, low, high, driven
-
-
-def _parameter_bounds(
-    rd: Reader, item: dict, where: str, value: float, joint_name: str
-) -> tuple[float, float]:
-    """``min < max``, with the rest value between them."""
-    low, high = rd.number(item, "min", where), rd.number(item, "max", where)
-    if not low < high:
-        raise rd.fail(
-            f"{where}.min", f"bounds need min < max, got min={low} and max={high}"
-        )
-    if not low <= value <= high:
-        raise rd.fail(
-            f"{where}.min",
-            f"the rest value {value:g} of {field_name(joint_name)}."
-            f"{item['coordinate']} lies outside [{low:g}, {high:g}]",
-        )
-    return low, high
-
-
-def _check_bound_magnitude(
-    rd: Reader, where: str, bounds: tuple[float, float], is_axis: bool, scale: float
-) -> None:
-    """Anchor-parameter bounds are positions; axis-component ones at most
-    :data:`MAX_EXTENT`."""
-    if not is_axis:
-        _check_position(rd, where, bounds, scale)
-    elif max(abs(b) for b in bounds) > MAX_EXTENT:
-        raise rd.fail(
-            where,
-            f"expected axis-component bounds of magnitude at most {MAX_EXTENT:g}, "
-            f"got min={bounds[0]:g} and max={bounds[1]:g}",
-        )
-
-
-def _claim_rows(
-    rd: Reader,
-    where: str,
-    k: int,
-    driven: list[tuple[int, float]],
-    owner: dict[int, int],
-    matrix: Float[np.ndarray, "rows n_p"],
-) -> None:
-    """Parameter ``k`` takes the rows it drives; no row has two parameters."""
-    for row, _ in driven:
-        if row in owner:
-            raise rd.fail(
-                where,
-                f"drives a coordinate already driven by parameters[{owner[row]}]",
-            )
-    for row, weight in driven:
-        owner[row] = k
-        matrix[row, k] = weight
-
-
-def _mirror_rows(rd, where, joints, joint, mirror, c, is_axis, symmetry, scale, group):
-    """Rows and weights through which a parameter moves its mirror-image joint."""
-    if symmetry is None:
-        raise rd.fail(
-            f"{where}.mirror",
-            "a mirror tie needs a [symmetry] table (normal and point)",
-        )
-    if mirror in group:
-        raise rd.fail(f"{where}.mirror", "a joint cannot mirror itself")
-    name, twin = joints[joint]["name"], joints[mirror]["name"]
-    normal = symmetry[0]
-    direction = np.eye(3)[c] - 2.0 * normal[c] * normal
-    if is_axis:
-        image = joints[joint]["axis"] - 2.0 * (joints[joint]["axis"] @ normal) * normal
-        sign = 1.0 if image @ joints[mirror]["axis"] > 0 else -1.0
-        if np.linalg.norm(sign * image - joints[mirror]["axis"]) > MIRROR_TOL:
-            raise rd.fail(
-                f"{where}.mirror",
-                f"axis of {twin!r} is not the mirror image of the axis of {name!r}",
-            )
-        base, weights = 3 * len(joints), sign * direction
-    else:
-        image = _reflect(joints[joint]["anchor"], symmetry)
-        if np.linalg.norm(image - joints[mirror]["anchor"]) > MIRROR_TOL * scale:
-            raise rd.fail(
-                f"{where}.mirror",
-                f"anchor of {twin!r} is not the mirror image of the anchor of {name!r}",
-            )
-        base, weights = 0, direction
-    return [(base + 3 * mirror + d, weights[d]) for d in range(3) if weights[d] != 0.0]
 
 
 def _setting(rd: Reader, table: dict, key: str, where: str, default):

@@ -32,7 +32,8 @@ def _rest_sigmas(mech: Mechanism):
 
 def mobility(mech: Mechanism) -> int:
     """Degrees of freedom at rest: ``|s| - rank(∂C_passive/∂s)`` (motors as passive
-    joints)."""
+    joints). Idle spins are not counted: the passive rows include their gauge rows
+    (:func:`linkopt._engine.constraints.gauge_rows`)."""
     values = np.linalg.svd(np.asarray(_passive_jacobian(mech)), compute_uv=False)
     rank = int(np.sum(values > RANK_TOL * values[0]))
     return mech.state_size - rank
@@ -47,7 +48,7 @@ def check_mobility(mech: Mechanism) -> None:
             mech.source,
             "[[motors]]",
             f"the mechanism has mobility {dof} at the rest pose but {mech.num_motors} "
-            "motor(s); they must be equal",
+            f"motor(s); they must be equal{_idle_note(mech)}",
         )
     if mech.num_outputs != dof:
         raise MechanismFileError(
@@ -71,3 +72,14 @@ def check_mobility(mech: Mechanism) -> None:
             f"the rest pose is a backward singularity (σ_min = {sigma_bk:.2e}): the "
             "outputs do not determine the mechanism there",
         )
+
+
+def _idle_note(mech: Mechanism) -> str:
+    """What the mobility message says about idle spins: those already fixed."""
+    count = mech.idle_bodies.size
+    if not count:
+        return ""
+    return (
+        f" ({count} idle spin(s) of rods between two ball joints are already fixed "
+        "by gauge rows and not counted)"
+    )

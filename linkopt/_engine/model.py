@@ -87,9 +87,15 @@ class DesignSpace:
     """Free design parameters ``p`` (after ties) and their linear map onto the geometry.
 
     ``geometry_flat(p) = geometry_flat(p0) + matrix @ (p - p0)``, where the flat
-    geometry is ``[anchors (J,3), axes (J,3)]`` raveled, in file units. A parameter
-    drives one coordinate of one joint; a ``mirror`` tie also drives the mirrored joint
-    through the reflection across the mechanism's symmetry plane.
+    geometry is ``[anchors (J,3), axes (J,3)]`` raveled, in file units. Every kind of
+    parameter is such a linear map (:mod:`.design_space`): a ``coordinate`` drives one
+    coordinate of a joint, plus its ``ties`` and its ``mirror``/``copies`` images under
+    the ``[symmetry]``; a ``length`` moves the ``to`` anchors of a link along its rest
+    direction (and with every move of its ``from`` anchor); a ``radius`` moves joints
+    radially about an axis. Joints sharing an anchor at rest always move together, so
+    every design keeps the rest pose assembled. No geometry row is driven by two
+    parameters (composed length rows aside), so a written design reads back as the
+    same parameter values.
     """
 
     names: tuple[str, ...]
@@ -104,6 +110,56 @@ class DesignSpace:
     @property
     def size(self) -> int:
         return len(self.names)
+
+
+#: Output kinds and whether their values are lengths (divided by the reference length
+#: inside the solver) rather than angles.
+OUTPUT_KINDS: dict[str, bool] = {
+    "position": True,
+    "angle": False,
+    "orientation": False,
+    "displacement": True,
+}
+
+
+@dataclass(frozen=True, eq=False)
+class OutputTable:
+    """Static description of a list of outputs (``K`` of them), read off a state by
+    :func:`linkopt._engine.constraints.table_values`.
+
+    ``kinds``: :data:`OUTPUT_KINDS`. ``points``/``coords``: the point and coordinate
+    of a position; ``joints``: the joint of an angle (``coords`` -1, or the
+    Tait–Bryan angle 0..2 of a universal/spherical joint) or of a displacement
+    (prismatic/cylindrical joint); ``bodies`` ``(K, 2)``: reference body and body of
+    an orientation, whose Tait–Bryan angle ``coords`` is measured in the frame
+    ``frames[k] = (e1, e2)``. Unused entries are -1 (zero for frames).
+    """
+
+    names: tuple[str, ...]
+    kinds: tuple[str, ...]
+    points: np.ndarray  # (K,) int
+    coords: np.ndarray  # (K,) int
+    joints: np.ndarray  # (K,) int
+    bodies: np.ndarray  # (K, 2) int
+    frames: np.ndarray  # (K, 2, 3)
+
+    @classmethod
+    def empty(cls) -> OutputTable:
+        none = np.zeros(0, dtype=int)
+        return cls((), (), none, none, none, np.zeros((0, 2), int), np.zeros((0, 2, 3)))
+
+    @property
+    def size(self) -> int:
+        return len(self.names)
+
+    def of(self, kind: str) -> np.ndarray:
+        """Indices of the outputs of one kind (static)."""
+        return np.array([k for k, t in enumerate(self.kinds) if t == kind], dtype=int)
+
+    def scale(self, length_scale: float) -> np.ndarray:
+        """Divisor from file units to homogenised units, shape ``(K,)``."""
+        lengths = np.array([OUTPUT_KINDS[k] for k in self.kinds], dtype=bool)
+        return np.where(lengths, length_scale, 1.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,21 +190,38 @@ class Mechanism:
     motor_joints: np.ndarray  # (M,) int
     motor_linear: np.ndarray  # (M,) bool
     output_names: tuple[str, ...]
-    output_kinds: tuple[str, ...]  # "position" | "angle"
-    output_points: np.ndarray  # (K,) int, -1 for angles
+    # "position" | "angle" | "orientation" | "displacement" (see OUTPUT_KINDS)
+    output_kinds: tuple[str, ...]
+    output_points: np.ndarray  # (K,) int, -1 except for positions
     output_coords: (
         np.ndarray
     )  # (K,) int: x/y/z 0..2 for positions; for angles -1 (revolute,
-    # cylindrical) or the Tait–Bryan angle 0..2 of a universal/spherical joint
-    output_joints: np.ndarray  # (K,) int, -1 for positions
+    # cylindrical) or the Tait–Bryan angle 0..2 of a universal/spherical joint; the
+    # Tait–Bryan angle 0..2 of an orientation; -1 for displacements
+    output_joints: np.ndarray  # (K,) int: the joint of angles and displacements, or -1
     output_min: np.ndarray  # (K,) file units
     output_max: np.ndarray  # (K,)
     design: DesignSpace
     length_scale: float
     solver: SolverSettings = field(default_factory=SolverSettings)
     evaluation: EvaluationSettings = field(default_factory=EvaluationSettings)
-    symmetry: tuple[np.ndarray, np.ndarray] | None = None  # (normal, point)
+    symmetry: tuple | None = None  # design_space.Symmetry (direction, point, ...)
     raw: dict = field(default_factory=dict)  # the parsed file, for writing designs back
+    # Orientation outputs: (reference body, body) per output, -1 elsewhere, and the
+    # frame (e1, e2) their Tait–Bryan angles are measured in (zero elsewhere). None
+    # (no orientation output) reads as all -1 / zero, see :attr:`output_table`.
+    output_bodies: np.ndarray | None = None  # (K, 2) int
+    output_frames: np.ndarray | None = None  # (K, 2, 3)
+    #: Reported outputs (``reported = true``): read off states like the outputs, but
+    #: not used by BK or the design evaluation, so any number of them is allowed.
+    reported: OutputTable | None = None
+    #: Idle spins (:func:`linkopt._engine.loader.idle_spins`): bodies held only by two
+    #: spherical joints, whose spin about the line through them moves nothing else,
+    #: and those two joints; each gets one gauge row (:func:`~.constraints.gauge_rows`).
+    idle_bodies: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    idle_joints: np.ndarray = field(  # (I, 2) int
+        default_factory=lambda: np.zeros((0, 2), dtype=int)
+    )
 
     @property
     def num_bodies(self) -> int:
@@ -174,8 +247,34 @@ class Mechanism:
     @property
     def output_scale(self) -> np.ndarray:
         """Per-output divisor from file units to homogenised units, shape ``(K,)``."""
-        positional = np.array([k == "position" for k in self.output_kinds], dtype=bool)
-        return np.where(positional, self.length_scale, 1.0)
+        return self.output_table.scale(self.length_scale)
+
+    @property
+    def output_table(self) -> OutputTable:
+        """The BK outputs as an :class:`OutputTable` (static)."""
+        count = len(self.output_names)
+        return OutputTable(
+            names=self.output_names,
+            kinds=self.output_kinds,
+            points=self.output_points,
+            coords=self.output_coords,
+            joints=self.output_joints,
+            bodies=(
+                np.full((count, 2), -1, dtype=int)
+                if self.output_bodies is None
+                else self.output_bodies
+            ),
+            frames=(
+                np.zeros((count, 2, 3))
+                if self.output_frames is None
+                else self.output_frames
+            ),
+        )
+
+    @property
+    def reported_table(self) -> OutputTable:
+        """The reported outputs (empty when the file has none)."""
+        return OutputTable.empty() if self.reported is None else self.reported
 
     def joints_of(self, kind: str) -> np.ndarray:
         """Indices of the joints of one family (static)."""

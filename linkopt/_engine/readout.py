@@ -6,6 +6,7 @@ from functools import partial
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from . import constraints
@@ -28,6 +29,10 @@ def _read(mech: Mechanism, what: str, state, design):
         ),
         "points": lambda s: (
             constraints.homogenised_point_positions(mech, geom, s) * mech.length_scale
+        ),
+        "reported": lambda s: (
+            constraints.reported_values(mech, geom, s)
+            * mech.reported_table.scale(mech.length_scale)
         ),
     }[what]
     state = jnp.asarray(state, dtype=jnp.float64)
@@ -52,5 +57,23 @@ def joint_positions(mech: Mechanism, state, *, design=None) -> Float[Array, "...
 
 def point_positions(mech: Mechanism, state, *, design=None) -> Float[Array, "... P 3"]:
     """World position of every named point (file units), in ``mech.point_names``
-    order."""
+    order; :func:`named_points` gives them by name."""
     return _read(mech, "points", state, design)
+
+
+def reported_values(mech: Mechanism, state, *, design=None) -> Float[Array, "... E"]:
+    """Values of the reported outputs (``reported = true``; file units, rad for
+    angles) in ``mech.reported_table.names`` order; shape ``(..., 0)`` when the file
+    has none. BK and the design evaluation never use them."""
+    if not mech.reported_table.size:
+        shape = np.shape(state)[:-1] + (0,)
+        return jnp.zeros(shape)
+    return _read(mech, "reported", state, design)
+
+
+def named_points(mech: Mechanism, state, *, design=None) -> dict[str, np.ndarray]:
+    """``{name: position}`` of every named point (file units): the rows of
+    :func:`point_positions` under their names, shape ``(3,)`` each (``(N, 3)`` for a
+    stack of states)."""
+    positions = np.asarray(point_positions(mech, state, design=design))
+    return {name: positions[..., k, :] for k, name in enumerate(mech.point_names)}

@@ -1,9 +1,15 @@
 """Write a design back as a mechanism file of the same format (TOML).
 
-The file's own tables are kept; joint anchors and axes take the design's values (mirror
-twins included), every parameter's rest value moves with them, and the reference length
-α₋ and body frame origins of the original are written explicitly so that the new file is
-homogenised and judged exactly as the design was during optimisation.
+The file's own tables are kept; joint anchors and axes take the design's values
+(symmetric copies, ties, composed lengths and straight legs included), and every
+parameter's rest value moves with them: a coordinate is read back from its anchor, a
+length from its two joints, a radius from its joints' distance to the axis, and the
+directions a length or radius moves along are the same at the written design (a
+length moves along its link, a radius radially), so reloading gives the same design
+space with the written design as its initial one (tests/test_design_parameters.py).
+The reference length, α₋ and body frame origins of the original are written explicitly
+so that the new file is homogenised and judged exactly as the design was during
+optimisation.
 """
 
 from __future__ import annotations

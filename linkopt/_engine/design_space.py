@@ -1,0 +1,218 @@
+"""Design parameters: ``[[parameters]]`` read into the linear map of a
+:class:`~.model.DesignSpace` (the kinds in :mod:`.design_kinds`, the ``[symmetry]`` in
+:mod:`.symmetry`).
+
+Every parameter kind is a linear map onto the flat rest geometry (joint anchors and
+primary axes, file units), so the optimiser, the partial gradient, the writer and
+``verify`` treat them alike:
+
+* ``coordinate`` (the default): one anchor coordinate or axis component of a joint
+  (or of coincident joints), with optional ``ties`` (other joints' coordinates moved
+  by ``factor`` times the same change) and symmetric images (``mirror``/``copies``);
+* ``length``: the distance from the anchor of joint ``from`` to the centroid of the
+  anchors of ``to`` (joints of ``body``); the ``to`` joints translate along the rest
+  direction of that link, so the parameter *is* the link length;
+* ``radius``: the distance of ``joints`` from an axis; each anchor moves radially.
+
+Why moving anchors keeps the rest pose assembled: the rest state is the body origins
+with identity orientations, the same for every design, and a joint's local anchor in
+each of its two bodies is its world anchor minus that body's origin, so every joint
+residual is zero at rest whatever the anchors. What a design *can* break is a
+compound joint: joints that share one anchor at rest (a spherical joint joining three
+bodies, written as two joints) must stay at one point, so every joint coincident at
+rest with a moved joint gets the same move (added here when a parameter names only
+one of them; refused when a parameter moves them differently). Straight prismatic legs
+(:func:`_legs`) follow their two ends, so a leg stays a leg.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from jaxtyping import Float
+
+from .design_kinds import ANCHOR, AXIS, Context, Move, read_parameter
+from .fields import Reader
+from .model import DesignSpace
+from .symmetry import MIRROR_TOL, Symmetry, read_symmetry
+
+__all__ = ["read_design", "read_symmetry"]
+
+
+def read_design(
+    rd: Reader,
+    data: dict,
+    joints: list[dict],
+    body_index: dict[str, int],
+    symmetry: Symmetry | None,
+    scale: float,
+    check_position: Callable[[str, object], None],
+) -> DesignSpace:
+    """``[[parameters]]`` as a :class:`DesignSpace`; ``check_position(where, values)``
+    raises for positions (bounds of lengths) beyond the loader's position bound."""
+    items = rd.entries(data, "parameters", required=False)
+    rd.names(items, "parameters")
+    joint_index = {j["name"]: k for k, j in enumerate(joints)}
+    ctx = Context(rd, joints, joint_index, body_index, symmetry, scale, check_position)
+    params = [
+        read_parameter(ctx, item, f"parameters[{k}]") for k, item in enumerate(items)
+    ]
+    matrix = np.zeros((6 * len(joints), len(items)))
+    owner: dict[int, int] = {}
+    links = []
+    for k, par in enumerate(params):
+        where = f"parameters[{k}]"
+        rows = _expanded_rows(ctx, where, par.moves)
+        claimed = set(rows) | _link_rows(ctx, par.links)
+        _claim_rows(rd, where, k, rows, claimed, owner, matrix)
+        links += [(where, source, target) for source, target in par.links]
+    _compose(ctx, matrix, links)
+    _align_legs(ctx, matrix, owner)
+    return DesignSpace(
+        tuple(i["name"] for i in items),
+        np.array([p.value for p in params], dtype=float),
+        np.array([p.low for p in params], dtype=float),
+        np.array([p.high for p in params], dtype=float),
+        matrix,
+        np.array([p.is_length for p in params], dtype=bool),
+    )
+
+
+# --- the matrix -----------------------------------------------------------------------
+
+
+def _row(ctx: Context, joint: int, part: int, c: int) -> int:
+    return (3 * len(ctx.joints) if part == AXIS else 0) + 3 * joint + c
+
+
+def _expanded_rows(ctx: Context, where: str, moves: list[Move]) -> dict[int, float]:
+    """Rows and weights of one parameter: its moves summed per joint, then every
+    joint coincident at rest with a moved joint given the same anchor move."""
+    anchor: dict[int, np.ndarray] = {}
+    axis: dict[int, np.ndarray] = {}
+    for move in moves:
+        table = anchor if move.part == ANCHOR else axis
+        table[move.joint] = table.get(move.joint, np.zeros(3)) + move.vector
+    for j in list(anchor):
+        for other in ctx.coincident(j):
+            if other not in anchor:
+                anchor[other] = anchor[j]
+            elif not np.allclose(anchor[other], anchor[j], rtol=0, atol=1e-12):
+                raise ctx.rd.fail(
+                    where,
+                    f"joints {ctx.name(j)!r} and {ctx.name(other)!r} share their "
+                    "anchor at rest and must move together; this parameter moves "
+                    "them differently",
+                )
+    rows = {}
+    for part, table in ((ANCHOR, anchor), (AXIS, axis)):
+        for j, vec in table.items():
+            for c in range(3):
+                if abs(vec[c]) > 1e-14 * np.max(np.abs(vec)):
+                    rows[_row(ctx, j, part, c)] = float(vec[c])
+    return rows
+
+
+def _link_rows(ctx: Context, links) -> set[int]:
+    """A length parameter owns every anchor row of its ``to`` joints (they follow
+    ``from`` in all three coordinates)."""
+    return {
+        _row(ctx, t, ANCHOR, c)
+        for _, targets in links
+        for t in ctx.coincident_all(targets)
+        for c in range(3)
+    }
+
+
+def _claim_rows(
+    rd: Reader,
+    where: str,
+    k: int,
+    rows: dict[int, float],
+    claimed: set[int],
+    owner: dict[int, int],
+    matrix: Float[np.ndarray, "rows n_p"],
+) -> None:
+    """Parameter ``k`` takes the rows it drives; no row has two parameters (so that
+    each parameter's rest value can be read back from a written design)."""
+    for row in sorted(claimed):
+        if row in owner:
+            raise rd.fail(
+                where,
+                f"drives a coordinate already driven by parameters[{owner[row]}]",
+            )
+    for row in claimed:
+        owner[row] = k
+    for row, weight in rows.items():
+        matrix[row, k] = weight
+
+
+def _compose(ctx: Context, matrix: np.ndarray, links: list) -> None:
+    """Each length parameter's ``to`` anchors also follow its ``from`` anchor: their
+    rows get the ``from`` rows of every parameter. Links run upstream first (a chain
+    of lengths composes); a loop of lengths is refused."""
+    pending = list(links)
+    while pending:
+        moved = {t for _, _, targets in pending for t in ctx.coincident_all(targets)}
+        ready = [link for link in pending if link[1] not in moved]
+        if not ready:
+            raise ctx.rd.fail(
+                pending[0][0],
+                "length parameters form a loop (each link's from joint is moved by "
+                "another's); expected a chain from the ground",
+            )
+        for where, source, targets in ready:
+            rows = slice(3 * source, 3 * source + 3)
+            for t in ctx.coincident_all(targets):
+                matrix[3 * t : 3 * t + 3] += matrix[rows]
+            pending.remove((where, source, targets))
+
+
+def _legs(ctx: Context) -> list[tuple[int, int, int, float, float]]:
+    """Straight legs: a prismatic or cylindrical joint whose two bodies each have one
+    other joint (the leg's ends ``e1``, ``e2``), its axis along ``e2 - e1`` and its
+    anchor on that line at rest. Returns ``(joint, e1, e2, t, sign)``: the anchor's
+    fraction along the leg and the axis's sign along ``e2 - e1``."""
+    legs = []
+    for p, joint in enumerate(ctx.joints):
+        if joint["type"] not in ("prismatic", "cylindrical"):
+            continue
+        ends = [_only_other_joint(ctx, body, p) for body in joint["bodies"]]
+        if min(ends) < 0:
+            continue
+        span = ctx.anchor(ends[1]) - ctx.anchor(ends[0])
+        length = float(np.linalg.norm(span))
+        if length <= ctx.tol:
+            continue
+        along = float(joint["axis"] @ span) / length
+        offset = ctx.anchor(p) - ctx.anchor(ends[0])
+        t = float(offset @ span) / length**2
+        if (
+            abs(abs(along) - 1.0) <= MIRROR_TOL
+            and np.linalg.norm(offset - t * span) <= ctx.tol
+        ):
+            legs.append((p, ends[0], ends[1], t, np.sign(along) / length))
+    return legs
+
+
+def _only_other_joint(ctx: Context, body: int, joint: int) -> int:
+    others = [i for i, j in enumerate(ctx.joints) if body in j["bodies"] and i != joint]
+    return others[0] if len(others) == 1 else -1
+
+
+def _align_legs(ctx: Context, matrix: np.ndarray, owner: dict[int, int]) -> None:
+    """A straight leg (:func:`_legs`) stays straight: its prismatic joint's anchor
+    keeps its fraction ``t`` along the leg and its axis follows the leg's direction
+    (the axis is normalised in :func:`~.geometry.geometry`, so ``u0 + (Δe2 - Δe1)/L0``
+    is exact: it is ``(e2 - e1)/L0`` at every design). Legs whose prismatic joint a
+    parameter drives itself are left to that parameter."""
+    base = 3 * len(ctx.joints)
+    for p, e1, e2, t, scale in _legs(ctx):
+        anchor_rows = range(3 * p, 3 * p + 3)
+        axis_rows = range(base + 3 * p, base + 3 * p + 3)
+        if any(r in owner for r in (*anchor_rows, *axis_rows)):
+            continue
+        first, second = matrix[3 * e1 : 3 * e1 + 3], matrix[3 * e2 : 3 * e2 + 3]
+        matrix[3 * p : 3 * p + 3] = (1.0 - t) * first + t * second
+        matrix[base + 3 * p : base + 3 * p + 3] = scale * (second - first)

@@ -1,0 +1,120 @@
+"""Symmetries of a mechanism's rest geometry (``[symmetry]``): a mirror plane, or an
+n-fold rotation about an axis, optionally with a mirror plane containing the axis.
+
+Design parameters use them to move symmetric copies of a joint by the image of the
+same change (:mod:`.design_kinds`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+from jaxtyping import Float
+
+from .fields import Reader, shown
+
+#: Coincidence tolerance: of anchors, times the reference length; of unit axes.
+MIRROR_TOL = 1e-9
+#: Largest order of a rotational symmetry (a 1-degree step).
+MAX_ORDER = 360
+
+
+class Symmetry(NamedTuple):
+    """A mirror plane (``direction`` its unit normal), or an ``order``-fold rotation
+    about the axis through ``point`` along the unit ``direction``, with ``mirror`` the
+    unit normal of a mirror plane containing that axis (a dihedral symmetry) or None.
+
+    Its elements other than the identity are numbered ``k = 1 .. size - 1``: the
+    rotations by ``360 k / order`` degrees (right-handed about ``direction``), then
+    (dihedral) the reflection composed with each rotation.
+    """
+
+    direction: Float[np.ndarray, " 3"]
+    point: Float[np.ndarray, " 3"]
+    kind: str = "mirror"
+    order: int = 2
+    mirror: Float[np.ndarray, " 3"] | None = None
+
+    @property
+    def size(self) -> int:
+        """The number of elements, the identity included."""
+        if self.kind == "mirror":
+            return 2
+        return self.order * (1 if self.mirror is None else 2)
+
+    def transform(self, k: int) -> Float[np.ndarray, "3 3"]:
+        """The orthogonal map of element ``k``."""
+        if self.kind == "mirror":
+            return _reflection(self.direction)
+        rotation = _rotation(
+            self.direction, 2.0 * np.pi * (k % self.order) / self.order
+        )
+        return rotation if k < self.order else _reflection(self.mirror) @ rotation
+
+    def image(self, x: Float[np.ndarray, " 3"], k: int) -> Float[np.ndarray, " 3"]:
+        """The image of the position ``x`` under element ``k``."""
+        return self.point + self.transform(k) @ (x - self.point)
+
+    def words(self, k: int) -> str:
+        if self.kind == "mirror" or k == self.order:
+            return "mirror image"
+        turn = f"the rotation by {360.0 * (k % self.order) / self.order:g} degrees"
+        return f"image under {turn}" + (" and the mirror" if k > self.order else "")
+
+
+def _reflection(n: Float[np.ndarray, " 3"]) -> Float[np.ndarray, "3 3"]:
+    return np.eye(3) - 2.0 * np.outer(n, n)
+
+
+def _rotation(n: Float[np.ndarray, " 3"], angle: float) -> Float[np.ndarray, "3 3"]:
+    """Rodrigues' rotation by ``angle`` about the unit ``n``."""
+    cross = np.array([[0, -n[2], n[1]], [n[2], 0, -n[0]], [-n[1], n[0], 0]])
+    return (
+        np.cos(angle) * np.eye(3)
+        + np.sin(angle) * cross
+        + (1.0 - np.cos(angle)) * np.outer(n, n)
+    )
+
+
+def read_symmetry(
+    rd: Reader, data: dict, position: Callable[[dict, str, str], np.ndarray]
+) -> Symmetry | None:
+    """``[symmetry]``: ``normal`` and ``point`` (a mirror plane; ``kind = "mirror"``
+    optional), or ``kind = "rotation"`` with ``axis``, ``point``, ``order`` and
+    optionally ``normal`` (a mirror plane containing the axis).
+    ``position(table, key, where)`` reads a checked position."""
+    if "symmetry" not in data:
+        return None
+    raw = data["symmetry"]
+    kind = raw.get("kind", "mirror") if isinstance(raw, dict) else "mirror"
+    if kind == "rotation":
+        return _read_rotation(rd, raw, position)
+    if kind != "mirror":
+        raise rd.fail(
+            "[symmetry].kind", f"expected 'mirror' or 'rotation', got {shown(kind)}"
+        )
+    table = rd.table(
+        raw, "[symmetry]", {"kind", "normal", "point"}, {"normal", "point"}
+    )
+    normal = rd.direction(table, "normal", "[symmetry]")
+    return Symmetry(normal, position(table, "point", "[symmetry]"))
+
+
+def _read_rotation(rd: Reader, raw: dict, position) -> Symmetry:
+    fields = {"kind", "axis", "point", "order"}
+    table = rd.table(raw, "[symmetry]", fields | {"normal"}, fields)
+    order = rd.integer(table, "order", "[symmetry]", 2, MAX_ORDER)
+    axis = rd.direction(table, "axis", "[symmetry]")
+    point = position(table, "point", "[symmetry]")
+    if "normal" not in table:
+        return Symmetry(axis, point, "rotation", order)
+    normal = rd.direction(table, "normal", "[symmetry]")
+    if abs(normal @ axis) > MIRROR_TOL:
+        raise rd.fail(
+            "[symmetry].normal",
+            "the mirror plane of a rotation must contain its axis: expected a normal "
+            "perpendicular to axis",
+        )
+    return Symmetry(axis, point, "rotation", order, normal)
