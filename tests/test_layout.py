@@ -19,10 +19,11 @@ ROOT_MODULES = {"__init__", "__main__", "_errors", "_config"}
 # folder -> the folders (and root modules) it may import from
 ALLOWED = {
     "_engine": {"_engine", "root"},
-    "_design": {"_engine", "_design", "root"},
+    "_export": {"_engine", "_export", "root"},
+    "_design": {"_engine", "_export", "_design", "root"},
     "_arms": {"_engine", "_arms", "root"},
-    "_cli": {"_engine", "_design", "_arms", "_cli", "root"},
-    "root": {"root", "_engine", "_design", "_arms", "_cli"},
+    "_cli": {"_engine", "_export", "_design", "_arms", "_cli", "root"},
+    "root": {"root", "_engine", "_export", "_design", "_arms", "_cli"},
 }
 
 

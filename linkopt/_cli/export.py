@@ -1,0 +1,112 @@
+"""``linkopt export FILE --format mjcf|urdf|stl|glb --out PATH``: a design in the file
+formats of other tools (:mod:`linkopt._export`).
+
+Everything the user can get wrong is checked before anything is written: the design,
+the file's units, a closed-loop file asked for as URDF, ``--thickness``, and ``--out``
+(its folder is created; an unwritable one exits 2).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from .._engine.loader import load
+from .._errors import InputError
+from .._folders import output_folder
+from .values import design_arg
+
+FORMATS = ("mjcf", "urdf", "stl", "glb")
+
+
+def _check_out(fmt: str, out: str) -> Path:
+    """The output path, its folder created and writable; for ``stl`` a folder (not
+    named ``*.stl``)."""
+    path = Path(out)
+    if fmt == "stl":
+        if path.suffix.lower() == ".stl":
+            raise InputError(
+                f"--out: {out!r}: stl export writes a folder with one <body>.stl per "
+                "body; give a folder path"
+            )
+        return output_folder(path, "--out")
+    if path.is_dir():
+        raise InputError(f"--out: {out!r} is a directory; expected a file path")
+    output_folder(path.parent if str(path.parent) else Path("."), "--out")
+    return path
+
+
+def _check(args, mech):
+    from .._export.meshes import check_thickness
+    from .._export.tree import metres_per_unit
+    from .._export.urdf import check_open_chain
+
+    metres_per_unit(mech)
+    if args.format == "urdf":
+        if args.thickness is not None:
+            raise InputError("--thickness: a URDF export writes no solids")
+        check_open_chain(mech)
+    else:
+        check_thickness(mech, args.thickness)
+
+
+def _export(args, mech, design, out: Path) -> dict:
+    from .._export import meshes, mjcf, urdf
+
+    if args.format == "mjcf":
+        return mjcf.export_mjcf(mech, out, design, thickness=args.thickness)
+    if args.format == "urdf":
+        return urdf.export_urdf(mech, out, design)
+    write = meshes.export_stl if args.format == "stl" else meshes.export_glb
+    return write(mech, out, design, thickness=args.thickness)
+
+
+def run_export(args) -> int:
+    mech = load(args.file)
+    design = design_arg(mech, args.design)
+    _check(args, mech)
+    out = _check_out(args.format, args.out)
+    start = time.perf_counter()
+    summary = _export(args, mech, design, out)
+    summary = {"file": args.file, "out": str(out), **summary}
+    summary["seconds"] = round(time.perf_counter() - start, 3)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        details = ", ".join(
+            f"{k} {v}" for k, v in summary.items() if isinstance(v, (int, float))
+        )
+        print(f"wrote {summary['out']} ({args.format}: {details})")
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add ``export`` to the ``linkopt`` sub-commands."""
+    cmd = subparsers.add_parser(
+        "export", help="the design as MuJoCo MJCF, URDF, STL or GLB"
+    )
+    cmd.add_argument("file")
+    cmd.add_argument("--format", required=True, choices=FORMATS)
+    cmd.add_argument(
+        "--out",
+        required=True,
+        help="output file; for stl a folder (one <body>.stl per body)",
+    )
+    cmd.add_argument(
+        "--design",
+        help=(
+            "design values in parameter order (comma-separated), or a mechanism file "
+            "with the same parameters"
+        ),
+    )
+    cmd.add_argument(
+        "--thickness",
+        type=float,
+        help=(
+            "link diameter in file units (mjcf, stl, glb; default 4%% of the "
+            "reference length)"
+        ),
+    )
+    cmd.add_argument("--json", action="store_true", help="machine-readable summary")
+    cmd.set_defaults(run=run_export)

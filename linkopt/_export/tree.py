@@ -1,0 +1,359 @@
+"""What the export formats share: rest geometry, units, the spanning tree, joint
+coordinates.
+
+A mechanism file is a graph of bodies (nodes) and joints (edges). MJCF and URDF are
+kinematic trees, so every export picks a spanning tree rooted at the ground
+(:func:`spanning_tree`). Each tree joint becomes a short sequence of elementary
+degrees of freedom (:class:`Dof`: hinge, slide, ball) in the child body; the joints
+left out close the loops (MJCF writes them as equality constraints, URDF refuses them).
+
+Frames: every body sits at the identity orientation at rest with its origin at
+``Mechanism.body_origins`` (:mod:`linkopt._engine.model`), so a joint's rest axes are
+the same vectors in both of its bodies' frames and in the world.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from jaxtyping import Float
+
+from .._engine.geometry import geometry
+from .._engine.model import Mechanism
+from .._errors import MechanismFileError
+
+#: Metres per file unit, by the ``[mechanism] units`` strings an export understands.
+METRES_PER_UNIT: dict[str, float] = {
+    "m": 1.0,
+    "dm": 0.1,
+    "cm": 0.01,
+    "mm": 1e-3,
+    "um": 1e-6,
+    "km": 1e3,
+    "in": 0.0254,
+    "ft": 0.3048,
+}
+
+#: Joint families in the order the spanning tree prefers them as tree edges: the ones
+#: an equality constraint cannot close directly first (their closures need an extra
+#: body), revolute next, spherical last (a single ``connect`` closes it).
+_TREE_PREFERENCE = ("fixed", "universal", "prismatic", "cylindrical", "revolute")
+
+
+class Rest(NamedTuple):
+    """Rest pose of one design, world frame, file units (unit vectors for axes)."""
+
+    anchors: Float[np.ndarray, "J 3"]
+    axes: Float[np.ndarray, "J 3"]
+    axes2: Float[np.ndarray, "J 3"]
+    points: Float[np.ndarray, "P 3"]
+    origins: Float[np.ndarray, "B 3"]
+
+
+def rest(mech: Mechanism, design=None) -> Rest:
+    """The rest geometry of ``design`` (None: the file's) in file units."""
+    geom = geometry(mech, design)
+    scale = mech.length_scale
+    return Rest(
+        anchors=np.asarray(geom.anchors) * scale,
+        axes=np.asarray(geom.axes),
+        axes2=np.asarray(geom.axes2),
+        points=np.asarray(geom.points) * scale,
+        origins=np.asarray(mech.body_origins, dtype=float),
+    )
+
+
+def metres_per_unit(mech: Mechanism) -> tuple[float, str]:
+    """Metres per file unit and the unit's name, from ``[mechanism] units``.
+
+    A file without ``units`` is taken to be in metres (the loader calls the field
+    informational, so this is the export's choice, and the files say so).
+    """
+    units = mech.raw.get("mechanism", {}).get("units")
+    if units is None:
+        return 1.0, "m (no units given)"
+    key = str(units).strip().lower()
+    if key not in METRES_PER_UNIT:
+        raise MechanismFileError(
+            mech.source,
+            "mechanism.units",
+            f"unknown unit {units!r} for export; expected one of "
+            f"{sorted(METRES_PER_UNIT)}",
+        )
+    return METRES_PER_UNIT[key], key
+
+
+def body_anchors(mech: Mechanism, rest_pose: Rest, body: int) -> np.ndarray:
+    """Distinct rest positions of the joints on ``body`` and its named points, in file
+    order, shape ``(k, 3)``; two positions closer than 1e-9 reference lengths are
+    one."""
+    on_body = np.flatnonzero((mech.joint_bodies == body).any(axis=1))
+    places = [rest_pose.anchors[j] for j in on_body]
+    places += [rest_pose.points[p] for p in np.flatnonzero(mech.point_bodies == body)]
+    distinct: list[np.ndarray] = []
+    for place in places:
+        if all(np.linalg.norm(place - d) > 1e-9 * mech.length_scale for d in distinct):
+            distinct.append(place)
+    if not distinct:  # a body with neither joints nor points: its origin
+        distinct.append(rest_pose.origins[body])
+    return np.array(distinct)
+
+
+@dataclass(frozen=True)
+class Dof:
+    """One elementary degree of freedom: ``kind`` hinge | slide | ball, about or along
+    ``axis`` (unit, rest frame; zero for a ball)."""
+
+    kind: str
+    axis: np.ndarray
+
+
+@dataclass(frozen=True)
+class Edge:
+    """A joint as seen from the tree: ``child`` moves relative to ``parent`` through
+    ``dofs`` (applied in order, each in the frame the ones before it left)."""
+
+    joint: int
+    parent: int
+    child: int
+    dofs: tuple[Dof, ...]
+
+
+@dataclass(frozen=True)
+class Tree:
+    """Spanning tree from the ground: bodies in ``order`` (parents first), the edge
+    into each non-ground body, and the loop-closing joints."""
+
+    order: tuple[int, ...]
+    edges: dict[int, Edge]
+    closures: tuple[int, ...]
+
+    def children(self, body: int) -> list[int]:
+        return [
+            b for b in self.order if b in self.edges and self.edges[b].parent == body
+        ]
+
+
+def _spherical_frame(axis: np.ndarray, axis2: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The Tait–Bryan frame of a spherical joint: its axes if given, else x, y."""
+    if np.linalg.norm(axis) == 0 or np.linalg.norm(axis2) == 0:
+        axis, axis2 = np.eye(3)[0], np.eye(3)[1]
+    return axis, axis2, np.cross(axis, axis2)
+
+
+def joint_dofs(
+    mech: Mechanism, rest_pose: Rest, joint: int, *, reverse: bool, hinges_only: bool
+) -> tuple[Dof, ...]:
+    """The elementary dofs of ``joint`` moving its second body relative to its first
+    (``reverse``: the first relative to the second: dofs in reverse order, axes
+    negated).
+
+    revolute → hinge; prismatic → slide; universal → hinge ``axis``, hinge ``axis2``;
+    cylindrical → hinge + slide along ``axis``; fixed → none; spherical → ball, or
+    with ``hinges_only`` (URDF has no ball) three hinges about the joint's Tait–Bryan
+    axes ``axis``, ``axis2``, ``axis × axis2`` (x, y, z when not given).
+    """
+    n, n2 = rest_pose.axes[joint], rest_pose.axes2[joint]
+    kind = mech.joint_types[joint]
+    if kind == "spherical":
+        if not hinges_only:
+            return (Dof("ball", np.zeros(3)),)
+        dofs = [Dof("hinge", e) for e in _spherical_frame(n, n2)]
+    else:
+        dofs = {
+            "revolute": [Dof("hinge", n)],
+            "prismatic": [Dof("slide", n)],
+            "universal": [Dof("hinge", n), Dof("hinge", n2)],
+            "cylindrical": [Dof("hinge", n), Dof("slide", n)],
+            "fixed": [],
+        }[kind]
+    if reverse:
+        dofs = [Dof(d.kind, -d.axis) for d in reversed(dofs)]
+    return tuple(dofs)
+
+
+def _find(parent: list[int], b: int) -> int:
+    while parent[b] != b:
+        parent[b] = parent[parent[b]]
+        b = parent[b]
+    return b
+
+
+def _tree_joints(mech: Mechanism) -> list[int]:
+    """Joints of a spanning forest, Kruskal-style: motor joints first (an actuator needs
+    a tree joint), then by :data:`_TREE_PREFERENCE`, file order within a family."""
+    motors = set(int(j) for j in mech.motor_joints)
+    rank = {kind: k for k, kind in enumerate(_TREE_PREFERENCE)}
+
+    def key(j: int):
+        return (j not in motors, rank.get(mech.joint_types[j], len(rank)), j)
+
+    parent = list(range(mech.num_bodies))
+    chosen = []
+    for j in sorted(range(len(mech.joint_names)), key=key):
+        a, b = (_find(parent, int(x)) for x in mech.joint_bodies[j])
+        if a != b:
+            parent[a] = b
+            chosen.append(j)
+    return chosen
+
+
+def spanning_tree(mech: Mechanism, rest_pose: Rest, *, hinges_only=False) -> Tree:
+    """The spanning tree from the ground (breadth first over :func:`_tree_joints`).
+
+    Which joints close the loops is a choice the issue leaves open: motor joints are
+    kept in the tree so that actuators sit on tree joints, and the families that one
+    equality constraint closes best (spherical, then revolute) are left out first.
+    The loader has checked that every body is connected to the ground.
+    """
+    tree_joints = _tree_joints(mech)
+    order, edges, frontier = [mech.ground], {}, [mech.ground]
+    while frontier:
+        body = frontier.pop(0)
+        for j in tree_joints:
+            i, k = (int(x) for x in mech.joint_bodies[j])
+            if body not in (i, k):
+                continue
+            child = k if i == body else i
+            if child == body or child in edges or child == mech.ground:
+                continue
+            dofs = joint_dofs(
+                mech, rest_pose, j, reverse=child == i, hinges_only=hinges_only
+            )
+            edges[child] = Edge(joint=j, parent=body, child=child, dofs=dofs)
+            order.append(child)
+            frontier.append(child)
+    closures = tuple(j for j in range(len(mech.joint_names)) if j not in tree_joints)
+    return Tree(order=tuple(order), edges=edges, closures=closures)
+
+
+#: Default solid thickness (capsule diameter) as a fraction of the reference length.
+THICKNESS_FRACTION = 0.04
+
+
+def default_thickness(mech: Mechanism) -> float:
+    """The default thickness of link solids (file units): 4 % of the reference
+    length, thin enough that the links of the shipped mechanisms stay apart at rest."""
+    return THICKNESS_FRACTION * mech.length_scale
+
+
+def segments(places: np.ndarray) -> list[tuple[int, int]]:
+    """Index pairs of the link segments drawn between a body's ``places``: every pair
+    for up to four places (a triangle or tetrahedron of bars), else the edges of the
+    minimum spanning tree (Prim), so that a ground with many anchors stays light."""
+    k = len(places)
+    if k <= 4:
+        return [(a, b) for a in range(k) for b in range(a + 1, k)]
+    inside, pairs = {0}, []
+    while len(inside) < k:
+        a, b = min(
+            ((a, b) for a in inside for b in range(k) if b not in inside),
+            key=lambda ab: np.linalg.norm(places[ab[0]] - places[ab[1]]),
+        )
+        pairs.append((a, b))
+        inside.add(b)
+    return pairs
+
+
+# ---- joint coordinates of a state -------------------------------------------------
+
+
+def _matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a unit quaternion ``wxyz``."""
+    w, x, y, z = q / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _quaternion(r: np.ndarray) -> np.ndarray:
+    """Unit quaternion ``wxyz`` (w ≥ 0) of a rotation matrix (Shepperd's method)."""
+    trace = np.trace(r)
+    k = int(np.argmax([trace, r[0, 0], r[1, 1], r[2, 2]]))
+    if k == 0:
+        s = 2.0 * np.sqrt(1.0 + trace)
+        q = [
+            s / 4,
+            (r[2, 1] - r[1, 2]) / s,
+            (r[0, 2] - r[2, 0]) / s,
+            (r[1, 0] - r[0, 1]) / s,
+        ]
+    else:
+        i, j, m = k - 1, k % 3, (k + 1) % 3
+        s = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[m, m])
+        q = [0.0] * 4
+        q[0] = (r[m, j] - r[j, m]) / s
+        q[1 + i] = s / 4
+        q[1 + j] = (r[j, i] + r[i, j]) / s
+        q[1 + m] = (r[m, i] + r[i, m]) / s
+    q = np.array(q)
+    return q if q[0] >= 0 else -q
+
+
+def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rotation matrix about the unit ``axis`` by ``angle`` (Rodrigues)."""
+    k = np.array(
+        [[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]]
+    )
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def _hinge_angles(axes: list[np.ndarray], relative: np.ndarray) -> list[float]:
+    """Angles ``θ_k`` with ``relative = Π_k Rot(a_k, θ_k)`` for 1-3 mutually
+    perpendicular axes (the first two of three, or one of one, are exact for any
+    rotation the joint allows; three are the Tait–Bryan angles, |θ2| < π/2)."""
+    if len(axes) == 1:
+        a = axes[0]
+        q = _quaternion(relative)
+        return [2.0 * np.arctan2(q[1:] @ a, q[0])]
+    if len(axes) == 3:
+        e = np.stack(axes, axis=1)
+        m = e.T @ relative @ e
+        return [
+            np.arctan2(-m[1, 2], m[2, 2]),
+            np.arctan2(m[0, 2], np.hypot(m[0, 0], m[0, 1])),
+            np.arctan2(-m[0, 1], m[0, 0]),
+        ]
+    a1, a2 = axes
+    turned = relative @ a2
+    first = np.arctan2(a1 @ np.cross(a2, turned), a2 @ turned)
+    rest_of = _rotation(a1, -first) @ relative
+    turned = rest_of @ a1
+    return [first, np.arctan2(a2 @ np.cross(a1, turned), a1 @ turned)]
+
+
+def body_poses(mech: Mechanism, state) -> tuple[np.ndarray, np.ndarray]:
+    """World origins (file units, ``(B, 3)``) and rotation matrices (``(B, 3, 3)``) of
+    a homogenised state."""
+    bodies = np.asarray(state, dtype=float).reshape(-1, 7)
+    origins = bodies[:, :3] * mech.length_scale
+    return origins, np.stack([_matrix(q) for q in bodies[:, 3:]])
+
+
+def edge_values(
+    mech: Mechanism, rest_pose: Rest, edge: Edge, origins, rotations
+) -> list[np.ndarray]:
+    """The coordinates of ``edge``'s dofs in a posed state (file units for slides,
+    rad for hinges, a ``wxyz`` quaternion for a ball), one array per dof."""
+    p, c = edge.parent, edge.child
+    relative = rotations[p].T @ rotations[c]
+    if edge.dofs and edge.dofs[0].kind == "ball":
+        return [_quaternion(relative)]
+    hinges = [d.axis for d in edge.dofs if d.kind == "hinge"]
+    angles = iter(_hinge_angles(hinges, relative) if hinges else [])
+    anchor = rest_pose.anchors[edge.joint]
+    on_parent = origins[p] + rotations[p] @ (anchor - rest_pose.origins[p])
+    on_child = origins[c] + rotations[c] @ (anchor - rest_pose.origins[c])
+    values = []
+    for dof in edge.dofs:
+        if dof.kind == "hinge":
+            values.append(np.array([next(angles)]))
+        else:
+            values.append(np.array([(on_child - on_parent) @ rotations[p] @ dof.axis]))
+    return values
