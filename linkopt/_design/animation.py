@@ -1,0 +1,618 @@
+"""Animations of a mechanism moving along a path: the frames and the GIF (beyond the
+paper; ``linkopt animate`` and an optimisation run's ``motion_*.gif``).
+
+Path. A path is a sequence of motor rows (solved by forward kinematics) or of output
+rows (backward kinematics), one row per frame, solved as one continuation path from the
+rest pose (:func:`linkopt._engine.kinematics.solve_fk_path` / ``solve_bk_path``): each
+row is reached from the previous one in predictor-corrector steps that are accepted
+only when the corrector lands near the first-order prediction, so a frame is either on
+the rest pose's assembly branch or reported unreached; that acceptance test is the
+branch check here, as in every continuation of linkopt (a map's single warm-started
+solves check a jump bound instead, :data:`linkopt._design.maps.MAX_JUMP`). The
+continuation is a ``lax.scan`` over the rows: one compiled program per frame count,
+whatever the design.
+
+Default path (the issue leaves it open): a closed loop in output space through the
+evaluation grid's targets (:func:`linkopt._design.evaluation.targets`), visited in the
+order of a short closed tour (greedy nearest neighbour from the target nearest the rest
+pose, then 2-opt, in coordinates scaled to the target box) and resampled to equal steps
+of that scaled length; the last frame is one step before the first, so the GIF loops
+without a repeated frame. A design that does not reach part of that loop is animated
+along the loop pulled in towards its rest outputs where it is out of reach: each
+unreached frame moves onto the straight line from the rest outputs to it, at
+``PULL_IN`` of the way the rest branch reaches along that line (one batched
+continuation from the rest pose, :func:`linkopt._engine.kinematics.solve_bk`), short of
+the branch's limit, where the backward-kinematics Jacobian is singular and a
+continuation cannot go on; the pulled-in loop is then solved again. So the animation
+of a design that misses part of its box shows where it falls short. (We first ran such
+loops through the design's IK samples, but a design evaluation made the run's
+``motion_initial.gif`` cost several times the rest of the animation, and the IK,
+solved in motor space, stops at forward singularities that backward kinematics passes.)
+A frame still unreached is drawn where its continuation stopped and labelled "out of
+reach". A path the caller gives is drawn only when every row is reached
+(:class:`PathNotReached`).
+
+Drawing. A mechanism is planar when its rest joint anchors lie in one plane (to
+``PLANAR_TOLERANCE`` of its reference length) and every joint axis is normal to it; it
+is drawn in that plane (the world axes' names when the plane is a coordinate plane),
+others in a fixed 3-D view. Each moving body is the closed ring through its joint
+anchors and named points (ordered by angle about their centroid in their best-fit
+plane), all bodies coloured by the frame's ``f_sing`` on the maps' scale (viridis, log,
+brighter = closer to a singularity; :func:`linkopt._design.plots._colour_norm`'s bounds
+over the frames unless ``f_sing_range`` is given); the ground's joints are triangles,
+the motors' joints squares, and the traced points' paths grow frame by frame. The
+traced points are the points of the position outputs, or every named point when the
+outputs are angles.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import NamedTuple
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from jaxtyping import Bool, Float  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
+from matplotlib.colors import LogNorm  # noqa: E402
+
+from .._engine.geometry import design_vector, geometry, rest_state  # noqa: E402
+from .._engine.kinematics import (  # noqa: E402
+    check_design,
+    check_values,
+    solve_bk,
+    solve_bk_path,
+    solve_fk_path,
+)
+from .._engine.model import AXIAL_JOINTS, Mechanism  # noqa: E402
+from .._engine.readout import (  # noqa: E402
+    joint_positions,
+    motor_values,
+    output_values,
+    point_positions,
+)
+from .._engine.singularity import f_sing  # noqa: E402
+from .._errors import InputError, LinkoptError  # noqa: E402
+from .maps import check_count  # noqa: E402
+
+#: Frames of an animation by default, and the most it accepts: 600 frames of the
+#: five-bar take about 20 s to draw and some 3 MB of GIF.
+DEFAULT_FRAMES = 60
+MAX_FRAMES = 600
+#: Frames per second of the GIF.
+FPS = 15
+#: Out-of-plane spread of the anchors and axes, relative to the reference length, below
+#: which a mechanism is drawn in its plane.
+PLANAR_TOLERANCE = 1e-9
+#: Fraction of the rest branch's reach along the line from the rest outputs to which an
+#: unreached frame of the default loop is pulled in (module docstring).
+PULL_IN = 0.9
+MAGENTA = "#ff00ff"
+
+
+class PathNotReached(LinkoptError):
+    """A frame of the path is not reached on the rest pose's assembly branch; ``row``
+    is its 1-based index."""
+
+    def __init__(self, message: str, row: int):
+        super().__init__(message)
+        self.row = row
+
+
+class Motion(NamedTuple):
+    """A mechanism along a path, one entry per frame (file units; states
+    homogenised)."""
+
+    kind: str  # "fk": the path is motor rows, "bk": output rows
+    default: bool  # the default loop (drawn also where it is not reached)
+    path: Float[np.ndarray, "T W"]
+    states: Float[np.ndarray, "T S"]
+    #: the row reached on the rest branch; an unreached frame holds the state where
+    #: the continuation toward it stopped (the branch's limit on the way)
+    reached: Bool[np.ndarray, " T"]
+    progress: Float[np.ndarray, " T"]  # the continuation's progress into each row
+    motors: Float[np.ndarray, "T M"]
+    outputs: Float[np.ndarray, "T K"]
+    joints: Float[np.ndarray, "T J 3"]
+    points: Float[np.ndarray, "T P 3"]
+    trace: Float[np.ndarray, "T Q 3"]  # the traced points (module docstring)
+    trace_names: tuple[str, ...]
+    f_sing: Float[np.ndarray, " T"]
+
+    @property
+    def first_unreached(self) -> int | None:
+        """0-based index of the first unreached frame, None when all are reached."""
+        missing = np.flatnonzero(~self.reached)
+        return int(missing[0]) if len(missing) else None
+
+
+# ---------------------------------------------------------------------------------
+# The default path
+
+
+def check_frames(frames, where: str = "frames") -> int:
+    """``frames`` as an int in ``[1, MAX_FRAMES]``; :class:`InputError` otherwise."""
+    frames = check_count(frames, where, 1)
+    if frames > MAX_FRAMES:
+        raise InputError(
+            f"{where}: expected at most {MAX_FRAMES} frames, got {frames} (a GIF of "
+            "more frames is too large to be useful)"
+        )
+    return frames
+
+
+def _tour_length(points: np.ndarray, order: list[int]) -> float:
+    ring = points[order + order[:1]]
+    return float(np.sum(np.linalg.norm(np.diff(ring, axis=0), axis=1)))
+
+
+def _greedy(points: np.ndarray, first: int) -> list[int]:
+    """Nearest-neighbour tour from ``first``, ties to the lower index."""
+    order, left = [first], set(range(len(points))) - {first}
+    while left:
+        rest = sorted(left)
+        dist = np.linalg.norm(points[rest] - points[order[-1]], axis=1)
+        order.append(rest[int(np.argmin(dist))])
+        left.remove(order[-1])
+    return order
+
+
+def tour(points: Float[np.ndarray, "T K"], first: int = 0) -> list[int]:
+    """A short closed tour through ``points`` starting at ``first``: greedy nearest
+    neighbour, then 2-opt (segment reversals) while one shortens it by more than
+    1e-12. Deterministic; a few dozen points (the evaluation's targets)."""
+    order = _greedy(points, first)
+    improved = True
+    while improved:
+        improved = False
+        for i in range(1, len(order) - 1):
+            for j in range(i + 1, len(order)):
+                trial = order[:i] + order[i : j + 1][::-1] + order[j + 1 :]
+                if _tour_length(points, trial) < _tour_length(points, order) - 1e-12:
+                    order, improved = trial, True
+    return order
+
+
+def resample_loop(
+    points: Float[np.ndarray, "T K"], frames: int, scale: np.ndarray
+) -> Float[np.ndarray, "N K"]:
+    """``frames`` points at equal steps of ``|Δ/scale|`` along the closed polygon
+    through ``points``, from ``points[0]``, the last one step before it again."""
+    ring = np.vstack([points, points[:1]])
+    steps = np.linalg.norm(np.diff(ring, axis=0) / scale, axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(steps)])
+    if arc[-1] <= 0.0:
+        return np.repeat(points[:1], frames, axis=0)
+    at = np.arange(frames) * arc[-1] / frames
+    return np.stack(
+        [np.interp(at, arc, ring[:, k]) for k in range(points.shape[1])], axis=1
+    )
+
+
+def default_path(
+    mech: Mechanism, frames: int = DEFAULT_FRAMES, design=None
+) -> Float[np.ndarray, "N K"]:
+    """Output rows of the default loop through the targets (module docstring), file
+    units."""
+    from .evaluation import targets  # local: only the default path needs it
+
+    frames = check_frames(frames)
+    check_design(mech, design)
+    goals = targets(mech)
+    scale = np.maximum(mech.output_max - mech.output_min, 1e-12)
+    rest = np.asarray(output_values(mech, rest_state(mech), design=design))
+    first = int(np.argmin(np.linalg.norm((goals - rest) / scale, axis=1)))
+    return resample_loop(goals[tour(goals / scale, first)], frames, scale)
+
+
+# ---------------------------------------------------------------------------------
+# Frames
+
+
+def traced_points(mech: Mechanism) -> np.ndarray:
+    """Indices of the traced points (module docstring)."""
+    used = [int(p) for p in mech.output_points if p >= 0]
+    if used:
+        return np.array(sorted(set(used)), dtype=int)
+    return np.arange(len(mech.point_names), dtype=int)
+
+
+def motion(
+    mech: Mechanism,
+    *,
+    design=None,
+    frames: int = DEFAULT_FRAMES,
+    motors=None,
+    outputs=None,
+) -> Motion:
+    """The frames of an animation: ``motors`` ``(T, M)`` or ``outputs`` ``(T, K)`` rows
+    (file units, one frame each), or by default the loop of :func:`default_path` in
+    ``frames`` frames. Every frame's solve, read-out and ``f_sing`` is one batched
+    call; unreached frames are flagged in ``Motion.reached``, not raised."""
+    check_design(mech, design)
+    kind, rows = _rows(mech, design, frames, motors, outputs)
+    solver = solve_fk_path if kind == "fk" else solve_bk_path
+    solution = solver(mech, rows, design=design)
+    default = motors is None and outputs is None
+    if default and not np.all(solution.converged):
+        rows = pulled_in(mech, rows, design)
+        solution = solver(mech, rows, design=design)
+    states = np.asarray(solution.state)
+    reached = np.asarray(solution.converged)
+    points = np.asarray(point_positions(mech, states, design=design))
+    return Motion(
+        kind=kind,
+        default=default,
+        path=rows,
+        states=states,
+        reached=reached,
+        progress=np.asarray(solution.progress),
+        motors=np.asarray(motor_values(mech, states, design=design)),
+        outputs=np.asarray(output_values(mech, states, design=design)),
+        joints=np.asarray(joint_positions(mech, states, design=design)),
+        points=points,
+        trace=points[:, traced_points(mech)],
+        trace_names=tuple(mech.point_names[k] for k in traced_points(mech)),
+        f_sing=np.asarray(f_sing(mech, states, design=design)),
+    )
+
+
+def pulled_in(
+    mech: Mechanism, rows: Float[np.ndarray, "N K"], design
+) -> Float[np.ndarray, "N K"]:
+    """``rows`` with each one out of the rest branch's reach moved towards the rest
+    outputs, to ``PULL_IN`` of the branch's reach along the line (module docstring)."""
+    rest = np.asarray(output_values(mech, rest_state(mech), design=design))
+    solution = solve_bk(mech, rows, design=design)
+    fraction = np.where(
+        solution.converged, 1.0, PULL_IN * np.asarray(solution.progress)
+    )
+    return rest + fraction[:, None] * (rows - rest)
+
+
+def _rows(mech: Mechanism, design, frames, motors, outputs):
+    """``(kind, rows)`` of the path (:func:`motion`)."""
+    if motors is not None and outputs is not None:
+        raise InputError("motion: give motors or outputs rows, not both")
+    for kind, given in (("fk", motors), ("bk", outputs)):
+        if given is not None:
+            check_values(mech, kind, given, path=True)
+            rows = np.asarray(given, dtype=np.float64)
+            check_frames(len(rows), f"{'motors' if kind == 'fk' else 'outputs'} rows")
+            return kind, rows
+    return "bk", default_path(mech, frames, design)
+
+
+def unreached_message(mech: Mechanism, item: Motion, what: str = "frame") -> str:
+    """One line naming the first unreached frame (1-based, as ``what`` ``k``), its
+    requested values and how far the continuation got from the frame before."""
+    k = item.first_unreached
+    names = mech.motor_names if item.kind == "fk" else mech.output_names
+    values = ", ".join(f"{n}={v:.6g}" for n, v in zip(names, item.path[k]))
+    origin = f"{what} {k}" if k > 0 else "the rest pose"
+    solve = "FK" if item.kind == "fk" else "BK"
+    return (
+        f"{what} {k + 1} ({values}) is not reached on the rest pose's assembly branch: "
+        f"the {solve} continuation stopped {100 * item.progress[k]:.0f} % of the way "
+        f"from {origin} (no assembly past it on this branch, or a singularity)"
+    )
+
+
+# ---------------------------------------------------------------------------------
+# Drawing
+
+
+def colour_norm(values: Float[np.ndarray, " T"], f_sing_range=None) -> LogNorm:
+    """The maps' log scale (:func:`linkopt._design.plots._colour_norm`) over
+    ``values``, or over ``f_sing_range`` ``(low, high)`` when given."""
+    if f_sing_range is not None:
+        low, high = (float(v) for v in f_sing_range)
+        return LogNorm(vmin=max(low, 1e-3), vmax=max(high, low * 1.01, 1e-3 * 1.01))
+    values = np.asarray(values)[np.isfinite(values)]
+    low = max(float(np.min(values)), 1e-3)
+    return LogNorm(vmin=low, vmax=max(float(np.percentile(values, 99)), low * 10))
+
+
+def plane_basis(mech: Mechanism, design=None) -> np.ndarray | None:
+    """``(2, 3)`` orthonormal in-plane axes of a planar mechanism (module docstring),
+    world axes where the plane is a coordinate plane; None for a spatial one."""
+    geom = geometry(mech, design_vector(mech, design))
+    anchors = np.asarray(geom.anchors) * mech.length_scale
+    centred = anchors - anchors.mean(axis=0)
+    _, sigma, vt = np.linalg.svd(centred, full_matrices=True)
+    axes = np.asarray(geom.axes)[[t in AXIAL_JOINTS for t in mech.joint_types]]
+    tol = PLANAR_TOLERANCE * mech.length_scale
+    if len(axes) and (len(sigma) < 2 or sigma[1] <= tol):
+        normal = axes[0]  # anchors on a line (or one point): the axes choose the plane
+    else:
+        normal = vt[2]
+    if np.max(np.abs(centred @ normal), initial=0.0) > tol:
+        return None
+    if len(axes) and np.max(np.linalg.norm(np.cross(axes, normal), axis=1)) > 1e-9:
+        return None
+    k = int(np.argmax(np.abs(normal)))
+    if abs(normal[k]) >= 1.0 - 1e-12:
+        return np.eye(3)[[i for i in range(3) if i != k]]
+    first = np.cross(normal, np.eye(3)[int(np.argmin(np.abs(normal)))])
+    first /= np.linalg.norm(first)
+    return np.stack([first, np.cross(normal, first)])
+
+
+def _members(mech: Mechanism, body: int) -> np.ndarray:
+    """Indices into ``[joints, points]`` of a body's joints and named points."""
+    joints = [k for k in range(len(mech.joint_names)) if body in mech.joint_bodies[k]]
+    points = [
+        len(mech.joint_names) + k
+        for k in range(len(mech.point_names))
+        if mech.point_bodies[k] == body
+    ]
+    return np.array(joints + points, dtype=int)
+
+
+def body_rings(mech: Mechanism, rest: Float[np.ndarray, "X 3"]) -> list[np.ndarray]:
+    """Per moving body, its members (:func:`_members`) as a closed ring, ordered by
+    angle about their centroid in their best-fit plane at ``rest``."""
+    rings = []
+    for body in range(mech.num_bodies):
+        members = _members(mech, body)
+        if body == mech.ground or len(members) < 2:
+            continue
+        coords = rest[members] - rest[members].mean(axis=0)
+        _, _, vt = np.linalg.svd(coords)
+        u, v = coords @ vt[0], coords @ vt[1] if len(vt) > 1 else 0.0 * coords[:, 0]
+        order = members[np.argsort(np.arctan2(v, u), kind="stable")]
+        rings.append(order if len(order) == 2 else np.append(order, order[0]))
+    return rings
+
+
+class _Scene(NamedTuple):
+    """The artists a frame updates (drawn over a background rendered once)."""
+
+    links: object  # LineCollection or Line3DCollection
+    joints: object
+    motors: object
+    traces: list
+    label: object
+
+    def artists(self) -> list:
+        return [self.links, *self.traces, self.joints, self.motors, self.label]
+
+
+def _project(xyz: np.ndarray, basis) -> np.ndarray:
+    return xyz if basis is None else xyz @ basis.T
+
+
+def _limits(ax, coords: np.ndarray, basis) -> None:
+    """Equal-aspect limits around every frame's coordinates, padded 8 %."""
+    low, high = coords.min(axis=0), coords.max(axis=0)
+    centre, half = (low + high) / 2, 0.54 * max(float(np.max(high - low)), 1e-9)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    if basis is None:
+        ax.set_zlim(centre[2] - half, centre[2] + half)
+        ax.set_box_aspect((1, 1, 1))
+    else:
+        ax.set_aspect("equal")
+
+
+def _world_axis(direction: np.ndarray) -> int | None:
+    """The world axis ``direction`` is, or None."""
+    k = int(np.argmax(np.abs(direction)))
+    return k if abs(direction[k]) == 1.0 else None
+
+
+def _axis_labels(ax, mech: Mechanism, basis) -> None:
+    unit = mech.raw.get("mechanism", {}).get("units", "")
+    unit = f" ({unit})" if isinstance(unit, str) and unit else ""
+    if basis is None:
+        ax.set_xlabel("x" + unit), ax.set_ylabel("y" + unit), ax.set_zlabel("z" + unit)
+        return
+    for set_label, direction, other in zip(
+        (ax.set_xlabel, ax.set_ylabel), basis, ("u", "v")
+    ):
+        k = _world_axis(direction)
+        set_label(("xyz"[k] if k is not None else f"{other} (in the plane)") + unit)
+
+
+def _target_box(ax, mech: Mechanism, basis) -> None:
+    """The target range, where the outputs are two position coordinates of the
+    drawing's plane (in its order)."""
+    if basis is None or set(mech.output_kinds) != {"position"} or mech.num_outputs != 2:
+        return
+    if [_world_axis(b) for b in basis] != [int(c) for c in mech.output_coords]:
+        return
+    lo, hi = mech.output_min, mech.output_max
+    ax.plot(
+        [lo[0], hi[0], hi[0], lo[0], lo[0]],
+        [lo[1], lo[1], hi[1], hi[1], lo[1]],
+        color=MAGENTA,
+        lw=1.0,
+        ls="--",
+        label="target range",
+    )
+
+
+def _empty_line(ax, basis, style: str, **kwargs):
+    empty = [[]] * (2 if basis is not None else 3)
+    return ax.plot(*empty, style, animated=True, **kwargs)[0]
+
+
+def _scene(ax, mech: Mechanism, item: Motion, basis) -> _Scene:
+    """The frame artists (animated, empty) and the static ones: the ground's joints
+    and the target box."""
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    ground = [k for k, (i, j) in enumerate(mech.joint_bodies) if mech.ground in (i, j)]
+    fixed = _project(item.joints[0, ground], basis)
+    ax.plot(*fixed.T, "^", color="0.45", ms=9, ls="none", label="ground joints")
+    _target_box(ax, mech, basis)
+    collection = LineCollection if basis is not None else Line3DCollection
+    links = collection([], linewidths=3, animated=True)
+    ax.add_collection(links)
+    traces = [
+        _empty_line(ax, basis, "-", color=MAGENTA, lw=1.5) for _ in item.trace_names
+    ]
+    if traces:
+        traces[0].set_label("path of " + ", ".join(item.trace_names))
+    return _Scene(
+        links=links,
+        joints=_empty_line(ax, basis, "o", ms=4, mfc="white", mec="k"),
+        motors=_empty_line(ax, basis, "s", ms=8, mfc="none", mec="k", mew=1.5),
+        traces=traces,
+        label=ax.figure.text(0.02, 0.02, "", fontsize=8, animated=True),
+    )
+
+
+def _set(line, coords: np.ndarray) -> None:
+    if coords.shape[-1] == 3:
+        line.set_data_3d(coords[:, 0], coords[:, 1], coords[:, 2])
+    else:
+        line.set_data(coords[:, 0], coords[:, 1])
+
+
+def _update(k: int, scene: _Scene, mech, item: Motion, rings, basis, norm) -> None:
+    """Move the frame artists to frame ``k``."""
+    every = _project(np.concatenate([item.joints[k], item.points[k]]), basis)
+    scene.links.set_segments(
+        [every[[r[i], r[i + 1]]] for r in rings for i in range(len(r) - 1)]
+    )
+    scene.links.set_color(plt.get_cmap("viridis")(norm(item.f_sing[k])))
+    _set(scene.joints, every[: len(mech.joint_names)])
+    _set(scene.motors, every[mech.motor_joints])
+    for q, line in enumerate(scene.traces):
+        _set(line, _project(item.trace[: k + 1, q], basis))
+    short = "" if item.reached[k] else "   (out of reach)"
+    scene.label.set_text(
+        f"frame {k + 1}/{len(item.states)}   f_sing = {item.f_sing[k]:.3g}{short}"
+    )
+
+
+def _figure(mech: Mechanism, item: Motion, basis, norm, title: str, dpi: int):
+    fig = plt.figure(figsize=(4.6, 4.0), dpi=dpi)
+    ax = fig.add_subplot(111, projection=None if basis is not None else "3d")
+    if basis is None:
+        ax.view_init(elev=25, azim=-60)
+    every = np.concatenate([item.joints, item.points], axis=1).reshape(-1, 3)
+    _limits(ax, _project(every, basis), basis)
+    _axis_labels(ax, mech, basis)
+    ax.tick_params(labelsize=7)
+    mappable = plt.cm.ScalarMappable(norm=norm, cmap="viridis")
+    bar = fig.colorbar(mappable, ax=ax, shrink=0.8, pad=0.12 if basis is None else 0.04)
+    bar.set_label("f_sing (brighter = closer to a singularity)", fontsize=7)
+    bar.ax.tick_params(labelsize=7)
+    fig.suptitle(title or mech.name, fontsize=9)
+    return fig, ax
+
+
+def _render(fig, scene: _Scene, update, frames: int) -> list:
+    """Each frame as a Pillow image: the static background is drawn once, the frame
+    artists over a copy of it (blitting)."""
+    from PIL import Image
+
+    canvas = fig.canvas
+    canvas.draw()
+    background = canvas.copy_from_bbox(fig.bbox)
+    images = []
+    for k in range(frames):
+        update(k)
+        canvas.restore_region(background)
+        for artist in scene.artists():
+            if hasattr(artist, "do_3d_projection"):
+                artist.do_3d_projection()
+            fig.draw_artist(artist)
+        rgba = np.asarray(canvas.buffer_rgba())
+        images.append(Image.fromarray(rgba[..., :3].copy()))
+    return images
+
+
+def draw(
+    mech: Mechanism,
+    item: Motion,
+    path: str | Path,
+    *,
+    design=None,
+    f_sing_range=None,
+    title: str = "",
+    dpi: int = 72,
+) -> Path:
+    """Write ``item``'s frames (all reached, unless it is the default loop) as a
+    looping GIF, ``FPS`` frames a second (matplotlib Agg frames, written by Pillow;
+    module docstring)."""
+    if item.first_unreached is not None and not item.default:
+        raise PathNotReached(unreached_message(mech, item), item.first_unreached + 1)
+    basis = plane_basis(mech, design)
+    norm = colour_norm(item.f_sing, f_sing_range)
+    rings = body_rings(mech, np.concatenate([item.joints[0], item.points[0]]))
+    fig, ax = _figure(mech, item, basis, norm, title, dpi)
+    scene = _scene(ax, mech, item, basis)
+    if basis is not None:
+        ax.legend(loc="best", fontsize=6, framealpha=0.6)
+    try:
+        images = _render(
+            fig,
+            scene,
+            lambda k: _update(k, scene, mech, item, rings, basis, norm),
+            len(item.states),
+        )
+    finally:
+        plt.close(fig)
+    path = Path(path)
+    images[0].save(
+        path,
+        format="GIF",
+        save_all=True,
+        append_images=images[1:],
+        duration=round(1000 / FPS),
+        loop=0,
+    )
+    return path
+
+
+def animate(
+    mech: Mechanism,
+    path: str | Path,
+    *,
+    design=None,
+    frames: int = DEFAULT_FRAMES,
+    motors=None,
+    outputs=None,
+    f_sing_range=None,
+    title: str = "",
+) -> Motion:
+    """A GIF at ``path`` of the mechanism along ``motors`` or ``outputs`` rows (one
+    frame each) or the default loop in ``frames`` frames (:func:`motion`); returns the
+    frames. For given rows, :class:`PathNotReached` naming the first unreached row
+    (1-based) when one is not on the rest pose's branch, and nothing is written; the
+    default loop is drawn also where it is out of reach (module docstring)."""
+    item = motion(mech, design=design, frames=frames, motors=motors, outputs=outputs)
+    draw(mech, item, path, design=design, f_sing_range=f_sing_range, title=title)
+    return item
+
+
+def write_run_motions(
+    initial: Mechanism, current: Mechanism, out: Path, design, frames=DEFAULT_FRAMES
+) -> list[str]:
+    """``motion_initial.gif`` (``initial``, its file's design) and
+    ``motion_optimized.gif`` (``current`` at ``design``) in ``out``, each along its
+    own default loop, on one colour scale; returns the names written."""
+    items = {
+        "motion_initial.gif": (initial, None, "initial design"),
+        "motion_optimized.gif": (current, design, "optimised design"),
+    }
+    motions = {
+        name: motion(m, design=d, frames=frames) for name, (m, d, _) in items.items()
+    }
+    norm = colour_norm(np.concatenate([m.f_sing for m in motions.values()]))
+    for name, (m, d, label) in items.items():
+        draw(
+            m,
+            motions[name],
+            out / name,
+            design=d,
+            f_sing_range=(norm.vmin, norm.vmax),
+            title=f"{m.name}, {label}",
+        )
+    return list(items)
