@@ -39,8 +39,14 @@ _EXPORTS = {
     "motor_values": ("_engine.readout", "motor_values"),
     "output_values": ("_engine.readout", "output_values"),
     "point_positions": ("_engine.readout", "point_positions"),
+    "named_points": ("_engine.readout", "named_points"),
+    "reported_values": ("_engine.readout", "reported_values"),
     "optimize": ("_design.run", "optimize"),
     "write_outputs": ("_design.run", "write_outputs"),
+    "animate": ("_design.animation", "animate"),
+    "motion": ("_design.animation", "motion"),
+    "Motion": ("_design.animation", "Motion"),
+    "PathNotReached": ("_design.animation", "PathNotReached"),
     "f_sing": ("_engine.singularity", "f_sing"),
     "singular_values": ("_engine.singularity", "singular_values"),
     "Verification": ("_design.verify", "Verification"),
@@ -75,6 +81,10 @@ _EXPORTS = {
     "PlanarArm": ("_arms.trace.verify", "PlanarArm"),
     "TraceVerification": ("_arms.trace.verify", "TraceVerification"),
     "verify_trace": ("_arms.trace.verify", "verify"),
+    "export_mjcf": ("_export.mjcf", "export_mjcf"),
+    "export_urdf": ("_export.urdf", "export_urdf"),
+    "export_stl": ("_export.meshes", "export_stl"),
+    "export_glb": ("_export.meshes", "export_glb"),
 }
 
 
@@ -143,6 +153,7 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     )
     from ._arms.trace.verify import PlanarArm, TraceVerification
     from ._arms.trace.verify import verify as verify_trace
+    from ._design.animation import Motion, PathNotReached, animate, motion
     from ._design.evaluation import Evaluation, evaluate
     from ._design.optimizer import OptimizerSettings
     from ._design.partial import partial_gradient
@@ -165,12 +176,17 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._engine.readout import (
         joint_positions,
         motor_values,
+        named_points,
         output_values,
         point_positions,
+        reported_values,
     )
     from ._engine.singularity import f_sing, singular_values
     from ._engine.statics import static_torques
     from ._engine.writer import write_design
     from ._errors import InputError, LinkoptError, MechanismFileError
+    from ._export.meshes import export_glb, export_stl
+    from ._export.mjcf import export_mjcf
+    from ._export.urdf import export_urdf
 
 __all__ = sorted(_EXPORTS)

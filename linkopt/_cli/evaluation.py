@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 
-from .._design.evaluation import alpha_minus, evaluate
+from .._design.evaluation import alpha_minus, evaluate, rest_conditioning
 from .._design.maps import MAX_CELLS, check_count, check_plot_resolution
 from .._engine.loader import load
 from .._engine.readout import output_values
@@ -69,6 +70,7 @@ def evaluation_payload(mech, ev) -> dict:
         "singularity": float(ev.singularity),
         "regularizer": float(ev.regularizer),
         "alpha_minus": alpha_minus(mech),
+        "rest_pose": rest_conditioning(mech).as_json(),
         "capped_samples": dict(zip(("ik", "adversarial"), capped(mech, ev))),
         "samples": samples,
     }
@@ -85,6 +87,18 @@ def run_evaluate(args) -> int:
         f"{mech.name}: f_design = {payload['f_design']:.4g} (reach "
         f"{payload['reach']:.4g}, singularity {payload['singularity']:.4g}); "
         f"regulariser {payload['regularizer']:.4g}; α₋ = {payload['alpha_minus']:.4g}"
+    )
+    rest = payload["rest_pose"]
+    source = (
+        "set in the file"
+        if mech.evaluation.alpha_minus is not None
+        else (f"{mech.evaluation.alpha_factor:g} x the rest pose's f_sing")
+    )
+    print(
+        f"  α₋ {source}; initial design's rest pose: σ_min FK "
+        f"{rest['sigma_min_fk']:.4g}, BK {rest['sigma_min_bk']:.4g} (homogenised), "
+        f"f_sing {rest['f_sing']:.4g}; ∂b/∂a σ_min {rest['jacobian_sigma_min']:.4g}, "
+        f"σ_max {rest['jacobian_sigma_max']:.4g} (file units)"
     )
     print(
         f"  {'target':<22} {'IK reached':<22} {'f_BK':>9} {'f_sing IK':>10} "
@@ -115,14 +129,15 @@ def run_plot(args) -> int:
 
     mech = load(args.file)
     design = design_arg(mech, args.design)
-    if args.resolution < 8:
+    if args.resolution is not None and args.resolution < 8:
         raise InputError(
             f"--resolution: expected at least 8 cells per axis, got {args.resolution}"
         )
     max_cells = check_count(args.max_cells, "--max-cells", 1)
     spaces = mech.num_motors == mech.num_outputs and mech.num_motors in (2, 3)
+    resolution = args.resolution
     if spaces:  # the maps' cost, before any solve
-        check_plot_resolution(
+        resolution = check_plot_resolution(
             mech,
             args.resolution,
             where="--resolution",
@@ -133,9 +148,7 @@ def run_plot(args) -> int:
     out = output_folder(args.out, "--out")  # before any solve: a bad --out is exit 2
     stem = Path(args.file).stem
     if spaces:
-        _plot_spaces(
-            mech, design, args.resolution, max_cells, out / f"{stem}_{label}.png"
-        )
+        _plot_spaces(mech, design, resolution, max_cells, out / f"{stem}_{label}.png")
     else:
         print(
             f"{args.file}: space plots need 2 or 3 motors and outputs, the file has "
@@ -174,9 +187,46 @@ def _plot_spaces(mech, design, resolution: int, max_cells: int, path: Path) -> N
     )
     print(
         plot_spaces(
-            mech, ev, path, resolution=resolution, design=design, max_cells=max_cells
+            mech,
+            ev,
+            path,
+            resolution=resolution,
+            design=design,
+            max_cells=max_cells,
+            progress=map_progress(),
         )
     )
+
+
+#: Seconds between two progress lines of the same map (the first wave of each map
+#: is always reported).
+PROGRESS_INTERVAL = 3.0
+
+
+def map_progress(interval: float = PROGRESS_INTERVAL):
+    """A ``progress`` callback for the maps (:mod:`linkopt._design.maps`): one stderr
+    line when a map starts and then at most every ``interval`` seconds, with the
+    elapsed time."""
+    began = time.perf_counter()
+    last = {"stage": None, "at": -float("inf")}
+
+    def report(record: dict) -> None:
+        now = time.perf_counter()
+        if "cells" not in record:  # a stage of its own
+            print(f"  {record['stage']} ...", file=sys.stderr, flush=True)
+            return
+        done = record["cells"] >= record["of"]
+        if record["stage"] == last["stage"] and now - last["at"] < interval:
+            return
+        last.update(stage=record["stage"], at=now)
+        print(
+            f"  {record['stage']}: {record['cells']}/{record['of']} cells visited"
+            f"{' (done)' if done else ''}, {now - began:.0f} s",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    return report
 
 
 def verification_payload(mech, result) -> dict:
@@ -278,7 +328,12 @@ def _register_plot(subparsers) -> None:
     plot.add_argument("--design", help="as for evaluate")
     plot.add_argument("--out", required=True, help="output directory")
     plot.add_argument(
-        "--resolution", type=int, default=60, help="grid cells per axis (default 60)"
+        "--resolution",
+        type=int,
+        help=(
+            "grid cells per axis of each map (default 60 for two outputs, 40 for the "
+            "2-D sections of three)"
+        ),
     )
     plot.add_argument(
         "--label", help="file-name label (default 'initial', or 'design' with --design)"

@@ -18,8 +18,11 @@ import os
 import sys
 
 from .._errors import LinkoptError
+from . import animate as animate_commands
 from . import arm as arm_commands
+from . import assemble as assemble_commands
 from . import evaluation as evaluation_commands
+from . import export as export_commands
 from . import manipulability as manipulability_commands
 from . import mechanism as mechanism_commands
 from . import optimize as optimize_commands
@@ -55,7 +58,14 @@ def _parser() -> argparse.ArgumentParser:
         help="show the Python traceback of an internal error",
     )
     sub = parser.add_subparsers(dest="command", required=True)
-    for family in (mechanism_commands, evaluation_commands, optimize_commands):
+    for family in (
+        mechanism_commands,
+        assemble_commands,
+        evaluation_commands,
+        optimize_commands,
+        export_commands,
+        animate_commands,
+    ):
         family.register(sub)
     _add_arm_commands(sub)
     return parser

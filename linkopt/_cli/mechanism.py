@@ -11,6 +11,7 @@ import sys
 
 import numpy as np
 
+from .._design.evaluation import near_singular_message, rest_conditioning
 from .._design.maps import check_count
 from .._engine.kinematics import (
     MAX_VALUE,
@@ -31,14 +32,61 @@ def _print_table(title: str, items: dict) -> None:
 
 
 def run_check(args) -> int:
+    """Exit 0 for a valid file, warnings included: a rest pose near a singularity is
+    a valid mechanism (the file may set ``alpha_minus``), so it is said, not
+    refused."""
     mech = load(args.file)
     info = payloads.summary(mech)
+    info["rest_pose"], warnings = _rest_pose(mech)
+    info["warnings"] = warnings
     if args.json:
         print(json.dumps(info, indent=2))
         return 0
-    print(f"{info['name']} ({info['file']}): OK")
+    count = f" with {len(warnings)} warning(s)" if warnings else ""
+    print(f"{info['name']} ({info['file']}): OK{count}")
     _print_summary(info)
+    if info["idle_spins"]:
+        print(
+            f"{len(info['idle_spins'])} idle spin(s): {', '.join(info['idle_spins'])} "
+            "spin about their own axis; fixed by a gauge constraint"
+        )
+    _print_rest_pose(info["rest_pose"])
+    for line in warnings:
+        print(f"linkopt: warning: {line}", file=sys.stderr)
     return 0
+
+
+def _rest_pose(mech) -> tuple[dict, list[str]]:
+    """The rest pose's conditioning (homogenised σ_min and f_sing, and the singular
+    values of the textbook Jacobian ∂b/∂a in file units) and the warnings about it."""
+    rest = rest_conditioning(mech)
+    info = rest.as_json()
+    warnings = []
+    if rest.near_singular:
+        fixed = mech.evaluation.alpha_minus is not None
+        warnings.append(
+            near_singular_message(mech, rest).split(", so ")[0]
+            + (
+                f"; alpha_minus = {mech.evaluation.alpha_minus:g} is set, f_sing "
+                "along the target range is judged by it"
+                if fixed
+                else "; evaluate, verify and optimize refuse to derive α₋ from it: "
+                "set [evaluation] alpha_minus"
+            )
+        )
+    return info, warnings
+
+
+def _print_rest_pose(rest: dict) -> None:
+    _print_table(
+        "rest pose",
+        {
+            "σ_min FK, BK": f"{rest['sigma_min_fk']:.4g}, {rest['sigma_min_bk']:.4g} "
+            f"(homogenised; f_sing {rest['f_sing']:.4g})",
+            "∂b/∂a σ min, max": f"{rest['jacobian_sigma_min']:.4g}, "
+            f"{rest['jacobian_sigma_max']:.4g} (file units)",
+        },
+    )
 
 
 def _print_summary(info: dict) -> None:
@@ -62,6 +110,10 @@ def _print_summary(info: dict) -> None:
             for k, v in info["outputs"].items()
         },
     )
+    if info["reported"]:
+        _print_table(
+            "reported outputs", {k: v["kind"] for k, v in info["reported"].items()}
+        )
     _print_table(
         "parameters",
         {
@@ -125,6 +177,11 @@ def _print_records(records: list[dict], kind: str, is_path: bool) -> None:
         print(
             "  outputs " + ", ".join(f"{n}={v:.6g}" for n, v in rec["outputs"].items())
         )
+        if rec["reported"]:
+            print(
+                "  reported "
+                + ", ".join(f"{n}={v:.6g}" for n, v in rec["reported"].items())
+            )
         if not is_path:
             for n, p in {**rec["joints"], **rec["points"]}.items():
                 print(f"  {n:<16} ({p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g})")

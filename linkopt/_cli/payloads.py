@@ -13,6 +13,7 @@ from .._engine.readout import (
     motor_values,
     output_values,
     point_positions,
+    reported_values,
 )
 from .._engine.singularity import singular_values
 
@@ -37,6 +38,7 @@ def summary(mech: Mechanism) -> dict:
             "passive": rows["passive"],
         },
         "mobility": mobility(mech),
+        "idle_spins": [mech.body_names[b] for b in mech.idle_bodies],
         "motors": {
             n: {"joint": mech.joint_names[j], "kind": "linear" if lin else "revolute"}
             for n, j, lin in zip(mech.motor_names, mech.motor_joints, mech.motor_linear)
@@ -46,6 +48,10 @@ def summary(mech: Mechanism) -> dict:
             for n, k, lo, hi in zip(
                 mech.output_names, mech.output_kinds, mech.output_min, mech.output_max
             )
+        },
+        "reported": {
+            n: {"kind": k}
+            for n, k in zip(mech.reported_table.names, mech.reported_table.kinds)
         },
         "design_parameters": mech.design.size,
         "parameters": {
@@ -82,6 +88,12 @@ def configuration(
             zip(
                 mech.output_names,
                 map(float, np.asarray(output_values(mech, state, design=design))),
+            )
+        ),
+        "reported": dict(
+            zip(
+                mech.reported_table.names,
+                map(float, np.asarray(reported_values(mech, state, design=design))),
             )
         ),
         "joints": _named(mech.joint_names, joint_positions(mech, state, design=design)),

@@ -12,7 +12,11 @@ A wave is padded to ``chunk · 2^k`` cells, the fewest that hold it, so few batc
 are compiled and a wave of more than ``chunk`` cells never costs twice its size. The
 plots' maps use ``chunk`` = the grid side: a 2-D wave holds at most about twice that
 many cells, where waves padded to multiples of four grid sides made the plots slower
-for the same pixels.
+for the same pixels. Three motors and outputs are drawn as 2-D sections, each solved in
+its own plane from seeds on a coarse 3-D grid (:func:`sections`), not as one fine 3-D
+grid; the plots' default resolution depends on the number of outputs
+(:data:`PLOT_RESOLUTION`). A ``progress`` callback gets each wave's count of visited
+cells (library code never prints; the CLI does).
 
 Budget: a grid's cost grows as its side to the power of its dimension, so callers check
 it before anything is allocated (:func:`grid_cost`, :func:`check_budget`;
@@ -24,6 +28,7 @@ it before anything is allocated (:func:`grid_cost`, :func:`check_budget`;
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from numbers import Integral
 from typing import NamedTuple
 
@@ -129,6 +134,38 @@ def check_budget(
 #: that axis (the steps, three cuts and the start value).
 SECTION_DEPTH = 9
 SECTION_CELLS = SECTION_DEPTH + 4
+#: In-plane values per axis of the coarse grid that seeds the sections (the start
+#: value adds one).
+SECTION_SEED = 9
+#: Default cells per axis of the plots' maps, by the number of motors and outputs: a
+#: three-output figure has six small panels (three rows of sections), so 40² cells each
+#: (3 · 40² = 4800 a space, with the coarse seed grid 5300) draw as finely as the
+#: two-output figure's two 60² maps (3600 each).
+PLOT_RESOLUTION = {2: 60, 3: 40}
+
+
+def plot_resolution(mech: Mechanism, resolution=None) -> int:
+    """``resolution``, or the default for the mechanism's number of outputs
+    (:data:`PLOT_RESOLUTION`; 60 for any other count)."""
+    if resolution is None:
+        return PLOT_RESOLUTION.get(mech.num_outputs, 60)
+    return resolution
+
+
+def plot_cost(mech: Mechanism, resolution: int) -> GridCost:
+    """The cost of the plots' maps: two ``resolution²`` grids for two motors and
+    outputs; for three, per space a coarse seed grid and three ``resolution²``
+    sections (:func:`sections`). ``cells`` is the largest grid's."""
+    if mech.num_motors != 3:
+        return grid_cost(mech, (resolution, resolution), resolution, resolution**2, 2)
+    seed = (SECTION_SEED + 1, SECTION_SEED + 1, SECTION_CELLS)
+    plane = grid_cost(mech, (resolution, resolution), resolution, resolution**2, 6)
+    coarse = grid_cost(mech, seed, SECTION_SEED + 1, 0, 2)
+    return GridCost(
+        max(plane.cells, coarse.cells),
+        max(plane.bytes, coarse.bytes),
+        plane.seconds + coarse.seconds,
+    )
 
 
 def check_plot_resolution(
@@ -141,16 +178,12 @@ def check_plot_resolution(
     raise_with: str = "max_cells",
 ) -> int:
     """The plots' maps (:func:`linkopt._design.plots.plot_spaces`) at ``resolution``
-    cells per axis: :class:`InputError` before any work when it is not a whole number
-    ≥ 2 or the largest grid is over budget (:func:`check_budget`); two motors and
-    outputs solve two ``resolution²`` grids, three two ``resolution² × 13`` grids."""
-    resolution = check_count(resolution, where, 2)
-    shape = (resolution, resolution)
-    if mech.num_motors == 3:
-        shape += (SECTION_CELLS,)
-    cost = grid_cost(mech, shape, resolution, resolution**2, grids=2)
+    cells per axis (``None``: :func:`plot_resolution`'s default): :class:`InputError`
+    before any work when it is not a whole number ≥ 2 or a grid is over budget
+    (:func:`check_budget`, :func:`plot_cost`)."""
+    resolution = check_count(plot_resolution(mech, resolution), where, 2)
     check_budget(
-        cost,
+        plot_cost(mech, resolution),
         f"{where}: {resolution} cells per axis",
         max_cells=max_cells,
         max_bytes=max_bytes,
@@ -183,20 +216,30 @@ def _neighbours(cell: tuple[int, ...], shape: tuple[int, ...]):
 def continuation_grid(
     solve,
     values: np.ndarray,
-    start_cell: tuple[int, ...],
-    start_state: np.ndarray,
+    start_cell: tuple[int, ...] | None,
+    start_state: np.ndarray | None,
     chunk: int,
+    *,
+    seeds: dict | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ):
     """Breadth-first continuation over a grid of input values ``grid_shape + (D,)``.
 
     ``solve(inputs (n, D), starts (n, S))`` is a batched solver; returns the states and
-    a feasibility mask over the grid.
+    a feasibility mask over the grid. The first wave solves ``start_cell`` from
+    ``start_state`` and each of ``seeds`` (``{cell: state}``, more starts, e.g. from a
+    coarser grid: :func:`sections`) from its state. ``progress(visited, cells)`` is
+    called after each wave.
     """
     shape = values.shape[:-1]
-    states = np.zeros(shape + start_state.shape)
+    parent_state = dict(seeds or {})
+    if start_cell is not None:
+        parent_state[tuple(start_cell)] = np.asarray(start_state)
+    size_s = next(iter(parent_state.values())).shape
+    states = np.zeros(shape + size_s)
     status = np.zeros(shape, dtype=int)  # 0 unvisited, 1 solved, -1 failed
-    parent_state = {start_cell: start_state}
-    frontier = [start_cell]
+    frontier = list(parent_state)
+    total = math.prod(shape)
     while frontier:
         cells = np.array(frontier)
         index = tuple(cells.T)
@@ -222,6 +265,8 @@ def continuation_grid(
                 if status[n] == 0 and n not in parent_state:
                     parent_state[n] = new_states[k]
                     frontier.append(n)
+        if progress is not None:
+            progress(int(np.count_nonzero(status)), total)
     return states, status == 1
 
 
@@ -249,6 +294,13 @@ def _finish(mech, axes, states, feasible, design) -> Map2D:
     )
 
 
+def _merged(low: float, high: float, steps: int, extra) -> np.ndarray:
+    """``steps`` even values over ``[low, high]`` merged with the ``extra`` values."""
+    return np.unique(
+        np.concatenate([np.linspace(low, high, steps), np.asarray(extra, float)])
+    )
+
+
 def sections(
     mech: Mechanism,
     kind: str,
@@ -261,41 +313,100 @@ def sections(
     start_values,
     design=None,
     depth: int = SECTION_DEPTH,
+    progress: Callable[[dict], None] | None = None,
 ) -> list[Map2D]:
     """2-D sections of a 3-D motor (``kind="fk"``) or output (``"bk"``) space at the
     given values ``cuts`` of the third variable.
 
-    One 3-D continuation grid is solved (``resolution² × n3`` cells, the third axis
-    ``depth`` even steps over ``[low[2], high[2]]`` merged with the cuts and the start
-    value), so every section shows the start state's assembly branch, reached through
-    the third dimension, and not a branch found by a fresh solve at the cut.
+    Each section is a ``resolution²`` continuation in its own plane, seeded from every
+    reached cell of that plane in one coarse 3-D continuation grid
+    (``SECTION_SEED²`` in-plane values and ``depth`` on the third axis, each merged with
+    the start value, the third also with the cuts): a section shows the start state's
+    assembly branch, reached through the third dimension, and not a branch found by a
+    fresh solve at the cut. Where the fine grid of ``resolution² × depth`` cells that
+    this replaces was mostly never drawn, this solves ``3 resolution²`` cells plus the
+    coarse ``SECTION_SEED² · depth`` (``benchmarks/bench_outputs.py``). What may differ:
+    a part of a section that the branch reaches through the third dimension only
+    between two coarse cells is not drawn (our choice, for the time).
+    ``progress`` gets ``{"stage", "cells", "of"}`` after each wave.
     """
     if len(low) != 3 or len(high) != 3 or len(start_values) != 3:
         raise InputError(
             "sections: low, high and start_values need three values each (three "
             f"motors or outputs), got {len(low)}, {len(high)} and {len(start_values)}"
         )
-    third = np.unique(
-        np.concatenate(
-            [
-                np.linspace(low[2], high[2], depth),
-                np.asarray(cuts, float),
-                [start_values[2]],
-            ]
-        )
+    resolution = check_count(resolution, "resolution", 2)
+    coarse = [
+        _merged(low[i], high[i], SECTION_SEED, [start_values[i]]) for i in range(2)
+    ]
+    coarse.append(_merged(low[2], high[2], depth, [*cuts, start_values[2]]))
+    report = _stage(progress, f"{kind.upper()} sections: coarse 3-D grid")
+    coarse_states, coarse_ok = _solve_from(
+        mech, kind, coarse, start_values, start_state, design, report, resolution
     )
-    axes = _axes(low[:2], high[:2], resolution) + [third]
-    states, feasible = _solve_from(mech, kind, axes, start_values, start_state, design)
+    fine = _axes(low[:2], high[:2], resolution)
     out = []
-    for cut in cuts:
-        k = int(np.argmin(np.abs(third - cut)))
-        out.append(_finish(mech, axes, states[:, :, k], feasible[:, :, k], design))
+    for number, cut in enumerate(cuts):
+        k = int(np.argmin(np.abs(coarse[2] - cut)))
+        seeds = _seeds(coarse, fine, coarse_states[:, :, k], coarse_ok[:, :, k])
+        report = _stage(progress, f"{kind.upper()} section {number + 1} of {len(cuts)}")
+        states, feasible = _plane(mech, kind, fine, coarse[2][k], seeds, design, report)
+        out.append(_finish(mech, fine, states, feasible, design))
     return out
 
 
-def _solve_from(mech: Mechanism, kind: str, axes, start_values, start_state, design):
+def _stage(progress, stage: str):
+    """``progress`` as a ``(visited, cells)`` callback of :func:`continuation_grid`."""
+    if progress is None:
+        return None
+    return lambda done, total: progress({"stage": stage, "cells": done, "of": total})
+
+
+def _seeds(coarse, fine, states: np.ndarray, ok: np.ndarray) -> dict:
+    """The reached cells of one coarse plane as seeds of the fine plane: each at the
+    fine cell nearest to it (the coarse in-plane values lie inside the fine axes)."""
+    nearest = [
+        np.argmin(np.abs(f[:, None] - c[None, :]), axis=0)
+        for c, f in zip(coarse[:2], fine)
+    ]
+    return {
+        (int(nearest[0][a]), int(nearest[1][b])): states[a, b]
+        for a, b in zip(*np.nonzero(ok))
+    }
+
+
+def _plane(mech: Mechanism, kind: str, fine, third: float, seeds, design, report):
+    """Continuation over the ``fine`` plane at ``third`` from ``seeds`` (none: all
+    infeasible)."""
+    n0, n1 = len(fine[0]), len(fine[1])
+    if not seeds:
+        return np.full((n0, n1, mech.state_size), np.nan), np.zeros((n0, n1), bool)
+    grid = np.meshgrid(*fine, indexing="ij")
+    values = np.stack([*grid, np.full_like(grid[0], third)], axis=-1)
+    solver = solve_fk if kind == "fk" else solve_bk
+
+    def solve(v, s):
+        return solver(mech, v, start=s, design=design)
+
+    return continuation_grid(
+        solve, values, None, None, chunk=n0, seeds=seeds, progress=report
+    )
+
+
+def _solve_from(
+    mech: Mechanism,
+    kind: str,
+    axes,
+    start_values,
+    start_state,
+    design,
+    progress=None,
+    chunk: int | None = None,
+):
     """Continuation over the grid spanned by ``axes``, from the cell nearest
-    ``start_values``."""
+    ``start_values``, its waves padded to ``chunk`` · 2^k cells (default: the first
+    axis's length; :func:`sections` pads its coarse grid as its planes, so that both
+    share the compiled batch shapes)."""
     values = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
     cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_values))
     solver = solve_fk if kind == "fk" else solve_bk
@@ -304,7 +415,12 @@ def _solve_from(mech: Mechanism, kind: str, axes, start_values, start_state, des
         return solver(mech, v, start=s, design=design)
 
     return continuation_grid(
-        solve, values, cell, np.asarray(start_state), chunk=len(axes[0])
+        solve,
+        values,
+        cell,
+        np.asarray(start_state),
+        chunk=chunk or len(axes[0]),
+        progress=progress,
     )
 
 
@@ -317,11 +433,15 @@ def motor_map(
     start_state,
     start_motors,
     design=None,
+    progress: Callable[[dict], None] | None = None,
 ) -> Map2D:
     """FK over a motor-space box ``[low, high]`` (2 motors), from a solved start
     state."""
     axes = _axes(low, high, resolution)
-    states, feasible = _solve_from(mech, "fk", axes, start_motors, start_state, design)
+    report = _stage(progress, "motor space")
+    states, feasible = _solve_from(
+        mech, "fk", axes, start_motors, start_state, design, report
+    )
     return _finish(mech, axes, states, feasible, design)
 
 
@@ -334,9 +454,13 @@ def output_map(
     start_state,
     start_outputs,
     design=None,
+    progress: Callable[[dict], None] | None = None,
 ) -> Map2D:
     """BK over an end-effector-space box ``[low, high]`` (2 outputs), from a solved
     start state."""
     axes = _axes(low, high, resolution)
-    states, feasible = _solve_from(mech, "bk", axes, start_outputs, start_state, design)
+    report = _stage(progress, "output space")
+    states, feasible = _solve_from(
+        mech, "bk", axes, start_outputs, start_state, design, report
+    )
     return _finish(mech, axes, states, feasible, design)

@@ -242,24 +242,61 @@ def _update_result(
     return dataclasses.replace(run, stalled=0 if improved else run.stalled + 1)
 
 
-def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray) -> SwarmRun:
-    """``run`` with the iteration's history row appended (the run loop adds
-    ``wall_time``)."""
-    best = int(np.argmin(costs))
-    record = {
-        "iteration": run.iteration,
+#: The history columns that describe the running best design (:func:`_record`).
+RUNNING_PARTS = ("best_f_design", "regularizer", "reach", "singularity")
+
+
+def _iteration_best(costs: np.ndarray) -> int:
+    """The particle with the lowest total, NaN (a failed evaluation) counting as
+    worst."""
+    return int(np.argmin(np.where(np.isnan(costs), np.inf, costs)))
+
+
+def _running_best(run: SwarmRun, ev: Evaluation, costs: np.ndarray) -> dict:
+    """``best_total`` and its parts for the history: the lowest total evaluated so far
+    in this round of the run, so that the column never rises within a round.
+
+    A verification round adds IK targets, which changes every cost (:func:`reopen`
+    forgets the bests for the same reason), so the running best restarts with the
+    round: the record's ``round`` says which round it belongs to. Before this,
+    ``best_total`` was the iteration's best particle and could rise."""
+    best = _iteration_best(costs)
+    current = {
         "best_total": float(costs[best]),
         "best_f_design": float(ev.f_design[best]),
         "regularizer": float(ev.regularizer[best]),
         "reach": float(ev.reach[best]),
         "singularity": float(ev.singularity[best]),
+    }
+    previous = run.history[-1] if run.history else None
+    if previous is None or previous.get("round", 0) != len(run.rounds):
+        return current
+    if not previous["best_total"] <= current["best_total"]:  # NaN-safe: NaN loses
+        return current
+    return {k: previous[k] for k in ("best_total", *RUNNING_PARTS)}
+
+
+def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray) -> SwarmRun:
+    """``run`` with the iteration's history row appended (the run loop adds
+    ``wall_time``): the running best (:func:`_running_best`) and, as
+    ``iteration_total`` and ``iteration_f_design``, this iteration's best particle."""
+    best = _iteration_best(costs)
+    record = {
+        "iteration": run.iteration,
+        **_running_best(run, ev, costs),
+        "iteration_total": float(costs[best]),
+        "iteration_f_design": float(ev.f_design[best]),
+        "round": len(run.rounds),
         "swarm_best_total": run.best_cost,
         "evaluations": (run.iteration + 1) * len(costs),
         "limit": run.limit,
     }
     record["best_design"] = [float(v) for v in run.result_pos]
     record["best_f_design_overall"] = float(
-        min(h["best_f_design"] for h in (*run.history, record))
+        min(
+            h.get("iteration_f_design", h["best_f_design"])
+            for h in (*run.history, record)
+        )
     )
     return dataclasses.replace(run, history=(*run.history, record))
 

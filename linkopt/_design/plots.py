@@ -10,7 +10,7 @@ adversarial samples.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -77,7 +77,7 @@ def _windows(mech: Mechanism, evaluation: Evaluation, rest, design):
 
 
 def space_maps(
-    mech: Mechanism, evaluation: Evaluation, resolution: int, design=None
+    mech: Mechanism, evaluation: Evaluation, resolution: int, design=None, progress=None
 ) -> tuple[Map2D, Map2D]:
     """Continuation maps around the target range and the samples (two motors, two
     outputs)."""
@@ -94,6 +94,7 @@ def space_maps(
         start_state=rest,
         start_motors=np.zeros(2),
         design=design,
+        progress=progress,
     )
     outputs = output_map(
         mech,
@@ -103,6 +104,7 @@ def space_maps(
         start_state=rest,
         start_outputs=rest_out,
         design=design,
+        progress=progress,
     )
     return motors, outputs
 
@@ -133,7 +135,9 @@ def _inside(mech: Mechanism, outputs: np.ndarray) -> np.ndarray:
     return np.where(np.isnan(outputs[..., 0]), 0.0, inside.astype(float))
 
 
-def section_maps(mech: Mechanism, evaluation: Evaluation, resolution: int, design=None):
+def section_maps(
+    mech: Mechanism, evaluation: Evaluation, resolution: int, design=None, progress=None
+):
     """Three motors and three outputs: 2-D sections of both spaces at three values of
     the third variable (output: the range's ends and middle; motor: the smallest, median
     and largest third motor value of the IK samples). Returns
@@ -160,6 +164,7 @@ def section_maps(mech: Mechanism, evaluation: Evaluation, resolution: int, desig
         start_state=rest,
         start_values=np.zeros(3),
         design=design,
+        progress=progress,
     )
     outputs = sections(
         mech,
@@ -171,6 +176,7 @@ def section_maps(mech: Mechanism, evaluation: Evaluation, resolution: int, desig
         start_state=rest,
         start_values=rest_out,
         design=design,
+        progress=progress,
     )
     return list(zip(motors, outputs, a_cuts, b_cuts))
 
@@ -212,11 +218,16 @@ def _samples(mech: Mechanism, evaluation: Evaluation, design) -> _Samples:
 
 
 def _section_rows(
-    mech: Mechanism, evaluation: Evaluation, resolution: int, design, samples: _Samples
+    mech: Mechanism,
+    evaluation: Evaluation,
+    resolution: int,
+    design,
+    samples: _Samples,
+    progress=None,
 ) -> list[_Row]:
     """Three motors and outputs: one row per section, with the samples whose third
     output is nearest to it."""
-    cuts = section_maps(mech, evaluation, resolution, design)
+    cuts = section_maps(mech, evaluation, resolution, design, progress)
     b_cuts = [c[3] for c in cuts]
     return [
         _Row(
@@ -232,18 +243,23 @@ def _section_rows(
 
 
 def _rows(
-    mech: Mechanism, evaluation: Evaluation, resolution: int, design, samples: _Samples
+    mech: Mechanism,
+    evaluation: Evaluation,
+    resolution: int,
+    design,
+    samples: _Samples,
+    progress=None,
 ) -> list[_Row]:
     """The figure's rows: one for two motors and outputs, one per section for
     three."""
     if mech.num_motors == 2 and mech.num_outputs == 2:
-        motors, outputs = space_maps(mech, evaluation, resolution, design)
+        motors, outputs = space_maps(mech, evaluation, resolution, design, progress)
         every_ik = np.ones(len(samples.ik_a), bool)
         return [
             _Row(motors, outputs, "", "", every_ik, np.ones(len(samples.adv_a), bool))
         ]
     _check_spaces(mech, (3,), "space plots")
-    return _section_rows(mech, evaluation, resolution, design, samples)
+    return _section_rows(mech, evaluation, resolution, design, samples, progress)
 
 
 def _check_spaces(mech: Mechanism, counts: tuple[int, ...], what: str) -> None:
@@ -348,24 +364,29 @@ def plot_spaces(
     evaluation: Evaluation,
     path: str | Path,
     *,
-    resolution: int = 60,
+    resolution: int | None = None,
     design=None,
     title: str = "",
     max_cells: int = MAX_CELLS,
     max_bytes: int = MAX_BYTES,
+    progress: Callable[[dict], None] | None = None,
 ) -> Path:
     """Motor space (left) and end-effector space (right), as the paper's Fig. 2/4/6; for
     three motors and outputs, one row per 2-D section (:func:`section_maps`), each
     showing the samples whose third coordinate is nearest to that section.
 
     The mechanism, ``resolution`` (a whole number ≥ 2, within the limits of
-    :func:`linkopt._design.maps.check_plot_resolution`) and ``design`` are checked
-    before any work."""
+    :func:`linkopt._design.maps.check_plot_resolution`; default by the number of
+    outputs, :data:`linkopt._design.maps.PLOT_RESOLUTION`) and ``design`` are checked
+    before any work. ``progress`` gets ``{"stage", "cells", "of"}`` after each wave of
+    every map's continuation."""
     _check_spaces(mech, (2, 3), "space plots")
-    check_plot_resolution(mech, resolution, max_cells=max_cells, max_bytes=max_bytes)
+    resolution = check_plot_resolution(
+        mech, resolution, max_cells=max_cells, max_bytes=max_bytes
+    )
     check_design(mech, design)
     samples = _samples(mech, evaluation, design)
-    rows = _rows(mech, evaluation, resolution, design, samples)
+    rows = _rows(mech, evaluation, resolution, design, samples, progress)
     norm = _colour_norm(rows)
     fig, axes = plt.subplots(
         len(rows),
@@ -388,11 +409,50 @@ def plot_spaces(
     return path
 
 
-def _plane(mech: Mechanism) -> tuple[int, int]:
-    """The two world axes with the largest spread of rest anchors."""
-    spread = np.ptp(mech.anchors, axis=0)
-    first, second = np.argsort(spread)[::-1][:2]
-    return tuple(sorted((int(first), int(second))))
+#: Relative spread (smallest over largest singular value of the centred rest anchors)
+#: above which a mechanism is drawn in three orthographic views, not one plane.
+SPATIAL = 1e-6
+
+
+def _planes(mech: Mechanism) -> list[tuple[int, int]]:
+    """The views of :func:`plot_mechanism`: for joint anchors and points in one plane
+    at rest (up to :data:`SPATIAL`) the two world axes with the largest spread of them
+    (a top view of a planar mechanism), else the three orthographic views xy, xz,
+    yz."""
+    rest = rest_state(mech)
+    anchors = np.concatenate(
+        [
+            np.asarray(joint_positions(mech, rest)),
+            np.asarray(point_positions(mech, rest)).reshape(-1, 3),
+        ]
+    )
+    spread = np.linalg.svd(anchors - anchors.mean(axis=0), compute_uv=False)
+    if spread[0] > 0 and spread[-1] > SPATIAL * spread[0]:
+        return [(0, 1), (0, 2), (1, 2)]
+    first, second = np.argsort(np.ptp(anchors, axis=0))[::-1][:2]
+    return [tuple(sorted((int(first), int(second))))]
+
+
+def _target_box(ax, mech: Mechanism, plane: tuple[int, int]) -> None:
+    """The target range's rectangle, where two outputs are the view's two Cartesian
+    coordinates of one point."""
+    coords = {}
+    for k, (kind, c) in enumerate(zip(mech.output_kinds, mech.output_coords)):
+        if kind == "position" and int(c) in plane:
+            coords.setdefault(int(c), []).append(k)
+    if sorted(coords) != list(plane) or any(len(v) != 1 for v in coords.values()):
+        return
+    (i,), (j,) = coords[plane[0]], coords[plane[1]]
+    if mech.output_points[i] != mech.output_points[j]:
+        return
+    lo, hi = mech.output_min, mech.output_max
+    ax.plot(
+        [lo[i], hi[i], hi[i], lo[i], lo[i]],
+        [lo[j], lo[j], hi[j], hi[j], lo[j]],
+        color=MAGENTA,
+        lw=1.5,
+        label="target range",
+    )
 
 
 def _draw(ax, mech: Mechanism, design, colour: str, label: str, alpha: float, plane):
@@ -457,30 +517,29 @@ def plot_mechanism(
     designs: dict[str, np.ndarray | None] | None = None,
 ) -> Path:
     """The mechanism at rest (joint circles, motor squares, ground triangles, point
-    stars); several designs are overlaid, the first in grey."""
+    stars); several designs are overlaid, the first in grey. A planar mechanism is
+    drawn in its plane, a spatial one (anchors not in one plane) in three orthographic
+    views (:func:`_planes`)."""
     designs = designs or {"initial": None}
-    plane = _plane(mech)
-    fig, ax = plt.subplots(figsize=(6.5, 6.5), constrained_layout=True)
+    planes = _planes(mech)
+    fig, axes = plt.subplots(
+        1,
+        len(planes),
+        figsize=(6.5 * len(planes), 6.5),
+        constrained_layout=True,
+        squeeze=False,
+    )
     colours = ["0.55", "tab:blue", "tab:orange", "tab:green"]
-    for (label, design), colour in zip(designs.items(), colours):
-        _draw(ax, mech, design, colour, label, 1.0, plane)
-    lo, hi = mech.output_min, mech.output_max
-    kinds = set(mech.output_kinds)
-    if kinds == {"position"} and mech.num_outputs == 2:
-        idx = [int(c) for c in mech.output_coords]
-        if sorted(idx) == list(plane):
-            ax.plot(
-                [lo[0], hi[0], hi[0], lo[0], lo[0]],
-                [lo[1], lo[1], hi[1], hi[1], lo[1]],
-                color=MAGENTA,
-                lw=1.5,
-                label="target range",
-            )
-    ax.set_aspect("equal")
-    ax.set_xlabel("xyz"[plane[0]])
-    ax.set_ylabel("xyz"[plane[1]])
-    ax.set_title(f"{mech.name} at rest")
-    ax.legend(loc="best", fontsize=8)
+    for ax, plane in zip(axes[0], planes):
+        for (label, design), colour in zip(designs.items(), colours):
+            _draw(ax, mech, design, colour, label, 1.0, plane)
+        _target_box(ax, mech, plane)
+        ax.set_aspect("equal")
+        ax.set_xlabel("xyz"[plane[0]])
+        ax.set_ylabel("xyz"[plane[1]])
+        view = "" if len(planes) == 1 else f" ({'xyz'[plane[0]]}{'xyz'[plane[1]]} view)"
+        ax.set_title(f"{mech.name} at rest{view}")
+    axes[0, 0].legend(loc="best", fontsize=8)
     path = Path(path)
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -490,7 +549,9 @@ def plot_mechanism(
 def plot_convergence(
     history: Sequence[dict], path: str | Path, *, title: str = ""
 ) -> Path:
-    """Best total, f_design and its parts per iteration (log scale)."""
+    """The running best total (``best_total``, non-increasing within a verification
+    round) and its parts per iteration, and each iteration's best total as dots (log
+    scale); histories written before the running best have only the latter."""
     it = [h["iteration"] for h in history]
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
     floor = 1e-16
@@ -505,10 +566,17 @@ def plot_convergence(
             it,
             [max(h[key], floor) for h in history],
             style,
-            label=key.replace("_", " "),
+            label=key.replace("_", " ") + (" (running)" if key == "best_total" else ""),
         )
+    ax.semilogy(
+        it,
+        [max(h.get("iteration_total", h["best_total"]), floor) for h in history],
+        "k.",
+        alpha=0.5,
+        label="iteration's best total",
+    )
     ax.set_xlabel("iteration")
-    ax.set_ylabel("value (best particle)")
+    ax.set_ylabel("value (running best design)")
     ax.set_title(title)
     ax.legend(fontsize=8)
     path = Path(path)

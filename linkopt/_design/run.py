@@ -128,7 +128,9 @@ def optimize(
 
     ``out`` is locked for the call (:func:`locked_run_folder`): another process on it
     gets :class:`~linkopt.InputError`. A checkpoint to resume is checked in full before
-    any evaluation."""
+    any evaluation, and so is a rest pose that gives no α₋
+    (:func:`linkopt._design.evaluation.alpha_minus`), here rather than in a worker."""
+    alpha_minus(mech)
     with locked_run_folder(out, resume) as out:
         run = prepare(out, mech, settings, resume)
         offset = run.history[-1]["wall_time"] if run.history else 0.0
@@ -163,12 +165,17 @@ def _has_space_plots(mech: Mechanism) -> bool:
 
 
 def _initial_outputs(
-    mech: Mechanism, out: Path, resolution: int, verify_resolution: int | None
+    mech: Mechanism,
+    out: Path,
+    resolution: int | None,
+    verify_resolution: int | None,
+    progress: Callable[[dict], None] | None = None,
 ) -> dict:
     """The initial design's verification (returned) and space plot (written)."""
     from . import plots
 
     with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._config
+        _announce(progress, "verifying the initial design")
         check = _verification(mech, None, verify_resolution)
         if _has_space_plots(mech):
             plots.plot_spaces(
@@ -177,8 +184,22 @@ def _initial_outputs(
                 out / "spaces_initial.png",
                 resolution=resolution,
                 title=f"{mech.name}, initial design",
+                progress=_prefixed(progress, "initial design, "),
             )
     return check
+
+
+def _announce(progress, stage: str) -> None:
+    """A stage of the final outputs, as a ``{"stage"}`` progress record."""
+    if progress is not None:
+        progress({"stage": stage})
+
+
+def _prefixed(progress, prefix: str):
+    """``progress`` with ``prefix`` before each record's stage."""
+    if progress is None:
+        return None
+    return lambda record: progress({**record, "stage": prefix + record["stage"]})
 
 
 def _optimized_outputs(
@@ -186,8 +207,9 @@ def _optimized_outputs(
     out: Path,
     run: SwarmRun,
     design: np.ndarray,
-    resolution: int,
+    resolution: int | None,
     verify_resolution: int | None,
+    progress: Callable[[dict], None] | None = None,
 ) -> tuple[dict, Evaluation]:
     """The optimised design's verification and evaluation (returned), its space plot,
     the convergence plot and the drawing of both designs (written); ``mech`` has the
@@ -198,6 +220,7 @@ def _optimized_outputs(
     with one_blas_thread():
         checked = _last_round(run, design, verify_resolution)
         if checked is None:
+            _announce(progress, "verifying the optimised design")
             checked = _verification(mech, design, verify_resolution)
         final = evaluate(mech, design)
         if _has_space_plots(mech):
@@ -208,6 +231,7 @@ def _optimized_outputs(
                 resolution=resolution,
                 design=design,
                 title=f"{mech.name}, optimised design",
+                progress=_prefixed(progress, "optimised design, "),
             )
         plots.plot_convergence(
             run.history, out / "convergence.png", title=f"{mech.name}: optimisation"
@@ -237,9 +261,10 @@ def _design_outputs(
     out: Path,
     run: SwarmRun,
     design: np.ndarray,
-    resolution: int,
+    resolution: int | None,
     verify_resolution: int | None,
     workers: int,
+    progress: Callable[[dict], None] | None = None,
 ) -> tuple[dict, Evaluation]:
     """Both designs' verifications (``{"initial": ..., "optimized": ...}``), the
     optimised design's evaluation (with the targets of ``current``: the file's and the
@@ -254,12 +279,12 @@ def _design_outputs(
     try:
         initial = side.submit(_initial_outputs, *args) if side is not None else None
         checked, final = _optimized_outputs(
-            current, out, run, design, resolution, verify_resolution
+            current, out, run, design, resolution, verify_resolution, progress
         )
         checks = {
             "initial": initial.result()
             if initial is not None
-            else _initial_outputs(*args),
+            else _initial_outputs(*args, progress),
             "optimized": checked,
         }
     finally:
@@ -306,9 +331,10 @@ def write_outputs(
     run: SwarmRun,
     settings: OptimizerSettings,
     *,
-    resolution: int = 60,
+    resolution: int | None = None,
     verify_resolution: int | None = None,
     workers: int = 1,
+    progress: Callable[[dict], None] | None = None,
 ) -> dict:
     """Optimised file, verification, summary and figures for a finished run.
 
@@ -316,7 +342,11 @@ def write_outputs(
     this one does the optimised design (module docstring). ``out`` is locked for the
     call, and the files are staged: they replace the folder's earlier ones only once
     all are written, ``summary.json`` last (:func:`linkopt._folders.staged`), so a
-    failure leaves no ``optimized.toml`` that looks like this run's result."""
+    failure leaves no ``optimized.toml`` that looks like this run's result.
+    ``resolution``: the space plots' (default by the number of outputs,
+    :func:`linkopt._design.maps.plot_resolution`); ``progress`` gets ``{"stage"}``
+    records as each verification starts and the maps' wave records (not those of the
+    spawned process)."""
     out = Path(out)
     design = best_design(run)
     if design is None:
@@ -333,10 +363,24 @@ def write_outputs(
                 f"(seed {settings.seed}, {run.iteration} iterations)."
             ),
         )
+        from .._export.mjcf import export_mjcf  # the design for MuJoCo (issue 18)
+
+        export_mjcf(current, stage / "optimized.xml", design)
         checks, final = _design_outputs(
-            mech, current, stage, run, design, resolution, verify_resolution, workers
+            mech,
+            current,
+            stage,
+            run,
+            design,
+            resolution,
+            verify_resolution,
+            workers,
+            progress,
         )
         (stage / "verification.json").write_text(json.dumps(checks, indent=2))
+        from .animation import write_run_motions  # motion_*.gif (issue 18)
+
+        write_run_motions(mech, current, stage, design)
         summary = _summary(current, run, settings, design, final, checks)
         (stage / "summary.json").write_text(json.dumps(summary, indent=2))
     summary["optimized_file"] = str(out / "optimized.toml")

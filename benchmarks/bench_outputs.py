@@ -1,0 +1,135 @@
+"""Time spent on the outputs a user waits for (issue 20, part 6): the space plot of a
+3-motor mechanism, and ``optimize``'s final outputs against its optimisation.
+
+Run: ``.venv/bin/python benchmarks/bench_outputs.py [FILE] [--old] [--optimize]``
+(default FILE ``mechanisms/neck_3dof.toml``).
+
+Prints wall and CPU seconds (CPU: this process, all threads; the figure to compare on a
+shared machine) of
+
+* the evaluation the plot needs and the plot at its default resolution (three outputs:
+  40 cells per axis, six 2-D sections solved in their planes from a coarse 3-D seed
+  grid, :func:`linkopt._design.maps.sections`);
+* with ``--old``, the fine 3-D continuation grids (60² x 13 cells per space) that the
+  sections were cut from before;
+* with ``--optimize``, a 4-particle, 2-iteration optimisation and its
+  :func:`linkopt._design.run.write_outputs` (both designs' verification, the figures).
+
+Baseline (before, on the 2-core machine shared by six processes, so CPU seconds
+count): ``linkopt plot mechanisms/neck_3dof.toml`` at the old default (60, one
+60 x 60 x 13 continuation grid per space) took 349 CPU s (19 min wall); the issue
+measured 496 s warm on the 3-output delta, and ``optimize --iterations 5`` 373 s
+optimising against 926 s of outputs.
+
+After (same machine and load, warm cache, one process; CPU seconds): evaluate 11.9;
+``plot_spaces`` at 40 74.4 (wall 333 under a load of 6 on 2 cores), against the old
+fine grids alone 36.9 (FK, mostly unreachable, so few cells visited) + 92.1 (BK) =
+129 before drawing; the whole ``linkopt plot`` 272 CPU s cold after, 349 before.
+``optimize`` of 4 particles x 2 iterations (no verification round) 125, its
+``write_outputs`` 346: two verifications at 13³ (unchanged: they decide what is
+accepted, about 170), two evaluations and two space plots (about 150; the old maps
+would have added about 110 more). With the default ``--verify-rounds`` the optimised
+design's verification comes from the last round and is not repeated.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+FILE = ROOT / "mechanisms/neck_3dof.toml"
+BASELINE_PLOT_CPU_S = 349.0
+
+
+@contextmanager
+def timed(label: str):
+    wall, cpu = time.perf_counter(), time.process_time()
+    yield
+    print(
+        f"{label:<44} wall {time.perf_counter() - wall:8.1f} s   "
+        f"CPU {time.process_time() - cpu:8.1f} s",
+        flush=True,
+    )
+
+
+def bench_plot(mech, out: Path) -> None:
+    from linkopt._design.evaluation import evaluate
+    from linkopt._design.maps import plot_cost, plot_resolution
+    from linkopt._design.plots import plot_spaces
+
+    with timed("evaluate (for the plot)"):
+        ev = evaluate(mech)
+    resolution = plot_resolution(mech)
+    cost = plot_cost(mech, resolution)
+    label = f"plot_spaces, resolution {resolution} (est. {cost.seconds:.0f} s)"
+    with timed(label):
+        plot_spaces(mech, ev, out / "spaces.png")
+
+
+def bench_old_grids(mech, resolution: int = 60) -> None:
+    """The fine 3-D grid of each space that the old sections were cut from (the
+    windows of :func:`linkopt._design.plots.section_maps`)."""
+    import linkopt
+    from linkopt._design import maps
+    from linkopt._design.evaluation import evaluate
+    from linkopt._design.plots import _windows
+
+    ev = evaluate(mech)
+    rest = linkopt.rest_state(mech)
+    (m_low, m_high), (o_low, o_high), rest_out = _windows(mech, ev, rest, None)
+    ik = np.asarray(ev.ik_motors) * mech.motor_scale
+    spaces = (
+        ("fk", m_low, m_high, np.zeros(3), np.quantile(ik[:, 2], [0, 0.5, 1])),
+        (
+            "bk",
+            o_low,
+            o_high,
+            rest_out,
+            np.linspace(mech.output_min[2], mech.output_max[2], 3),
+        ),
+    )
+    for kind, low, high, start, cuts in spaces:
+        third = maps._merged(low[2], high[2], maps.SECTION_DEPTH, [*cuts, start[2]])
+        axes = maps._axes(low[:2], high[:2], resolution) + [third]
+        with timed(f"old {kind.upper()} grid {resolution}² x {len(third)}"):
+            maps._solve_from(mech, kind, axes, start, rest, None)
+
+
+def bench_optimize(mech, out: Path) -> None:
+    from linkopt._design.optimizer import OptimizerSettings
+    from linkopt._design.run import optimize, write_outputs
+
+    settings = OptimizerSettings(particles=4, iterations=2, seed=0, verify_rounds=0)
+    with timed("optimize, 4 particles x 2 iterations"):
+        run = optimize(mech, out / "run", settings)
+    with timed("write_outputs (verifications, figures)"):
+        write_outputs(mech, out / "run", run, settings)
+
+
+def main() -> None:
+    import linkopt
+
+    parser = argparse.ArgumentParser()
+    parser.add_argument("file", nargs="?", default=str(FILE))
+    parser.add_argument("--old", action="store_true")
+    parser.add_argument("--optimize", action="store_true")
+    args = parser.parse_args()
+    mech = linkopt.load(args.file)
+    print(f"{mech.name}: {mech.num_outputs} outputs, state size {mech.state_size}")
+    print(f"baseline: old plot {BASELINE_PLOT_CPU_S:.0f} CPU s")
+    with tempfile.TemporaryDirectory() as tmp:
+        bench_plot(mech, Path(tmp))
+        if args.old:
+            bench_old_grids(mech)
+        if args.optimize:
+            bench_optimize(mech, Path(tmp))
+
+
+if __name__ == "__main__":
+    main()
