@@ -78,11 +78,11 @@ def bench_old_grids(mech, resolution: int = 60) -> None:
     import linkopt
     from linkopt._design import maps
     from linkopt._design.evaluation import evaluate
-    from linkopt._design.plots import _windows
+    from linkopt._design.plots import plot_windows
 
     ev = evaluate(mech)
     rest = linkopt.rest_state(mech)
-    (m_low, m_high), (o_low, o_high), rest_out = _windows(mech, ev, rest, None)
+    (m_low, m_high), (o_low, o_high), rest_out = plot_windows(mech, ev, rest, None)
     ik = np.asarray(ev.ik_motors) * mech.motor_scale
     spaces = (
         ("fk", m_low, m_high, np.zeros(3), np.quantile(ik[:, 2], [0, 0.5, 1])),

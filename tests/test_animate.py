@@ -18,6 +18,7 @@ from linkopt._design.animation import (
     plane_basis,
     resample_loop,
     tour,
+    traced_points,
     write_run_motions,
 )
 
@@ -283,3 +284,12 @@ def test_resampled_loop_has_equal_steps_and_does_not_repeat_its_start():
     steps = np.linalg.norm(np.diff(ring, axis=0), axis=1)
     np.testing.assert_allclose(steps, 1.0)
     np.testing.assert_allclose(frames[0], [0.0, 0.0])
+
+
+def test_reported_position_outputs_are_traced():
+    """The four-bar's output is the rocker angle; its coupler point's x and y are
+    reported outputs, so the animation traces that point (and only it)."""
+    mech = linkopt.load(MECHANISMS / "four_bar.toml")
+    assert set(mech.output_kinds) == {"angle"}
+    traced = [mech.point_names[i] for i in traced_points(mech)]
+    assert traced == ["coupler_point"]

@@ -14,7 +14,7 @@ from conftest import ROOT
 import linkopt
 from linkopt._design import maps
 from linkopt._design.checkpoint import decode, encode
-from linkopt._design.optimizer import OptimizerSettings, _record, start
+from linkopt._design.optimizer import OptimizerSettings, record_iteration, start
 from linkopt._design.plots import plot_mechanism
 
 ARM = ROOT / "tests/data/arm_3r.toml"
@@ -90,8 +90,8 @@ def test_spatial_mechanism_is_drawn_in_three_views(arm, tmp_path):
 
 
 class _Ev:
-    """The four per-particle arrays :func:`_record` reads, with ``f_design`` = 0.9
-    of the total and the regulariser the rest."""
+    """The four per-particle arrays :func:`record_iteration` reads, with
+    ``f_design`` = 0.9 of the total and the regulariser the rest."""
 
     def __init__(self, totals):
         totals = np.asarray(totals, float)
@@ -107,7 +107,7 @@ ITERATIONS = [[3.0, 4.0], [5.0, 1.0], [2.0, 6.0], [0.5, 9.0], [np.nan, 7.0]]
 
 def _advance(run, totals):
     ev = _Ev(totals)
-    run = _record(run, ev, ev.f_design + ev.regularizer)
+    run = record_iteration(run, ev, ev.f_design + ev.regularizer)
     *done, last = run.history
     return dataclasses.replace(
         run,

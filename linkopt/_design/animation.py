@@ -41,8 +41,8 @@ plane), all bodies coloured by the frame's ``f_sing`` on the maps' scale (viridi
 brighter = closer to a singularity; :func:`linkopt._design.plots._colour_norm`'s bounds
 over the frames unless ``f_sing_range`` is given); the ground's joints are triangles,
 the motors' joints squares, and the traced points' paths grow frame by frame. The
-traced points are the points of the position outputs, or every named point when the
-outputs are angles.
+traced points are the points of the position outputs (reported ones too), or every
+named point when all outputs are angles.
 """
 
 from __future__ import annotations
@@ -214,7 +214,8 @@ def default_path(
 
 def traced_points(mech: Mechanism) -> np.ndarray:
     """Indices of the traced points (module docstring)."""
-    used = [int(p) for p in mech.output_points if p >= 0]
+    points = np.concatenate([mech.output_points, mech.reported_table.points])
+    used = [int(p) for p in points if p >= 0]  # reported position outputs too
     if used:
         return np.array(sorted(set(used)), dtype=int)
     return np.arange(len(mech.point_names), dtype=int)

@@ -242,7 +242,7 @@ def _update_result(
     return dataclasses.replace(run, stalled=0 if improved else run.stalled + 1)
 
 
-#: The history columns that describe the running best design (:func:`_record`).
+#: The history columns that describe the running best design (:func:`record_iteration`).
 RUNNING_PARTS = ("best_f_design", "regularizer", "reach", "singularity")
 
 
@@ -276,7 +276,7 @@ def _running_best(run: SwarmRun, ev: Evaluation, costs: np.ndarray) -> dict:
     return {k: previous[k] for k in ("best_total", *RUNNING_PARTS)}
 
 
-def _record(run: SwarmRun, ev: Evaluation, costs: np.ndarray) -> SwarmRun:
+def record_iteration(run: SwarmRun, ev: Evaluation, costs: np.ndarray) -> SwarmRun:
     """``run`` with the iteration's history row appended (the run loop adds
     ``wall_time``): the running best (:func:`_running_best`) and, as
     ``iteration_total`` and ``iteration_f_design``, this iteration's best particle."""
@@ -359,7 +359,7 @@ def step(
     swarm = _swarm(run, settings, settings.inertia(run.iteration))
     run = _update_bests(run, swarm, costs)
     feasible = np.asarray(ev.f_design) <= settings.tolerance
-    run = _record(_update_result(run, feasible, costs, settings), ev, costs)
+    run = record_iteration(_update_result(run, feasible, costs, settings), ev, costs)
     if _converged(run, settings):
         return dataclasses.replace(run, finished=True, iteration=run.iteration + 1)
     return _move(mech, run, swarm, ev, settings, workers)

@@ -53,7 +53,7 @@ def _window(points: np.ndarray, low, high, pad: float):
     return low - pad * span, high + pad * span
 
 
-def _windows(mech: Mechanism, evaluation: Evaluation, rest, design):
+def plot_windows(mech: Mechanism, evaluation: Evaluation, rest, design):
     """The maps' motor window (the samples and the rest pose, at least ±0.3, padded)
     and output window (the target range and the rest outputs, padded 20 %), and the
     rest outputs."""
@@ -83,7 +83,7 @@ def space_maps(
     outputs)."""
     _check_spaces(mech, (2,), "space maps")
     rest = rest_state(mech)
-    (m_low, m_high), (o_low, o_high), rest_out = _windows(
+    (m_low, m_high), (o_low, o_high), rest_out = plot_windows(
         mech, evaluation, rest, design
     )
     motors = motor_map(
@@ -145,7 +145,7 @@ def section_maps(
     _check_spaces(mech, (3,), "sections")
     rest = rest_state(mech)
     ik_motors = np.asarray(evaluation.ik_motors) * mech.motor_scale
-    (m_low, m_high), (o_low, o_high), rest_out = _windows(
+    (m_low, m_high), (o_low, o_high), rest_out = plot_windows(
         mech, evaluation, rest, design
     )
     b_cuts = [

@@ -24,7 +24,10 @@ a resumed run evaluates the same targets.
 Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.csv``,
 ``verification.json`` (``linkopt verify`` on the initial and optimised designs),
 ``summary.json``, and the figures ``spaces_initial.png``, ``spaces_optimized.png``,
-``convergence.png``, ``mechanism.png`` (initial and optimised overlaid). The initial
+``convergence.png``, ``mechanism.png`` (initial and optimised overlaid),
+``optimized.xml`` (the optimised design for MuJoCo, :mod:`linkopt._export.mjcf`) and
+``motion_initial.gif`` / ``motion_optimized.gif`` (:mod:`linkopt._design.animation`,
+mechanisms with 1-3 motors). The initial
 design's verification and space plot do not depend on the run, so with ``workers`` > 1 a
 spawned process makes them while this one makes the optimised design's.
 """

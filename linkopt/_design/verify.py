@@ -66,9 +66,25 @@ def _entry_state(mech: Mechanism, design, box_point: np.ndarray):
     return np.asarray(solution.state[-1]), bool(np.all(np.asarray(solution.converged)))
 
 
+#: Cells a default grid of four or more outputs may have (13³ = 2197 for three).
+HIGH_DIMENSIONAL_CELLS = 20_000
+
+
 def default_resolution(mech: Mechanism) -> int:
-    """Grid points per output when none is given: 41 for up to two outputs, else 13."""
-    return 41 if mech.num_outputs <= 2 else 13
+    """Grid points per output when none is given: 41 for up to two outputs, 13 for
+    three, and beyond that the finest grid of at most :data:`HIGH_DIMENSIONAL_CELLS`
+    cells (11 for four outputs, 7 for five, 5 for a Stewart platform's six), never
+    coarser than 3. A careful engineer's compromise: the paper verifies only 2-D maps,
+    and a 6-D grid at 13 points per axis would be 4.8 million BK continuations."""
+    k = mech.num_outputs
+    if k <= 2:
+        return 41
+    if k == 3:
+        return 13
+    resolution = 3
+    while (resolution + 1) ** k <= HIGH_DIMENSIONAL_CELLS:
+        resolution += 1
+    return resolution
 
 
 def _chunk(resolution: int, k: int) -> int:
