@@ -1,20 +1,12 @@
 """Shared fixtures. Mechanisms are loaded once per session (loading compiles a
 kernel)."""
 
-import sys
 from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
 
 import linkopt
-
-#: trimesh imports Embree (embreex, with its own TBB thread pool) whenever it is
-#: installed, and yourdfpy (a test dependency) installs it through trimesh[easy]. No
-#: test needs Embree's ray queries (trimesh falls back to its numpy ray engine), and two
-#: test workers died in XLA's executable (de)serialisation in a run where it was
-#: loaded, so the test processes keep it out.
-sys.modules.setdefault("embreex", None)
 
 #: Generated-input tests (hypothesis) are reproducible and bounded: the same examples
 #: on every run, no example database, no deadline (the first example may compile).
