@@ -73,9 +73,11 @@ HIGH_DIMENSIONAL_CELLS = 20_000
 def default_resolution(mech: Mechanism) -> int:
     """Grid points per output when none is given: 41 for up to two outputs, 13 for
     three, and beyond that the finest grid of at most :data:`HIGH_DIMENSIONAL_CELLS`
-    cells (11 for four outputs, 7 for five, 5 for a Stewart platform's six), never
-    coarser than 3. A careful engineer's compromise: the paper verifies only 2-D maps,
-    and a 6-D grid at 13 points per axis would be 4.8 million BK continuations."""
+    cells (11 for four outputs, 7 for five, 5 for six) whose estimated memory is within
+    :data:`~linkopt._design.maps.MAX_BYTES` (a Stewart platform's 98-number state makes
+    that 4 for its six outputs), never coarser than 3. A careful engineer's compromise:
+    the paper verifies only 2-D maps, and a 6-D grid at 13 points per axis would be 4.8
+    million BK continuations."""
     k = mech.num_outputs
     if k <= 2:
         return 41
@@ -84,7 +86,15 @@ def default_resolution(mech: Mechanism) -> int:
     resolution = 3
     while (resolution + 1) ** k <= HIGH_DIMENSIONAL_CELLS:
         resolution += 1
+    while resolution > 3 and _cost(mech, resolution).bytes > MAX_BYTES:
+        resolution -= 1
     return resolution
+
+
+def _cost(mech: Mechanism, resolution: int):
+    """The estimated cost of a verification grid (:func:`~.maps.grid_cost`)."""
+    k = mech.num_outputs
+    return grid_cost(mech, (resolution,) * k, _chunk(resolution, k), resolution**k)
 
 
 def _chunk(resolution: int, k: int) -> int:
@@ -108,8 +118,7 @@ def check_resolution(
         resolution = default_resolution(mech)
     resolution = check_count(resolution, where, 2)
     k = mech.num_outputs
-    cells = resolution**k
-    cost = grid_cost(mech, (resolution,) * k, _chunk(resolution, k), cells)
+    cost = _cost(mech, resolution)
     check_budget(
         cost,
         f"{where}: {resolution} points per output ({k} outputs)",
