@@ -111,3 +111,15 @@ def test_forward_singularity_where_the_leg_line_matrix_is_singular(stewart):
     ratio = fk[:-1] / textbook[:-1]
     assert ratio.max() / ratio.min() < 1.2  # measured 0.150-0.167
     assert bk.min() > 1e-2  # the pose always determines the legs
+
+
+def test_default_verification_grid_fits_the_budget(stewart):
+    """Six outputs: the default grid is the finest within the cell and memory limits
+    (13 per output, as for three outputs, would be 4.8 million cells)."""
+    from linkopt._design.maps import MAX_BYTES
+    from linkopt._design.verify import check_resolution, default_resolution
+
+    resolution = default_resolution(stewart)
+    assert resolution == check_resolution(stewart) >= 3
+    with pytest.raises(linkopt.InputError, match="memory|cells"):
+        check_resolution(stewart, resolution + 1, max_bytes=MAX_BYTES)
