@@ -344,7 +344,7 @@ def plane_basis(mech: Mechanism, design=None) -> np.ndarray | None:
 
 def _members(mech: Mechanism, body: int) -> np.ndarray:
     """Indices into ``[joints, points]`` of a body's joints and named points."""
-    joints = [k for k in range(len(mech.joint_names)) if body in mech.joint_bodies[k]]
+    joints = [int(k) for k in mech.joints_on(body)]
     points = [
         len(mech.joint_names) + k
         for k in range(len(mech.point_names))

@@ -276,6 +276,10 @@ class Mechanism:
         """The reported outputs (empty when the file has none)."""
         return OutputTable.empty() if self.reported is None else self.reported
 
+    def joints_on(self, body: int) -> np.ndarray:
+        """Indices of the joints that ``body`` takes part in (static), file order."""
+        return np.flatnonzero((self.joint_bodies == body).any(axis=1))
+
     def joints_of(self, kind: str) -> np.ndarray:
         """Indices of the joints of one family (static)."""
         return np.array(

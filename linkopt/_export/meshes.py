@@ -46,7 +46,7 @@ def body_mesh(
     places = body_anchors(mech, rest_pose, body)
     radius = 0.5 * thickness
     parts = [_capsule(places[a], places[b], radius) for a, b in segments(places)]
-    on_body = np.flatnonzero((mech.joint_bodies == body).any(axis=1))
+    on_body = mech.joints_on(body)
     parts += [_sphere(rest_pose.anchors[j], JOINT_FACTOR * radius) for j in on_body]
     if not parts:
         parts = [_sphere(places[0], radius)]

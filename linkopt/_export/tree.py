@@ -89,7 +89,7 @@ def body_anchors(mech: Mechanism, rest_pose: Rest, body: int) -> np.ndarray:
     """Distinct rest positions of the joints on ``body`` and its named points, in file
     order, shape ``(k, 3)``; two positions closer than 1e-9 reference lengths are
     one."""
-    on_body = np.flatnonzero((mech.joint_bodies == body).any(axis=1))
+    on_body = mech.joints_on(body)
     places = [rest_pose.anchors[j] for j in on_body]
     places += [rest_pose.points[p] for p in np.flatnonzero(mech.point_bodies == body)]
     distinct: list[np.ndarray] = []
