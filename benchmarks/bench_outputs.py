@@ -1,8 +1,9 @@
 """Time spent on the outputs a user waits for (issue 20, part 6): the space plot of a
 3-motor mechanism, and ``optimize``'s final outputs against its optimisation.
 
-Run: ``.venv/bin/python benchmarks/bench_outputs.py [FILE] [--old] [--optimize]``
-(default FILE ``mechanisms/neck_3dof.toml``).
+Run: ``.venv/bin/python benchmarks/bench_outputs.py [FILE] [--delta] [--old]
+[--optimize] [--defaults] [--run DIR]`` (default FILE ``mechanisms/neck_3dof.toml``;
+``--delta``: ``mechanisms/delta.toml``).
 
 Prints wall and CPU seconds (CPU: this process, all threads; the figure to compare on a
 shared machine) of
@@ -13,7 +14,14 @@ shared machine) of
 * with ``--old``, the fine 3-D continuation grids (60² x 13 cells per space) that the
   sections were cut from before;
 * with ``--optimize``, a 4-particle, 2-iteration optimisation and its
-  :func:`linkopt._design.run.write_outputs` (both designs' verification, the figures).
+  :func:`linkopt._design.run.write_outputs` (both designs' verification, the figures);
+* with ``--defaults``, ``optimize`` at its default settings (20 particles, verification
+  rounds, two workers, as the command line runs it) and its ``write_outputs``;
+* with ``--run DIR``, ``write_outputs`` (two workers) on a copy of the finished run in
+  ``DIR`` (of FILE), its optimisation's wall time read from the checkpoint.
+
+CPU here counts this process and its finished child processes (the workers and the
+spawned process of the initial design's outputs).
 
 Baseline (before, on the 2-core machine shared by six processes, so CPU seconds
 count): ``linkopt plot mechanisms/neck_3dof.toml`` at the old default (60, one
@@ -30,11 +38,36 @@ fine grids alone 36.9 (FK, mostly unreachable, so few cells visited) + 92.1 (BK)
 accepted, about 170), two evaluations and two space plots (about 150; the old maps
 would have added about 110 more). With the default ``--verify-rounds`` the optimised
 design's verification comes from the last round and is not repeated.
+
+Outputs cut (issue 20, part 6, second pass): where ``write_outputs`` traced and compiled
+again what it had compiled already. Every compiled program is keyed by the mechanism's
+fingerprint, which includes the ``[evaluation]`` targets, so after a verification
+round added targets the optimised design's space plot and motion GIF were traced and
+compiled for the run's mechanism beside the file's; they now solve with the file's
+mechanism (the GIF still follows the loop through the run's targets). Verification
+computed the reached cells' singular values as a batch of the reached-cell count, a new
+program for every coverage; it is now one batch of the grid's shape. The last round's
+verification also serves a verification resolution equal to the default. Nothing that
+verification decides changed (the same cells, the same solves, the same threshold).
+
+Not measured at the default optimise settings: on this 2-core machine shared at a load
+of 10-13 (two other helpers' optimisations and test runs), ``--run`` on the delta
+deep-box run (10 iterations, one passed round) had not finished ``write_outputs`` after
+20 min wall and was stopped, and a default-settings neck or delta run did not fit the
+time. ``bench_outputs.py --delta --defaults`` and ``--run DIR`` are the commands for
+the before/after figures on an idle machine. Measured here: the Stewart example
+(``stewart_wide_tilt.toml``, 6 outputs): one ``verify`` at its default 4⁶ grid, 130 CPU
+s (779 s wall under that load); its ``optimize --particles 8 --iterations 6`` (after the
+changes above): optimisation 2616 s wall, the verification round about 420 s, the
+outputs (the initial design's 4⁶ verification in the spawned process, the drawing, two
+GIFs) about 240 s wall, 1113 CPU s for the whole command.
 """
 
 from __future__ import annotations
 
 import argparse
+import resource
+import shutil
 import tempfile
 import time
 from contextlib import contextmanager
@@ -44,16 +77,24 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 FILE = ROOT / "mechanisms/neck_3dof.toml"
+DELTA = ROOT / "mechanisms/delta.toml"
 BASELINE_PLOT_CPU_S = 349.0
+
+
+def _cpu() -> float:
+    """CPU seconds of this process and its waited-for children."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
 @contextmanager
 def timed(label: str):
-    wall, cpu = time.perf_counter(), time.process_time()
+    wall, cpu = time.perf_counter(), _cpu()
     yield
     print(
         f"{label:<44} wall {time.perf_counter() - wall:8.1f} s   "
-        f"CPU {time.process_time() - cpu:8.1f} s",
+        f"CPU {_cpu() - cpu:8.1f} s",
         flush=True,
     )
 
@@ -112,23 +153,68 @@ def bench_optimize(mech, out: Path) -> None:
         write_outputs(mech, out / "run", run, settings)
 
 
+def bench_defaults(mech, out: Path) -> None:
+    """``linkopt optimize FILE`` at its default settings, then its outputs."""
+    from linkopt._design.optimizer import OptimizerSettings
+    from linkopt._design.run import optimize, write_outputs
+
+    settings = OptimizerSettings(seed=0)
+    with timed("optimize, default settings, 2 workers"):
+        run = optimize(mech, out / "run", settings, workers=2)
+    print(f"  {run.iteration} iterations, rounds {[r['passed'] for r in run.rounds]}")
+    with timed("write_outputs, 2 workers"):
+        write_outputs(mech, out / "run", run, settings, workers=2)
+
+
+def bench_run(mech, folder: Path, out: Path) -> None:
+    """``write_outputs`` on a copy of the finished run in ``folder``."""
+    import json
+
+    from linkopt._design.checkpoint import CHECKPOINT
+    from linkopt._design.optimizer import OptimizerSettings
+    from linkopt._design.run import load_checkpoint, write_outputs
+
+    data = json.loads((folder / CHECKPOINT).read_text())
+    settings = OptimizerSettings(**data["settings"])
+    copy = out / "run"
+    copy.mkdir()
+    shutil.copy(folder / CHECKPOINT, copy / CHECKPOINT)
+    run = load_checkpoint(copy, mech, settings)
+    print(
+        f"  run of {run.iteration} iterations, optimisation wall "
+        f"{run.history[-1]['wall_time']:.0f} s, rounds "
+        f"{[r['passed'] for r in run.rounds]}"
+    )
+    with timed("write_outputs, 2 workers"):
+        write_outputs(mech, copy, run, settings, workers=2)
+
+
 def main() -> None:
     import linkopt
 
     parser = argparse.ArgumentParser()
     parser.add_argument("file", nargs="?", default=str(FILE))
     parser.add_argument("--old", action="store_true")
+    parser.add_argument("--delta", action="store_true")
     parser.add_argument("--optimize", action="store_true")
+    parser.add_argument("--defaults", action="store_true")
+    parser.add_argument("--no-plot", action="store_true")
+    parser.add_argument("--run", type=Path)
     args = parser.parse_args()
-    mech = linkopt.load(args.file)
+    mech = linkopt.load(DELTA if args.delta else args.file)
     print(f"{mech.name}: {mech.num_outputs} outputs, state size {mech.state_size}")
     print(f"baseline: old plot {BASELINE_PLOT_CPU_S:.0f} CPU s")
     with tempfile.TemporaryDirectory() as tmp:
-        bench_plot(mech, Path(tmp))
+        if not args.no_plot:
+            bench_plot(mech, Path(tmp))
         if args.old:
             bench_old_grids(mech)
         if args.optimize:
             bench_optimize(mech, Path(tmp))
+        if args.defaults:
+            bench_defaults(mech, Path(tmp))
+        if args.run is not None:
+            bench_run(mech, args.run, Path(tmp))
 
 
 if __name__ == "__main__":

@@ -293,3 +293,23 @@ def test_reported_position_outputs_are_traced():
     assert set(mech.output_kinds) == {"angle"}
     traced = [mech.point_names[i] for i in traced_points(mech)]
     assert traced == ["coupler_point"]
+
+
+def test_a_run_animates_along_its_targets_with_the_file_mechanism(five_bar):
+    """``loop_of``: the loop through the run's targets (the file's and an added one),
+    solved with the file's mechanism; the frames are those the run's mechanism gives."""
+    from linkopt._design.rounds import with_targets
+
+    design = five_bar.design.p0.copy()
+    current = with_targets(five_bar, [[0.0, 30.0]])
+    item = linkopt.motion(five_bar, design=design, frames=FRAMES, loop_of=current)
+    same = linkopt.motion(current, design=design, frames=FRAMES)
+    assert item.default
+    assert not np.allclose(
+        default_path(five_bar, FRAMES), default_path(current, FRAMES)
+    )
+    np.testing.assert_array_equal(item.path, same.path)
+    np.testing.assert_allclose(item.outputs, same.outputs, atol=1e-9)
+    np.testing.assert_allclose(item.f_sing, same.f_sing, rtol=1e-9)
+    with pytest.raises(linkopt.InputError, match="loop_of"):
+        linkopt.motion(five_bar, frames=FRAMES, loop_of=linkopt.loads(FOUR_BAR))

@@ -61,3 +61,46 @@ def test_three_output_sections_match_direct_solves(tmp_path):
     png = plot_spaces(arm, ev, tmp_path / "arm.png", resolution=9)
     height, width = mpimg.imread(png).shape[:2]
     assert (width, height) == (1200, 1560)  # three rows of sections
+
+
+def test_maps_read_reported_outputs_over_their_cells(five_bar, tmp_path):
+    """A reported output that is the tip's x again: the map's reported values are its
+    outputs' x on every reached cell and NaN elsewhere, and the space plot draws it."""
+    from conftest import MECHANISMS
+
+    from linkopt._design.evaluation import evaluate
+    from linkopt._design.plots import plot_spaces
+
+    text = (MECHANISMS / "five_bar.toml").read_text()
+    extra = (
+        '[[outputs]]\nname = "tip_x"\npoint = "ee"\ncoordinate = "x"\nreported = true\n'
+    )
+    mech = linkopt.loads(
+        text.replace("# Mirror symmetry", extra + "\n# Mirror symmetry")
+    )
+    assert list(mech.reported_table.names) == ["tip_x"]
+    grid = motor_map(
+        mech,
+        [-1.5, -1.5],
+        [1.5, 1.5],
+        9,
+        start_state=linkopt.rest_state(mech),
+        start_motors=[0.0, 0.0],
+    )
+    assert grid.reported.shape == (9, 9, 1)
+    assert grid.feasible.any() and (~grid.feasible).any()
+    np.testing.assert_allclose(
+        grid.reported[grid.feasible, 0], grid.outputs[grid.feasible, 0], atol=1e-9
+    )
+    assert np.isnan(grid.reported[~grid.feasible]).all()
+    plain = motor_map(
+        five_bar,
+        [-1.5, -1.5],
+        [1.5, 1.5],
+        9,
+        start_state=linkopt.rest_state(five_bar),
+        start_motors=[0.0, 0.0],
+    )
+    assert plain.reported is None  # no reported output: no read-out
+    out = plot_spaces(mech, evaluate(mech), tmp_path / "spaces.png", resolution=9)
+    assert mpimg.imread(out).shape[2] in (3, 4)

@@ -228,13 +228,23 @@ def motion(
     frames: int = DEFAULT_FRAMES,
     motors=None,
     outputs=None,
+    loop_of: Mechanism | None = None,
 ) -> Motion:
     """The frames of an animation: ``motors`` ``(T, M)`` or ``outputs`` ``(T, K)`` rows
     (file units, one frame each), or by default the loop of :func:`default_path` in
     ``frames`` frames. Every frame's solve, read-out and ``f_sing`` is one batched
-    call; unreached frames are flagged in ``Motion.reached``, not raised."""
+    call; unreached frames are flagged in ``Motion.reached``, not raised.
+
+    ``loop_of``: the mechanism whose targets the default loop goes through (default
+    ``mech``), the same linkage as ``mech`` with other ``[evaluation]`` targets. An
+    optimisation run animates its design along the loop through the run's targets
+    (the file's and its verification rounds') but solves with the file's mechanism,
+    whose compiled programs the initial design's animation has made: the targets are
+    part of the mechanism's fingerprint, which keys every program."""
     check_design(mech, design)
-    kind, rows = _rows(mech, design, frames, motors, outputs)
+    if loop_of is not None and loop_of.num_outputs != mech.num_outputs:
+        raise InputError("motion: loop_of must have the outputs of the mechanism")
+    kind, rows = _rows(loop_of or mech, design, frames, motors, outputs)
     solver = solve_fk_path if kind == "fk" else solve_bk_path
     solution = solver(mech, rows, design=design)
     default = motors is None and outputs is None
@@ -597,14 +607,18 @@ def write_run_motions(
     initial: Mechanism, current: Mechanism, out: Path, design, frames=DEFAULT_FRAMES
 ) -> list[str]:
     """``motion_initial.gif`` (``initial``, its file's design) and
-    ``motion_optimized.gif`` (``current`` at ``design``) in ``out``, each along its
-    own default loop, on one colour scale; returns the names written."""
+    ``motion_optimized.gif`` (``design``, along the default loop through the targets
+    of ``current``, the run's mechanism) in ``out``, on one colour scale; both are
+    solved with ``initial``, so they share its compiled programs (:func:`motion`);
+    returns the names written."""
     items = {
         "motion_initial.gif": (initial, None, "initial design"),
-        "motion_optimized.gif": (current, design, "optimised design"),
+        "motion_optimized.gif": (initial, design, "optimised design"),
     }
+    loops = {"motion_initial.gif": initial, "motion_optimized.gif": current}
     motions = {
-        name: motion(m, design=d, frames=frames) for name, (m, d, _) in items.items()
+        name: motion(m, design=d, frames=frames, loop_of=loops[name])
+        for name, (m, d, _) in items.items()
     }
     norm = colour_norm(np.concatenate([m.f_sing for m in motions.values()]))
     for name, (m, d, label) in items.items():

@@ -37,7 +37,7 @@ import numpy as np
 from .._engine.constraints import constraint_rows
 from .._engine.kinematics import solve_bk, solve_fk
 from .._engine.model import Mechanism
-from .._engine.readout import motor_values, output_values
+from .._engine.readout import motor_values, output_values, reported_values
 from .._engine.singularity import f_sing
 from .._errors import InputError
 
@@ -202,6 +202,9 @@ class Map2D(NamedTuple):
     motors: np.ndarray  # (N, N, M)
     outputs: np.ndarray  # (N, N, K)
     feasible: np.ndarray  # (N, N) bool
+    reported: np.ndarray | None = (
+        None  # (N, N, E) reported outputs; None: the file has none
+    )
 
 
 def _neighbours(cell: tuple[int, ...], shape: tuple[int, ...]):
@@ -284,6 +287,10 @@ def _finish(mech, axes, states, feasible, design) -> Map2D:
         shape + (-1,)
     )
     nan = np.where(feasible, 1.0, np.nan)
+    reported = None
+    if mech.reported_table.size:  # a read-out of the solved states: no solve
+        values = np.asarray(reported_values(mech, flat, design=design))
+        reported = values.reshape(shape + (-1,)) * nan[..., None]
     return Map2D(
         axes[0],
         axes[1],
@@ -291,6 +298,7 @@ def _finish(mech, axes, states, feasible, design) -> Map2D:
         motors * nan[..., None],
         outputs * nan[..., None],
         feasible,
+        reported,
     )
 
 

@@ -345,10 +345,50 @@ def _draw_row(mech: Mechanism, left, right, row: _Row, norm, samples: _Samples):
         color=MAGENTA,
         lw=2,
     )
+    for ax, grid in ((left, row.motors), (right, row.outputs)):
+        _reported_contours(ax, mech, grid)
     _scatter_samples(left, samples.ik_a[row.ik], samples.adv_a[row.adv])
     _scatter_samples(right, samples.ik_b[row.ik], samples.adv_b[row.adv])
     right.legend(loc="upper right", fontsize=8, facecolor="0.85")
     return image
+
+
+#: Contour lines of a reported output over a map.
+REPORTED_LEVELS = 7
+
+
+def _reported_contours(ax, mech: Mechanism, grid: Map2D) -> None:
+    """Dashed, labelled contour lines of the file's first reported output
+    (``reported = true``) over the reached cells of a map, named in a corner.
+
+    They cost a read-out of the map's solved states (:func:`~.maps._finish`), no solve.
+    Only the first: a second set of contours over the same map is not legible (our
+    choice; ``linkopt.reported_values`` reads them all). Nothing is drawn when the
+    file has none or the output is constant over the map."""
+    if grid.reported is None:
+        return
+    values = grid.reported[..., 0]
+    finite = values[np.isfinite(values)]
+    if finite.size < 4 or np.ptp(finite) <= 1e-12 * max(1.0, np.abs(finite).max()):
+        return
+    lines = ax.contour(
+        grid.axis0,
+        grid.axis1,
+        values.T,
+        levels=REPORTED_LEVELS,
+        colors="0.9",
+        linewidths=0.8,
+        linestyles="--",
+    )
+    ax.clabel(lines, fontsize=7, fmt="%.3g")
+    ax.text(
+        0.02,
+        0.02,
+        f"dashed: reported {mech.reported_table.names[0]}",
+        transform=ax.transAxes,
+        fontsize=8,
+        color="0.9",
+    )
 
 
 def _spaces_title(mech: Mechanism, evaluation: Evaluation) -> str:

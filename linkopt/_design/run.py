@@ -40,6 +40,7 @@ import multiprocessing
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -213,22 +214,27 @@ def _optimized_outputs(
     resolution: int | None,
     verify_resolution: int | None,
     progress: Callable[[dict], None] | None = None,
+    file_mech: Mechanism | None = None,
 ) -> tuple[dict, Evaluation]:
     """The optimised design's verification and evaluation (returned), its space plot,
     the convergence plot and the drawing of both designs (written); ``mech`` has the
     targets of the run's verification rounds, whose last verification serves when it
-    was of ``design`` at the same resolution."""
+    was of ``design`` at the same resolution. The space plot solves with ``file_mech``
+    (the file's mechanism, the same linkage without the rounds' targets, which the
+    figure does not use): the targets are part of the fingerprint that keys every
+    compiled program, so it shares the initial design's plot's programs."""
     from . import plots
 
+    file_mech = file_mech or mech
     with one_blas_thread():
-        checked = _last_round(run, design, verify_resolution)
+        checked = _last_round(mech, run, design, verify_resolution)
         if checked is None:
             _announce(progress, "verifying the optimised design")
             checked = _verification(mech, design, verify_resolution)
         final = evaluate(mech, design)
         if _has_space_plots(mech):
             plots.plot_spaces(
-                mech,
+                file_mech,
                 final,
                 out / "spaces_optimized.png",
                 resolution=resolution,
@@ -248,11 +254,17 @@ def _optimized_outputs(
 
 
 def _last_round(
-    run: SwarmRun, design: np.ndarray, verify_resolution: int | None
+    mech: Mechanism, run: SwarmRun, design: np.ndarray, verify_resolution: int | None
 ) -> dict | None:
     """The verification of ``design`` by the run's last round, if it verified this
-    design at the default resolution."""
-    if verify_resolution is not None or not run.rounds:
+    design at the resolution asked for (rounds verify at the default one,
+    :func:`linkopt._design.verify.default_resolution`, so a ``verify_resolution``
+    equal to it is served too). A round's mechanism differs from ``mech`` only in
+    IK targets, which verification does not use."""
+    from .verify import default_resolution
+
+    default = default_resolution(mech)
+    if not run.rounds or verify_resolution not in (None, default):
         return None
     last = run.rounds[-1]
     return last["verification"] if last["design"] == design.tolist() else None
@@ -282,18 +294,28 @@ def _design_outputs(
     try:
         initial = side.submit(_initial_outputs, *args) if side is not None else None
         checked, final = _optimized_outputs(
-            current, out, run, design, resolution, verify_resolution, progress
+            current, out, run, design, resolution, verify_resolution, progress, mech
         )
         checks = {
-            "initial": initial.result()
-            if initial is not None
-            else _initial_outputs(*args, progress),
+            "initial": _side_result(initial, args, progress),
             "optimized": checked,
         }
     finally:
         if side is not None:
             side.shutdown(cancel_futures=True)
     return checks, final
+
+
+def _side_result(initial, args: tuple, progress) -> dict:
+    """The spawned process's initial-design outputs, or, when that process died
+    (killed, or crashed), the same outputs computed here: a lost side process costs
+    time, never the run."""
+    if initial is not None:
+        try:
+            return initial.result()
+        except BrokenProcessPool:
+            pass
+    return _initial_outputs(*args, progress)
 
 
 def _summary(
