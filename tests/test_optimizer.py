@@ -325,3 +325,36 @@ def test_run_outputs_hold_the_optimised_file_verifications_and_figures(
     assert summary["f_design"] == pytest.approx(
         float(evaluate(five_bar, design).f_design), rel=1e-9, abs=1e-30
     )
+
+
+def test_a_killed_worker_is_replaced_and_the_numbers_do_not_change(
+    five_bar, swarm_evaluation
+):
+    """A worker killed while it evaluates its chunk (and one killed while idle) breaks
+    the pool; a new one recomputes the lost chunk and the result equals a
+    one-process evaluation bit for bit."""
+    import os
+    import signal
+    import threading
+
+    run, ev = swarm_evaluation
+    with Workers(five_bar, 2) as workers:
+        (pid,) = list(workers._pool._processes) or [None]
+        if pid is None:  # processes start on first submit
+            workers._pool.submit(int).result()
+            (pid,) = list(workers._pool._processes)
+        timer = threading.Timer(0.5, os.kill, (pid, signal.SIGKILL))
+        timer.start()
+        during = workers.evaluate(run.position)
+        timer.join()
+        assert workers.restarts >= 1
+        (pid,) = list(workers._pool._processes) or [None]
+        if pid is not None:
+            os.kill(pid, signal.SIGKILL)
+        idle = workers.evaluate(run.position)
+        chunks = [run.position[c] for c in workers._chunks(len(run.position))]
+    here = [jax.tree_util.tree_map(np.asarray, evaluate(five_bar, c)) for c in chunks]
+    expected = [np.concatenate(pair) for pair in zip(*here)]
+    for name, whole, a, b in zip(ev._fields, expected, during, idle):
+        np.testing.assert_array_equal(a, whole, err_msg=name)
+        np.testing.assert_array_equal(b, whole, err_msg=name)

@@ -20,6 +20,12 @@ after the caller), it differentiates that chunk while it waits, so most of the l
 falls in time it would have spent idle. The timings behind these choices are in
 ``benchmarks/bench_optimizer.py``.
 
+A worker that dies (killed, out of memory, or a crash in XLA) breaks the pool: a new
+pool recomputes the chunks that had no result, up to ``RETRIES`` times, and then the
+calling process computes them itself, so a lost worker costs time but never hangs or
+changes the run (``multiprocessing.Pool``, used before, waited for ever on the lost
+task).
+
 OpenBLAS is held to one thread while a chunk computes (:mod:`linkopt._config`): in the
 workers for their lifetime, in the calling process only while it computes.
 """
@@ -27,6 +33,8 @@ workers for their lifetime, in the calling process only while it computes.
 from __future__ import annotations
 
 import multiprocessing
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 
 import jax
 import numpy as np
@@ -37,6 +45,7 @@ from .._engine.model import Mechanism
 from .evaluation import Evaluation, alpha_minus, evaluate
 from .partial import partial_gradient
 
+RETRIES = 2  # new pools tried after a worker dies, before this process takes over
 _MECHANISM: Mechanism | None = None  # set in each worker process by _initialise
 
 
@@ -48,6 +57,10 @@ def _initialise(mech: Mechanism) -> None:
 
 def _evaluate_chunk(designs: np.ndarray) -> Evaluation:
     return jax.tree_util.tree_map(np.asarray, evaluate(_MECHANISM, designs))
+
+
+def _evaluate_chunk_here(mech: Mechanism, designs: np.ndarray) -> Evaluation:
+    return jax.tree_util.tree_map(np.asarray, evaluate(mech, designs))
 
 
 def _concatenate(parts: list[Evaluation]) -> Evaluation:
@@ -68,12 +81,56 @@ class Workers:
         self._pool = None
         # (designs, evaluation, alpha, gradient) of a first chunk
         self._early: tuple | None = None
+        self.restarts = 0  # worker pools replaced after a worker died
         if count > 1:
-            # spawn, not fork: fork would copy JAX's threads
-            context = multiprocessing.get_context("spawn")
-            self._pool = context.Pool(
-                count - 1, initializer=_initialise, initargs=(mech,)
-            )
+            self._pool = self._start_pool()
+
+    def _start_pool(self) -> ProcessPoolExecutor:
+        # spawn, not fork: fork would copy JAX's threads
+        return ProcessPoolExecutor(
+            self.count - 1,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_initialise,
+            initargs=(self.mech,),
+        )
+
+    def _submit(self, chunks: list[np.ndarray]) -> list[Future]:
+        """Futures of the chunks; a pool already broken (a worker died while idle)
+        is replaced first."""
+        try:
+            return [self._pool.submit(_evaluate_chunk, chunk) for chunk in chunks]
+        except BrokenProcessPool:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self.restarts += 1
+            self._pool = self._start_pool()
+            return [self._pool.submit(_evaluate_chunk, chunk) for chunk in chunks]
+
+    def _collect(self, futures: list[Future], chunks: list[np.ndarray]) -> list:
+        """The workers' results in chunk order. A worker that died (killed, or its
+        process crashed) breaks the pool: a new pool recomputes the chunks that had no
+        result, ``RETRIES`` times, then this process computes them itself. Each chunk's
+        numbers do not depend on the process, so the run stays bit-identical."""
+        results: list = [None] * len(chunks)
+        todo = list(range(len(chunks)))
+        for attempt in range(RETRIES + 1):
+            for i in list(todo):
+                try:
+                    results[i] = futures[i].result()
+                    todo.remove(i)
+                except BrokenProcessPool:
+                    pass
+            if not todo:
+                return results
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self.restarts += 1
+            self._pool = self._start_pool()
+            if attempt < RETRIES:
+                resubmitted = self._submit([chunks[i] for i in todo])
+                for i, future in zip(todo, resubmitted):
+                    futures[i] = future
+        for i in todo:
+            results[i] = _evaluate_chunk_here(self.mech, chunks[i])
+        return results
 
     def _chunks(self, n: int) -> list[slice]:
         bounds = np.linspace(0, n, min(self.count, n) + 1).round().astype(int)
@@ -85,13 +142,14 @@ class Workers:
         designs = np.asarray(designs, dtype=float)
         chunks = [designs[c] for c in self._chunks(len(designs))]
         pending = (
-            self._pool.map_async(_evaluate_chunk, chunks[1:])
+            self._submit(chunks[1:])
             if self._pool is not None and len(chunks) > 1
             else None
         )
         with one_blas_thread():
             first = jax.tree_util.tree_map(np.asarray, evaluate(self.mech, chunks[0]))
-            if pending is not None and not pending.ready():  # idle until they answer
+            if pending is not None and not all(f.done() for f in pending):
+                # idle until they answer
                 alpha = alpha_minus(self.mech)
                 self._early = (
                     chunks[0],
@@ -99,7 +157,8 @@ class Workers:
                     alpha,
                     self._gradient(chunks[0], first, alpha),
                 )
-        return _concatenate([first] + (pending.get() if pending is not None else []))
+        rest = self._collect(pending, chunks[1:]) if pending is not None else []
+        return _concatenate([first] + rest)
 
     def _gradient(
         self, designs: np.ndarray, evaluation: Evaluation, alpha: float
@@ -137,8 +196,7 @@ class Workers:
 
     def close(self) -> None:
         if self._pool is not None:
-            self._pool.close()
-            self._pool.join()
+            self._pool.shutdown(wait=True)
             self._pool = None
 
     def __enter__(self) -> Workers:
@@ -146,5 +204,6 @@ class Workers:
 
     def __exit__(self, *exc) -> None:
         if self._pool is not None and exc[0] is not None:
-            self._pool.terminate()
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
         self.close()
