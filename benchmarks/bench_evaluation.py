@@ -17,6 +17,12 @@ Figures behind the design choices (measured when each was made):
   the program that held the expensive evaluation four times (IK start and step,
   adversarial start and step) took 2.0 s to load from the compilation cache and 27 s to
   compile for 10 five-bar designs, against 0.6 s and 9 s with the shared step.
+* Plain-JAX linear algebra (:mod:`linkopt._engine.dense`) instead of LAPACK calls, and
+  XLA's default thread pool instead of ``PJRT_NPROC=1``: 20 five-bar designs
+  (``p0`` + N(0, 1) offsets, seed 0), best of two warm calls, 37.2 s -> 5.7 s on the
+  shared 2-core machine at load average 8.5 and 11.6 (first call in a fresh process
+  116 s -> 114 s). The load was far too high for absolute figures; rerun on a quiet
+  machine.
 * ``QUEUE_WIDTH`` = 12 (``linkopt._design.evaluation``): ten five-bar designs (90
   lanes) took 0.83-0.87 s at widths 6-15, 0.97 s at 45 and 1.14 s at 90; ten 3-motor
   neck designs (270 lanes) 5.9-6.5 s at 8 and 15, 6.7 s at 45 and 8.1-9.1 s at 135.

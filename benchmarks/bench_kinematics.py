@@ -12,8 +12,24 @@ Targets (five-bar, 2 cores): <= 200 µs a single solve, >= 30 000 solves/s batch
 Figures behind design choices in :mod:`linkopt._engine` (2 cores, measured when each
 choice was made; rerun this script for today's):
 
-* ``PJRT_NPROC=1`` (:mod:`linkopt._config`): five-bar FK batches of 1e5 ran at 10.8k
-  solves/s instead of 19.4k; single solves 185 µs instead of 250 µs.
+* Plain-JAX linear algebra (:mod:`linkopt._engine.dense`) instead of jaxlib's LAPACK
+  calls, so XLA keeps its default thread pool (``PJRT_NPROC`` is no longer set; the
+  LAPACK kernels could deadlock it, :mod:`linkopt._config`). Measured on the shared
+  2-core machine at load average ~12 (so only the ratios mean much), FK solves/s,
+  before (LAPACK, ``PJRT_NPROC=1``) -> after (dense, default pool): five-bar batch 1
+  4150 -> 2180, batch 1000 12 100 -> 12 500; Jansen batch 1 2750 -> 1050, batch 1000
+  3760 -> 4820, batch 10 000 -> 4510. Single solves are slower (the factor and the
+  solves are loops of 35-56 steps, each with XLA's per-iteration overhead); batches
+  break even (five-bar) or gain (Jansen). Earlier, at load 3.7-8.5, the LAPACK code
+  gave five-bar 2990 / 17 300 / 8970 and Jansen 3230 / 3970 / 2930 solves/s at
+  batches 1 / 1000 / 100 000. ``PJRT_NPROC=1`` with LAPACK had been measured at
+  19.4k solves/s against 10.8k with the default pool (five-bar, batches of 1e5).
+* Batched solves in chunks of ``kinematics.CHUNK`` = 32 lanes (``lax.map``): one vmap
+  over the whole batch made every step of the plain-JAX Cholesky stream all the
+  batch's matrices through memory (1000 factors of 56 x 56: 200 ms in one vmap, 48 ms
+  in chunks of 8, LAPACK 35 ms; 35 x 35: 27 ms, 21 ms in chunks of 32, LAPACK 16 ms).
+  Panels of 8 columns per loop step were slower than one column (76 against 27 ms per
+  1000 factors of 35 x 35), so only the triangular solves work by panels.
 * Hand-written LM against ``optimistix.LevenbergMarquardt``: about 6x faster a solve.
 * σ_min by block inverse iteration (:mod:`linkopt._engine.singularity`): the LAPACK SVD
   of a few dozen columns cost 0.2 ms per matrix and was 80 % of a design evaluation;

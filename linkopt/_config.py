@@ -6,16 +6,17 @@ Imported first by :mod:`linkopt`. The cache lives in a per-user directory,
 recompiling them. Float64 is required: a float32 Levenberg–Marquardt solve stalls
 at residuals of about 3e-7, far above the 1e-10 loop-closure tolerance we need.
 
-XLA's CPU runtime runs independent thunks on its intra-op thread pool, and jaxlib's
-batched LAPACK kernels (SVD, Cholesky, ...) split their batch into tasks on that same
-pool and block until those are done (``jax::ParallelBatchMap``). When every worker is
-such a blocked kernel, nobody runs the tasks: on a 2-core machine two LAPACK calls that
-happen to be ready at once hang the process for ever (seen with jax 0.10.2, e.g.
-``jit(vmap(grad(f_sing ∘ FK)))``; ``--xla_cpu_multi_thread_eigen=false`` does not help).
-ParallelBatchMap runs the whole batch inline when the pool has one thread, so unless the
-user set ``PJRT_NPROC`` we set it to 1 (read by XLA when it creates its CPU client, i.e.
-at the first computation; importing :mod:`linkopt` first guarantees that). The cost
-in batched solves per second is measured by ``benchmarks/bench_kinematics.py``.
+XLA's thread pool is left as the user (or XLA) set it. jaxlib's batched LAPACK kernels
+(Cholesky, triangular solve, LU, eigh, SVD) split their batch into tasks on XLA's
+intra-op pool and block until those are done (``jax::ParallelBatchMap``); when every
+pool thread is such a blocked kernel nobody runs the tasks, and on a 2-core machine the
+process hung (jax 0.10.2, e.g. ``jit(vmap(grad(f_sing ∘ FK)))``). linkopt used to set
+``PJRT_NPROC=1`` on import to avoid it, at the cost of one core per process. No longer
+needed: the linear algebra inside linkopt's jitted programs is written in plain JAX
+(:mod:`linkopt._engine.dense`), so those programs contain no LAPACK call.
+``tests/test_no_lapack.py`` guards it: it lowers the hot-path programs and fails on any
+LAPACK custom call, and runs ``jit(vmap(grad(f_sing ∘ FK)))`` in a subprocess without
+``PJRT_NPROC`` under a timeout. numpy/scipy LAPACK outside jit is unaffected.
 """
 
 from __future__ import annotations
@@ -23,14 +24,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-
-def _single_threaded_pool() -> None:
-    os.environ.setdefault("PJRT_NPROC", "1")  # takes precedence over NPROC in XLA
-
-
-_single_threaded_pool()
-
-import jax  # noqa: E402  (PJRT_NPROC must be set first)
+import jax
 
 
 def cache_directory() -> Path:

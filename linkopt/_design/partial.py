@@ -20,9 +20,8 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-from jax.scipy.linalg import cho_factor, cho_solve
 
-from .._engine import programs
+from .._engine import dense, programs
 from .._engine.constraints import fk_residual, output_residual
 from .._engine.geometry import geometry
 from .._engine.jacobian import state_jacobian
@@ -80,9 +79,7 @@ def _adjoint_term(mech: Mechanism, term, design, motors, state):
     fixed = jax.lax.stop_gradient(geom)
     d_state = jax.grad(term)(state, fixed)
     jac = state_jacobian(mech, fixed, "fk", state)
-    mu = jac @ cho_solve(
-        cho_factor(jac.T @ jac), d_state
-    )  # built from `fixed`: no gradient
+    mu = jac @ dense.solve_spd(jac.T @ jac, d_state)  # built from `fixed`: no gradient
     return term(state, geom) - mu @ fk_residual(mech, geom, motors, state)
 
 

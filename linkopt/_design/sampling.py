@@ -50,9 +50,9 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, Bool, Float, Int
 
+from .._engine import dense
 from .._engine.constraints import (
     fk_residual,
     homogenised_output_values,
@@ -106,7 +106,7 @@ def state_motor_jacobian(
     """``ds/da`` at a solved state (eq. 2, least-squares form for tall Jacobians)."""
     jac_s = state_jacobian(mech, geom, "fk", state)
     jac_a = jax.jacfwd(lambda a: fk_residual(mech, geom, a, state))(motors)
-    return -cho_solve(cho_factor(jac_s.T @ jac_s), jac_s.T @ jac_a)
+    return -dense.solve_spd(jac_s.T @ jac_s, jac_s.T @ jac_a)
 
 
 #: An objective maps ``(motors, state, ds/da, f_sing, ∂f_sing/∂s)`` at a solved state to
@@ -159,7 +159,7 @@ def _trial(mech: Mechanism, geom: Geometry, it: _Iterate, fresh) -> _Trial:
     its linear prediction ``s + (ds/da) δ``."""
     size = it.motors.shape[0]
     system = it.hessian + it.damping * jnp.eye(size)
-    delta = -jnp.linalg.solve(system, it.gradient)
+    delta = -dense.solve(system, it.gradient)  # LU: as jnp.linalg.solve was
     norm = jnp.sqrt(delta @ delta)
     shortened = norm > it.radius
     delta = jnp.where(

@@ -721,6 +721,8 @@ def _programs():
     import jax
     import jax.numpy as jnp
 
+    from . import dense
+
     def scaled_jacobian(sizes, rows, x, s):
         r = _residual(sizes, rows, x)
         jac = jax.jacfwd(lambda y: _residual(sizes, rows, y))(x) * s[None, :]
@@ -730,7 +732,7 @@ def _programs():
         """``Jᵀ (J Jᵀ + μ I)⁻¹ rhs``: the least-norm (damped) ``d`` of ``J d = rhs``."""
         gram = jac @ jac.T
         eye = jnp.eye(gram.shape[0])
-        return jac.T @ jnp.linalg.solve(gram + damping * eye, rhs)
+        return jac.T @ dense.solve(gram + damping * eye, rhs)
 
     @functools.partial(jax.jit, static_argnums=0)
     def lm(sizes, rows, x, s):

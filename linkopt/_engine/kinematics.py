@@ -31,11 +31,10 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, Bool, Float, Int
 
 from .._errors import InputError
-from . import jacobian, lm
+from . import dense, jacobian, lm
 from .constraints import (
     bk_residual,
     fk_residual,
@@ -96,7 +95,7 @@ def _implicit_state_jvp(mech, kind, primals, tangents):
         lambda g, v: residual(mech, g, v, state), (geom, values), (d_geom, d_values)
     )
     jac = jacobian.state_jacobian(mech, geom, kind, state)
-    d_state = -cho_solve(cho_factor(jac.T @ jac), jac.T @ rhs)
+    d_state = -dense.solve_spd(jac.T @ jac, jac.T @ rhs)
     return state, d_state
 
 
@@ -155,7 +154,7 @@ def predict(mech: Mechanism, kind: str, geom: Geometry, values, state):
     are redundant), built from the LM solver's own normal equations."""
     _, hessian, gradient = jacobian.normal_equations(mech, geom, kind, values, state)
     system = hessian + 1e-12 * jnp.eye(hessian.shape[0])
-    return state - cho_solve(cho_factor(system), gradient)
+    return state - dense.solve_spd(system, gradient)
 
 
 class _Walk(NamedTuple):
@@ -239,15 +238,27 @@ def _prepare(mech: Mechanism, kind: str, values, start, design):
     return values, start, geometry(mech, design_vector(mech, design))
 
 
+#: Lanes per vmapped chunk of a batched solve (``lax.map`` runs the chunks in turn).
+#: A whole batch vmapped at once makes every operation of the solve (the plain-JAX
+#: Cholesky's column steps above all) stream the batch's matrices through memory; in
+#: chunks they stay in cache: 1000 Cholesky factors of 56 x 56 took 48 ms in chunks of
+#: 8 and 200 ms in one vmap (``benchmarks/bench_kinematics.py``).
+CHUNK = 32
+
+
+def _chunked(fn, xs):
+    """``vmap(fn)(xs)`` computed ``CHUNK`` lanes at a time."""
+    return jax.lax.map(fn, xs, batch_size=CHUNK)
+
+
 @partial(jax.jit, static_argnums=(0, 1))
 def _solve(mech: Mechanism, kind: str, values, start, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, start, design)
     if values.ndim == 1:
         return solve_single(mech, kind, geom, values, start)
-    in_start = 0 if start.ndim == 2 else None
-    return jax.vmap(
-        lambda v, s0: solve_single(mech, kind, geom, v, s0), in_axes=(0, in_start)
-    )(values, start)
+    if start.ndim == 2:
+        return _chunked(lambda vs: solve_single(mech, kind, geom, *vs), (values, start))
+    return _chunked(lambda v: solve_single(mech, kind, geom, v, start), values)
 
 
 @partial(jax.jit, static_argnums=(0, 1))
@@ -258,7 +269,7 @@ def _solve_from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
     def one(v):
         return continue_to(mech, kind, geom, v_rest, start, v)
 
-    return one(values) if values.ndim == 1 else jax.vmap(one)(values)
+    return one(values) if values.ndim == 1 else _chunked(one, values)
 
 
 @partial(jax.jit, static_argnums=(0, 1))

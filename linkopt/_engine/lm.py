@@ -8,11 +8,11 @@ keeps it as the comparison.
 
 Shape follows optimistix: :func:`init`, :func:`step`, :func:`terminate`, run by
 :func:`solve` in a ``lax.while_loop``. The step solves ``(JᵀJ + λI) δ = -Jᵀr`` by
-Cholesky (``J`` may be tall with redundant rows, e.g. a planar loop written in 3-D);
-damping follows Nielsen's rule: on acceptance ``λ *= max(1/3, 1 - (2ρ - 1)³)``, on
-rejection ``λ *= ν, ν *= 2``. Failure is a value: a stall at a non-zero local minimum
-(damping beyond ``1e12`` or a step below ``1e-15``) or the iteration cap ends the loop
-with ``converged = False``.
+Cholesky (:mod:`linkopt._engine.dense`, no LAPACK call; ``J`` may be tall with redundant
+rows, e.g. a planar loop written in 3-D); damping follows Nielsen's rule: on acceptance
+``λ *= max(1/3, 1 - (2ρ - 1)³)``, on rejection ``λ *= ν, ν *= 2``. Failure is a value: a
+stall at a non-zero local minimum (damping beyond ``1e12`` or a step below ``1e-15``) or
+the iteration cap ends the loop with ``converged = False``.
 """
 
 from __future__ import annotations
@@ -22,8 +22,9 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, Bool, Float, Int
+
+from . import dense
 
 Residual = Callable[[Float[Array, " n"]], Float[Array, " m"]]
 #: ``x -> (C(x), J(x)ᵀJ(x), J(x)ᵀC(x))``: the residual and its Gauss–Newton normal
@@ -97,7 +98,7 @@ def step(
         state.damping,
     )
     system = hessian + lam * jnp.eye(hessian.shape[0])
-    delta = -cho_solve(cho_factor(system), gradient)
+    delta = -dense.cho_solve(dense.cholesky(system), gradient)
     new_residual, new_hessian, new_gradient = _linearise(fn, state.x + delta, linearise)
     actual = r @ r - new_residual @ new_residual
     predicted = -(2.0 * delta @ gradient + delta @ hessian @ delta)

@@ -27,6 +27,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._errors import InputError
+from . import dense
 from .kinematics import sensitivity
 from .model import Mechanism
 from .readout import point_positions
@@ -37,7 +38,7 @@ def yoshikawa(jac: Float[Array, "k M"]) -> Float[Array, ""]:
     singularity."""
     k, m = jac.shape
     gram = jac @ jac.T if k <= m else jac.T @ jac
-    det = jnp.linalg.det(gram)
+    det = dense.det(gram)  # no LAPACK call (linkopt._config)
     positive = det > 0.0
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, det, 1.0)), 0.0)
 

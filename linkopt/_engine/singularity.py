@@ -19,6 +19,10 @@ smallest eigenvalue separates and the iteration converges faster. The value retu
 ``σ = ‖J(s) v‖`` with the Ritz vector ``v`` held fixed, an upper bound on σ_min that
 equals it at convergence, and whose derivative is the exact first derivative of σ_min
 for a simple smallest singular value (``dσ = uᵀ dJ v``, ``u = Jv/σ``).
+
+The Cholesky factor, its inverse and the ``BLOCK × BLOCK`` Ritz eigenproblem (cyclic
+Jacobi) come from :mod:`linkopt._engine.dense`, not LAPACK: jaxlib's batched LAPACK
+kernels can deadlock XLA's thread pool (:mod:`linkopt._config`).
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._errors import InputError
-from . import jacobian
+from . import dense, jacobian
 from .geometry import Geometry, design_vector, geometry
 from .model import Mechanism
 
@@ -66,10 +70,7 @@ def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
     a = jnp.einsum("bmi,bmj->bij", jac, jac)
     n = a.shape[-1]
     shift = 1e-13 * jnp.trace(a, axis1=1, axis2=2)[:, None, None] * jnp.eye(n)
-    lower = jnp.linalg.cholesky(a + shift)
-    inv_lower = jax.scipy.linalg.solve_triangular(
-        lower, jnp.broadcast_to(jnp.eye(n), a.shape), lower=True
-    )
+    inv_lower = jax.vmap(lambda m: dense.lower_inverse(dense.cholesky(m)))(a + shift)
     inverse = jnp.einsum("bki,bkj->bij", inv_lower, inv_lower)  # A⁻¹ = L⁻ᵀ L⁻¹
     start = np.random.default_rng(0).standard_normal((n, min(BLOCK, n)))
     x = _orthonormalise(
@@ -80,7 +81,7 @@ def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
         return _orthonormalise(jnp.einsum("bij,bjk->bik", inverse, x))
 
     x = jax.lax.fori_loop(0, ITERATIONS, sweep, x)
-    _, ritz = jnp.linalg.eigh(jnp.einsum("bni,bnm,bmj->bij", x, a, x))
+    _, ritz = jax.vmap(dense.symmetric_eigh)(jnp.einsum("bni,bnm,bmj->bij", x, a, x))
     return jnp.einsum("bnk,bk->bn", x, ritz[:, :, 0])
 
 

@@ -60,6 +60,7 @@ import scipy.optimize
 from jaxtyping import Array, Float
 
 from ..._config import one_blas_thread
+from ..._engine import dense
 from ..._errors import InputError
 from .. import checks
 from . import table as dh
@@ -154,7 +155,7 @@ def _pack(table: dh.DHTable, q) -> np.ndarray:
 def _w_squared(jac: Float[Array, "3 N"]) -> Float[Array, ""]:
     """``w²`` of eq. 1: ``det(J Jᵀ)``, or ``det(Jᵀ J)`` for fewer than 3 joints."""
     k, n = jac.shape
-    return jnp.linalg.det(jac @ jac.T if k <= n else jac.T @ jac)
+    return dense.det(jac @ jac.T if k <= n else jac.T @ jac)  # closed form, <= 3x3
 
 
 def _per_target(types: str, table: dh.DHTable, q, target):
@@ -218,7 +219,7 @@ def polish(
         def step(_, v):
             jac = dh.tip_jacobian(types, table, v)
             gap = dh.tip_position(types, table, v) - target
-            delta = jnp.linalg.solve(
+            delta = dense.solve(
                 jac.T @ jac + 1e-12 * jnp.eye(jac.shape[1]), jac.T @ gap
             )
             trial = v - delta

@@ -1,0 +1,298 @@
+"""Small dense linear algebra in plain JAX operations (no LAPACK custom calls).
+
+jaxlib runs ``jnp.linalg``'s Cholesky, triangular solve, LU, eigh and SVD on CPU as
+LAPACK custom calls that split a batch into tasks on XLA's intra-op thread pool and
+block until those finish (``jax::ParallelBatchMap``); with as many such calls ready as
+the pool has threads, nobody runs the tasks and the process hangs (jaxlib 0.10.2, see
+:mod:`linkopt._config`). Everything here is built from ``lax.fori_loop``, dynamic
+slices and element-wise arithmetic, so a vmapped batch is one loop over columns whose
+body works on the whole batch at once, and nothing ever waits on the pool.
+
+Sizes here are small (≤ ~80: states of 35-70 coordinates, 6 × 6 Ritz matrices, 2 × 2
+motor systems). Loops over a matrix dimension are ``fori_loop``s, not Python loops, so
+the HLO (and compile time) does not grow with ``n``.
+
+Behaviour outside the happy path (chosen to match what the LAPACK routines give through
+``jnp.linalg``, which fill a failed factor with NaN):
+
+* :func:`cholesky` of a matrix that is not positive definite, or holds NaN, gives NaN
+  from the first non-positive pivot on (``sqrt`` of a negative number); every solve with
+  that factor is then NaN. Only the lower triangle of the input is read.
+* :func:`lu_factor` of an exactly singular matrix gives a zero pivot, and
+  :func:`lu_solve` then inf/NaN, as LAPACK's ``getrs`` would; :func:`det` gives 0.
+* :func:`symmetric_eigh` runs a fixed number of cyclic Jacobi sweeps (no convergence
+  test, so it vmaps without a ragged loop); on NaN input it returns NaN.
+
+Derivatives: :func:`solve_spd` and :func:`solve` are ``lax.custom_linear_solve``s, so
+their JVP and transpose are further solves with the same factor (the matrix's
+derivative enters only through ``A x``); the factorisations themselves are never
+differentiated. :func:`det` differentiates through the LU loop (its callers' matrices
+are at most 6 × 6).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+#: Cyclic Jacobi sweeps of :func:`symmetric_eigh`. Convergence is quadratic once the
+#: off-diagonal part is below the eigenvalue gaps; for 6 × 6 matrices 6 sweeps reach
+#: round-off from random starts (``tests/test_dense.py``), 8 leave a margin.
+JACOBI_SWEEPS = 8
+
+
+def _as_matrix(b):
+    """``(n, k)`` view of a right-hand side and whether it was a vector."""
+    return (b[:, None], True) if b.ndim == 1 else (b, False)
+
+
+#: Panel width of the triangular solves: ``n`` is padded to a multiple of it, and each
+#: ``fori_loop`` step handles one panel of rows (a product with the finished part, then
+#: ``PANEL`` rows unrolled), so a solve is ``n / PANEL`` loop steps, not ``n``.
+PANEL = 8
+
+
+def _padded(a: Float[Array, "n n"]) -> Float[Array, "N N"]:
+    """``a`` in the top-left corner of an identity of the next multiple of
+    :data:`PANEL` (positive definite and triangular structure are kept)."""
+    n = a.shape[-1]
+    size = -(-n // PANEL) * PANEL
+    if size == n:
+        return a
+    return jnp.eye(size, dtype=a.dtype).at[:n, :n].set(a)
+
+
+def _pad_rows(b: Float[Array, "n k"], size: int) -> Float[Array, "N k"]:
+    return b if b.shape[0] == size else jnp.pad(b, ((0, size - b.shape[0]), (0, 0)))
+
+
+def cholesky(a: Float[Array, "n n"]) -> Float[Array, "n n"]:
+    """Lower Cholesky factor ``L`` of ``a = L Lᵀ`` (left-looking, one column per
+    ``fori_loop`` step; reads the lower triangle only; NaN from the first non-positive
+    pivot on).
+
+    One column a step (a matrix-vector product with the finished columns) measured
+    faster than panels of :data:`PANEL` columns, both alone (42 against 65 µs for
+    35 x 35) and vmapped over chunks of 32 (21 against 32 ms per 1000), because the
+    panel's unrolled column updates each pass over the whole batch."""
+    n = a.shape[-1]
+    rows = jnp.arange(n)
+
+    def column(j, lower):
+        row_j = jax.lax.dynamic_index_in_dim(lower, j, 0, keepdims=False)  # L[j, :j]
+        col = jax.lax.dynamic_index_in_dim(a, j, 1, keepdims=False) - lower @ row_j
+        pivot = jnp.sqrt(jax.lax.dynamic_index_in_dim(col, j, 0, keepdims=False))
+        new = jnp.where(rows > j, col / pivot, jnp.where(rows == j, pivot, 0.0))
+        return jax.lax.dynamic_update_index_in_dim(lower, new, j, 1)
+
+    return jax.lax.fori_loop(0, n, column, jnp.zeros_like(a))
+
+
+def solve_lower(
+    lower: Float[Array, "n n"], b: Float[Array, "n ..."], *, unit_diagonal=False
+) -> Float[Array, "n ..."]:
+    """``x`` with ``L x = b`` for lower-triangular ``L`` (forward substitution by
+    panels of :data:`PANEL` rows; ``b`` a vector or an ``(n, k)`` matrix; only the
+    lower triangle of ``L`` is read)."""
+    rhs, vector = _as_matrix(b)
+    n = lower.shape[-1]
+    padded = _padded(jnp.tril(lower))
+    size = padded.shape[-1]
+    rhs_p = _pad_rows(rhs, size)
+
+    def panel(k, x):
+        j = k * PANEL
+        strip = jax.lax.dynamic_slice_in_dim(padded, j, PANEL, 0)  # L[j:j+P, :]
+        r = jax.lax.dynamic_slice_in_dim(rhs_p, j, PANEL, 0) - strip @ x
+        diag = jax.lax.dynamic_slice_in_dim(strip, j, PANEL, 1)  # rows >= j of x: 0
+        ys = []
+        for c in range(PANEL):
+            y = r[c] - sum((diag[c, d] * ys[d] for d in range(c)), jnp.zeros_like(r[c]))
+            ys.append(y if unit_diagonal else y / diag[c, c])
+        return jax.lax.dynamic_update_slice_in_dim(x, jnp.stack(ys), j, 0)
+
+    x = jax.lax.fori_loop(0, size // PANEL, panel, jnp.zeros_like(rhs_p))[:n]
+    return x[:, 0] if vector else x
+
+
+def solve_upper(
+    upper: Float[Array, "n n"], b: Float[Array, "n ..."]
+) -> Float[Array, "n ..."]:
+    """``x`` with ``U x = b`` for upper-triangular ``U`` (back substitution)."""
+    rhs, vector = _as_matrix(b)
+    n = upper.shape[-1]
+
+    def row(k, x):
+        i = n - 1 - k
+        u_i = jax.lax.dynamic_index_in_dim(upper, i, 0, keepdims=False)
+        b_i = jax.lax.dynamic_index_in_dim(rhs, i, 0, keepdims=False)
+        value = (b_i - u_i @ x) / jax.lax.dynamic_index_in_dim(
+            u_i, i, 0, keepdims=False
+        )  # rows <= i of x are still zero
+        return jax.lax.dynamic_update_index_in_dim(x, value, i, 0)
+
+    x = jax.lax.fori_loop(0, n, row, jnp.zeros_like(rhs))
+    return x[:, 0] if vector else x
+
+
+def solve_lower_transpose(
+    lower: Float[Array, "n n"], b: Float[Array, "n ..."]
+) -> Float[Array, "n ..."]:
+    """``x`` with ``Lᵀ x = b`` (back substitution by panels of :data:`PANEL` rows,
+    reading the columns of ``L``; only its lower triangle is read)."""
+    rhs, vector = _as_matrix(b)
+    n = lower.shape[-1]
+    padded = _padded(jnp.tril(lower))
+    size = padded.shape[-1]
+    rhs_p = _pad_rows(rhs, size)
+    panels = size // PANEL
+
+    def panel(k, x):
+        j = (panels - 1 - k) * PANEL
+        strip = jax.lax.dynamic_slice_in_dim(padded, j, PANEL, 1)  # L[:, j:j+P]
+        r = jax.lax.dynamic_slice_in_dim(rhs_p, j, PANEL, 0) - strip.T @ x
+        diag = jax.lax.dynamic_slice_in_dim(strip, j, PANEL, 0)  # rows <= j of x: 0
+        ys = [None] * PANEL
+        for c in reversed(range(PANEL)):
+            later = (diag[d, c] * ys[d] for d in range(c + 1, PANEL))
+            ys[c] = (r[c] - sum(later, jnp.zeros_like(r[c]))) / diag[c, c]
+        return jax.lax.dynamic_update_slice_in_dim(x, jnp.stack(ys), j, 0)
+
+    x = jax.lax.fori_loop(0, panels, panel, jnp.zeros_like(rhs_p))[:n]
+    return x[:, 0] if vector else x
+
+
+def cho_solve(lower: Float[Array, "n n"], b: Float[Array, "n ..."]):
+    """``x`` with ``L Lᵀ x = b`` from the factor of :func:`cholesky` (not
+    differentiable in ``lower``; use :func:`solve_spd` for that)."""
+    return solve_lower_transpose(lower, solve_lower(lower, b))
+
+
+def lower_inverse(lower: Float[Array, "n n"]) -> Float[Array, "n n"]:
+    """``L⁻¹`` of a lower-triangular matrix (forward substitution on the identity)."""
+    return solve_lower(lower, jnp.eye(lower.shape[-1], dtype=lower.dtype))
+
+
+def solve_spd(a: Float[Array, "n n"], b: Float[Array, "n ..."]):
+    """``a⁻¹ b`` for symmetric positive definite ``a`` by Cholesky; differentiable in
+    both arguments (module docstring), NaN where ``a`` is not positive definite."""
+    lower = cholesky(jax.lax.stop_gradient(a))
+    return jax.lax.custom_linear_solve(
+        lambda x: a @ x,
+        b,
+        solve=lambda _, rhs: cho_solve(lower, rhs),
+        symmetric=True,
+    )
+
+
+def lu_factor(
+    a: Float[Array, "n n"],
+) -> tuple[Float[Array, "n n"], Int[Array, " n"], Float[Array, ""]]:
+    """``(lu, perm, sign)``: ``a[perm] = L U`` with unit-lower ``L`` and ``U`` packed in
+    ``lu`` (Doolittle, partial pivoting on the largest magnitude, ties to the lower
+    row, as LAPACK's ``getrf``), and the permutation's sign."""
+    n = a.shape[-1]
+    rows = jnp.arange(n)
+
+    def step(k, carry):
+        m, perm, sign = carry
+        col = jax.lax.dynamic_index_in_dim(m, k, 1, keepdims=False)
+        p = jnp.argmax(jnp.where(rows >= k, jnp.abs(col), -1.0))
+        swap = jnp.where(rows == k, p, jnp.where(rows == p, k, rows))
+        m, perm = m[swap], perm[swap]
+        sign = jnp.where(p == k, sign, -sign)
+        col = jax.lax.dynamic_index_in_dim(m, k, 1, keepdims=False)
+        row = jax.lax.dynamic_index_in_dim(m, k, 0, keepdims=False)
+        pivot = jax.lax.dynamic_index_in_dim(col, k, 0, keepdims=False)
+        # a zero pivot means a zero column below it: skip the elimination, as getrf
+        factors = jnp.where(rows > k, col / jnp.where(pivot == 0.0, 1.0, pivot), 0.0)
+        m = m - jnp.outer(factors, jnp.where(rows > k, row, 0.0))
+        m = jax.lax.dynamic_update_index_in_dim(
+            m, jnp.where(rows > k, factors, col), k, 1
+        )
+        return m, perm, sign
+
+    return jax.lax.fori_loop(0, n, step, (a, rows, jnp.ones((), a.dtype)))
+
+
+def lu_solve(lu, perm, b: Float[Array, "n ..."]):
+    """``x`` with ``a x = b`` from :func:`lu_factor` (not differentiable in ``lu``)."""
+    return solve_upper(jnp.triu(lu), solve_lower(lu, b[perm], unit_diagonal=True))
+
+
+def solve(a: Float[Array, "n n"], b: Float[Array, "n ..."]):
+    """``a⁻¹ b`` for a general square ``a`` by LU with partial pivoting;
+    differentiable in both arguments (module docstring)."""
+    fixed = jax.lax.stop_gradient(a)
+    lu, perm, _ = lu_factor(fixed)
+
+    def transpose_solve(_, rhs):  # traced only when a derivative is transposed
+        lu_t, perm_t, _ = lu_factor(fixed.T)
+        return lu_solve(lu_t, perm_t, rhs)
+
+    return jax.lax.custom_linear_solve(
+        lambda x: a @ x,
+        b,
+        solve=lambda _, rhs: lu_solve(lu, perm, rhs),
+        transpose_solve=transpose_solve,
+    )
+
+
+def det(a: Float[Array, "n n"]) -> Float[Array, ""]:
+    """Determinant: closed form up to 3 × 3 (exact zero at exact singularity, smooth
+    derivatives), else the signed product of the LU pivots."""
+    n = a.shape[-1]
+    if n == 1:
+        return a[0, 0]
+    if n == 2:
+        return a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+    if n == 3:
+        return jnp.dot(a[0], jnp.cross(a[1], a[2]))
+    lu, _, sign = lu_factor(a)
+    return sign * jnp.prod(jnp.diagonal(lu))
+
+
+def _rotation_pairs(k: int) -> np.ndarray:
+    """``(k(k-1)/2, 2)``: the cyclic row-by-row order of Jacobi's ``(p, q)``, p < q."""
+    return np.array([(p, q) for p in range(k) for q in range(p + 1, k)], dtype=int)
+
+
+def symmetric_eigh(
+    a: Float[Array, "k k"], sweeps: int = JACOBI_SWEEPS
+) -> tuple[Float[Array, " k"], Float[Array, "k k"]]:
+    """``(w, v)`` with ``a v = v diag(w)``, ``w`` ascending, for a small symmetric
+    ``a`` (cyclic Jacobi, ``sweeps`` fixed sweeps; rotation angle as in Golub & Van
+    Loan, Alg. 8.5.1, which keeps ``|θ| ≤ π/4``)."""
+    k = a.shape[-1]
+    if k == 1:
+        return a[0], jnp.ones_like(a)
+    pairs = jnp.asarray(_rotation_pairs(k))
+    index = jnp.arange(k)
+
+    def rotate(r, carry):
+        m, v = carry
+        p, q = pairs[r % pairs.shape[0], 0], pairs[r % pairs.shape[0], 1]
+        app, aqq, apq = m[p, p], m[q, q], m[p, q]
+        safe = jnp.where(apq == 0.0, 1.0, apq)
+        theta = (aqq - app) / (2.0 * safe)
+        t = jnp.sign(theta) / (jnp.abs(theta) + jnp.sqrt(theta * theta + 1.0))
+        t = jnp.where((apq == 0.0) | (theta == 0.0), jnp.where(apq == 0, 0.0, 1.0), t)
+        c = 1.0 / jnp.sqrt(t * t + 1.0)
+        s = t * c
+        e_p = (index == p).astype(a.dtype)
+        e_q = (index == q).astype(a.dtype)
+        g = (
+            jnp.eye(k, dtype=a.dtype)
+            + (c - 1.0) * (jnp.outer(e_p, e_p) + jnp.outer(e_q, e_q))
+            + s * (jnp.outer(e_p, e_q) - jnp.outer(e_q, e_p))
+        )
+        return g.T @ m @ g, v @ g
+
+    m, v = jax.lax.fori_loop(
+        0, sweeps * pairs.shape[0], rotate, (a, jnp.eye(k, dtype=a.dtype))
+    )
+    w = jnp.diagonal(m)
+    order = jnp.argsort(w)
+    return w[order], v[:, order]
