@@ -1,9 +1,9 @@
 """Command line: ``linkopt check | fk | bk | evaluate | plot | verify | optimize |
-arm``; a thin layer over the public API.
+sweep | arm``; a thin layer over the public API.
 
 Each command family lives in its own module with a ``register(subparsers)``:
 :mod:`.mechanism` (check, fk, bk), :mod:`.evaluation` (evaluate, plot, verify),
-:mod:`.optimize`, and under ``arm`` :mod:`.arm` (design, simplify),
+:mod:`.optimize`, :mod:`.sweep`, and under ``arm`` :mod:`.arm` (design, simplify),
 :mod:`.manipulability` and :mod:`.trace`. This module assembles the parser and handles
 what every command shares.
 
@@ -26,6 +26,7 @@ from . import export as export_commands
 from . import manipulability as manipulability_commands
 from . import mechanism as mechanism_commands
 from . import optimize as optimize_commands
+from . import sweep as sweep_commands
 from . import trace as trace_commands
 
 # options whose values may start with "-" (negative numbers)
@@ -63,6 +64,7 @@ def _parser() -> argparse.ArgumentParser:
         assemble_commands,
         evaluation_commands,
         optimize_commands,
+        sweep_commands,
         export_commands,
         animate_commands,
     ):

@@ -9,6 +9,11 @@ The command holds the lock on ``DIR`` from before the run starts until its outpu
 written (:func:`linkopt._design.run.locked_run_folder`), so a second ``optimize`` on the
 same ``--out`` exits 2 naming the first; a bad ``--out`` or a checkpoint that is not
 one ``linkopt optimize`` wrote exits 2 before any optimisation starts.
+
+With ``--scheduler ADDRESS`` each iteration's ``--workers`` particle chunks are
+evaluated on a Dask cluster's workers (:mod:`linkopt._design.cluster`; bit-identical to
+the local run with the same ``--workers``); a scheduler that does not answer within
+``--connect-timeout`` seconds, or Dask not installed, exits 2 with one line.
 """
 
 from __future__ import annotations
@@ -28,6 +33,8 @@ WORKERS = max(1, min(2, os.cpu_count() or 1))
 #: 20 minutes per iteration there, and more on a larger mechanism.
 MAX_LANES = 200_000
 MAX_WORKERS = 64
+#: seconds ``--scheduler`` waits for the scheduler to answer (``--connect-timeout``)
+CONNECT_TIMEOUT = 10.0
 _SUMMARY_KEYS = (
     "iterations",
     "f_design",
@@ -134,7 +141,7 @@ def _progress():
 
 def run_optimize(args) -> int:
     from .._design.optimizer import OptimizerSettings
-    from .._design.run import locked_run_folder, optimize, write_outputs
+    from .._design.run import locked_run_folder, write_outputs
 
     mech = load(args.file)
     _check_arguments(args, mech)
@@ -149,14 +156,7 @@ def run_optimize(args) -> int:
         verify_rounds=args.verify_rounds,
     )
     with locked_run_folder(args.out, args.resume, "--out"):
-        run = optimize(
-            mech,
-            args.out,
-            settings,
-            resume=args.resume,
-            progress=_progress(),
-            workers=args.workers,
-        )
+        run = _optimize(args, mech, settings)
         print(
             "writing the optimised file, verification and figures ...",
             file=sys.stderr,
@@ -189,6 +189,71 @@ def run_optimize(args) -> int:
     return 0
 
 
+def _optimize(args, mech, settings):
+    """The run, on this machine or, with ``--scheduler``, its particle chunks on the
+    cluster's workers (:mod:`linkopt._design.cluster`)."""
+    from .._design.run import optimize
+
+    if args.scheduler is None:
+        return optimize(
+            mech,
+            args.out,
+            settings,
+            resume=args.resume,
+            progress=_progress(),
+            workers=args.workers,
+        )
+    if not args.connect_timeout > 0:
+        raise InputError(
+            f"--connect-timeout: expected a positive number of seconds, got "
+            f"{args.connect_timeout}"
+        )
+    cluster = cluster_module()
+    with cluster.connect(args.scheduler, args.connect_timeout) as client:
+        return cluster.optimize_on_cluster(
+            client,
+            mech,
+            args.out,
+            settings,
+            resume=args.resume,
+            progress=_progress(),
+            workers=args.workers,
+        )
+
+
+def cluster_module():
+    """:mod:`linkopt._design.cluster`, or :class:`~linkopt.InputError` saying how to
+    install Dask when it is missing."""
+    try:
+        from .._design import cluster
+    except ModuleNotFoundError as err:
+        if err.name is None or err.name.split(".")[0] not in ("distributed", "dask"):
+            raise
+        raise InputError(
+            f"--scheduler needs Dask ({err.name} is not installed): "
+            "pip install 'linkopt[cluster]'"
+        ) from None
+    return cluster
+
+
+def add_scheduler_options(opt, what: str) -> None:
+    """``--scheduler`` and ``--connect-timeout``."""
+    opt.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help=(
+            f"a Dask scheduler (e.g. tcp://host:8786) whose workers run {what} "
+            "(needs pip install 'linkopt[cluster]')"
+        ),
+    )
+    opt.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=CONNECT_TIMEOUT,
+        help=f"seconds to wait for --scheduler to answer (default {CONNECT_TIMEOUT:g})",
+    )
+
+
 def register(subparsers) -> None:
     """Add ``optimize`` to the ``linkopt`` sub-commands; its defaults are those of
     :class:`~linkopt.OptimizerSettings`."""
@@ -219,9 +284,12 @@ def register(subparsers) -> None:
         default=WORKERS,
         help=(
             "processes sharing the particles, and the final verifications and plots "
-            f"(default {WORKERS}: one per core, at most 2)"
+            f"(default {WORKERS}: one per core, at most 2); with --scheduler, the "
+            "chunks each iteration's particles are split into, as in a local run "
+            "with this many workers"
         ),
     )
+    add_scheduler_options(opt, "each iteration's particle chunks")
     opt.add_argument(
         "--resolution",
         type=int,

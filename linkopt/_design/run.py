@@ -124,11 +124,15 @@ def optimize(
     resume: bool = False,
     progress: Callable[[dict], None] | None = None,
     workers: int = 1,
+    pool: Callable[[Mechanism], Workers] | None = None,
 ) -> SwarmRun:
     """Run (or resume) the optimiser, checkpointing after every iteration and every
     verification round (:mod:`linkopt._design.rounds`); ``workers`` processes share
-    the particles (:mod:`linkopt._design.workers`). ``progress`` gets each iteration's
-    history record and each round's record (which has a ``"passed"`` key).
+    the particles (:mod:`linkopt._design.workers`), or ``pool(mechanism)`` evaluates
+    them (an object with :class:`~linkopt._design.workers.Workers`' interface, such as
+    a Dask cluster's :class:`~linkopt._design.cluster.ClusterWorkers`). ``progress``
+    gets each iteration's history record and each round's record (which has a
+    ``"passed"`` key).
 
     ``out`` is locked for the call (:func:`locked_run_folder`): another process on it
     gets :class:`~linkopt.InputError`. A checkpoint to resume is checked in full before
@@ -142,9 +146,10 @@ def optimize(
         while True:
             current = with_targets(mech, run.added_targets)
             if not run.finished:
-                with Workers(current, workers) as pool:
+                chunks = Workers(current, workers) if pool is None else pool(current)
+                with chunks:
                     while not run.finished:
-                        run = step(current, run, settings, pool)
+                        run = step(current, run, settings, chunks)
                         run = _timed(run, offset + time.perf_counter() - began)
                         save_checkpoint(out, run, mech, settings)
                         if progress is not None:
