@@ -1,7 +1,9 @@
 """The swarm's particles split over worker processes.
 
-XLA's CPU pool runs with one thread here (see :mod:`linkopt._config`), so one process
-keeps one core busy. :class:`Workers` splits the particles into ``count`` contiguous
+Most of a chunk's work is XLA running one batched program, and much of that program
+is serial (loops over Levenberg–Marquardt steps and over the factor's columns), so a
+second process keeps a second core busy where XLA's own thread pool cannot.
+:class:`Workers` splits the particles into ``count`` contiguous
 chunks: the calling process evaluates the first itself while ``count - 1`` spawned
 processes, each holding the mechanism, evaluate the others; the chunks' results are
 concatenated in particle order. The caller works rather than waits because a spawned
