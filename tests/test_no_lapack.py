@@ -77,13 +77,13 @@ def test_kinematics_and_singularity_programs_have_no_lapack(five_bar):
 
 
 def _evaluation_programs(mech):
-    from linkopt._design.evaluation import _evaluate, alpha_minus
-    from linkopt._design.partial import _gradients
+    from linkopt._design.evaluation import alpha_minus, evaluate_homogenised
+    from linkopt._design.partial import gradients_homogenised
 
     designs = jnp.asarray(np.stack([design_vector(mech, None)] * 2))
     alpha = jnp.asarray(alpha_minus(mech))
-    evaluate = jax.jit(lambda p, a: _evaluate(mech, p, a))
-    gradient = jax.jit(lambda p, ev, a: _gradients(mech, p, ev, a))
+    evaluate = jax.jit(lambda p, a: evaluate_homogenised(mech, p, a))
+    gradient = jax.jit(lambda p, ev, a: gradients_homogenised(mech, p, ev, a))
     return evaluate, gradient, designs, alpha
 
 

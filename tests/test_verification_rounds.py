@@ -159,13 +159,13 @@ def test_reached_sigmas_are_those_of_the_reached_cells(five_bar):
     """Verification's singular values come from one batch of the grid's shape (the
     unreached cells hold copies): they are the reached cells' own, in grid order."""
     import linkopt
-    from linkopt._design.verify import _reached_sigmas
+    from linkopt._design.verify import reached_sigmas
 
     solved = linkopt.solve_bk(five_bar, [[0.0, 40.0], [10.0, 50.0], [-10.0, 35.0]])
     states = np.asarray(solved.state)
     grid = np.stack([states[0], np.full_like(states[0], np.nan), states[1], states[2]])
     feasible = np.array([[True, False], [True, True]])
-    got = _reached_sigmas(five_bar, grid.reshape(2, 2, -1), feasible, None)
+    got = reached_sigmas(five_bar, grid.reshape(2, 2, -1), feasible, None)
     want = np.asarray(linkopt.singular_values(five_bar, states))
     np.testing.assert_allclose(got, want, rtol=1e-12)
 
@@ -175,13 +175,13 @@ def test_the_last_round_serves_the_default_resolution_asked_for(five_bar):
     for the resolution the rounds use, given or not; another one is verified anew."""
     from types import SimpleNamespace
 
-    from linkopt._design.run import _last_round
+    from linkopt._design.run import last_round_verification
     from linkopt._design.verify import default_resolution
 
     design = five_bar.design.p0
     run = SimpleNamespace(rounds=({"design": design.tolist(), "verification": {}},))
     default = default_resolution(five_bar)
-    assert _last_round(five_bar, run, design, None) == {}
-    assert _last_round(five_bar, run, design, default) == {}
-    assert _last_round(five_bar, run, design, default + 2) is None
-    assert _last_round(five_bar, run, design + 1.0, None) is None
+    assert last_round_verification(five_bar, run, design, None) == {}
+    assert last_round_verification(five_bar, run, design, default) == {}
+    assert last_round_verification(five_bar, run, design, default + 2) is None
+    assert last_round_verification(five_bar, run, design + 1.0, None) is None

@@ -47,7 +47,7 @@ from .._errors import InputError
 from .evaluation import Evaluation, evaluate
 from .optimizer import OptimizerSettings, SwarmRun
 from .sweep import optimize_with_pool
-from .workers import Workers, _concatenate
+from .workers import Workers, concatenate
 
 _MECHANISMS: dict[str, Mechanism] = {}  # in each Dask worker, by fingerprint
 
@@ -122,7 +122,7 @@ class ClusterWorkers(Workers):
                     parts.append(
                         jax.tree_util.tree_map(np.asarray, evaluate(self.mech, chunk))
                     )
-        return _concatenate(parts)
+        return concatenate(parts)
 
     def close(self) -> None:
         try:

@@ -310,7 +310,8 @@ jax.export.register_namedtuple_serialization(
 )
 
 
-def _evaluate(mech: Mechanism, designs, alpha) -> Evaluation:
+def evaluate_homogenised(mech: Mechanism, designs, alpha) -> Evaluation:
+    """The jitted core of :func:`evaluate`: homogenised designs, a given α₋."""
     if designs.ndim == 1:
         return jax.tree_util.tree_map(
             lambda a: a[0], _evaluate_batch(mech, designs[None], alpha)
@@ -337,5 +338,5 @@ def evaluate(mech: Mechanism, design=None) -> Evaluation:
     designs = jnp.asarray(design_vector(mech, design), dtype=jnp.float64)
     alpha = jnp.asarray(alpha_minus(mech), dtype=jnp.float64)
     return programs.call(
-        "evaluate", mech, lambda p, a: _evaluate(mech, p, a), designs, alpha
+        "evaluate", mech, lambda p, a: evaluate_homogenised(mech, p, a), designs, alpha
     )

@@ -101,7 +101,8 @@ def frozen_lagrangian(
     return jnp.mean(f_reach + f_sing) + regularizer(mech, design)
 
 
-def _gradients(mech: Mechanism, designs, evaluation: Evaluation, alpha):
+def gradients_homogenised(mech: Mechanism, designs, evaluation: Evaluation, alpha):
+    """The jitted core of :func:`partial_gradient`: homogenised designs, a given α₋."""
     grad = jax.grad(lambda p, ev: frozen_lagrangian(mech, p, ev, alpha))
     if designs.ndim == 1:
         return grad(designs, evaluation)
@@ -117,7 +118,7 @@ def partial_gradient(mech: Mechanism, designs, evaluation: Evaluation, alpha: fl
     return programs.call(
         "partial_gradient",
         mech,
-        lambda p, ev, a: _gradients(mech, p, ev, a),
+        lambda p, ev, a: gradients_homogenised(mech, p, ev, a),
         designs,
         evaluation,
         alpha,

@@ -232,7 +232,7 @@ def _optimized_outputs(
 
     file_mech = file_mech or mech
     with one_blas_thread():
-        checked = _last_round(mech, run, design, verify_resolution)
+        checked = last_round_verification(mech, run, design, verify_resolution)
         if checked is None:
             _announce(progress, "verifying the optimised design")
             checked = _verification(mech, design, verify_resolution)
@@ -258,7 +258,7 @@ def _optimized_outputs(
     return checked, final
 
 
-def _last_round(
+def last_round_verification(
     mech: Mechanism, run: SwarmRun, design: np.ndarray, verify_resolution: int | None
 ) -> dict | None:
     """The verification of ``design`` by the run's last round, if it verified this

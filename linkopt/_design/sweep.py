@@ -45,7 +45,7 @@ from .checkpoint import CHECKPOINT
 from .evaluation import Evaluation, evaluate
 from .optimizer import OptimizerSettings, SwarmRun
 from .run import locked_run_folder, optimize, write_outputs
-from .workers import Workers, _concatenate
+from .workers import Workers, concatenate
 
 SUMMARY_FIELDS = (
     "seed",
@@ -68,7 +68,7 @@ class InProcessChunks(Workers):
     def evaluate(self, designs: Float[Array, "N n_p"]) -> Evaluation:
         designs = np.asarray(designs, dtype=float)
         with one_blas_thread():
-            return _concatenate(
+            return concatenate(
                 [
                     jax.tree_util.tree_map(np.asarray, evaluate(self.mech, designs[c]))
                     for c in self._chunks(len(designs))

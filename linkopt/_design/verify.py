@@ -129,7 +129,7 @@ def check_resolution(
     return resolution
 
 
-def _reached_sigmas(
+def reached_sigmas(
     mech: Mechanism, states: np.ndarray, feasible: np.ndarray, design
 ) -> np.ndarray:
     """``(σ_min^FK, σ_min^BK)`` of the reached cells ``(R, 2)``, in grid order.
@@ -183,7 +183,7 @@ def verify(
     threshold = alpha_minus(mech)
     reached = values[feasible]
     if len(reached):
-        sigmas = _reached_sigmas(mech, states, feasible, design)
+        sigmas = reached_sigmas(mech, states, feasible, design)
         f = np.sum(1.0 / sigmas, axis=1)
         worst = reached[int(np.argmax(f))]
         max_f, min_fk, min_bk = (

@@ -65,7 +65,7 @@ def _evaluate_chunk_here(mech: Mechanism, designs: np.ndarray) -> Evaluation:
     return jax.tree_util.tree_map(np.asarray, evaluate(mech, designs))
 
 
-def _concatenate(parts: list[Evaluation]) -> Evaluation:
+def concatenate(parts: list[Evaluation]) -> Evaluation:
     return Evaluation(*(np.concatenate(fields) for fields in zip(*parts)))
 
 
@@ -160,7 +160,7 @@ class Workers:
                     self._gradient(chunks[0], first, alpha),
                 )
         rest = self._collect(pending, chunks[1:]) if pending is not None else []
-        return _concatenate([first] + rest)
+        return concatenate([first] + rest)
 
     def _gradient(
         self, designs: np.ndarray, evaluation: Evaluation, alpha: float
