@@ -73,7 +73,7 @@ def test_plot_cost_of_three_outputs_is_a_fraction_of_the_3d_grid(arm):
     resolution = maps.plot_resolution(arm)
     assert resolution == maps.PLOT_RESOLUTION[3]
     new = maps.plot_cost(arm, resolution).seconds
-    old = maps.grid_cost(arm, (60, 60, maps.SECTION_CELLS), 60, 3600, grids=2).seconds
+    old = maps.grid_cost(arm, (60, 60, maps.SECTION_CELLS), 3600, grids=2).seconds
     assert new < old / 7
 
 

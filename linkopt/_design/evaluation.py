@@ -46,6 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from .._config import jit
 from .._engine import programs
 from .._engine.constraints import output_residual
 from .._engine.geometry import design_vector, geometry, rest_state
@@ -155,7 +156,7 @@ class RestConditioning(NamedTuple):
         }
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def _rest_jacobians(mech: Mechanism):
     geom = geometry(mech)
     state = rest_state(mech)
@@ -340,3 +341,16 @@ def evaluate(mech: Mechanism, design=None) -> Evaluation:
     return programs.call(
         "evaluate", mech, lambda p, a: evaluate_homogenised(mech, p, a), designs, alpha
     )
+
+
+def evaluate_in_batch(mech: Mechanism, design, rows: int) -> Evaluation:
+    """:func:`evaluate` of one design ``(n_p,)`` (None: the file's), computed as the
+    first of ``rows`` copies of it: with ``rows`` the optimiser's chunk size, the
+    program that evaluated the swarm serves it (in memory, or from the disk caches in
+    another process) instead of a program for one design, which cost a first run 15-20
+    s of tracing and compiling. A design's lanes do not depend on the other designs in
+    the batch."""
+    check_design(mech, design)
+    single = np.asarray(design_vector(mech, design), dtype=np.float64)
+    batch = evaluate(mech, np.repeat(single[None], max(int(rows), 1), axis=0))
+    return jax.tree_util.tree_map(lambda a: a[0], batch)

@@ -8,12 +8,13 @@ and its state stayed within ``MAX_JUMP`` (homogenised, max-norm) of the neighbou
 started from; otherwise it is infeasible (NaN in the maps). Python iterates over waves
 (about twice the grid side), never over cells.
 
-A wave is padded to ``chunk · 2^k`` cells, the fewest that hold it, so few batch shapes
-are compiled and a wave of more than ``chunk`` cells never costs twice its size. The
-plots' maps use ``chunk`` = the grid side: a 2-D wave holds at most about twice that
-many cells, where waves padded to multiples of four grid sides made the plots slower
-for the same pixels. Three motors and outputs are drawn as 2-D sections, each solved in
-its own plane from seeds on a coarse 3-D grid (:func:`sections`), not as one fine 3-D
+A wave of any size is solved in blocks of a fixed number of cells
+(:mod:`linkopt._engine.blocks`), so every map, section and verification grid of a
+mechanism runs the same compiled FK or BK program (before, each padded wave size was
+its own program: four to five per map, 8-12 s of compilation each).
+
+Three motors and outputs are drawn as 2-D sections, each solved in its own plane from
+seeds on a coarse 3-D grid (:func:`sections`), not as one fine 3-D
 grid; the plots' default resolution depends on the number of outputs
 (:data:`PLOT_RESOLUTION`). A ``progress`` callback gets each wave's count of visited
 cells (library code never prints; the CLI does).
@@ -79,20 +80,20 @@ def check_count(value, where: str, minimum: int) -> int:
 
 
 def grid_cost(
-    mech: Mechanism, shape: tuple[int, ...], chunk: int, read_cells: int, grids=1
+    mech: Mechanism, shape: tuple[int, ...], read_cells: int, grids=1
 ) -> GridCost:
     """Cost of :func:`continuation_grid` over ``shape`` (``grids`` of them, one after
     the other), then σ_min of ``read_cells`` states in one batch.
 
     Memory: per cell the inputs, the state, the status and the parent's state
-    (``CELL_OVERHEAD`` for the Python objects); per cell of the largest padded wave
-    the solver's Jacobian and normal equations; per state read both Jacobians and
-    four n × n factors each. Time: ``SECONDS_PER_CELL`` scaled by (n / 35)².
+    (``CELL_OVERHEAD`` for the Python objects); per cell of a wave the solver's
+    Jacobian and normal equations; per state read both Jacobians and four n × n
+    factors each. Time: ``SECONDS_PER_CELL`` scaled by (n / 35)².
     """
     cells = math.prod(int(v) for v in shape)
     n = mech.state_size
     rows = max(constraint_rows(mech)[k] for k in ("fk", "bk"))
-    wave = 2 * max(chunk, len(shape) * cells // max(shape))  # a padded wave
+    wave = 2 * len(shape) * cells // max(shape)  # a wave, generously
     per_cell = 8 * (2 * len(shape) + 2 * n + 1) + CELL_OVERHEAD
     solving = 8 * wave * (3 * rows * n + 4 * n * n)
     reading = 8 * read_cells * 2 * (rows * n + 5 * n * n)
@@ -157,10 +158,10 @@ def plot_cost(mech: Mechanism, resolution: int) -> GridCost:
     outputs; for three, per space a coarse seed grid and three ``resolution²``
     sections (:func:`sections`). ``cells`` is the largest grid's."""
     if mech.num_motors != 3:
-        return grid_cost(mech, (resolution, resolution), resolution, resolution**2, 2)
+        return grid_cost(mech, (resolution, resolution), resolution**2, 2)
     seed = (SECTION_SEED + 1, SECTION_SEED + 1, SECTION_CELLS)
-    plane = grid_cost(mech, (resolution, resolution), resolution, resolution**2, 6)
-    coarse = grid_cost(mech, seed, SECTION_SEED + 1, 0, 2)
+    plane = grid_cost(mech, (resolution, resolution), resolution**2, 6)
+    coarse = grid_cost(mech, seed, 0, 2)
     return GridCost(
         max(plane.cells, coarse.cells),
         max(plane.bytes, coarse.bytes),
@@ -221,7 +222,6 @@ def continuation_grid(
     values: np.ndarray,
     start_cell: tuple[int, ...] | None,
     start_state: np.ndarray | None,
-    chunk: int,
     *,
     seeds: dict | None = None,
     progress: Callable[[int, int], None] | None = None,
@@ -247,17 +247,9 @@ def continuation_grid(
         cells = np.array(frontier)
         index = tuple(cells.T)
         starts = np.stack([parent_state[tuple(c)] for c in cells])
-        inputs = values[index]
-        size = chunk
-        while size < len(cells):
-            size *= 2
-        padded = size - len(cells)
-        sol = solve(
-            np.concatenate([inputs, np.repeat(inputs[-1:], padded, 0)]),
-            np.concatenate([starts, np.repeat(starts[-1:], padded, 0)]),
-        )
-        new_states = np.asarray(sol.state)[: len(cells)]
-        ok = np.asarray(sol.converged)[: len(cells)] & (
+        sol = solve(values[index], starts)
+        new_states = np.asarray(sol.state)
+        ok = np.asarray(sol.converged) & (
             np.max(np.abs(new_states - starts), axis=1) <= MAX_JUMP
         )
         status[index] = np.where(ok, 1, -1)
@@ -350,7 +342,7 @@ def sections(
     coarse.append(_merged(low[2], high[2], depth, [*cuts, start_values[2]]))
     report = _stage(progress, f"{kind.upper()} sections: coarse 3-D grid")
     coarse_states, coarse_ok = _solve_from(
-        mech, kind, coarse, start_values, start_state, design, report, resolution
+        mech, kind, coarse, start_values, start_state, design, report
     )
     fine = _axes(low[:2], high[:2], resolution)
     out = []
@@ -396,9 +388,7 @@ def _plane(mech: Mechanism, kind: str, fine, third: float, seeds, design, report
     def solve(v, s):
         return solver(mech, v, start=s, design=design)
 
-    return continuation_grid(
-        solve, values, None, None, chunk=n0, seeds=seeds, progress=report
-    )
+    return continuation_grid(solve, values, None, None, seeds=seeds, progress=report)
 
 
 def _solve_from(
@@ -409,12 +399,9 @@ def _solve_from(
     start_state,
     design,
     progress=None,
-    chunk: int | None = None,
 ):
     """Continuation over the grid spanned by ``axes``, from the cell nearest
-    ``start_values``, its waves padded to ``chunk`` · 2^k cells (default: the first
-    axis's length; :func:`sections` pads its coarse grid as its planes, so that both
-    share the compiled batch shapes)."""
+    ``start_values``."""
     values = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
     cell = tuple(int(np.argmin(np.abs(ax - v))) for ax, v in zip(axes, start_values))
     solver = solve_fk if kind == "fk" else solve_bk
@@ -427,7 +414,6 @@ def _solve_from(
         values,
         cell,
         np.asarray(start_state),
-        chunk=chunk or len(axes[0]),
         progress=progress,
     )
 

@@ -52,10 +52,10 @@ from .._engine.writer import write_design
 from .._errors import InputError
 from .._folders import check_path, run_folder, staged, write_atomic
 from .checkpoint import CHECKPOINT, HISTORY_FIELDS, check_match, decode, encode, read
-from .evaluation import Evaluation, alpha_minus, capped, evaluate, targets
+from .evaluation import Evaluation, alpha_minus, capped, evaluate_in_batch, targets
 from .optimizer import OptimizerSettings, SwarmRun, best_design, start, step
 from .rounds import verification_round, wants_round, with_targets
-from .workers import Workers
+from .workers import Workers, chunk_slices
 
 
 def save_checkpoint(
@@ -178,9 +178,11 @@ def _initial_outputs(
     out: Path,
     resolution: int | None,
     verify_resolution: int | None,
+    rows: int,
     progress: Callable[[dict], None] | None = None,
 ) -> dict:
-    """The initial design's verification (returned) and space plot (written)."""
+    """The initial design's verification (returned) and space plot (written);
+    ``rows``: the optimiser's chunk size (:func:`.evaluation.evaluate_in_batch`)."""
     from . import plots
 
     with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._config
@@ -189,7 +191,7 @@ def _initial_outputs(
         if _has_space_plots(mech):
             plots.plot_spaces(
                 mech,
-                evaluate(mech),
+                evaluate_in_batch(mech, None, rows),
                 out / "spaces_initial.png",
                 resolution=resolution,
                 title=f"{mech.name}, initial design",
@@ -218,6 +220,7 @@ def _optimized_outputs(
     design: np.ndarray,
     resolution: int | None,
     verify_resolution: int | None,
+    rows: int,
     progress: Callable[[dict], None] | None = None,
     file_mech: Mechanism | None = None,
 ) -> tuple[dict, Evaluation]:
@@ -236,7 +239,7 @@ def _optimized_outputs(
         if checked is None:
             _announce(progress, "verifying the optimised design")
             checked = _verification(mech, design, verify_resolution)
-        final = evaluate(mech, design)
+        final = evaluate_in_batch(mech, design, rows)
         if _has_space_plots(mech):
             plots.plot_spaces(
                 file_mech,
@@ -295,11 +298,20 @@ def _design_outputs(
         if workers > 1
         else None
     )
-    args = (mech, out, resolution, verify_resolution)
+    rows = len(run.position[chunk_slices(len(run.position), workers)[0]])
+    args = (mech, out, resolution, verify_resolution, rows)
     try:
         initial = side.submit(_initial_outputs, *args) if side is not None else None
         checked, final = _optimized_outputs(
-            current, out, run, design, resolution, verify_resolution, progress, mech
+            current,
+            out,
+            run,
+            design,
+            resolution,
+            verify_resolution,
+            rows,
+            progress,
+            mech,
         )
         checks = {
             "initial": _side_result(initial, args, progress),

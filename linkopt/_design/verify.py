@@ -94,11 +94,7 @@ def default_resolution(mech: Mechanism) -> int:
 def _cost(mech: Mechanism, resolution: int):
     """The estimated cost of a verification grid (:func:`~.maps.grid_cost`)."""
     k = mech.num_outputs
-    return grid_cost(mech, (resolution,) * k, _chunk(resolution, k), resolution**k)
-
-
-def _chunk(resolution: int, k: int) -> int:
-    return max(64, 2 * resolution ** max(k - 1, 1))
+    return grid_cost(mech, (resolution,) * k, resolution**k)
 
 
 def check_resolution(
@@ -175,9 +171,7 @@ def verify(
         def solve(v, s):
             return solve_bk(mech, v, start=s, design=design)
 
-        states, feasible = continuation_grid(
-            solve, values, cell, state, chunk=_chunk(resolution, k)
-        )
+        states, feasible = continuation_grid(solve, values, cell, state)
     else:
         states, feasible = np.zeros(shape + state.shape), np.zeros(shape, dtype=bool)
     threshold = alpha_minus(mech)

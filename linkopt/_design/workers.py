@@ -51,6 +51,13 @@ RETRIES = 2  # new pools tried after a worker dies, before this process takes ov
 _MECHANISM: Mechanism | None = None  # set in each worker process by _initialise
 
 
+def chunk_slices(n: int, count: int) -> list[slice]:
+    """The ``min(count, n)`` contiguous chunks of ``n`` particles, as even as they
+    come (the first chunk's size is the batch shape of the evaluation program)."""
+    bounds = np.linspace(0, n, min(count, n) + 1).round().astype(int)
+    return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
 def _initialise(mech: Mechanism) -> None:
     global _MECHANISM
     _MECHANISM = mech
@@ -135,8 +142,7 @@ class Workers:
         return results
 
     def _chunks(self, n: int) -> list[slice]:
-        bounds = np.linspace(0, n, min(self.count, n) + 1).round().astype(int)
-        return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+        return chunk_slices(n, self.count)
 
     def evaluate(self, designs: Float[Array, "N n_p"]) -> Evaluation:
         """:func:`linkopt._design.evaluation.evaluate` of a batch of designs, as numpy

@@ -66,6 +66,7 @@ from typing import NamedTuple
 import numpy as np
 from jaxtyping import Float
 
+from .._config import jit
 from .fields import Reader, field_name, is_number_list, shown
 from .model import MOTOR_JOINTS
 
@@ -734,7 +735,7 @@ def _programs():
         eye = jnp.eye(gram.shape[0])
         return jac.T @ dense.solve(gram + damping * eye, rhs)
 
-    @functools.partial(jax.jit, static_argnums=0)
+    @functools.partial(jit, static_argnums=0)
     def lm(sizes, rows, x, s):
         """Levenberg–Marquardt with least-norm steps; accepts only decreasing steps."""
 
@@ -758,7 +759,7 @@ def _programs():
         x, _, it, _ = jax.lax.while_loop(cond, body, start)
         return x, it
 
-    @functools.partial(jax.jit, static_argnums=0)
+    @functools.partial(jit, static_argnums=0)
     def project(sizes, rows, x, x0, s):
         """Gauss–Newton projection onto the assembly nearest the drawing."""
 
@@ -779,7 +780,7 @@ def _programs():
         )
         return x, it
 
-    residual = jax.jit(_residual, static_argnums=0)
+    residual = jit(_residual, static_argnums=0)
     return lm, project, residual
 
 

@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._config import jit
 from . import joints as joint_types
 from .geometry import Geometry
 from .model import JOINT_ROWS, Mechanism
@@ -247,7 +248,7 @@ def reported_values(mech: Mechanism, geom: Geometry, state) -> Float[Array, " E"
     return _output_rows(mech, geom, state, None, mech.reported_table)
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def homogenised_output_values(
     mech: Mechanism, geom: Geometry, state
 ) -> Float[Array, " K"]:
@@ -255,7 +256,7 @@ def homogenised_output_values(
     return _output_rows(mech, geom, state, None)
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def output_residual(
     mech: Mechanism, geom: Geometry, outputs, state
 ) -> Float[Array, " K"]:
@@ -263,7 +264,7 @@ def output_residual(
     return _output_rows(mech, geom, state, outputs)
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def fk_residual(mech: Mechanism, geom: Geometry, motors, state) -> Float[Array, " R"]:
     """``C_FK(a, s)``: passive rows then one row per motor."""
     return jnp.concatenate(

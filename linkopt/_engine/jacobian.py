@@ -43,6 +43,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._config import jit
 from . import joints as joint_types
 from .constraints import gauge_rows
 from .geometry import Geometry
@@ -485,7 +486,7 @@ def linearise(
     return _permute_tail(residual, jacobian, head, order)
 
 
-@partial(jax.jit, static_argnums=(0, 2))
+@partial(jit, static_argnums=(0, 2))
 def state_jacobian(
     mech: Mechanism, geom: Geometry, kind: str, state: Float[Array, " S"]
 ) -> Float[Array, "m S"]:
@@ -494,7 +495,7 @@ def state_jacobian(
     return linearise(mech, geom, kind, None, state)[1]
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def stacked_jacobians(
     mech: Mechanism, geom: Geometry, state: Float[Array, " S"]
 ) -> Float[Array, "2 m S"]:
@@ -515,7 +516,7 @@ def stacked_jacobians(
 # Normal equations for Levenberg–Marquardt.
 
 
-@partial(jax.jit, static_argnums=(0, 2))
+@partial(jit, static_argnums=(0, 2))
 def normal_equations(
     mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]
 ):

@@ -33,8 +33,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
+from .._config import jit
 from .._errors import InputError
 from . import dense, jacobian, lm
+from .blocks import first_rows, in_blocks, path_rows, traced
 from .constraints import (
     bk_residual,
     fk_residual,
@@ -251,7 +253,7 @@ def _chunked(fn, xs):
     return jax.lax.map(fn, xs, batch_size=CHUNK)
 
 
-@partial(jax.jit, static_argnums=(0, 1))
+@partial(jit, static_argnums=(0, 1))
 def _solve(mech: Mechanism, kind: str, values, start, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, start, design)
     if values.ndim == 1:
@@ -261,7 +263,7 @@ def _solve(mech: Mechanism, kind: str, values, start, design) -> Solution:
     return _chunked(lambda v: solve_single(mech, kind, geom, v, start), values)
 
 
-@partial(jax.jit, static_argnums=(0, 1))
+@partial(jit, static_argnums=(0, 1))
 def _solve_from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, None, design)
     v_rest = _VALUES[kind](mech, geom, start)
@@ -272,7 +274,7 @@ def _solve_from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
     return one(values) if values.ndim == 1 else _chunked(one, values)
 
 
-@partial(jax.jit, static_argnums=(0, 1))
+@partial(jit, static_argnums=(0, 1))
 def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, start, design)
 
@@ -285,6 +287,54 @@ def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
     v_start = _VALUES[kind](mech, geom, start)
     _, solutions = jax.lax.scan(advance, (v_start, start), values)
     return solutions
+
+
+def _file_design(mech: Mechanism, design):
+    """``design`` as an array, the file's design for None: both then run one program
+    (a None design is a different argument structure, so another trace)."""
+    if design is None:
+        return np.asarray(mech.design.p0, dtype=np.float64)
+    return design
+
+
+def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
+    """:func:`_solve`; a concrete batch in fixed blocks (:mod:`.blocks`), each row
+    with its own start."""
+    if traced(values, start, design):
+        return _solve(mech, kind, values, start, design)
+    design = _file_design(mech, design)
+    if np.ndim(values) == 1:
+        return _solve(mech, kind, values, start, design)
+    values = np.asarray(values, dtype=np.float64)
+    shape = (len(values), mech.state_size)
+    starts = np.broadcast_to(np.asarray(start, dtype=np.float64), shape)
+    return in_blocks(lambda v, s: _solve(mech, kind, v, s, design), (values, starts))
+
+
+def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
+    """:func:`_solve_from_rest`; a concrete batch in fixed blocks."""
+    if traced(values, design):
+        return _solve_from_rest(mech, kind, values, design)
+    design = _file_design(mech, design)
+    if np.ndim(values) == 1:
+        return _solve_from_rest(mech, kind, values, design)
+    rows = (np.asarray(values, dtype=np.float64),)
+    return in_blocks(lambda v: _solve_from_rest(mech, kind, v, design), rows)
+
+
+def _along(mech: Mechanism, kind: str, values, start, design) -> Solution:
+    """:func:`_solve_path`; a concrete path padded to :func:`.blocks.path_rows` rows
+    (repeats of its last row, continuations of length zero), then cut back."""
+    if traced(values, start, design):
+        return _solve_path(mech, kind, values, start, design)
+    values = np.asarray(values, dtype=np.float64)
+    count = len(values)
+    padded = np.concatenate(
+        [values, np.repeat(values[-1:], path_rows(count) - count, axis=0)]
+    )
+    start = rest_state(mech) if start is None else start  # one program for both
+    solution = _solve_path(mech, kind, padded, start, _file_design(mech, design))
+    return first_rows(solution, count)
 
 
 # ---------------------------------------------------------------------------------
@@ -397,8 +447,8 @@ def solve_fk(mech: Mechanism, motors, *, start=None, design=None) -> Solution:
     """
     _check(mech, "fk", motors, start, design, path=False)
     if start is None:
-        return _solve_from_rest(mech, "fk", motors, design)
-    return _solve(mech, "fk", motors, start, design)
+        return _from_rest(mech, "fk", motors, design)
+    return _warm(mech, "fk", motors, start, design)
 
 
 def solve_bk(mech: Mechanism, outputs, *, start=None, design=None) -> Solution:
@@ -406,8 +456,8 @@ def solve_bk(mech: Mechanism, outputs, *, start=None, design=None) -> Solution:
     them); ``start`` as for :func:`solve_fk`."""
     _check(mech, "bk", outputs, start, design, path=False)
     if start is None:
-        return _solve_from_rest(mech, "bk", outputs, design)
-    return _solve(mech, "bk", outputs, start, design)
+        return _from_rest(mech, "bk", outputs, design)
+    return _warm(mech, "bk", outputs, start, design)
 
 
 def solve_fk_path(mech: Mechanism, motors, *, start=None, design=None) -> Solution:
@@ -417,13 +467,13 @@ def solve_fk_path(mech: Mechanism, motors, *, start=None, design=None) -> Soluti
     ``start``; a row the branch cannot reach is not converged, and later rows continue
     from the last state reached."""
     _check(mech, "fk", motors, start, design, path=True)
-    return _solve_path(mech, "fk", motors, start, design)
+    return _along(mech, "fk", motors, start, design)
 
 
 def solve_bk_path(mech: Mechanism, outputs, *, start=None, design=None) -> Solution:
     """Continuation along outputs ``(T, K)``, as :func:`solve_fk_path`."""
     _check(mech, "bk", outputs, start, design, path=True)
-    return _solve_path(mech, "bk", outputs, start, design)
+    return _along(mech, "bk", outputs, start, design)
 
 
 _WRT = ("motors", "outputs", "design", "design_bk")

@@ -7,6 +7,7 @@ from functools import partial
 import jax
 import numpy as np
 
+from .._config import jit
 from .._errors import MechanismFileError
 from .constraints import passive_residual
 from .geometry import geometry, rest_state
@@ -19,13 +20,13 @@ SINGULAR_TOL = (
 )
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def _passive_jacobian(mech: Mechanism):
     geom = geometry(mech)
     return jax.jacfwd(lambda s: passive_residual(mech, geom, s))(rest_state(mech))
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def _rest_sigmas(mech: Mechanism):
     return sigma_min_pair(mech, geometry(mech), rest_state(mech))
 

@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import export
 
-from .._config import cache_directory
+from .._config import cache_directory, jit
 from .model import Mechanism, fingerprint
 
 #: The package folder whose sources key every program (:func:`source_digest`).
@@ -108,15 +108,15 @@ def _program(name: str, mech: Mechanism, fn: Callable, args) -> Callable:
         try:
             exported = export.export(jax.jit(fn))(*specs)
         except Exception:  # not exportable: plain jit, traced in every process
-            PROGRAMS[key] = jax.jit(fn)
+            PROGRAMS[key] = jit(fn)
             return PROGRAMS[key]
         _store(path, exported)
-    PROGRAMS[key] = jax.jit(exported.call)
+    PROGRAMS[key] = jit(exported.call)
     return PROGRAMS[key]
 
 
 def call(name: str, mech: Mechanism, fn: Callable, *args):
-    """``jax.jit(fn)(*args)``, with ``fn``'s trace read from (or written to) the disk
+    """``jit(fn)(*args)``, with ``fn``'s trace read from (or written to) the disk
     cache.
 
     ``fn`` must be a pure function of array arguments that depends on nothing but

@@ -9,12 +9,14 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._config import jit
 from . import constraints
+from .blocks import in_blocks, traced
 from .geometry import design_vector, geometry
 from .model import Mechanism
 
 
-@partial(jax.jit, static_argnums=(0, 1))
+@partial(jit, static_argnums=(0, 1))
 def _read(mech: Mechanism, what: str, state, design):
     geom = geometry(mech, design_vector(mech, design))
     fn = {
@@ -39,26 +41,38 @@ def _read(mech: Mechanism, what: str, state, design):
     return fn(state) if state.ndim == 1 else jax.vmap(fn)(state)
 
 
+def _blocked_read(mech: Mechanism, what: str, state, design):
+    """:func:`_read`, a concrete batch of states in fixed blocks
+    (:mod:`linkopt._engine.blocks`: one program for every batch size)."""
+    if traced(state, design):
+        return _read(mech, what, state, design)
+    if design is None:  # the file's design as an array: one program for both
+        design = np.asarray(mech.design.p0, dtype=np.float64)
+    if np.ndim(state) != 2:
+        return _read(mech, what, state, design)
+    return in_blocks(lambda s: _read(mech, what, s, design), (state,))
+
+
 def motor_values(mech: Mechanism, state, *, design=None) -> Float[Array, "... M"]:
     """Motor values of a state (rad, or file units for linear motors)."""
-    return _read(mech, "motors", state, design)
+    return _blocked_read(mech, "motors", state, design)
 
 
 def output_values(mech: Mechanism, state, *, design=None) -> Float[Array, "... K"]:
     """End-effector variables ``b(s)`` (file units, rad for angles)."""
-    return _read(mech, "outputs", state, design)
+    return _blocked_read(mech, "outputs", state, design)
 
 
 def joint_positions(mech: Mechanism, state, *, design=None) -> Float[Array, "... J 3"]:
     """World position of every joint anchor (file units), in ``mech.joint_names``
     order."""
-    return _read(mech, "joints", state, design)
+    return _blocked_read(mech, "joints", state, design)
 
 
 def point_positions(mech: Mechanism, state, *, design=None) -> Float[Array, "... P 3"]:
     """World position of every named point (file units), in ``mech.point_names``
     order; :func:`named_points` gives them by name."""
-    return _read(mech, "points", state, design)
+    return _blocked_read(mech, "points", state, design)
 
 
 def reported_values(mech: Mechanism, state, *, design=None) -> Float[Array, "... E"]:
@@ -68,7 +82,7 @@ def reported_values(mech: Mechanism, state, *, design=None) -> Float[Array, "...
     if not mech.reported_table.size:
         shape = np.shape(state)[:-1] + (0,)
         return jnp.zeros(shape)
-    return _read(mech, "reported", state, design)
+    return _blocked_read(mech, "reported", state, design)
 
 
 def named_points(mech: Mechanism, state, *, design=None) -> dict[str, np.ndarray]:

@@ -34,8 +34,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._config import jit
 from .._errors import InputError
 from . import dense, jacobian
+from .blocks import in_blocks, traced
 from .geometry import Geometry, design_vector, geometry
 from .model import Mechanism
 
@@ -94,14 +96,14 @@ def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, 2]:
     return jnp.sqrt(jnp.sum(image**2, axis=1) + 1e-300)
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def f_sing_value(mech: Mechanism, geom: Geometry, state) -> Float[Array, ""]:
     """Eq. 3 at one state."""
     sigma = sigma_min_pair(mech, geom, state)
     return jnp.sum(1.0 / sigma)
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def _sigmas(mech: Mechanism, state, design):
     geom = geometry(mech, design_vector(mech, design))
     state = jnp.asarray(state, dtype=jnp.float64)
@@ -113,9 +115,14 @@ def singular_values(mech: Mechanism, state, *, design=None) -> Float[Array, "...
     """``(σ_min^FK, σ_min^BK)`` of a homogenised state or a batch ``(N, S)`` of them;
     :class:`~linkopt.InputError` for any other shape (outside a trace). Non-finite
     states are allowed: maps pass unreached cells too, and get NaN for them."""
-    if not isinstance(state, jax.core.Tracer):
-        _check_shape(mech, state)
-    return _sigmas(mech, state, design)
+    if traced(state, design):
+        return _sigmas(mech, state, design)
+    _check_shape(mech, state)
+    if design is None:  # the file's design as an array: one program for both
+        design = np.asarray(mech.design.p0, dtype=np.float64)
+    if np.ndim(state) == 1:
+        return _sigmas(mech, state, design)
+    return in_blocks(lambda s: _sigmas(mech, s, design), (state,))
 
 
 def _check_shape(mech: Mechanism, state) -> None:

@@ -33,6 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..._config import jit
 from . import nlp
 from .model import (
     Arm,
@@ -168,7 +169,7 @@ def merged_arm(arm: Arm, k: int, keep: np.ndarray) -> Arm:
     )
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def _poses(arm: Arm, theta, d):
     """Tool positions ``(n_T, 3)``, rotations ``(n_T, 3, 3)`` and the eq. 12 blocks
     ``[ṗ; ω]`` per target: ``(n_T, 6, n)`` in θ and ``(n_T, 6, m)`` in d."""

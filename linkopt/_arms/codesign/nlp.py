@@ -42,6 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.optimize
 
+from ..._config import jit
 from ..._engine.constraints import homogenised_point_positions
 from ..._engine.statics import motor_torques
 from .. import checks
@@ -253,7 +254,7 @@ def _rows(problem: Problem, out, index):
     )
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def _evaluate(problem: Problem, z):
     """Objective, its gradient, constraint rows and their blocks, from one forward-mode
     pass.
@@ -290,7 +291,7 @@ def _evaluate(problem: Problem, z):
     )
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def objective_parts(problem: Problem, z) -> dict:
     """The unweighted objectives
     ``f_path, f_joints, f_length, f_torque, f_obstacle``."""
@@ -320,7 +321,7 @@ def constraints(problem: Problem, z: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return evaluate(problem, z)[2:]
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def _waypoints(problem: Problem, z):
     """:func:`_waypoint` at every waypoint (compiled once per problem)."""
     theta, d = problem.split(z)

@@ -15,6 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ..._config import jit
 from ..._engine.constraints import homogenised_point_positions  # noqa: E402
 from .model import Arm, arm_state  # noqa: E402
 from .sdf import Obstacle  # noqa: E402
@@ -22,7 +23,7 @@ from .sdf import Obstacle  # noqa: E402
 COLOURS = plt.get_cmap("rainbow")
 
 
-@partial(jax.jit, static_argnums=0)
+@partial(jit, static_argnums=0)
 def module_points(arm: Arm, theta, d):
     """Module-end points and tip of every configuration ``(W, n)`` ->
     ``(W, K + 1, 3)``."""

@@ -59,7 +59,7 @@ import numpy as np
 import scipy.optimize
 from jaxtyping import Array, Float
 
-from ..._config import one_blas_thread
+from ..._config import jit, one_blas_thread
 from ..._engine import dense
 from ..._errors import InputError
 from .. import checks
@@ -176,7 +176,7 @@ def _smooth_size(types: str, table: dh.DHTable, delta: float) -> Float[Array, ""
     )
 
 
-@partial(jax.jit, static_argnums=(0,))
+@partial(jit, static_argnums=(0,))
 def cost(
     types: str,
     x: Float[Array, " V"],
@@ -192,10 +192,10 @@ def cost(
 
 
 #: ``(cost, ∂cost/∂x)`` of :func:`cost`, jitted (the minimiser's objective).
-value_and_grad = jax.jit(jax.value_and_grad(cost, argnums=1), static_argnums=(0,))
+value_and_grad = jit(jax.value_and_grad(cost, argnums=1), static_argnums=(0,))
 
 
-@partial(jax.jit, static_argnums=(0,))
+@partial(jit, static_argnums=(0,))
 def measures(
     types: str, table: dh.DHTable, q: Float[Array, "m N"], targets: Float[Array, "m 3"]
 ):
@@ -204,7 +204,7 @@ def measures(
     return jnp.sqrt(d2), jnp.sqrt(jnp.maximum(w2, 0.0))
 
 
-@partial(jax.jit, static_argnums=(0, 4))
+@partial(jit, static_argnums=(0, 4))
 def polish(
     types: str,
     table: dh.DHTable,

@@ -36,6 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ..._config import jit
 from ..._engine import quaternion
 from ..._errors import InputError
 from ..chain import chain_definition, chain_state, coordinate_output, joint_output, span
@@ -178,7 +179,7 @@ def engine_state(
     )
 
 
-@partial(jax.jit, static_argnums=(0, 4))
+@partial(jit, static_argnums=(0, 4))
 def engine_states(
     types: str,
     table: DHTable,

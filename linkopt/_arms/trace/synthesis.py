@@ -52,6 +52,7 @@ import numpy as np
 import scipy.optimize
 from jaxtyping import Array, Float
 
+from ..._config import jit
 from ..._errors import InputError
 from .. import checks
 from . import geometry as geo
@@ -235,9 +236,9 @@ def problem_of(g: Callable, n: int, kind: str) -> Problem:
         return 0.5 * jnp.sum(jnp.minimum(g(x, sigma), 0.0) ** 2)
 
     return Problem(
-        jax.jit(g),
-        jax.jit(jax.jacfwd(g)),
-        jax.jit(jax.value_and_grad(violation)),
+        jit(g),
+        jit(jax.jacfwd(g)),
+        jit(jax.value_and_grad(violation)),
         n,
         kind,
     )

@@ -1,0 +1,82 @@
+"""Batched calls in blocks of a fixed number of rows, so one compiled program serves
+every batch size.
+
+A jitted function is traced and compiled once per argument shape, and for linkopt's
+solves a compilation costs seconds (8-12 s for a five-bar warm-started FK batch on a
+2-core machine, more for larger mechanisms) where running a block costs milliseconds.
+Maps, verification and animations ask for many batch sizes (each continuation wave has
+its own; a 60² map had four, a 41² verification three more, each σ_min and read-out
+batch one), so a first run spent most of its time compiling. :func:`in_blocks` calls
+the function on consecutive blocks of exactly :data:`BLOCK` rows instead (the last
+block padded by repeating its last row, whose results are dropped): whatever the batch
+size, one program. The cost is the padding (at most ``BLOCK - 1`` rows a call) and one
+dispatch per block (about 0.1 ms).
+
+Only concrete arrays are blocked: under ``jax.jit``, ``vmap`` or ``grad`` (a tracer
+among the arguments) the function is called once on the whole batch, so solves stay
+differentiable.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import jax
+import numpy as np
+
+#: Rows per block. 64 is two of the solver's 32-lane chunks (``kinematics.CHUNK``): a
+#: 2-D map's wave (at most about twice its side) takes one or two blocks.
+BLOCK = 64
+#: The shortest padded continuation path (:func:`path_rows`).
+PATH_BLOCK = 16
+
+
+def traced(*args) -> bool:
+    """Whether any leaf of ``args`` is a JAX tracer."""
+    return any(
+        isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(args)
+    )
+
+
+def _padded(a: np.ndarray, rows: int) -> np.ndarray:
+    """``a`` with its last row repeated up to ``rows`` rows."""
+    return np.concatenate([a, np.repeat(a[-1:], rows - len(a), axis=0)])
+
+
+def in_blocks(fn: Callable, rows: Sequence[np.ndarray], width: int = BLOCK) -> object:
+    """``fn(*rows)`` computed on blocks of exactly ``width`` rows of ``rows`` (arrays
+    sharing their leading axis ``N``); the results (a pytree of arrays with leading
+    axis ``width``) are concatenated and cut back to ``N`` rows."""
+    rows = [np.asarray(r) for r in rows]
+    count = len(rows[0])
+    if count == 0:
+        return fn(*rows)
+    total = -(-count // width) * width
+    padded = [_padded(r, total) for r in rows]
+    parts = [
+        fn(*(r[start : start + width] for r in padded))
+        for start in range(0, total, width)
+    ]
+    return jax.tree_util.tree_map(lambda *leaves: _joined(leaves, count), *parts)
+
+
+def _joined(leaves, count: int) -> jax.Array:
+    """The blocks' results joined and cut to ``count`` rows in numpy, then put back on
+    the device: a jax slice (and ``jnp.asarray``) compiles a small program for each
+    new ``count``, a few hundred of them in a first run."""
+    return jax.device_put(np.concatenate([np.asarray(leaf) for leaf in leaves])[:count])
+
+
+def first_rows(tree, count: int):
+    """Every array of ``tree`` cut to its first ``count`` rows (:func:`_joined`)."""
+    return jax.tree_util.tree_map(lambda leaf: _joined([leaf], count), tree)
+
+
+def path_rows(count: int) -> int:
+    """The rows a continuation path of ``count`` rows is padded to: the next power of
+    two from :data:`PATH_BLOCK` on (few lengths, so few programs; a padded row repeats
+    the last one, a continuation of length zero that costs one residual check)."""
+    size = PATH_BLOCK
+    while size < count:
+        size *= 2
+    return size

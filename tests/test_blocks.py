@@ -1,0 +1,137 @@
+"""Batched calls in fixed blocks (linkopt._engine.blocks): the same numbers as one call
+on the whole batch, and one compiled program for every batch size (issue 19, part 2:
+a first run compiled the warm-started solve once per wave size)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax import monitoring
+
+from linkopt._engine.blocks import BLOCK, in_blocks, path_rows
+from linkopt._engine.kinematics import solve_fk, solve_fk_path
+from linkopt._engine.readout import motor_values, output_values
+from linkopt._engine.singularity import f_sing
+
+COMPILED: list[str] = []
+LISTENING = []
+
+
+def _listener(event, duration, **kwargs):
+    if LISTENING and event.endswith("backend_compile_duration"):
+        COMPILED.append(kwargs.get("fun_name"))
+
+
+monitoring.register_event_duration_secs_listener(_listener)
+
+
+def compilations(fn):
+    """The names of the programs compiled while ``fn()`` runs."""
+    COMPILED.clear()
+    LISTENING.append(True)
+    try:
+        fn()
+    finally:
+        LISTENING.clear()
+    return list(COMPILED)
+
+
+@pytest.mark.parametrize("count", [1, BLOCK - 1, BLOCK, BLOCK + 1, 3 * BLOCK + 5])
+def test_blocks_equal_one_call_and_see_only_full_blocks(count):
+    rows = np.random.default_rng(count).normal(size=(count, 3))
+    seen = []
+
+    def fn(x, y):
+        seen.append(len(x))
+        return {"sum": x + y, "norm": jnp.linalg.norm(x, axis=1)}
+
+    out = in_blocks(fn, (rows, 2 * rows))
+    assert set(seen) == {BLOCK}
+    np.testing.assert_array_equal(np.asarray(out["sum"]), 3 * rows)
+    np.testing.assert_allclose(out["norm"], np.linalg.norm(rows, axis=1), rtol=1e-15)
+    assert isinstance(out["sum"], jax.Array) and out["sum"].shape == (count, 3)
+
+
+def test_path_rows_are_few_lengths_at_most_twice_the_path():
+    lengths = {path_rows(n) for n in range(1, 600)}
+    assert lengths == {16, 32, 64, 128, 256, 512, 1024}
+    assert all(n <= path_rows(n) < max(2 * n, 17) for n in range(1, 600))
+
+
+def _motors(count, seed=0):
+    return np.random.default_rng(seed).uniform(-0.3, 0.3, size=(count, 2))
+
+
+def test_one_warm_program_serves_every_batch_size(five_bar):
+    rest = solve_fk(five_bar, np.zeros(2)).state
+    solve_fk(five_bar, _motors(3), start=rest)  # compiled here (or earlier)
+
+    def more_sizes():
+        for count in (1, 5, BLOCK + 3, 2 * BLOCK + 7):
+            solve_fk(five_bar, _motors(count, count), start=rest)
+            solve_fk(five_bar, _motors(count, count), start=rest, design=None)
+
+    assert "jit(_solve)" not in compilations(more_sizes)
+
+
+def test_blocked_solves_equal_single_solves(five_bar):
+    design = np.asarray(five_bar.design.p0) + 0.5
+    motors = _motors(BLOCK + 9, 7)
+    batch = solve_fk(five_bar, motors, design=design)
+    assert batch.state.shape == (BLOCK + 9, five_bar.state_size)
+    for k in (0, BLOCK - 1, BLOCK, BLOCK + 8):
+        one = solve_fk(five_bar, motors[k], design=design)
+        assert bool(one.converged) == bool(batch.converged[k])
+        np.testing.assert_allclose(batch.state[k], one.state, atol=1e-12)
+    got = motor_values(five_bar, batch.state, design=design)
+    np.testing.assert_allclose(
+        np.asarray(got)[batch.converged], motors[batch.converged], atol=1e-9
+    )
+
+
+def test_read_outs_and_sigmas_of_any_batch_share_programs(five_bar):
+    states = np.asarray(solve_fk(five_bar, _motors(2 * BLOCK + 1, 3)).state)
+    f_sing(five_bar, states[:2])
+    output_values(five_bar, states[:2])
+
+    def more_sizes():
+        for count in (1, 7, BLOCK, 2 * BLOCK + 1):
+            f_sing(five_bar, states[:count])
+            output_values(five_bar, states[:count])
+
+    compiled = compilations(more_sizes)
+    assert "jit(_sigmas)" not in compiled and "jit(_read)" not in compiled
+    whole = np.asarray(f_sing(five_bar, states))
+    for k in (0, BLOCK, 2 * BLOCK):
+        assert whole[k] == pytest.approx(float(f_sing(five_bar, states[k])), rel=1e-12)
+
+
+def test_padded_paths_equal_their_rows_and_share_a_program(five_bar):
+    path = np.linspace([0.0, 0.0], [0.4, -0.3], 9)
+    short = solve_fk_path(five_bar, path)
+    assert short.state.shape == (9, five_bar.state_size) and bool(
+        np.all(short.converged)
+    )
+    longer = solve_fk_path(five_bar, np.concatenate([path, path[::-1]]))
+    np.testing.assert_allclose(longer.state[:9], short.state, atol=1e-12)
+    np.testing.assert_allclose(
+        longer.state[-1], solve_fk(five_bar, path[0]).state, atol=1e-9
+    )
+    compiled = compilations(lambda: solve_fk_path(five_bar, path[:5]))
+    assert "jit(_solve_path)" not in compiled  # 5, 9 and 18 rows: 16 and 32
+
+
+def test_traced_calls_are_not_blocked(five_bar):
+    rest = solve_fk(five_bar, np.zeros(2)).state
+
+    def total(motors):
+        return jnp.sum(solve_fk(five_bar, motors, start=rest).state)
+
+    motors = _motors(3)
+    grad = jax.grad(total)(jnp.asarray(motors))
+    assert grad.shape == (3, 2) and np.all(np.isfinite(grad))
+    step = 1e-6
+    bumped = motors.copy()
+    bumped[1, 0] += step
+    numeric = (total(bumped) - total(motors)) / step
+    assert float(grad[1, 0]) == pytest.approx(float(numeric), rel=1e-4, abs=1e-6)
