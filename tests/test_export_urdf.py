@@ -1,7 +1,8 @@
 """URDF export round trip through yourdfpy (issue 18): at random joint values, every
 link frame and the tool frame of the loaded URDF sit where linkopt's FK puts them
 (1e-9 m, 1e-9 in the rotation), on the 3R arm file, an RPR arm from a DH table (a
-prismatic joint, skew axes, no units) and the same arm at another design; a closed-loop
+prismatic joint, skew axes, no units), the files `arm design` and `arm trace` write,
+and the 3R arm at another design; a closed-loop
 file is refused with one line pointing to MJCF."""
 
 import functools
@@ -30,6 +31,39 @@ def _dh_arm():
     )
     mech, _ = linkopt.dh_mechanism("RPR", table, np.array([0.2, 0.3, -0.4]))
     return mech
+
+
+def _arm_design_file():
+    """The mechanism file `linkopt arm design` writes (design.toml), for the tiny
+    co-design arm at a design inside its bounds."""
+    from arm_tasks import TINY_ARM
+
+    from linkopt._arms.codesign.model import mechanism_definition
+    from linkopt._arms.codesign.task import loads_task
+    from linkopt._engine.writer import dumps
+
+    target = "[[targets]]\nposition = [0.0, 0.0, 0.0]\n"
+    arm = loads_task(TINY_ARM + target, "tiny.toml").arm
+    design = 0.5 * (arm.lower + arm.upper)
+    return linkopt.loads(dumps(mechanism_definition(arm, design)), "design.toml")
+
+
+def _arm_trace_file():
+    """The mechanism file `linkopt arm trace` writes (arm.toml), for a 3-link planar
+    arm."""
+    from linkopt._arms.trace.export import mechanism_text
+    from linkopt._arms.trace.synthesis import TraceResult
+    from linkopt._arms.trace.task import loads_task
+    from linkopt._arms.trace.verify import PlanarArm
+
+    task = loads_task(
+        '[task]\nname = "t"\nlink_diameter = 0.02\n[[primitives]]\ntype = "line"\n'
+        "start = [0.3, -0.1]\nend = [0.3, 0.1]\n",
+        "t.toml",
+    )
+    design = PlanarArm(np.array([0.02, -0.01]), np.array([0.2, 0.15, 0.1]), [0.3], 1)
+    result = TraceResult(task, design, None, "app", 0.0)
+    return linkopt.loads(mechanism_text(result), "arm.toml")
 
 
 def _round_trip(mech, tmp_path, design=None, samples=6):
@@ -61,12 +95,14 @@ def _round_trip(mech, tmp_path, design=None, samples=6):
     return worst_pose, worst_value, robot
 
 
-@pytest.mark.parametrize("which", ["arm_3r", "dh_rpr"])
+@pytest.mark.parametrize("which", ["arm_3r", "dh_rpr", "arm_design", "arm_trace"])
 def test_urdf_forward_kinematics_match(which, tmp_path):
-    if which == "arm_3r":
-        mech = _arm_3r()
-    else:
-        mech = _dh_arm()
+    mech = {
+        "arm_3r": _arm_3r,
+        "dh_rpr": _dh_arm,
+        "arm_design": _arm_design_file,
+        "arm_trace": _arm_trace_file,
+    }[which]()
     pose_error, value_error, robot = _round_trip(mech, tmp_path)
     assert pose_error < 1e-9
     assert value_error < 1e-9  # the URDF joints are the motors

@@ -143,7 +143,9 @@ def mechanism_definition(result: TraceResult) -> dict:
         np.tile([0.0, 0.0, 1.0], (n, 1)),
         points=[("tip", n, spatial[-1])],
         outputs=_outputs(task, d, rest),
-        units="task units",
+        # no `units`: a trace task does not name its length unit (the header says the
+        # lengths are the task's), and `linkopt export` reads a file without one as
+        # metres and says so; "task units" made every export of the file fail
     )
 
 
@@ -183,6 +185,7 @@ def mechanism_text(result: TraceResult) -> str:
         f"{result.task.name!r}\n"
         f"# ({result.task.source}); rest pose = the state at the task's first point. "
         "Link lengths\n"
-        f"# {lengths}; elbow {'up' if d.sigma > 0 else 'down'}.\n\n"
+        f"# {lengths}; elbow {'up' if d.sigma > 0 else 'down'}. Lengths are in the "
+        "task's unit (no `units`:\n# `linkopt export` takes metres).\n\n"
     )
     return head + dumps(mechanism_definition(result))
