@@ -128,18 +128,11 @@ def check_resolution(
 def reached_sigmas(
     mech: Mechanism, states: np.ndarray, feasible: np.ndarray, design
 ) -> np.ndarray:
-    """``(σ_min^FK, σ_min^BK)`` of the reached cells ``(R, 2)``, in grid order.
-
-    Solved as one batch of every cell of the grid, each unreached cell holding a copy
-    of a reached state, so the batch's shape, and with it the compiled program, is the
-    grid's whatever the coverage: the initial design, the optimised one and every
-    verification round share one program instead of tracing and compiling one per
-    reached-cell count. The copies cost ``1 - coverage`` of the batch; they are
-    dropped."""
+    """``(σ_min^FK, σ_min^BK)`` of the reached cells ``(R, 2)``, in grid order
+    (batched in fixed blocks, :mod:`linkopt._engine.blocks`: one compiled program
+    whatever the count of reached cells)."""
     flat = states.reshape(-1, states.shape[-1])
-    mask = feasible.reshape(-1)
-    filled = np.where(mask[:, None], flat, flat[int(np.argmax(mask))])
-    return np.asarray(singular_values(mech, filled, design=design))[mask]
+    return np.asarray(singular_values(mech, flat[feasible.reshape(-1)], design=design))
 
 
 def verify(
