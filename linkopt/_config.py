@@ -37,16 +37,6 @@ def cache_directory() -> Path:
     return Path(base) / "linkopt" / "jax"
 
 
-#: Size cap of the compilation cache (least recently used entries go beyond it). Set
-#: for its side effect as much as for the cap: only with a cap does JAX take a file
-#: lock around each cache read and write (jax 0.10.2, ``jax._src.lru_cache``). Without
-#: one it writes an entry in place, not atomically, and another process (a second test
-#: worker, a swarm worker, the outputs' side process) that reads the entry meanwhile
-#: deserialises a truncated executable: XLA:CPU then crashed with SIGSEGV or SIGABRT in
-#: ``get_executable_and_time`` (3-4 worker crashes per cold test-suite run before).
-CACHE_MAX_BYTES = 8 * 2**30
-
-
 def configure() -> None:
     """Enable float64 and the persistent compilation cache (idempotent)."""
     jax.config.update("jax_enable_x64", True)
@@ -56,7 +46,6 @@ def configure() -> None:
     except OSError:
         return  # read-only home: run without the cache rather than fail
     jax.config.update("jax_compilation_cache_dir", str(directory))
-    jax.config.update("jax_compilation_cache_max_size", CACHE_MAX_BYTES)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.05)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
