@@ -89,9 +89,12 @@ class _Program:
     the caller's options). ``lower`` lowers the top-level version."""
 
     def __init__(self, fn, kwargs):
+        # name and docstring only: a function made by jax.value_and_grad of another
+        # _Program carries that one's attributes in its __dict__, which must not
+        # replace these
+        functools.update_wrapper(self, fn, updated=())
         self._plain = jax.jit(fn, **kwargs)
         self._tuned = jax.jit(fn, compiler_options=COMPILER_OPTIONS, **kwargs)
-        functools.update_wrapper(self, fn)
 
     def __call__(self, *args, **kwargs):
         leaves = jax.tree_util.tree_leaves((args, kwargs))
