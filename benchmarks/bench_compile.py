@@ -2,8 +2,9 @@
 command, cold (empty caches) and warm.
 
 Run: ``.venv/bin/python benchmarks/bench_compile.py [--workers 1] [-- COMMAND ...]``
-(default command: ``optimize mechanisms/five_bar.toml``, the README's main job, into
-a temporary folder).
+(default command: ``optimize mechanisms/five_bar.toml``, the README's main job; an
+``optimize`` or ``sweep`` command is given without ``--out``'s folder, which is a new
+temporary one each pass).
 
 Each pass runs the command in a fresh process with JAX's monitoring hooks on, first
 with an empty compilation cache (``LINKOPT_CACHE_DIR`` a new temporary folder), then
@@ -18,13 +19,15 @@ Targets (issue 19, 2-core machine): the cold main command ≤ 60 s; the warm one
 Figures behind the choices (five-bar main command, ``--workers 1``, idle 2-core
 machine, cold):
 
-* before fixed blocks (:mod:`linkopt._engine.blocks`): 310 s wall, 218 s of it
-  compiling 75 programs; ``_solve`` (warm-started FK/BK batches) compiled 9 times (82 s:
-  one per padded wave size of each map and verification grid), ``_sigmas`` 6 times
-  (19 s), ``_solve_path`` 4 times (21 s), the read-outs 20 times (5 s), the design
-  evaluation 3 times (58 s with the partial gradient: the swarm's chunk, the gradient,
-  and one design at the end).
-* after: see the README ("The two commands") for the figures of the current tree.
+* before fixed blocks (:mod:`linkopt._engine.blocks`): 310 s wall, at least 204 s of
+  it compiling (the 40 costliest programs: 75 compilations); ``_solve`` (warm-started
+  FK/BK batches) compiled 9 times (82 s: one per padded wave size of each map and
+  verification grid), ``_sigmas`` 6 times (19 s), ``_solve_path`` 4 times (21 s), the
+  read-outs 20 times (5 s), the design evaluation 3 times (58 s with the partial
+  gradient: the swarm's chunk, the gradient, and one design at the end).
+* after (2026-12-03, ``--workers 2`` as the README's command): cold 178 s wall, 105 s
+  compiling (64 compilations, 62 s of them the evaluation and its partial gradient,
+  one ``_solve`` program each for FK and BK); warm 63 s (311 s and 77 s before).
 """
 
 from __future__ import annotations
