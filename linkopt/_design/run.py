@@ -298,7 +298,8 @@ def _design_outputs(
         if workers > 1
         else None
     )
-    rows = len(run.position[chunk_slices(len(run.position), workers)[0]])
+    first = chunk_slices(len(run.position), workers)[0]  # the swarm's program's shape
+    rows = first.stop - first.start
     args = (mech, out, resolution, verify_resolution, rows)
     try:
         initial = side.submit(_initial_outputs, *args) if side is not None else None
