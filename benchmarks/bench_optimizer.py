@@ -15,10 +15,11 @@ Baseline: the paper's Table I, five-bar: 8 iterations, about 15 min (C++, 4 core
 
 The number of swarm iterations a seed needs varies a lot (8 to 24 over seeds 0-7 in our
 runs, median 12), and a change anywhere in the evaluation can move every seed's count,
-so compare medians over many seeds, not one seed's time. Our last run (2 workers, warm
-cache) gave a median of 11.3 s in the optimiser, 80x the paper (seed 0, 8 iterations as
-in the paper: 8.9 s, 102x), with all eight results verified; the whole command took
-21.8-35.0 s.
+so compare medians over many seeds, not one seed's time. Our last run (2026-12-03,
+2 workers, idle machine, warm cache) gave a median of 12 iterations and 41.4 s in the
+optimiser, 22x the paper (seed 0: 8 iterations, 27.5 s; cold, the whole command 163 s),
+with all eight results verified; the whole command took 62.6-124.8 s. With jaxlib's
+LAPACK and one XLA thread (before the plain-JAX linear algebra) the median was 11.3 s.
 
 Figures behind the worker split (``linkopt._design.workers``, measured when it was
 made): a spawned process costs about 1 s of Python and JAX start-up before its first
