@@ -82,6 +82,13 @@ def one_blas_thread():
 COMPILER_OPTIONS = {"xla_llvm_disable_expensive_passes": True}
 
 
+def traced(*args) -> bool:
+    """Whether any leaf of ``args`` is a JAX tracer (a call inside a trace)."""
+    return any(
+        isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(args)
+    )
+
+
 class _Program:
     """A jitted function compiled with :data:`COMPILER_OPTIONS` when called at top
     level, and plain inside another trace (JAX takes compiler options only on a
@@ -97,8 +104,7 @@ class _Program:
         self._tuned = jax.jit(fn, compiler_options=COMPILER_OPTIONS, **kwargs)
 
     def __call__(self, *args, **kwargs):
-        leaves = jax.tree_util.tree_leaves((args, kwargs))
-        nested = any(isinstance(leaf, jax.core.Tracer) for leaf in leaves)
+        nested = traced(args, kwargs)
         return (self._plain if nested else self._tuned)(*args, **kwargs)
 
     def lower(self, *args, **kwargs):

@@ -31,13 +31,6 @@ BLOCK = 64
 PATH_BLOCK = 16
 
 
-def traced(*args) -> bool:
-    """Whether any leaf of ``args`` is a JAX tracer."""
-    return any(
-        isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(args)
-    )
-
-
 def _padded(a: np.ndarray, rows: int) -> np.ndarray:
     """``a`` with its last row repeated up to ``rows`` rows."""
     return np.concatenate([a, np.repeat(a[-1:], rows - len(a), axis=0)])

@@ -53,6 +53,15 @@ def design_vector(mech: Mechanism, design=None) -> Float[Array, " n_p"]:
     return jnp.asarray(design, dtype=jnp.float64)
 
 
+def design_array(mech: Mechanism, design=None):
+    """``design`` unchanged, or the file's design as a numpy array for None: passed to
+    a jitted program, both are then one argument structure, so one trace and one
+    compiled program (a None design is another structure)."""
+    if design is None:
+        return np.asarray(mech.design.p0, dtype=np.float64)
+    return design
+
+
 def geometry(mech: Mechanism, design=None) -> Geometry:
     """Homogenised rest geometry of the design ``p`` (file units), traceable in
     ``p``."""

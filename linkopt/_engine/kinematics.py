@@ -33,17 +33,17 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._config import jit
+from .._config import jit, traced
 from .._errors import InputError
 from . import dense, jacobian, lm
-from .blocks import first_rows, in_blocks, path_rows, traced
+from .blocks import first_rows, in_blocks, path_rows
 from .constraints import (
     bk_residual,
     fk_residual,
     homogenised_motor_values,
     homogenised_output_values,
 )
-from .geometry import Geometry, design_vector, geometry, rest_state
+from .geometry import Geometry, design_array, design_vector, geometry, rest_state
 from .model import Mechanism
 
 _RESIDUALS = {"fk": fk_residual, "bk": bk_residual}
@@ -289,20 +289,12 @@ def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
     return solutions
 
 
-def _file_design(mech: Mechanism, design):
-    """``design`` as an array, the file's design for None: both then run one program
-    (a None design is a different argument structure, so another trace)."""
-    if design is None:
-        return np.asarray(mech.design.p0, dtype=np.float64)
-    return design
-
-
 def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
     """:func:`_solve`; a concrete batch in fixed blocks (:mod:`.blocks`), each row
     with its own start."""
     if traced(values, start, design):
         return _solve(mech, kind, values, start, design)
-    design = _file_design(mech, design)
+    design = design_array(mech, design)
     if np.ndim(values) == 1:
         return _solve(mech, kind, values, start, design)
     values = np.asarray(values, dtype=np.float64)
@@ -315,7 +307,7 @@ def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
     """:func:`_solve_from_rest`; a concrete batch in fixed blocks."""
     if traced(values, design):
         return _solve_from_rest(mech, kind, values, design)
-    design = _file_design(mech, design)
+    design = design_array(mech, design)
     if np.ndim(values) == 1:
         return _solve_from_rest(mech, kind, values, design)
     rows = (np.asarray(values, dtype=np.float64),)
@@ -333,7 +325,7 @@ def _along(mech: Mechanism, kind: str, values, start, design) -> Solution:
         [values, np.repeat(values[-1:], path_rows(count) - count, axis=0)]
     )
     start = rest_state(mech) if start is None else start  # one program for both
-    solution = _solve_path(mech, kind, padded, start, _file_design(mech, design))
+    solution = _solve_path(mech, kind, padded, start, design_array(mech, design))
     return first_rows(solution, count)
 
 

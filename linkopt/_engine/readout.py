@@ -9,10 +9,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._config import jit
+from .._config import jit, traced
 from . import constraints
-from .blocks import in_blocks, traced
-from .geometry import design_vector, geometry
+from .blocks import in_blocks
+from .geometry import design_array, design_vector, geometry
 from .model import Mechanism
 
 
@@ -46,8 +46,7 @@ def _blocked_read(mech: Mechanism, what: str, state, design):
     (:mod:`linkopt._engine.blocks`: one program for every batch size)."""
     if traced(state, design):
         return _read(mech, what, state, design)
-    if design is None:  # the file's design as an array: one program for both
-        design = np.asarray(mech.design.p0, dtype=np.float64)
+    design = design_array(mech, design)  # None and arrays: one program
     if np.ndim(state) != 2:
         return _read(mech, what, state, design)
     return in_blocks(lambda s: _read(mech, what, s, design), (state,))

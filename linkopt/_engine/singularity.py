@@ -34,11 +34,11 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._config import jit
+from .._config import jit, traced
 from .._errors import InputError
 from . import dense, jacobian
-from .blocks import in_blocks, traced
-from .geometry import Geometry, design_vector, geometry
+from .blocks import in_blocks
+from .geometry import Geometry, design_array, design_vector, geometry
 from .model import Mechanism
 
 
@@ -118,8 +118,7 @@ def singular_values(mech: Mechanism, state, *, design=None) -> Float[Array, "...
     if traced(state, design):
         return _sigmas(mech, state, design)
     _check_shape(mech, state)
-    if design is None:  # the file's design as an array: one program for both
-        design = np.asarray(mech.design.p0, dtype=np.float64)
+    design = design_array(mech, design)  # None and arrays: one program
     if np.ndim(state) == 1:
         return _sigmas(mech, state, design)
     return in_blocks(lambda s: _sigmas(mech, s, design), (state,))
