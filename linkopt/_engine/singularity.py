@@ -115,9 +115,10 @@ def singular_values(mech: Mechanism, state, *, design=None) -> Float[Array, "...
     """``(σ_min^FK, σ_min^BK)`` of a homogenised state or a batch ``(N, S)`` of them;
     :class:`~linkopt.InputError` for any other shape (outside a trace). Non-finite
     states are allowed: maps pass unreached cells too, and get NaN for them."""
+    if not isinstance(state, jax.core.Tracer):
+        _check_shape(mech, state)
     if traced(state, design):
         return _sigmas(mech, state, design)
-    _check_shape(mech, state)
     design = design_array(mech, design)  # None and arrays: one program
     if np.ndim(state) == 1:
         return _sigmas(mech, state, design)
