@@ -52,6 +52,26 @@ def test_blocks_equal_one_call_and_see_only_full_blocks(count):
     assert isinstance(out["sum"], jax.Array) and out["sum"].shape == (count, 3)
 
 
+def test_one_row_runs_the_single_row_program():
+    rows = np.arange(6.0).reshape(2, 3)
+    seen = []
+
+    def fn(x):
+        seen.append(("block", x.shape))
+        return {"twice": 2 * x}
+
+    def one(x):
+        seen.append(("one", x.shape))
+        return {"twice": 2 * x}
+
+    out = in_blocks(fn, (rows[:1],), one=one)
+    assert seen == [("one", (3,))]
+    assert isinstance(out["twice"], jax.Array)
+    np.testing.assert_array_equal(np.asarray(out["twice"]), 2 * rows[:1])
+    in_blocks(fn, (rows,), one=one)
+    assert seen[-1] == ("block", (BLOCK, 3))
+
+
 def test_path_rows_are_few_lengths_at_most_twice_the_path():
     lengths = {path_rows(n) for n in range(1, 600)}
     assert lengths == {16, 32, 64, 128, 256, 512, 1024}
@@ -65,13 +85,14 @@ def _motors(count, seed=0):
 def test_one_warm_program_serves_every_batch_size(five_bar):
     rest = solve_fk(five_bar, np.zeros(2)).state
     solve_fk(five_bar, _motors(3), start=rest)  # compiled here (or earlier)
+    solve_fk(five_bar, _motors(1)[0], start=rest)  # and one row's program
 
     def more_sizes():
         for count in (1, 5, BLOCK + 3, 2 * BLOCK + 7):
             solve_fk(five_bar, _motors(count, count), start=rest)
             solve_fk(five_bar, _motors(count, count), start=rest, design=None)
 
-    assert "jit(_solve)" not in compilations(more_sizes)
+    assert "jit(solve_fk)" not in compilations(more_sizes)
 
 
 def test_blocked_solves_equal_single_solves(five_bar):
@@ -93,6 +114,8 @@ def test_read_outs_and_sigmas_of_any_batch_share_programs(five_bar):
     states = np.asarray(solve_fk(five_bar, _motors(2 * BLOCK + 1, 3)).state)
     f_sing(five_bar, states[:2])
     output_values(five_bar, states[:2])
+    f_sing(five_bar, states[0])  # and one row's programs
+    output_values(five_bar, states[0])
 
     def more_sizes():
         for count in (1, 7, BLOCK, 2 * BLOCK + 1):
@@ -100,7 +123,7 @@ def test_read_outs_and_sigmas_of_any_batch_share_programs(five_bar):
             output_values(five_bar, states[:count])
 
     compiled = compilations(more_sizes)
-    assert "jit(_sigmas)" not in compiled and "jit(_read)" not in compiled
+    assert "jit(sigmas)" not in compiled and "jit(read_outputs)" not in compiled
     whole = np.asarray(f_sing(five_bar, states))
     for k in (0, BLOCK, 2 * BLOCK):
         assert whole[k] == pytest.approx(float(f_sing(five_bar, states[k])), rel=1e-12)
@@ -118,7 +141,7 @@ def test_padded_paths_equal_their_rows_and_share_a_program(five_bar):
         longer.state[-1], solve_fk(five_bar, path[0]).state, atol=1e-9
     )
     compiled = compilations(lambda: solve_fk_path(five_bar, path[:5]))
-    assert "jit(_solve_path)" not in compiled  # 5, 9 and 18 rows: 16 and 32
+    assert "jit(path_fk)" not in compiled  # 5, 9 and 18 rows: 16 and 32
 
 
 def test_traced_calls_are_not_blocked(five_bar):
@@ -135,3 +158,37 @@ def test_traced_calls_are_not_blocked(five_bar):
     bumped[1, 0] += step
     numeric = (total(bumped) - total(motors)) / step
     assert float(grad[1, 0]) == pytest.approx(float(numeric), rel=1e-4, abs=1e-6)
+
+
+def test_a_new_process_reads_the_solves_traces_from_disk(five_bar, monkeypatch):
+    """The blocked solves, σ_min and read-outs keep their traces on disk
+    (linkopt._engine.programs): with this process's programs forgotten, as in a new
+    process, none of them is traced again, and the numbers are the same."""
+    from linkopt._engine import programs
+
+    motors = _motors(BLOCK + 2, 5)
+    first = solve_fk(five_bar, motors)
+    sigmas = f_sing(five_bar, first.state)
+    outputs = output_values(five_bar, first.state)
+    path = solve_fk_path(five_bar, motors[:4])
+    monkeypatch.setattr(programs, "PROGRAMS", {})
+    traced = []
+    real_export = programs.export.export
+
+    def recording(fn, *args, **kwargs):
+        traced.append(getattr(fn, "__name__", fn))
+        return real_export(fn, *args, **kwargs)
+
+    monkeypatch.setattr(programs.export, "export", recording)
+    again = solve_fk(five_bar, motors)
+    np.testing.assert_array_equal(np.asarray(again.state), np.asarray(first.state))
+    np.testing.assert_array_equal(f_sing(five_bar, again.state), sigmas)
+    np.testing.assert_array_equal(output_values(five_bar, again.state), outputs)
+    np.testing.assert_array_equal(solve_fk_path(five_bar, motors[:4]).state, path.state)
+    assert traced == []
+    assert {name for name, *_ in programs.PROGRAMS} >= {
+        "from_rest_fk",
+        "sigmas",
+        "read_outputs",
+        "path_fk",
+    }

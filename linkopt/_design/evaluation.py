@@ -38,7 +38,7 @@ the file must then set ``alpha_minus`` (:func:`alpha_minus`).
 from __future__ import annotations
 
 import itertools
-from functools import cache, partial
+from functools import cache
 from typing import NamedTuple
 
 import jax
@@ -46,7 +46,6 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
-from .._config import jit
 from .._engine import programs
 from .._engine.constraints import output_residual
 from .._engine.geometry import design_vector, geometry, rest_state
@@ -156,11 +155,13 @@ class RestConditioning(NamedTuple):
         }
 
 
-@partial(jit, static_argnums=0)
 def _rest_jacobians(mech: Mechanism):
-    geom = geometry(mech)
-    state = rest_state(mech)
-    return sigma_min_pair(mech, geom, state), stacked_jacobians(mech, geom, state)
+    def program():
+        geom = geometry(mech)
+        state = rest_state(mech)
+        return sigma_min_pair(mech, geom, state), stacked_jacobians(mech, geom, state)
+
+    return programs.call("rest_jacobians", mech, program)
 
 
 def input_output_jacobian(

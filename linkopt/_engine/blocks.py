@@ -36,14 +36,29 @@ def _padded(a: np.ndarray, rows: int) -> np.ndarray:
     return np.concatenate([a, np.repeat(a[-1:], rows - len(a), axis=0)])
 
 
-def in_blocks(fn: Callable, rows: Sequence[np.ndarray], width: int = BLOCK) -> object:
+def in_blocks(
+    fn: Callable,
+    rows: Sequence[np.ndarray],
+    width: int = BLOCK,
+    one: Callable | None = None,
+) -> object:
     """``fn(*rows)`` computed on blocks of exactly ``width`` rows of ``rows`` (arrays
     sharing their leading axis ``N``); the results (a pytree of arrays with leading
-    axis ``width``) are concatenated and cut back to ``N`` rows."""
+    axis ``width``) are concatenated and cut back to ``N`` rows.
+
+    ``one`` (optional) computes the same for one row without its batch axis: a batch
+    of one row then runs that program (the one a single solve uses) instead of a block
+    padded with ``width - 1`` copies (a five-bar FK batch of one row took 7 ms as a
+    block)."""
     rows = [np.asarray(r) for r in rows]
     count = len(rows[0])
     if count == 0:
         return fn(*rows)
+    if count == 1 and one is not None:
+        single = one(*(r[0] for r in rows))
+        return jax.tree_util.tree_map(
+            lambda leaf: _joined([np.asarray(leaf)[None]], 1), single
+        )
     total = -(-count // width) * width
     padded = [_padded(r, total) for r in rows]
     parts = [

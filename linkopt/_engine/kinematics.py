@@ -35,7 +35,7 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .._config import jit, traced
 from .._errors import InputError
-from . import dense, jacobian, lm
+from . import dense, jacobian, lm, programs
 from .blocks import first_rows, in_blocks, path_rows
 from .constraints import (
     bk_residual,
@@ -79,6 +79,11 @@ class Solution(NamedTuple):
     #: fraction of the way from the start's values to the requested ones that the
     #: continuation reached on the start's branch (1 when converged)
     progress: Float[Array, ...]
+
+
+jax.export.register_namedtuple_serialization(
+    Solution, serialized_name="linkopt.Solution"
+)
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1))
@@ -289,18 +294,31 @@ def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
     return solutions
 
 
+def _stored(name: str, mech: Mechanism, fn, *args) -> Solution:
+    """``fn(*args)`` for concrete arrays, its trace kept on disk under ``name``
+    (:mod:`.programs`: a warm process then skips tracing the solve, about 0.5-1.5 s a
+    program)."""
+    return programs.call(name, mech, fn, *args)
+
+
 def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
     """:func:`_solve`; a concrete batch in fixed blocks (:mod:`.blocks`), each row
     with its own start."""
     if traced(values, start, design):
         return _solve(mech, kind, values, start, design)
     design = design_array(mech, design)
-    if np.ndim(values) == 1:
-        return _solve(mech, kind, values, start, design)
     values = np.asarray(values, dtype=np.float64)
-    shape = (len(values), mech.state_size)
-    starts = np.broadcast_to(np.asarray(start, dtype=np.float64), shape)
-    return in_blocks(lambda v, s: _solve(mech, kind, v, s, design), (values, starts))
+    start = np.asarray(start, dtype=np.float64)
+
+    def solve(v, s):
+        return _stored(
+            f"solve_{kind}", mech, lambda *a: _solve(mech, kind, *a), v, s, design
+        )
+
+    if values.ndim == 1:
+        return solve(values, start)
+    starts = np.broadcast_to(start, (len(values), mech.state_size))
+    return in_blocks(solve, (values, starts), one=solve)
 
 
 def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
@@ -308,10 +326,18 @@ def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
     if traced(values, design):
         return _solve_from_rest(mech, kind, values, design)
     design = design_array(mech, design)
-    if np.ndim(values) == 1:
-        return _solve_from_rest(mech, kind, values, design)
-    rows = (np.asarray(values, dtype=np.float64),)
-    return in_blocks(lambda v: _solve_from_rest(mech, kind, v, design), rows)
+    values = np.asarray(values, dtype=np.float64)
+
+    def solve(v):
+        return _stored(
+            f"from_rest_{kind}",
+            mech,
+            lambda *a: _solve_from_rest(mech, kind, *a),
+            v,
+            design,
+        )
+
+    return solve(values) if values.ndim == 1 else in_blocks(solve, (values,), one=solve)
 
 
 def _along(mech: Mechanism, kind: str, values, start, design) -> Solution:
@@ -325,7 +351,14 @@ def _along(mech: Mechanism, kind: str, values, start, design) -> Solution:
         [values, np.repeat(values[-1:], path_rows(count) - count, axis=0)]
     )
     start = rest_state(mech) if start is None else start  # one program for both
-    solution = _solve_path(mech, kind, padded, start, design_array(mech, design))
+    solution = _stored(
+        f"path_{kind}",
+        mech,
+        lambda *a: _solve_path(mech, kind, *a),
+        padded,
+        np.asarray(start, dtype=np.float64),
+        design_array(mech, design),
+    )
     return first_rows(solution, count)
 
 

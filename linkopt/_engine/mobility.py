@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-from functools import partial
-
 import jax
 import numpy as np
 
-from .._config import jit
 from .._errors import MechanismFileError
+from . import programs
 from .constraints import passive_residual
 from .geometry import geometry, rest_state
 from .model import Mechanism
@@ -20,15 +18,22 @@ SINGULAR_TOL = (
 )
 
 
-@partial(jit, static_argnums=0)
 def _passive_jacobian(mech: Mechanism):
-    geom = geometry(mech)
-    return jax.jacfwd(lambda s: passive_residual(mech, geom, s))(rest_state(mech))
+    def program():
+        geom = geometry(mech)
+        return jax.jacfwd(lambda s: passive_residual(mech, geom, s))(rest_state(mech))
+
+    return programs.call("passive_jacobian", mech, program)
 
 
-@partial(jit, static_argnums=0)
 def _rest_sigmas(mech: Mechanism):
-    return sigma_min_pair(mech, geometry(mech), rest_state(mech))
+    """σ_min of the rest pose (a program whose trace is kept on disk, as every load
+    runs it: :mod:`.programs`)."""
+    return programs.call(
+        "rest_sigmas",
+        mech,
+        lambda: sigma_min_pair(mech, geometry(mech), rest_state(mech)),
+    )
 
 
 def mobility(mech: Mechanism) -> int:

@@ -35,8 +35,9 @@ from .model import Mechanism, fingerprint
 
 #: The package folder whose sources key every program (:func:`source_digest`).
 PACKAGE = Path(__file__).resolve().parents[1]
-#: This process's programs: key → jitted call of the (de)serialised program.
-PROGRAMS: dict[str, Callable] = {}
+#: This process's programs: ``(name, mechanism, argument signature)`` → jitted call
+#: of the (de)serialised program.
+PROGRAMS: dict[tuple, Callable] = {}
 
 
 def source_digest(package: Path) -> str:
@@ -60,14 +61,29 @@ def _spec(leaf) -> jax.ShapeDtypeStruct:
     return jax.ShapeDtypeStruct(np.shape(leaf), jnp.asarray(leaf).dtype)
 
 
-def _key(name: str, mech: Mechanism, args) -> str:
+def _dtype(leaf) -> str:
+    """A leaf's dtype without moving it to the device (a Python number as JAX would
+    take it: ``float64``/``int64`` with x64 on)."""
+    dtype = getattr(leaf, "dtype", None)
+    return np.dtype(dtype if dtype is not None else np.asarray(leaf).dtype).str
+
+
+def _signature(args) -> tuple:
+    """The tree structure, shapes and dtypes of ``args``: what a program depends on
+    besides its name, mechanism and the sources (cheap and hashable, so the blocked
+    solves can look their program up on every block)."""
+    leaves, tree = jax.tree_util.tree_flatten(args)
+    return tree, tuple((np.shape(leaf), _dtype(leaf)) for leaf in leaves)
+
+
+def _key(name: str, mech: Mechanism, signature: tuple) -> str:
+    tree, leaves = signature
     sink = hashlib.sha256(
         f"{name}|{_package_digest(PACKAGE)}|{fingerprint(mech)}".encode()
     )
-    leaves, tree = jax.tree_util.tree_flatten(args)
     sink.update(str(tree).encode())
-    for leaf in leaves:
-        sink.update(f"{_spec(leaf).dtype.str}{np.shape(leaf)}".encode())
+    for shape, dtype in leaves:
+        sink.update(f"{dtype}{shape}".encode())
     return sink.hexdigest()
 
 
@@ -97,10 +113,22 @@ def _store(path: Path, exported) -> None:
         pass  # read-only cache: this process keeps its trace, later ones trace again
 
 
+def _named(name: str, fn: Callable) -> Callable:
+    """``fn`` under ``name``, which JAX's compile events and errors then show."""
+
+    def program(*args):
+        return fn(*args)
+
+    program.__name__ = program.__qualname__ = name
+    return program
+
+
 def _program(name: str, mech: Mechanism, fn: Callable, args) -> Callable:
-    key = _key(name, mech, args)
-    if key in PROGRAMS:
-        return PROGRAMS[key]
+    signature = _signature(args)
+    memo = (name, mech, signature)
+    if memo in PROGRAMS:
+        return PROGRAMS[memo]
+    key = _key(name, mech, signature)
     path = _directory() / f"{name}-{key[:32]}.jaxexport"
     exported = _load(path)
     if exported is None:
@@ -108,11 +136,11 @@ def _program(name: str, mech: Mechanism, fn: Callable, args) -> Callable:
         try:
             exported = export.export(jax.jit(fn))(*specs)
         except Exception:  # not exportable: plain jit, traced in every process
-            PROGRAMS[key] = jit(fn)
-            return PROGRAMS[key]
+            PROGRAMS[memo] = jit(_named(name, fn))
+            return PROGRAMS[memo]
         _store(path, exported)
-    PROGRAMS[key] = jit(exported.call)
-    return PROGRAMS[key]
+    PROGRAMS[memo] = jit(_named(name, exported.call))
+    return PROGRAMS[memo]
 
 
 def call(name: str, mech: Mechanism, fn: Callable, *args):

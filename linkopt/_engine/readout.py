@@ -10,7 +10,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import jit, traced
-from . import constraints
+from . import constraints, programs
 from .blocks import in_blocks
 from .geometry import design_array, design_vector, geometry
 from .model import Mechanism
@@ -47,9 +47,14 @@ def _blocked_read(mech: Mechanism, what: str, state, design):
     if traced(state, design):
         return _read(mech, what, state, design)
     design = design_array(mech, design)  # None and arrays: one program
-    if np.ndim(state) != 2:
-        return _read(mech, what, state, design)
-    return in_blocks(lambda s: _read(mech, what, s, design), (state,))
+
+    def read(s):  # the trace kept on disk (.programs)
+        return programs.call(
+            f"read_{what}", mech, lambda *a: _read(mech, what, *a), s, design
+        )
+
+    state = np.asarray(state, dtype=np.float64)
+    return read(state) if state.ndim != 2 else in_blocks(read, (state,), one=read)
 
 
 def motor_values(mech: Mechanism, state, *, design=None) -> Float[Array, "... M"]:

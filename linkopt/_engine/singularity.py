@@ -36,7 +36,7 @@ from jaxtyping import Array, Float
 
 from .._config import jit, traced
 from .._errors import InputError
-from . import dense, jacobian
+from . import dense, jacobian, programs
 from .blocks import in_blocks
 from .geometry import Geometry, design_array, design_vector, geometry
 from .model import Mechanism
@@ -120,9 +120,12 @@ def singular_values(mech: Mechanism, state, *, design=None) -> Float[Array, "...
     if traced(state, design):
         return _sigmas(mech, state, design)
     design = design_array(mech, design)  # None and arrays: one program
-    if np.ndim(state) == 1:
-        return _sigmas(mech, state, design)
-    return in_blocks(lambda s: _sigmas(mech, s, design), (state,))
+
+    def sigmas(s):  # the trace kept on disk (.programs)
+        return programs.call("sigmas", mech, partial(_sigmas, mech), s, design)
+
+    state = np.asarray(state, dtype=np.float64)
+    return sigmas(state) if state.ndim == 1 else in_blocks(sigmas, (state,), one=sigmas)
 
 
 def _check_shape(mech: Mechanism, state) -> None:
