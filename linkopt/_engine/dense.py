@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float, Int
 
 #: Cyclic Jacobi sweeps of :func:`symmetric_eigh`. Convergence is quadratic once the
@@ -253,9 +254,9 @@ def det(a: Float[Array, "n n"]) -> Float[Array, ""]:
     return sign * jnp.prod(jnp.diagonal(lu))
 
 
-def _rotation_pairs(k: int) -> list[tuple[int, int]]:
-    """The cyclic row-by-row order of Jacobi's ``(p, q)``, p < q."""
-    return [(p, q) for p in range(k) for q in range(p + 1, k)]
+def _rotation_pairs(k: int) -> np.ndarray:
+    """``(k(k-1)/2, 2)``: the cyclic row-by-row order of Jacobi's ``(p, q)``, p < q."""
+    return np.array([(p, q) for p in range(k) for q in range(p + 1, k)], dtype=int)
 
 
 def _jacobi_rotation(app, aqq, apq):
@@ -269,44 +270,46 @@ def _jacobi_rotation(app, aqq, apq):
     return c, t * c
 
 
+def _rotated_columns(m, p, q, c, s, index):
+    """``m G`` for the Jacobi rotation ``G`` in the plane ``(p, q)``: only columns
+    ``p`` and ``q`` change."""
+    col_p = jax.lax.dynamic_index_in_dim(m, p, 1, keepdims=False)
+    col_q = jax.lax.dynamic_index_in_dim(m, q, 1, keepdims=False)
+    new_p, new_q = (c * col_p - s * col_q)[:, None], (s * col_p + c * col_q)[:, None]
+    return jnp.where(index == p, new_p, jnp.where(index == q, new_q, m))
+
+
 def symmetric_eigh(
     a: Float[Array, "k k"], sweeps: int = JACOBI_SWEEPS
 ) -> tuple[Float[Array, " k"], Float[Array, "k k"]]:
     """``(w, v)`` with ``a v = v diag(w)``, ``w`` ascending, for a small symmetric
     ``a`` (cyclic Jacobi, ``sweeps`` fixed sweeps).
 
-    A sweep's ``k(k-1)/2`` rotations are unrolled with their static ``(p, q)``, and each
-    touches only rows and columns ``p`` and ``q`` (``m ← Gᵀ m G``, ``v ← v G``): with
-    ``(p, q)`` as loop data instead, every rotation formed ``G`` and took three
-    ``k x k`` matrix products, and 24 Ritz matrices of 6 x 6 took 2.2 ms against
-    0.2 ms this way (``benchmarks/bench_evaluation.py``)."""
+    One loop step per rotation, which updates only rows and columns ``p`` and ``q``
+    (``m ← Gᵀ m G`` as ``(m G)ᵀ G`` of the symmetric ``m``, ``v ← v G``). Forming
+    ``G`` and taking three ``k x k`` matrix products a step made σ_min's Ritz step
+    most of a sample step (``benchmarks/bench_evaluation.py``); unrolling a sweep's
+    rotations with static ``(p, q)`` ran no faster inside the evaluation and compiled
+    3 s slower."""
     k = a.shape[-1]
     if k == 1:
         return a[0], jnp.ones_like(a)
+    pairs = jnp.asarray(_rotation_pairs(k))
+    index = jnp.arange(k)[None, :]
 
-    def sweep(_, carry):
+    def rotate(r, carry):
         m, v = carry
-        for p, q in _rotation_pairs(k):
-            c, s = _jacobi_rotation(m[p, p], m[q, q], m[p, q])
-            row_p, row_q = m[p], m[q]
-            m = m.at[p].set(c * row_p - s * row_q).at[q].set(s * row_p + c * row_q)
-            col_p, col_q = m[:, p], m[:, q]
-            m = (
-                m.at[:, p]
-                .set(c * col_p - s * col_q)
-                .at[:, q]
-                .set(s * col_p + c * col_q)
-            )
-            col_p, col_q = v[:, p], v[:, q]
-            v = (
-                v.at[:, p]
-                .set(c * col_p - s * col_q)
-                .at[:, q]
-                .set(s * col_p + c * col_q)
-            )
-        return m, v
+        p, q = pairs[r % pairs.shape[0], 0], pairs[r % pairs.shape[0], 1]
+        row_p = jax.lax.dynamic_index_in_dim(m, p, 0, keepdims=False)
+        row_q = jax.lax.dynamic_index_in_dim(m, q, 0, keepdims=False)
+        c, s = _jacobi_rotation(row_p[p], row_q[q], row_p[q])
+        m = _rotated_columns(m, p, q, c, s, index)  # m G
+        m = _rotated_columns(m.T, p, q, c, s, index)  # Gᵀ m G (symmetric m)
+        return m, _rotated_columns(v, p, q, c, s, index)
 
-    m, v = jax.lax.fori_loop(0, sweeps, sweep, (a, jnp.eye(k, dtype=a.dtype)))
+    m, v = jax.lax.fori_loop(
+        0, sweeps * pairs.shape[0], rotate, (a, jnp.eye(k, dtype=a.dtype))
+    )
     w = jnp.diagonal(m)
     order = jnp.argsort(w)
     return w[order], v[:, order]
