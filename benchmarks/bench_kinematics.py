@@ -7,7 +7,13 @@ comparison needs ``pip install -e '.[bench]'``)
 Prints, for the five-bar and the Jansen leg: a single warm-started solve, solves per
 second in batches of 1, 1 000 and 100 000 configurations, compile time with a cold and
 a warm persistent cache (each in a fresh process), and the baselines as ratios.
-Targets (five-bar, 2 cores): <= 200 µs a single solve, >= 30 000 solves/s batched.
+Targets (five-bar, 2 cores): <= 200 µs a single solve, >= 30 000 solves/s batched
+(issue 19: the Jansen leg >= 15 000). Last run (2026-12-03, idle machine, ``--quick``):
+five-bar 16 845 solves/s in batches of 1000, a single warm-started solve 290 µs
+pipelined (720 µs synchronised each call, a noisy figure: 410 µs earlier the same
+day), a batch of one row 651/s (139/s when it ran as a padded block of 64); Jansen
+6 947/s. Not met: a solve's time is its Cholesky factors and the normal equations
+(:mod:`linkopt._engine.dense`; the README's "Architecture" says what would help).
 
 Figures behind design choices in :mod:`linkopt._engine` (2 cores, measured when each
 choice was made; rerun this script for today's):

@@ -16,10 +16,14 @@ Baseline: the paper's Table I, five-bar: 8 iterations, about 15 min (C++, 4 core
 The number of swarm iterations a seed needs varies a lot (8 to 24 over seeds 0-7 in our
 runs, median 12), and a change anywhere in the evaluation can move every seed's count,
 so compare medians over many seeds, not one seed's time. Our last run (2026-12-03,
-2 workers, idle machine, warm cache) gave a median of 12 iterations and 41.4 s in the
-optimiser, 22x the paper (seed 0: 8 iterations, 27.5 s; cold, the whole command 163 s),
-with all eight results verified; the whole command took 62.6-124.8 s. With jaxlib's
-LAPACK and one XLA thread (before the plain-JAX linear algebra) the median was 11.3 s.
+2 workers, idle machine, warm cache, after σ_min's Jacobi rotations stopped forming
+each rotation and the solves' traces went to disk) gave a median of 12 iterations and
+31.3 s in the optimiser, 29x the paper (seed 0: 8 iterations, 22.2 s, the whole
+command 47.7 s; cold, the whole command 147 s), with all eight results verified and
+every seed's iterations and ``f_design`` unchanged; the whole command took 47.7-87.1 s.
+Earlier the same day: median 41.4 s (seed 0 27.5 s, the command 62.6 s warm, 163 s
+cold). With jaxlib's LAPACK and one XLA thread (before the plain-JAX linear algebra)
+the median was 11.3 s, on a machine at load 8-12.
 
 Figures behind the worker split (``linkopt._design.workers``, measured when it was
 made): a spawned process costs about 1 s of Python and JAX start-up before its first
