@@ -317,8 +317,11 @@ def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
 
     if values.ndim == 1:
         return solve(values, start)
+    # no single-row shortcut (``in_blocks``'s ``one``): warm-started batches are the
+    # maps' and verification's waves, whose first wave of one cell would compile the
+    # one-row program beside the block's (9 s of the cold main command)
     starts = np.broadcast_to(start, (len(values), mech.state_size))
-    return in_blocks(solve, (values, starts), one=solve)
+    return in_blocks(solve, (values, starts))
 
 
 def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
