@@ -294,16 +294,10 @@ def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
     return solutions
 
 
-def _stored(name: str, mech: Mechanism, fn, *args) -> Solution:
-    """``fn(*args)`` for concrete arrays, its trace kept on disk under ``name``
-    (:mod:`.programs`: a warm process then skips tracing the solve, about 0.5-1.5 s a
-    program)."""
-    return programs.call(name, mech, fn, *args)
-
-
 def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
     """:func:`_solve`; a concrete batch in fixed blocks (:mod:`.blocks`), each row
-    with its own start."""
+    with its own start. Concrete calls here and below keep their traces on disk
+    (:func:`.programs.call`: a warm process skips tracing a solve, 0.5-1.5 s)."""
     if traced(values, start, design):
         return _solve(mech, kind, values, start, design)
     design = design_array(mech, design)
@@ -311,7 +305,7 @@ def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
     start = np.asarray(start, dtype=np.float64)
 
     def solve(v, s):
-        return _stored(
+        return programs.call(
             f"solve_{kind}", mech, lambda *a: _solve(mech, kind, *a), v, s, design
         )
 
@@ -332,7 +326,7 @@ def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
     values = np.asarray(values, dtype=np.float64)
 
     def solve(v):
-        return _stored(
+        return programs.call(
             f"from_rest_{kind}",
             mech,
             lambda *a: _solve_from_rest(mech, kind, *a),
@@ -354,7 +348,7 @@ def _along(mech: Mechanism, kind: str, values, start, design) -> Solution:
         [values, np.repeat(values[-1:], path_rows(count) - count, axis=0)]
     )
     start = rest_state(mech) if start is None else start  # one program for both
-    solution = _stored(
+    solution = programs.call(
         f"path_{kind}",
         mech,
         lambda *a: _solve_path(mech, kind, *a),
