@@ -168,15 +168,17 @@ def test_coupler_in_its_own_frame_keeps_its_shape_and_point():
         "anchor = [38.0, 35.0, 0.0]\n", ""
     )
     text = text.replace('[[lengths]]\njoints = ["b", "c"]\nlength = 40.0\n', "")
+    # the coupler point is given in the coupler frame, as its anchors are
+    local = np.array([-3.0, 8.0])
+    text = text.replace(
+        "position = [20.0, 30.0, 0.0]", f"position = [{local[0]}, {local[1]}, 0.0]"
+    )
     data = parse_toml(text, "x")
     result = assemble(data, "x")
     got = anchors_of(result.data)
     assert abs(np.linalg.norm(got["b"] - got["c"]) - 40.0) < 1e-12
     assert abs(np.linalg.norm(got["a"] - got["b"]) - 15.0) < 1e-12
     assert abs(np.linalg.norm(got["c"] - got["d"]) - 35.0) < 1e-12
-    # the coupler point, drawn at (20, 30), keeps its place in the coupler frame
-    turn = np.array([[math.cos(0.3), -math.sin(0.3)], [math.sin(0.3), math.cos(0.3)]])
-    local = turn.T @ (np.array([20.0, 30.0]) - [24.0, 23.0])
     point = np.array(result.data["points"][0]["position"])
     for joint, at in (("b", [-20.0, -5.0]), ("c", [20.0, -5.0])):
         assert (

@@ -45,8 +45,10 @@ What is solved (choices the issue leaves open, made here):
   least squares minimum from the drawing) and the gap, the sum of their misses in file
   units (for a single loop pulled straight that is the amount by which it fails to
   close). Where the loops close only with the motors free, the message says so.
-* Points given by ``position`` move with their body: exactly for a body in its own
-  frame, by the best-fit rigid motion of the body's anchors otherwise (a body whose
+* Points given by ``position`` move with their body. On a body given in its own
+  frame the position is in that frame, like the body's anchors, and follows the
+  assembled frame exactly; on a body given by world anchors it is a world position
+  at rest, carried by the best-fit rigid motion of the body's anchors (a body whose
   anchors are collinear turns by the smallest rotation that aligns them).
 
 Without ``assemble = true``, declared ``[[lengths]]`` are checked against the anchors
@@ -923,7 +925,9 @@ def _frame_rotations(problem: Problem, poses: np.ndarray) -> np.ndarray:
 
 
 def _carry_points(out, problem, anchors, poses, rotations) -> None:
-    """Points given by ``position`` move with their body (module docstring)."""
+    """Points given by ``position`` move with their body: on a body given in its own
+    frame the position is in that frame (as its anchors are), on any other body it is
+    a world position at rest, carried by the best-fit rigid motion of its anchors."""
     names = [b.get("name") for b in out["bodies"]]
     frame_of = {b: f for f, b in enumerate(problem.frame_bodies)}
     scale = problem.scale
@@ -934,10 +938,9 @@ def _carry_points(out, problem, anchors, poses, rotations) -> None:
             continue  # the loader reports it
         b = names.index(point["body"])
         old = np.asarray(point["position"], dtype=float)
-        if b in frame_of:
+        if b in frame_of:  # given in the body frame, as the body's anchors are
             f = frame_of[b]
-            local = problem.rows.rotation0[f].T @ (old - problem.frames0[f] * scale)
-            new = poses[f, :3] * scale + rotations[f] @ local
+            new = poses[f, :3] * scale + rotations[f] @ old
         else:
             on = [j for j in range(len(anchors)) if b in _bodies_of(out, j, names)]
             rot, before, after = _fit(problem.anchors0[on] * scale, anchors[on])

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .attachment import follow
 from .model import Mechanism
 
 
@@ -74,12 +75,7 @@ def geometry(mech: Mechanism, design=None) -> Geometry:
     axes = jnp.where(has_axis, _unit(flat[3 * joints :].reshape(joints, 3)), 0.0)
     helpers = _perpendicular(jnp.asarray(_reference_directions(mech.axes)), axes)
     axes2 = _perpendicular(jnp.asarray(mech.axes2), axes)
-    follows = mech.point_joints >= 0
-    points = jnp.where(
-        follows[:, None],
-        anchors[np.maximum(mech.point_joints, 0)],
-        mech.point_positions,
-    )
+    points = follow(mech.point_attachment, mech.point_positions, mech.anchors, anchors)
     scale = mech.length_scale
     return Geometry(
         anchors=anchors / scale,

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 from jaxtyping import Float
 
+from .attachment import attach
 from .design_space import read_design, read_symmetry
 from .fields import (
     Reader,
@@ -144,7 +145,7 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
         source=source,
         **_body_fields(bodies, ground, origins),
         **_joint_fields(joints, anchors),
-        **_point_fields(points),
+        **_point_fields(points, joints, anchors, scale),
         **_motor_fields(motors),
         **_output_fields(outputs, reported),
         design=design,
@@ -267,13 +268,21 @@ def _joint_fields(joints: list[dict], anchors: np.ndarray) -> dict:
     }
 
 
-def _point_fields(points: list[dict]) -> dict:
+def _point_fields(
+    points: list[dict], joints: list[dict], anchors: np.ndarray, scale: float
+) -> dict:
     positions = np.array([p["position"] for p in points]).reshape(-1, 3)
+    on_body = [
+        np.array([k for k, j in enumerate(joints) if p["body"] in j["bodies"]])
+        for p in points
+    ]
+    follows = np.array([p["joint"] for p in points], dtype=int)
     return {
         "point_names": tuple(p["name"] for p in points),
         "point_bodies": np.array([p["body"] for p in points], dtype=int),
-        "point_joints": np.array([p["joint"] for p in points], dtype=int),
+        "point_joints": follows,
         "point_positions": positions,
+        "point_attachment": attach(anchors, on_body, positions, follows, scale),
     }
 
 

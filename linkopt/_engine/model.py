@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .attachment import Attachment
+
 #: Residual rows per passive joint family.
 JOINT_ROWS: dict[str, int] = {
     "revolute": 5,
@@ -186,6 +188,8 @@ class Mechanism:
     point_bodies: np.ndarray  # (P,) int
     point_joints: np.ndarray  # (P,) int joint whose anchor the point follows, or -1
     point_positions: np.ndarray  # (P, 3) rest positions, initial design, file units
+    #: how the points follow their bodies' anchors when a design moves them
+    point_attachment: Attachment
     motor_names: tuple[str, ...]
     motor_joints: np.ndarray  # (M,) int
     motor_linear: np.ndarray  # (M,) bool

@@ -7,9 +7,10 @@ length from its two joints, a radius from its joints' distance to the axis, and 
 directions a length or radius moves along are the same at the written design (a
 length moves along its link, a radius radially), so reloading gives the same design
 space with the written design as its initial one (tests/test_design_parameters.py).
-The reference length, α₋ and body frame origins of the original are written explicitly
-so that the new file is homogenised and judged exactly as the design was during
-optimisation.
+Named points given by ``position`` are written where the design puts them
+(:mod:`.attachment`). The reference length, α₋ and body frame origins of the original
+are written explicitly so that the new file is homogenised and judged exactly as the
+design was during optimisation.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import InputError
+from .geometry import geometry
 from .kinematics import check_design
 from .model import Mechanism
 
@@ -91,6 +93,10 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
         joint["anchor"] = [float(v) for v in anchors[k]]
         if "axis" in joint:
             joint["axis"] = [float(v) for v in axes[k] / np.linalg.norm(axes[k])]
+    points = np.asarray(geometry(mech, design).points) * mech.length_scale
+    for k, point in enumerate(data.get("points", [])):
+        if "position" in point:  # where the design put it (:mod:`.attachment`)
+            point["position"] = [float(v) for v in points[k]]
     return data
 
 

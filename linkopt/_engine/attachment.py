@@ -1,0 +1,167 @@
+"""Named points attached to their bodies: where a point is at the rest pose of any
+design.
+
+A design moves joint anchors (:mod:`.design_space`); a named point has to move with
+the body it is on, or a tool point written at a platform's centre ends up off the
+platform once the design changes the rods. The rule, fixed at load from the file's
+initial design:
+
+* A point given by ``joint``, or by a ``position`` that coincides with one of its
+  body's anchors (within :data:`COINCIDENT` reference lengths), follows that anchor.
+* Any other point keeps its affine coordinates with respect to its body's anchors:
+  the part of it inside their affine hull (a line for two distinct anchors, a plane for
+  three or more in one plane, all of space otherwise) is the least-norm affine
+  combination ``Σ w_i a_i`` (``Σ w_i = 1``) of the anchors, and the rest, its offset
+  ``d`` from the hull, keeps its length and turns with the hull: along the unit normal
+  of a plane hull, by the smallest rotation taking the old line direction to the new
+  one for a line hull, unchanged for a body with a single anchor position.
+
+For designs that move a body's anchors rigidly this is the rigid motion of the body;
+for designs that stretch it (a longer link, a wider platform) the point keeps its place
+among the anchors (a point at the centroid of a platform's joints stays at their
+centroid). The weights, offsets and hull directions are static (numpy); the map from
+anchors to points is linear for the in-hull part, so it is smooth in the design and
+its derivatives come from JAX.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+#: A point this close to an anchor of its body (in reference lengths) follows it.
+COINCIDENT = 1e-9
+#: Relative size below which a singular value of a body's centred anchors counts as
+#: zero (the anchors span fewer dimensions).
+FLAT = 1e-9
+
+#: Hull kinds: a single anchor position, a line, a plane, all of space.
+POINT, LINE, PLANE, SPACE = 0, 1, 2, 3
+
+
+@dataclass(frozen=True, eq=False)
+class Attachment:
+    """How the ``P`` named points follow the ``J`` joint anchors (static).
+
+    ``weights (P, J)``: the affine weights of each point's in-hull part (a row sums to
+    one). ``offsets (P, 3)``: the offset from the hull at the initial design, file
+    units. ``spans (P, 2, J)``: coefficients giving the hull's directions as linear
+    combinations of the anchors, ``e_k = spans[p, k] @ anchors`` (unit at the initial
+    design). ``hulls (P,)``: :data:`POINT`, :data:`LINE`, :data:`PLANE` or
+    :data:`SPACE`.
+    """
+
+    weights: np.ndarray
+    offsets: np.ndarray
+    spans: np.ndarray
+    hulls: np.ndarray
+
+    @classmethod
+    def empty(cls, joints: int) -> Attachment:
+        return cls(
+            np.zeros((0, joints)),
+            np.zeros((0, 3)),
+            np.zeros((0, 2, joints)),
+            np.zeros(0, dtype=int),
+        )
+
+
+def attach(
+    anchors: Float[np.ndarray, "J 3"],
+    on_body: list[np.ndarray],
+    positions: Float[np.ndarray, "P 3"],
+    follows: np.ndarray,
+    scale: float,
+) -> Attachment:
+    """The :class:`Attachment` of points at ``positions`` (rest, initial design, file
+    units); ``on_body[p]`` the joints of point ``p``'s body, ``follows[p]`` the joint
+    it follows or -1, ``scale`` the reference length."""
+    rows = [
+        _one(anchors, joints, position, joint, scale)
+        for joints, position, joint in zip(on_body, positions, follows)
+    ]
+    if not rows:
+        return Attachment.empty(len(anchors))
+    weights, offsets, spans, hulls = zip(*rows)
+    return Attachment(
+        np.array(weights), np.array(offsets), np.array(spans), np.array(hulls)
+    )
+
+
+def _one(anchors, joints, position, joint, scale):
+    count = len(anchors)
+    weights, spans = np.zeros(count), np.zeros((2, count))
+    if joint < 0:
+        near = np.linalg.norm(anchors[joints] - position, axis=1)
+        if len(near) and near.min() <= COINCIDENT * scale:
+            joint = int(joints[np.argmin(near)])
+    if joint >= 0:
+        weights[joint] = 1.0
+        return weights, np.zeros(3), spans, SPACE
+    centre = anchors[joints].mean(axis=0)
+    centred = anchors[joints] - centre
+    _, sv, vt = np.linalg.svd(centred, full_matrices=False)
+    rank = int(np.sum(sv > FLAT * max(scale, sv[0] if len(sv) else 0.0)))
+    basis = vt[:rank]
+    inside = basis.T @ (basis @ (position - centre))
+    # least-norm affine weights: centred columns sum to zero, so Σ w = 1 holds
+    local = centred @ basis.T / sv[:rank] ** 2 @ (basis @ inside) if rank else 0.0
+    weights[joints] = 1.0 / len(joints) + local
+    for k in range(min(rank, 2)):
+        spans[k, joints] = centred @ basis[k] / sv[k] ** 2
+    return weights, position - centre - inside, spans, rank
+
+
+def follow(
+    attachment: Attachment,
+    positions0: Float[np.ndarray, "P 3"],
+    anchors0: Float[np.ndarray, "J 3"],
+    anchors: Float[Array, "J 3"],
+) -> Float[Array, "P 3"]:
+    """Rest positions of the points for the design whose anchors are ``anchors``
+    (file units), traceable in ``anchors``; ``positions0`` and ``anchors0`` are those
+    of the initial design. Written as the initial positions plus what the design
+    changes, so the initial design gives ``positions0`` (to rounding in the turned
+    offsets, about 1e-16 of their length)."""
+    moved = jnp.asarray(attachment.weights) @ (anchors - jnp.asarray(anchors0))
+    points = jnp.asarray(positions0) + moved
+    for hull, turn in ((LINE, _line), (PLANE, _plane)):
+        index = np.flatnonzero(attachment.hulls == hull)
+        if len(index):
+            spans, offsets = attachment.spans[index], attachment.offsets[index]
+            change = turn(spans, offsets, anchors0, anchors) - turn(
+                spans, offsets, anchors0, jnp.asarray(anchors0)
+            )
+            points = points.at[index].add(change)
+    return points
+
+
+def _directions(spans: np.ndarray, anchors) -> Float[Array, "N 2 3"]:
+    return jnp.einsum("nkj,jc->nkc", jnp.asarray(spans), anchors)
+
+
+def _unit(v: Float[Array, "N 3"]) -> Float[Array, "N 3"]:
+    return v / jnp.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _line(spans, offsets, anchors0, anchors):
+    """The offsets turned by the smallest rotation taking the line's direction at the
+    initial design to its direction at this one (Rodrigues)."""
+    u = _unit(_directions(spans, jnp.asarray(anchors0))[:, 0])
+    v = _unit(_directions(spans, anchors)[:, 0])
+    d = jnp.asarray(offsets)
+    k, c = jnp.cross(u, v), jnp.sum(u * v, axis=-1, keepdims=True)
+    kd = jnp.sum(k * d, axis=-1, keepdims=True)
+    return c * d + jnp.cross(k, d) + k * kd / (1.0 + c)
+
+
+def _plane(spans, offsets, anchors0, anchors):
+    """The offsets (along the plane's normal) along the normal at this design."""
+    e0 = _directions(spans, jnp.asarray(anchors0))
+    e = _directions(spans, anchors)
+    n0 = _unit(jnp.cross(e0[:, 0], e0[:, 1]))
+    n = _unit(jnp.cross(e[:, 0], e[:, 1]))
+    return jnp.sum(jnp.asarray(offsets) * n0, axis=-1, keepdims=True) * n
