@@ -3,8 +3,9 @@
 Imported first by :mod:`linkopt`. The cache lives in a per-user directory,
 ``$LINKOPT_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/linkopt/jax`` (default
 ``~/.cache/linkopt/jax``), so a second process reuses compiled kernels instead of
-recompiling them. Float64 is required: a float32 Levenberg–Marquardt solve stalls
-at residuals of about 3e-7, far above the 1e-10 loop-closure tolerance we need.
+recompiling them; :mod:`linkopt._cache` bounds it and writes it atomically.
+Float64 is required: a float32 Levenberg–Marquardt solve stalls at residuals of about
+3e-7, far above the 1e-10 loop-closure tolerance we need.
 
 XLA's thread pool is left as the user (or XLA) set it. jaxlib's batched LAPACK kernels
 (Cholesky, triangular solve, LU, eigh, SVD) split their batch into tasks on XLA's
@@ -22,24 +23,17 @@ LAPACK custom call, and runs ``jit(vmap(grad(f_sing ∘ FK)))`` in a subprocess 
 from __future__ import annotations
 
 import functools
-import os
-from pathlib import Path
 
 import jax
 
-
-def cache_directory() -> Path:
-    """Directory of the persistent JAX compilation cache for this user."""
-    explicit = os.environ.get("LINKOPT_CACHE_DIR")
-    if explicit:
-        return Path(explicit)
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "linkopt" / "jax"
+from ._cache import cache_directory, install
 
 
 def configure() -> None:
-    """Enable float64 and the persistent compilation cache (idempotent)."""
+    """Enable float64 and the persistent compilation cache, bounded
+    (:mod:`linkopt._cache`); idempotent."""
     jax.config.update("jax_enable_x64", True)
+    install()
     directory = cache_directory()
     try:
         directory.mkdir(parents=True, exist_ok=True)

@@ -3,8 +3,12 @@ keyed by the mechanism's contents, the argument shapes and every source file of 
 package (subfolders included), and rebuilt when an entry is corrupt."""
 
 import dataclasses
+import gc
 import shutil
+import warnings
+import weakref
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -25,7 +29,7 @@ def _program(mech):
 @pytest.fixture
 def cache(tmp_path, monkeypatch):
     monkeypatch.setenv("LINKOPT_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(programs, "PROGRAMS", {})
+    monkeypatch.setattr(programs, "PROGRAMS", weakref.WeakKeyDictionary())
     return tmp_path / "cache" / "traces"
 
 
@@ -125,3 +129,56 @@ def test_an_edit_in_a_subfolder_keys_a_new_program(
         monkeypatch.setattr(programs, "PROGRAMS", {})  # as a new process would start
         programs.call("toy", five_bar, _program(five_bar), x, y)
         assert len(list(cache.glob("toy-*.jaxexport"))) == entries, source
+
+
+def test_a_program_that_cannot_be_exported_warns_once_and_still_runs(
+    five_bar, cache, monkeypatch
+):
+    """A host callback has no stable export: plain jit, and one warning naming it."""
+    monkeypatch.setattr(programs, "UNEXPORTED", set())
+
+    def program(x):
+        doubled = jax.pure_callback(
+            lambda v: 2.0 * np.asarray(v), jax.ShapeDtypeStruct(x.shape, x.dtype), x
+        )
+        return doubled + five_bar.length_scale
+
+    with pytest.warns(RuntimeWarning, match="'host' could not be exported"):
+        got = programs.call("host", five_bar, program, jnp.ones(3))
+    np.testing.assert_allclose(got, 2.0 + five_bar.length_scale)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        programs.call("host", five_bar, program, jnp.ones(4))  # no second warning
+    assert not list(cache.glob("host-*.jaxexport"))
+
+
+def test_every_shipped_program_exports(five_bar, monkeypatch):
+    """The solves, σ_min, read-outs, rest checks, evaluation and partial gradient of
+    a mechanism all go through jax.export (a fallback would trace in every process)."""
+    from linkopt._design.evaluation import alpha_minus, evaluate
+    from linkopt._design.partial import partial_gradient
+
+    monkeypatch.setattr(programs, "UNEXPORTED", set())
+    monkeypatch.setattr(programs, "PROGRAMS", {})
+    mech = linkopt.load(MECHANISMS / "five_bar.toml")
+    motors = np.array([[0.1, -0.1], [0.2, 0.0]])
+    solution = linkopt.solve_fk(mech, motors)
+    linkopt.f_sing(mech, solution.state)
+    linkopt.output_values(mech, solution.state)
+    linkopt.solve_bk(mech, np.asarray(linkopt.output_values(mech, solution.state)))
+    linkopt.solve_fk_path(mech, motors)
+    evaluation = evaluate(mech)
+    partial_gradient(mech, mech.design.p0, evaluation, alpha_minus(mech))
+    assert programs.UNEXPORTED == set()
+    names = {name for table in programs.PROGRAMS.values() for name, _ in table}
+    assert {"from_rest_fk", "sigmas", "read_outputs", "path_fk"} <= names
+
+
+def test_the_program_table_does_not_keep_a_mechanism_alive(five_bar, cache):
+    mech = dataclasses.replace(five_bar, source="copy.toml")
+    programs.call("toy", mech, _program(five_bar), jnp.ones(2), jnp.asarray(1.0))
+    assert mech in programs.PROGRAMS
+    gone = weakref.ref(mech)
+    del mech
+    gc.collect()
+    assert gone() is None

@@ -1,5 +1,5 @@
 """Command line: ``linkopt check | fk | bk | evaluate | plot | verify | optimize |
-sweep | arm``; a thin layer over the public API.
+sweep | arm | cache``; a thin layer over the public API.
 
 Each command family lives in its own module with a ``register(subparsers)``:
 :mod:`.mechanism` (check, fk, bk), :mod:`.evaluation` (evaluate, plot, verify),
@@ -21,6 +21,7 @@ from .._errors import LinkoptError
 from . import animate as animate_commands
 from . import arm as arm_commands
 from . import assemble as assemble_commands
+from . import cache as cache_commands
 from . import evaluation as evaluation_commands
 from . import export as export_commands
 from . import manipulability as manipulability_commands
@@ -67,6 +68,7 @@ def _parser() -> argparse.ArgumentParser:
         sweep_commands,
         export_commands,
         animate_commands,
+        cache_commands,
     ):
         family.register(sub)
     _add_arm_commands(sub)

@@ -15,16 +15,18 @@ depends on: the program's name, the mechanism's fingerprint
 argument shapes and dtypes, the jax version and the source of every module of the
 package, subfolders included (:func:`source_digest`). A later process deserialises it
 instead of tracing. The entry is written to a temporary file and renamed, so worker
-processes can share the directory. An entry that cannot be read is traced again and
-rewritten. A program that cannot be exported (a custom call that jax does not guarantee
-stable) runs through plain ``jax.jit``.
+processes can share the directory, and the folder is kept under its size limit with
+least-recently-used eviction (:mod:`linkopt._cache`). An entry that cannot be read is
+traced again and rewritten. A program that cannot be exported (a custom call that jax
+does not guarantee stable) runs through plain ``jax.jit``, with a warning once per
+process (:data:`UNEXPORTED`).
 """
 
 from __future__ import annotations
 
 import hashlib
-import os
-import tempfile
+import warnings
+import weakref
 from collections.abc import Callable
 from functools import cache
 from pathlib import Path
@@ -34,14 +36,20 @@ import jax.numpy as jnp
 import numpy as np
 from jax import export
 
+from .._cache import read_used, store
 from .._config import cache_directory, jit
 from .model import Mechanism, fingerprint
 
 #: The package folder whose sources key every program (:func:`source_digest`).
 PACKAGE = Path(__file__).resolve().parents[1]
-#: This process's programs: ``(name, mechanism, argument signature)`` → jitted call
-#: of the (de)serialised program.
-PROGRAMS: dict[tuple, Callable] = {}
+#: This process's programs: mechanism → ``(name, argument signature)`` → jitted call
+#: of the (de)serialised program. Weak in the mechanism, so a mechanism that nothing
+#: else holds (an earlier verification round's) is freed with its programs.
+PROGRAMS: weakref.WeakKeyDictionary[Mechanism, dict[tuple, Callable]] = (
+    weakref.WeakKeyDictionary()
+)
+#: Names of the programs that could not be exported or serialised in this process.
+UNEXPORTED: set[str] = set()
 
 
 def source_digest(package: Path) -> str:
@@ -96,25 +104,36 @@ def _directory() -> Path:
 
 
 def _load(path: Path):
+    blob = read_used(path)
+    if blob is None:
+        return None
     try:
-        return export.deserialize(bytearray(path.read_bytes()))
-    except Exception:  # missing, truncated or from an incompatible jax: trace again
+        return export.deserialize(bytearray(blob))
+    except Exception:  # truncated or from an incompatible jax: trace again
         return None
 
 
 def _store(path: Path, exported) -> None:
     try:
         blob = exported.serialize()
-    except Exception:  # e.g. an unregistered pytree node: this process keeps its trace
+    except Exception as err:  # e.g. an unregistered pytree node: kept in memory
+        _warn(path.name.split("-")[0], "serialised", err)
         return
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(blob)
-        os.replace(temporary, path)
-    except OSError:
-        pass  # read-only cache: this process keeps its trace, later ones trace again
+    store("traces", path, bytes(blob))
+
+
+def _warn(name: str, what: str, err: Exception) -> None:
+    """One warning per program name and process: a program that cannot be exported
+    or serialised is traced again by every process (slower, not wrong)."""
+    if name in UNEXPORTED:
+        return
+    UNEXPORTED.add(name)
+    warnings.warn(
+        f"linkopt program {name!r} could not be {what} ({type(err).__name__}: "
+        f"{err}); it is traced again in every process",
+        RuntimeWarning,
+        stacklevel=4,
+    )
 
 
 def _named(name: str, fn: Callable) -> Callable:
@@ -129,9 +148,9 @@ def _named(name: str, fn: Callable) -> Callable:
 
 def _program(name: str, mech: Mechanism, fn: Callable, args) -> Callable:
     signature = _signature(args)
-    memo = (name, mech, signature)
-    if memo in PROGRAMS:
-        return PROGRAMS[memo]
+    memo = PROGRAMS.setdefault(mech, {})
+    if (name, signature) in memo:
+        return memo[name, signature]
     key = _key(name, mech, signature)
     path = _directory() / f"{name}-{key[:32]}.jaxexport"
     exported = _load(path)
@@ -139,12 +158,13 @@ def _program(name: str, mech: Mechanism, fn: Callable, args) -> Callable:
         specs = jax.tree_util.tree_map(_spec, args)
         try:
             exported = export.export(jax.jit(fn))(*specs)
-        except Exception:  # not exportable: plain jit, traced in every process
-            PROGRAMS[memo] = jit(_named(name, fn))
-            return PROGRAMS[memo]
+        except Exception as err:  # not exportable: plain jit, traced in every process
+            _warn(name, "exported", err)
+            memo[name, signature] = jit(_named(name, fn))
+            return memo[name, signature]
         _store(path, exported)
-    PROGRAMS[memo] = jit(_named(name, exported.call))
-    return PROGRAMS[memo]
+    memo[name, signature] = jit(_named(name, exported.call))
+    return memo[name, signature]
 
 
 def call(name: str, mech: Mechanism, fn: Callable, *args):
