@@ -185,8 +185,7 @@ def test_a_new_process_reads_the_solves_traces_from_disk(five_bar, monkeypatch):
     np.testing.assert_array_equal(output_values(five_bar, again.state), outputs)
     np.testing.assert_array_equal(solve_fk_path(five_bar, motors[:4]).state, path.state)
     assert traced == []
-    names = {name for table in programs.PROGRAMS.values() for name, _ in table}
-    assert names >= {
+    assert {name for name, *_ in programs.PROGRAMS} >= {
         "from_rest_fk",
         "sigmas",
         "read_outputs",

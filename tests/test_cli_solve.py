@@ -123,6 +123,27 @@ def test_fk_past_the_reach_names_where_the_branch_stops(capsys):
     assert f"left={left:.6g}" in error and "% of the way from the rest pose" in error
 
 
+def test_a_failed_fk_reports_the_state_it_prints_not_the_solver_residual(capsys):
+    """Regression: past a fold ``fk`` printed ``converged=False residual=5.43e-02``
+    (the miss of the motor targets) beside a state that closes to 1e-12. It now gives
+    the loop closure of the printed state and how far its motors are from those
+    asked."""
+    path = str(MECHANISMS / "five_bar.toml")
+    assert main(["fk", path, "--motors", "0.9,-0.9", "--json"]) == 1
+    fk = json.loads(capsys.readouterr().out)
+    assert fk["closure"] <= 1e-10
+    reached = np.array([fk["motors"]["left"], fk["motors"]["right"]])
+    assert fk["miss"] == pytest.approx(np.max(np.abs(reached - [0.9, -0.9])))
+    assert fk["miss"] > 0.1
+    assert main(["fk", path, "--motors", "0.9,-0.9"]) == 1
+    captured = capsys.readouterr()
+    first = captured.out.splitlines()[0]
+    assert "converged=False closure=" in first and "motors miss=" in first
+    assert "residual" not in first
+    assert "closes its loops to" in captured.err
+    assert f"miss those asked by up to {fk['miss']:.3g}" in captured.err
+
+
 def test_a_csv_that_is_not_utf8_exits_2_naming_the_file(tmp_path, capsys):
     """Regression: a binary file given as ``--motors`` raised UnicodeDecodeError."""
     path = tmp_path / "motors.csv"

@@ -110,3 +110,18 @@ def test_optimize_refuses_before_any_work(tmp_path):
     with pytest.raises(MechanismFileError, match="alpha_minus"):
         optimize(mech, tmp_path / "run", settings)
     assert not (tmp_path / "run").exists()
+
+
+def test_a_nan_sigma_min_is_refused_not_let_through(five_bar, monkeypatch):
+    """Regression: the rest-pose guard compared ``sigma < tol``, which NaN passes."""
+    from linkopt._design.evaluation import RestConditioning
+    from linkopt._engine import mobility
+
+    monkeypatch.setattr(mobility, "_rest_sigmas", lambda mech: np.array([np.nan, 1.0]))
+    with pytest.raises(linkopt.MechanismFileError, match="forward singularity"):
+        mobility.check_mobility(five_bar)
+    monkeypatch.setattr(mobility, "_rest_sigmas", lambda mech: np.array([1.0, np.nan]))
+    with pytest.raises(linkopt.MechanismFileError, match="backward singularity"):
+        mobility.check_mobility(five_bar)
+    assert RestConditioning(1.0, float("nan"), np.ones(2)).near_singular
+    assert RestConditioning(float("nan"), 1.0, np.ones(2)).near_singular

@@ -87,12 +87,12 @@ def _header(source: Path, report) -> str:
 
 def _payload(source: Path, out: Path, report, sigma_fk: float, sigma_bk: float):
     warnings = []
-    if sigma_fk < NEAR_SINGULAR:
+    if not sigma_fk >= NEAR_SINGULAR:  # NaN too
         warnings.append(
             f"the assembled rest pose is near a forward singularity (σ_min FK "
             f"{sigma_fk:.3g} < {NEAR_SINGULAR:g}): choose other --motors or redraw"
         )
-    if sigma_bk < NEAR_SINGULAR:
+    if not sigma_bk >= NEAR_SINGULAR:  # NaN too
         warnings.append(
             f"the assembled rest pose is near a backward singularity (σ_min BK "
             f"{sigma_bk:.3g} < {NEAR_SINGULAR:g})"

@@ -21,6 +21,8 @@ from .._engine.kinematics import (
     solve_fk_path,
 )
 from .._engine.loader import load
+from .._engine.model import OUTPUT_KINDS
+from .._engine.readout import motor_values, output_values
 from . import payloads
 from .values import MAX_ROWS, read_values
 
@@ -146,9 +148,12 @@ def run_solve(args, kind: str) -> int:
     converged = np.atleast_1d(np.asarray(solution.converged))
     residual = np.atleast_1d(np.asarray(solution.residual))
     progress = np.atleast_1d(np.asarray(solution.progress))
+    asked = np.atleast_2d(values)
     records = [
-        payloads.configuration(mech, s, c, r) | {"progress": float(f)}
-        for s, c, r, f in zip(states, converged, residual, progress)
+        payloads.configuration(mech, s, c, r)
+        | {"progress": float(f), "closure": payloads.closure(mech, s)}
+        | {"miss": _miss(mech, kind, _reached(mech, kind, s), a)}
+        for s, c, r, f, a in zip(states, converged, residual, progress, asked)
     ]
     payload = (
         {"converged": bool(converged.all()), "path": records} if is_path else records[0]
@@ -163,12 +168,31 @@ def run_solve(args, kind: str) -> int:
     return 0
 
 
+def _reached(mech, kind: str, state) -> np.ndarray:
+    """The motor (FK) or output (BK) values of ``state``, file units."""
+    read = motor_values if kind == "fk" else output_values
+    return np.asarray(read(mech, state))
+
+
+def _miss(mech, kind: str, reached: np.ndarray, asked: np.ndarray) -> float:
+    """Largest ``|reached - asked|``, angles compared modulo 2π (file units)."""
+    if kind == "fk":
+        angular = ~np.asarray(mech.motor_linear, dtype=bool)
+    else:
+        angular = np.array([not OUTPUT_KINDS[k] for k in mech.output_kinds], bool)
+    gap = reached - asked
+    gap = np.where(angular, (gap + np.pi) % (2 * np.pi) - np.pi, gap)
+    return float(np.max(np.abs(gap), initial=0.0))
+
+
 def _print_records(records: list[dict], kind: str, is_path: bool) -> None:
+    what = "motors" if kind == "fk" else "outputs"
     for k, rec in enumerate(records):
         label = f"row {k + 1}" if is_path else kind.upper()
+        miss = "" if rec["converged"] else f" {what} miss={rec['miss']:.3g}"
         print(
-            f"{label}: converged={rec['converged']} residual={rec['residual']:.2e} "
-            f"f_sing={rec['f_sing']:.4g} (σ_min FK {rec['sigma_min_fk']:.4g}, "
+            f"{label}: converged={rec['converged']} closure={rec['closure']:.2e}"
+            f"{miss} f_sing={rec['f_sing']:.4g} (σ_min FK {rec['sigma_min_fk']:.4g}, "
             f"BK {rec['sigma_min_bk']:.4g})"
         )
         print(
@@ -194,12 +218,14 @@ def _report_failure(kind: str, is_path: bool, records: list[dict]) -> None:
     where = f" at row {first + 1}" if is_path else ""
     origin = "the previous row" if is_path and first > 0 else "the rest pose"
     values = record["motors"] if kind == "fk" else record["outputs"]
+    what = "motors" if kind == "fk" else "outputs"
     reached = ", ".join(f"{n}={v:.6g}" for n, v in values.items())
     print(
         f"linkopt: error: {kind.upper()} solve failed{where}: the rest pose's assembly "
         f"branch stops at {reached}, {100 * record['progress']:.0f} % of the way from "
-        f"{origin} (no assembly past it on this branch, or a singularity); residual "
-        f"{record['residual']:.2e}",
+        f"{origin} (no assembly past it on this branch, or a singularity); the "
+        f"{what} printed miss those asked by up to {record['miss']:.3g}, and the "
+        f"state printed closes its loops to {record['closure']:.1e}",
         file=sys.stderr,
     )
 

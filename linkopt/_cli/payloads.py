@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._engine.constraints import constraint_rows
+from .._engine.constraints import constraint_rows, passive_residual
+from .._engine.geometry import geometry
 from .._engine.mobility import mobility
 from .._engine.model import Mechanism
 from .._engine.readout import (
@@ -66,6 +67,13 @@ def summary(mech: Mechanism) -> dict:
             for n, t, a in zip(mech.joint_names, mech.joint_types, mech.anchors)
         },
     }
+
+
+def closure(mech: Mechanism, state, design=None) -> float:
+    """Largest loop-closure residual of ``state`` (homogenised): the joints'
+    passive rows, quaternion norms and ground pin, without motor or output rows."""
+    geom = geometry(mech, design)
+    return float(np.max(np.abs(np.asarray(passive_residual(mech, geom, state)))))
 
 
 def configuration(

@@ -50,7 +50,7 @@ from .._engine import programs
 from .._engine.constraints import output_residual
 from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.kinematics import check_design
-from .._engine.model import Mechanism
+from .._engine.model import Mechanism, per_length
 from .._engine.singularity import sigma_min_pair, stacked_jacobians
 from .._errors import MechanismFileError
 from .metrics import culled, thresholds
@@ -89,21 +89,28 @@ class Evaluation(NamedTuple):
 
 
 def targets(mech: Mechanism) -> np.ndarray:
-    """IK target points ``b^t`` in file units, shape ``(T, K)``."""
+    """IK target points ``b^t`` in file units, shape ``(T, K)``; traceable in the
+    output ranges (:mod:`linkopt._engine.lifting`), numpy for concrete ones.
+
+    The grid is ``np.linspace`` per output (``lo + k·step``, the last value ``hi``
+    exactly); a point is on the boundary when one of its indices is first or last."""
     settings = mech.evaluation
-    axes = [
-        np.linspace(lo, hi, settings.samples_per_dimension)
-        for lo, hi in zip(mech.output_min, mech.output_max)
-    ]
-    grid = np.array(list(itertools.product(*axes)), dtype=float).reshape(
-        -1, mech.num_outputs
+    count, outputs = settings.samples_per_dimension, mech.num_outputs
+    index = np.array(
+        list(itertools.product(range(count), repeat=outputs)), dtype=int
+    ).reshape(-1, outputs)
+    xp = np if isinstance(mech.output_min, np.ndarray) else jnp
+    lo, hi = mech.output_min, mech.output_max
+    step = (hi - lo) / max(count - 1, 1)
+    grid = (
+        xp.where(index == count - 1, hi, index * step + lo)
+        if count > 1
+        else (xp.zeros(index.shape) + lo)
     )
-    on_boundary = np.any(
-        np.isclose(grid, mech.output_min) | np.isclose(grid, mech.output_max), axis=1
-    )
+    on_boundary = np.any((index == 0) | (index == count - 1), axis=1)
     grid = grid if settings.interior else grid[on_boundary]
-    extra = np.asarray(settings.targets, dtype=float).reshape(-1, mech.num_outputs)
-    return np.concatenate([grid, extra])
+    extra = np.asarray(settings.targets, dtype=float).reshape(-1, outputs)
+    return xp.concatenate([grid, extra])
 
 
 def capped(mech: Mechanism, ev: Evaluation) -> tuple[int, int]:
@@ -141,7 +148,10 @@ class RestConditioning(NamedTuple):
 
     @property
     def near_singular(self) -> bool:
-        return min(self.sigma_fk, self.sigma_bk) < NEAR_SINGULAR_SIGMA
+        return not (  # NaN counts as near
+            self.sigma_fk >= NEAR_SINGULAR_SIGMA
+            and self.sigma_bk >= NEAR_SINGULAR_SIGMA
+        )
 
     def as_json(self) -> dict:
         """What ``linkopt check`` and ``evaluate`` report as ``rest_pose``."""
@@ -156,7 +166,7 @@ class RestConditioning(NamedTuple):
 
 
 def _rest_jacobians(mech: Mechanism):
-    def program():
+    def program(mech):
         geom = geometry(mech)
         state = rest_state(mech)
         return sigma_min_pair(mech, geom, state), stacked_jacobians(mech, geom, state)
@@ -221,7 +231,7 @@ def near_singular_message(mech: Mechanism, rest: RestConditioning) -> str:
 
 def regularizer(mech: Mechanism, design) -> Float[Array, ""]:
     """``w ½|p - p₀|²`` with lengths in reference lengths."""
-    scale = np.where(mech.design.is_length, mech.length_scale, 1.0)
+    scale = per_length(mech.design.is_length, mech.length_scale)
     offset = (design - mech.design.p0) / scale
     return 0.5 * mech.evaluation.regularizer_weight * offset @ offset
 
@@ -339,9 +349,7 @@ def evaluate(mech: Mechanism, design=None) -> Evaluation:
         check_design(mech, design)
     designs = jnp.asarray(design_vector(mech, design), dtype=jnp.float64)
     alpha = jnp.asarray(alpha_minus(mech), dtype=jnp.float64)
-    return programs.call(
-        "evaluate", mech, lambda p, a: evaluate_homogenised(mech, p, a), designs, alpha
-    )
+    return programs.call("evaluate", mech, evaluate_homogenised, designs, alpha)
 
 
 def evaluate_in_batch(mech: Mechanism, design, rows: int) -> Evaluation:

@@ -118,7 +118,7 @@ def partial_gradient(mech: Mechanism, designs, evaluation: Evaluation, alpha: fl
     return programs.call(
         "partial_gradient",
         mech,
-        lambda p, ev, a: gradients_homogenised(mech, p, ev, a),
+        gradients_homogenised,
         designs,
         evaluation,
         alpha,

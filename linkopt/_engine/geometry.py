@@ -33,13 +33,6 @@ def _unit(v: Float[Array, "... 3"]) -> Float[Array, "... 3"]:
     return v / jnp.where(norm > 0.0, norm, 1.0)
 
 
-def _reference_directions(axes: np.ndarray) -> np.ndarray:
-    """Per joint, the world coordinate axis least aligned with its initial axis
-    (static)."""
-    index = np.argmin(np.abs(axes), axis=1)
-    return np.eye(3)[index]
-
-
 def _perpendicular(
     v: Float[Array, "J 3"], n: Float[Array, "J 3"]
 ) -> Float[Array, "J 3"]:
@@ -68,12 +61,12 @@ def geometry(mech: Mechanism, design=None) -> Geometry:
     ``p``."""
     p = design_vector(mech, design)
     joints = mech.anchors.shape[0]
-    flat0 = np.concatenate([mech.anchors.ravel(), mech.axes.ravel()])
+    flat0 = jnp.concatenate([jnp.ravel(mech.anchors), jnp.ravel(mech.axes)])
     flat = flat0 + jnp.asarray(mech.design.matrix) @ (p - mech.design.p0)
     anchors = flat[: 3 * joints].reshape(joints, 3)
-    has_axis = np.linalg.norm(mech.axes, axis=1, keepdims=True) > 0
+    has_axis = mech.axis_present[:, None]
     axes = jnp.where(has_axis, _unit(flat[3 * joints :].reshape(joints, 3)), 0.0)
-    helpers = _perpendicular(jnp.asarray(_reference_directions(mech.axes)), axes)
+    helpers = _perpendicular(jnp.asarray(np.eye(3)[mech.helper_index]), axes)
     axes2 = _perpendicular(jnp.asarray(mech.axes2), axes)
     points = follow(mech.point_attachment, mech.point_positions, mech.anchors, anchors)
     scale = mech.length_scale
@@ -89,7 +82,8 @@ def geometry(mech: Mechanism, design=None) -> Geometry:
 
 def rest_state(mech: Mechanism) -> Float[Array, " S"]:
     """Homogenised rest state: body origins and identity quaternions, shape
-    ``(7B,)``."""
+    ``(7B,)``; traceable in the mechanism's numbers (:mod:`.lifting`)."""
+    xp = np if isinstance(mech.body_origins, np.ndarray) else jnp
     origins = mech.body_origins / mech.length_scale
-    quats = np.tile([1.0, 0.0, 0.0, 0.0], (mech.num_bodies, 1))
-    return jnp.asarray(np.concatenate([origins, quats], axis=1).ravel())
+    quats = xp.tile(xp.array([1.0, 0.0, 0.0, 0.0]), (mech.num_bodies, 1))
+    return jnp.asarray(xp.concatenate([origins, quats], axis=1).ravel())

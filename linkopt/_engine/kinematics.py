@@ -306,7 +306,7 @@ def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
 
     def solve(v, s):
         return programs.call(
-            f"solve_{kind}", mech, lambda *a: _solve(mech, kind, *a), v, s, design
+            f"solve_{kind}", mech, lambda m, *a: _solve(m, kind, *a), v, s, design
         )
 
     if values.ndim == 1:
@@ -329,7 +329,7 @@ def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
         return programs.call(
             f"from_rest_{kind}",
             mech,
-            lambda *a: _solve_from_rest(mech, kind, *a),
+            lambda m, *a: _solve_from_rest(m, kind, *a),
             v,
             design,
         )
@@ -351,7 +351,7 @@ def _along(mech: Mechanism, kind: str, values, start, design) -> Solution:
     solution = programs.call(
         f"path_{kind}",
         mech,
-        lambda *a: _solve_path(mech, kind, *a),
+        lambda m, *a: _solve_path(m, kind, *a),
         padded,
         np.asarray(start, dtype=np.float64),
         design_array(mech, design),

@@ -258,13 +258,16 @@ def _body_fields(bodies: list[dict], ground: int, origins: np.ndarray) -> dict:
 
 def _joint_fields(joints: list[dict], anchors: np.ndarray) -> dict:
     pairs = np.array([j["bodies"] for j in joints], dtype=int).reshape(-1, 2)
+    axes = np.array([j["axis"] for j in joints]).reshape(-1, 3)
     return {
         "joint_names": tuple(j["name"] for j in joints),
         "joint_types": tuple(j["type"] for j in joints),
         "joint_bodies": pairs,
         "anchors": anchors,
-        "axes": np.array([j["axis"] for j in joints]),
+        "axes": axes,
         "axes2": np.array([j["axis2"] for j in joints]),
+        "axis_present": np.linalg.norm(axes, axis=1) > 0,
+        "helper_index": np.argmin(np.abs(axes), axis=1),
     }
 
 

@@ -19,7 +19,7 @@ SINGULAR_TOL = (
 
 
 def _passive_jacobian(mech: Mechanism):
-    def program():
+    def program(mech):
         geom = geometry(mech)
         return jax.jacfwd(lambda s: passive_residual(mech, geom, s))(rest_state(mech))
 
@@ -32,7 +32,7 @@ def _rest_sigmas(mech: Mechanism):
     return programs.call(
         "rest_sigmas",
         mech,
-        lambda: sigma_min_pair(mech, geometry(mech), rest_state(mech)),
+        lambda m: sigma_min_pair(m, geometry(m), rest_state(m)),
     )
 
 
@@ -64,14 +64,14 @@ def check_mobility(mech: Mechanism) -> None:
             "output(s); they must be equal",
         )
     sigma_fk, sigma_bk = np.asarray(_rest_sigmas(mech))
-    if sigma_fk < SINGULAR_TOL:
+    if not sigma_fk >= SINGULAR_TOL:  # NaN too
         raise MechanismFileError(
             mech.source,
             "[[motors]]",
             f"the rest pose is a forward singularity (σ_min = {sigma_fk:.2e}): the "
             "motors do not determine the mechanism there",
         )
-    if sigma_bk < SINGULAR_TOL:
+    if not sigma_bk >= SINGULAR_TOL:  # NaN too
         raise MechanismFileError(
             mech.source,
             "[[outputs]]",

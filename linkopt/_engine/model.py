@@ -114,6 +114,17 @@ class DesignSpace:
         return len(self.names)
 
 
+def per_length(is_length: np.ndarray, length_scale):
+    """``length_scale`` where ``is_length``, 1 elsewhere: the divisor from file units to
+    homogenised ones. numpy for a concrete length scale, JAX for a traced one (a
+    program that takes the mechanism's numbers as data, :mod:`.lifting`)."""
+    if isinstance(length_scale, (int, float, np.number, np.ndarray)):
+        return np.where(is_length, length_scale, 1.0)
+    import jax.numpy as jnp
+
+    return jnp.where(is_length, length_scale, 1.0)
+
+
 #: Output kinds and whether their values are lengths (divided by the reference length
 #: inside the solver) rather than angles.
 OUTPUT_KINDS: dict[str, bool] = {
@@ -161,7 +172,7 @@ class OutputTable:
     def scale(self, length_scale: float) -> np.ndarray:
         """Divisor from file units to homogenised units, shape ``(K,)``."""
         lengths = np.array([OUTPUT_KINDS[k] for k in self.kinds], dtype=bool)
-        return np.where(lengths, length_scale, 1.0)
+        return per_length(lengths, length_scale)
 
 
 @dataclass(frozen=True, eq=False)
@@ -184,6 +195,12 @@ class Mechanism:
     anchors: np.ndarray  # (J, 3) rest anchors, initial design, file units
     axes: np.ndarray  # (J, 3) unit primary axes (zero where none)
     axes2: np.ndarray  # (J, 3) unit second axes of universal joints (zero elsewhere)
+    #: (J,) bool: the joint has a primary axis (``axes`` non-zero); static, so that a
+    #: program that takes the axes as data knows which are there
+    axis_present: np.ndarray
+    #: (J,) int: the world coordinate axis least aligned with the initial axis, from
+    #: which each joint's helper axis is built (:func:`.geometry.geometry`); static
+    helper_index: np.ndarray
     point_names: tuple[str, ...]
     point_bodies: np.ndarray  # (P,) int
     point_joints: np.ndarray  # (P,) int joint whose anchor the point follows, or -1
@@ -246,7 +263,7 @@ class Mechanism:
     @property
     def motor_scale(self) -> np.ndarray:
         """Per-motor divisor from file units to homogenised units, shape ``(M,)``."""
-        return np.where(self.motor_linear, self.length_scale, 1.0)
+        return per_length(self.motor_linear, self.length_scale)
 
     @property
     def output_scale(self) -> np.ndarray:

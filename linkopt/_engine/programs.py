@@ -1,25 +1,27 @@
 """Traced programs kept on disk (:mod:`jax.export`), so that a warm process skips
-tracing.
+tracing, and shared by every mechanism of one structure.
 
 JAX's persistent compilation cache (:mod:`linkopt._config`) keeps compiled executables,
 but to look one up a new process must first trace and lower the Python function, which
-for the batched evaluation costs more than loading the executable (figures in
-``benchmarks/bench_evaluation.py``), in every optimiser run and worker process. The
-evaluation, the partial gradient, the blocked solves, σ_min and read-outs of concrete
-arrays and the load-time rest checks all run through :func:`call`: the warm main
-command spent 5.8 s of 61.5 s tracing before the solves did (0.05 s after, 47.4 s in
-all; ``benchmarks/bench_compile.py``).
-:func:`call` serialises the traced program (StableHLO) under a key of everything it
-depends on: the program's name, the mechanism's fingerprint
-(:func:`linkopt._engine.model.fingerprint`: its contents, the file path left out), the
-argument shapes and dtypes, the jax version and the source of every module of the
-package, subfolders included (:func:`source_digest`). A later process deserialises it
-instead of tracing. The entry is written to a temporary file and renamed, so worker
-processes can share the directory, and the folder is kept under its size limit with
-least-recently-used eviction (:mod:`linkopt._cache`). An entry that cannot be read is
-traced again and rewritten. A program that cannot be exported (a custom call that jax
-does not guarantee stable) runs through plain ``jax.jit``, with a warning once per
-process (:data:`UNEXPORTED`).
+for the batched evaluation costs more than loading the executable
+(``benchmarks/bench_compile.py`` shows both), in every optimiser run and worker
+process. The evaluation, the partial gradient, the blocked solves, σ_min and read-outs
+of concrete arrays and the load-time rest checks all run through :func:`call`.
+
+A program takes the mechanism's numbers (anchors, axes, origins, output ranges, the
+design space's map, ...) as arguments (:mod:`.lifting`), so its trace and its compiled
+executable depend only on the mechanism's structure: a second file of the same
+structure, or the same file with other numbers, reuses both. :func:`call` serialises
+the traced program (StableHLO) under a key of everything it depends on: the program's
+name, the structure (:func:`.lifting.structure_key`), the argument shapes and dtypes,
+the jax version and the source of every module of the package, subfolders included
+(:func:`source_digest`). A later process deserialises it instead of tracing. The entry
+is written to a temporary file and renamed, so worker processes can share the
+directory, and the folder is kept under its size limit with least-recently-used
+eviction (:mod:`linkopt._cache`). An entry that cannot be read is traced again and
+rewritten. A program that cannot be exported (a custom call that jax does not
+guarantee stable) runs through plain ``jax.jit``, with a warning once per process
+(:data:`UNEXPORTED`).
 """
 
 from __future__ import annotations
@@ -38,16 +40,26 @@ from jax import export
 
 from .._cache import read_used, store
 from .._config import cache_directory, jit
-from .model import Mechanism, fingerprint
+from .lifting import lift, numbers, structure_key
+from .model import Mechanism
 
 #: The package folder whose sources key every program (:func:`source_digest`).
 PACKAGE = Path(__file__).resolve().parents[1]
-#: This process's programs: mechanism → ``(name, argument signature)`` → jitted call
-#: of the (de)serialised program. Weak in the mechanism, so a mechanism that nothing
-#: else holds (an earlier verification round's) is freed with its programs.
-PROGRAMS: weakref.WeakKeyDictionary[Mechanism, dict[tuple, Callable]] = (
-    weakref.WeakKeyDictionary()
+#: This process's programs: ``(name, structure key, argument signature)`` → jitted
+#: call of the (de)serialised program. Keyed by the structure's digest, not the
+#: mechanism, so it keeps no mechanism alive (an earlier verification round's is
+#: freed) and serves every mechanism of one structure.
+PROGRAMS: dict[tuple, Callable] = {}
+#: Errors of tracing itself (a lifted number used as a constant, :mod:`.lifting`),
+#: raised as they are rather than taken for a program that cannot be exported.
+TRACE_ERRORS = (
+    jax.errors.ConcretizationTypeError,
+    jax.errors.TracerArrayConversionError,
+    jax.errors.TracerBoolConversionError,
+    jax.errors.TracerIntegerConversionError,
 )
+#: Each mechanism's numbers on the device, with their signature (:func:`_numbers`).
+NUMBERS: weakref.WeakKeyDictionary[Mechanism, tuple] = weakref.WeakKeyDictionary()
 #: Names of the programs that could not be exported or serialised in this process.
 UNEXPORTED: set[str] = set()
 
@@ -89,11 +101,12 @@ def _signature(args) -> tuple:
 
 
 def _key(name: str, mech: Mechanism, signature: tuple) -> str:
-    tree, leaves = signature
+    (value_tree, value_leaves), (tree, leaves) = signature
+    leaves = value_leaves + leaves
     sink = hashlib.sha256(
-        f"{name}|{_package_digest(PACKAGE)}|{fingerprint(mech)}".encode()
+        f"{name}|{_package_digest(PACKAGE)}|{structure_key(mech)}".encode()
     )
-    sink.update(str(tree).encode())
+    sink.update(f"{value_tree}|{tree}".encode())
     for shape, dtype in leaves:
         sink.update(f"{dtype}{shape}".encode())
     return sink.hexdigest()
@@ -146,31 +159,49 @@ def _named(name: str, fn: Callable) -> Callable:
     return program
 
 
-def _program(name: str, mech: Mechanism, fn: Callable, args) -> Callable:
-    signature = _signature(args)
-    memo = PROGRAMS.setdefault(mech, {})
-    if (name, signature) in memo:
-        return memo[name, signature]
+def _numbers(mech: Mechanism) -> tuple[dict, tuple]:
+    """The mechanism's numbers on the device and their signature, once per
+    mechanism (weakly held: :data:`NUMBERS`)."""
+    held = NUMBERS.get(mech)
+    if held is None:
+        values = jax.device_put(numbers(mech))
+        held = NUMBERS[mech] = (values, _signature(values))
+    return held
+
+
+def _program(name: str, mech: Mechanism, fn: Callable, values, args) -> Callable:
+    signature = (_numbers(mech)[1], _signature(args))
+    memo = (name, structure_key(mech), signature)
+    if memo in PROGRAMS:
+        return PROGRAMS[memo]
     key = _key(name, mech, signature)
     path = _directory() / f"{name}-{key[:32]}.jaxexport"
     exported = _load(path)
+
+    def lifted(values, *args):
+        return fn(lift(mech, values), *args)
+
     if exported is None:
-        specs = jax.tree_util.tree_map(_spec, args)
+        specs = jax.tree_util.tree_map(_spec, (values, *args))
         try:
-            exported = export.export(jax.jit(fn))(*specs)
+            exported = export.export(jax.jit(lifted))(*specs)
+        except TRACE_ERRORS:
+            raise  # the function itself cannot be traced: no fallback would run it
         except Exception as err:  # not exportable: plain jit, traced in every process
             _warn(name, "exported", err)
-            memo[name, signature] = jit(_named(name, fn))
-            return memo[name, signature]
+            PROGRAMS[memo] = jit(_named(name, lifted))
+            return PROGRAMS[memo]
         _store(path, exported)
-    memo[name, signature] = jit(_named(name, exported.call))
-    return memo[name, signature]
+    PROGRAMS[memo] = jit(_named(name, exported.call))
+    return PROGRAMS[memo]
 
 
 def call(name: str, mech: Mechanism, fn: Callable, *args):
-    """``jit(fn)(*args)``, with ``fn``'s trace read from (or written to) the disk
-    cache.
+    """``jit(fn)(mech, *args)``, with the trace read from (or written to) the disk
+    cache and shared by every mechanism of the same structure.
 
-    ``fn`` must be a pure function of array arguments that depends on nothing but
-    ``mech``, the linkopt sources and its arguments; ``name`` names the program."""
-    return _program(name, mech, fn, args)(*args)
+    ``fn(mech, *args)`` must be a pure function of the mechanism and array arguments
+    that depends on nothing but them and the linkopt sources; inside it the
+    mechanism's numbers are traced (:mod:`.lifting`). ``name`` names the program."""
+    values = _numbers(mech)[0]
+    return _program(name, mech, fn, values, args)(values, *args)

@@ -50,7 +50,7 @@ def _blocked_read(mech: Mechanism, what: str, state, design):
 
     def read(s):  # the trace kept on disk (.programs)
         return programs.call(
-            f"read_{what}", mech, lambda *a: _read(mech, what, *a), s, design
+            f"read_{what}", mech, lambda m, *a: _read(m, what, *a), s, design
         )
 
     state = np.asarray(state, dtype=np.float64)

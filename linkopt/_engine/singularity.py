@@ -122,7 +122,7 @@ def singular_values(mech: Mechanism, state, *, design=None) -> Float[Array, "...
     design = design_array(mech, design)  # None and arrays: one program
 
     def sigmas(s):  # the trace kept on disk (.programs)
-        return programs.call("sigmas", mech, partial(_sigmas, mech), s, design)
+        return programs.call("sigmas", mech, _sigmas, s, design)
 
     state = np.asarray(state, dtype=np.float64)
     return sigmas(state) if state.ndim == 1 else in_blocks(sigmas, (state,), one=sigmas)

@@ -1,0 +1,101 @@
+"""A new user's first commands, each from a cold compilation cache: how long until
+``linkopt evaluate`` answers for a mechanism, and for a second mechanism of the same
+topology once the first has filled the cache.
+
+Run: ``.venv/bin/python benchmarks/bench_cold_start.py [--repeat N]``.
+
+Each case runs ``linkopt evaluate FILE --json`` in a fresh process. "cold" cases start
+from an empty cache folder (``LINKOPT_CACHE_DIR`` a new temporary one); a "after X"
+case shares the cache that ``X`` (run just before it, not timed) filled. The figures
+are printed against the targets of issue 31 (2-core machine, empty cache) and written
+to ``benchmarks/results/bench_cold_start.json`` with the date, machine and commit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+LINKOPT = [sys.executable, "-m", "linkopt"]
+#: (label, file, the file run first on the same cache or None, target in seconds)
+CASES = (
+    ("five-bar cold", "mechanisms/five_bar.toml", None, 10.0),
+    ("delta cold", "mechanisms/delta.toml", None, 15.0),
+    ("stewart cold", "mechanisms/stewart.toml", None, 20.0),
+    ("delta_deep_box after delta", "mechanisms/delta_deep_box.toml",
+     "mechanisms/delta.toml", 5.0),
+    ("stewart_wide_tilt after stewart", "mechanisms/stewart_wide_tilt.toml",
+     "mechanisms/stewart.toml", 5.0),
+)  # fmt: skip
+
+
+def _evaluate(path: str, cache: Path) -> tuple[float, dict]:
+    env = dict(os.environ, LINKOPT_CACHE_DIR=str(cache))
+    start = time.perf_counter()
+    run = subprocess.run(
+        [*LINKOPT, "evaluate", str(ROOT / path), "--json"],
+        env=env, cwd=ROOT, capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    return time.perf_counter() - start, json.loads(run.stdout)
+
+
+def _case(path: str, first: str | None) -> tuple[float, float]:
+    """Seconds of one evaluate from a cold (or ``first``-filled) cache; f_design."""
+    with tempfile.TemporaryDirectory() as folder:
+        if first is not None:
+            _evaluate(first, Path(folder))
+        seconds, payload = _evaluate(path, Path(folder))
+    return seconds, float(payload["f_design"])
+
+
+def _commit() -> str:
+    run = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+        text=True,
+    )  # fmt: skip
+    return run.stdout.strip() or "unknown"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
+    args = parser.parse_args()
+    rows = []
+    for label, path, first, target in CASES:
+        times, f_design = [], None
+        for _ in range(args.repeat):
+            seconds, f_design = _case(path, first)
+            times.append(seconds)
+        best = min(times)
+        rows.append(
+            {"case": label, "seconds": times, "target": target, "f_design": f_design}
+        )
+        verdict = "met" if best <= target else "not met"
+        print(f"{label:<34} {best:7.1f} s  (target {target:4.0f} s, {verdict})"
+              f"  f_design {f_design:.6g}", flush=True)  # fmt: skip
+    record = {
+        "date": time.strftime("%Y-%m-%d %H:%M"),
+        "commit": _commit(),
+        "machine": {
+            "cores": os.cpu_count(),
+            "load": os.getloadavg()[0],
+            "python": platform.python_version(),
+        },
+        "cases": rows,
+    }
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "bench_cold_start.json").write_text(json.dumps(record, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,98 @@
+"""The mechanism as data (``linkopt._engine.lifting``): programs take a mechanism's
+numbers as arguments, so two mechanisms of one structure share one traced and compiled
+program, and each is computed with its own numbers."""
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from conftest import MECHANISMS
+
+import linkopt
+from linkopt._engine import programs
+from linkopt._engine.lifting import lift, numbers, structure_key
+
+MOTORS = np.array([[0.0, 0.0], [0.2, -0.1], [-0.15, 0.25]])
+
+
+def edited_five_bar() -> linkopt.Mechanism:
+    """``five_bar.toml`` with its bases 2 mm further out and its tip 2 mm higher."""
+    text = (MECHANISMS / "five_bar.toml").read_text()
+    for old, new in (
+        ("[-20.0, 0.0, 0.0]", "[-22.0, 0.0, 0.0]"),
+        ("[20.0, 0.0, 0.0]", "[22.0, 0.0, 0.0]"),
+        ("[0.0, 70.0, 0.0]", "[0.0, 72.0, 0.0]"),
+    ):
+        assert old in text
+        text = text.replace(old, new)
+    return linkopt.loads(text, "edited_five_bar.toml")
+
+
+def test_one_structure_one_program_each_its_own_numbers(five_bar, monkeypatch):
+    edited = edited_five_bar()
+    assert structure_key(edited) == structure_key(five_bar)
+    monkeypatch.setattr(programs, "PROGRAMS", {})
+    traced = []
+    real_export = programs.export.export
+
+    def recording(fn, *args, **kwargs):
+        traced.append(fn)
+        return real_export(fn, *args, **kwargs)
+
+    monkeypatch.setattr(programs.export, "export", recording)
+    ours = linkopt.solve_fk(five_bar, MOTORS)
+    theirs = linkopt.solve_fk(edited, MOTORS)
+    assert len(traced) <= 1  # none when an earlier run left the trace on disk
+    assert [name for name, *_ in programs.PROGRAMS].count("from_rest_fk") == 1
+    # the edited file's numbers, not the first file's: against a trace that bakes
+    # the edited file's numbers in as constants
+    baked = jax.jit(lambda m: linkopt.solve_fk(edited, m).state)(MOTORS)
+    np.testing.assert_allclose(theirs.state, baked, rtol=0, atol=1e-12)
+    assert np.max(np.abs(np.asarray(theirs.state) - np.asarray(ours.state))) > 1e-3
+    tips = np.asarray(linkopt.point_positions(edited, theirs.state))[:, 0, :2]
+    anchors = np.asarray(linkopt.joint_positions(edited, theirs.state))
+    np.testing.assert_allclose(tips, anchors[:, 4, :2], rtol=0, atol=1e-9)
+
+
+def test_a_second_file_of_the_same_linkage_shares_the_delta_programs():
+    delta = linkopt.load(MECHANISMS / "delta.toml")
+    deep = linkopt.load(MECHANISMS / "delta_deep_box.toml")
+    assert structure_key(delta) == structure_key(deep)
+    assert not np.array_equal(delta.output_min, deep.output_min)
+
+
+@pytest.mark.parametrize(
+    "other",
+    [
+        lambda m: linkopt.load(MECHANISMS / "four_bar.toml"),
+        lambda m: dataclasses.replace(
+            m, joint_types=("revolute",) * 4 + ("spherical",)
+        ),
+        lambda m: dataclasses.replace(
+            m, solver=dataclasses.replace(m.solver, max_iterations=30)
+        ),
+    ],
+    ids=["another linkage", "another joint family", "another solver setting"],
+)
+def test_what_shapes_a_program_is_in_the_key(five_bar, other):
+    assert structure_key(other(five_bar)) != structure_key(five_bar)
+
+
+def test_numbers_and_names_are_not_in_the_key(five_bar):
+    renamed = dataclasses.replace(five_bar, name="other", source="x.toml", raw={})
+    assert structure_key(renamed) == structure_key(five_bar)
+    moved = lift(five_bar, {k: v + 1.0 for k, v in numbers(five_bar).items()})
+    assert structure_key(moved) == structure_key(five_bar)
+
+
+def test_a_number_used_as_a_constant_fails_loudly(five_bar):
+    """A program that turned a lifted number into numpy would bake the first
+    mechanism's value into a program that others reuse; it cannot be traced."""
+
+    def baking(m, x):
+        return x + float(np.sum(np.asarray(m.anchors)))
+
+    with pytest.raises(jax.errors.TracerArrayConversionError):
+        programs.call("baking", five_bar, baking, jnp.ones(2))
