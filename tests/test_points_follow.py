@@ -262,3 +262,22 @@ def test_the_followed_point_is_smooth_in_the_anchors(body):
         e[i] = h
         fd = (np.asarray(where(x + e)) - np.asarray(where(x - e))) / (2 * h)
         np.testing.assert_allclose(jac[:, i], fd, rtol=0, atol=1e-7)
+
+
+def test_fk_on_the_command_line_takes_a_design(capsys):
+    """``linkopt fk --design``: the delta with rods of 210 puts ``tcp`` at the centre
+    of its wrists, 210/180 of the rest drop sqrt(180² - 110²) below the base (a longer
+    rod moves the wrists along the rods' rest direction; the arms stay level)."""
+    import json
+
+    from linkopt._cli.main import main
+
+    path = str(MECHANISMS / "delta.toml")
+    assert main(["fk", path, "--motors", "0,0,0", "--design", "80,210", "--json"]) == 0
+    fk = json.loads(capsys.readouterr().out)
+    wrists = np.array([v for k, v in fk["joints"].items() if "wrist" in k])
+    np.testing.assert_allclose(fk["points"]["tcp"], wrists.mean(0), atol=1e-9)
+    rise = 210.0 / 180.0 * np.sqrt(180.0**2 - 110.0**2)
+    assert fk["points"]["tcp"][2] == pytest.approx(-rise, abs=1e-9)
+    assert main(["fk", path, "--motors", "0,0,0", "--design", "80"]) == 2
+    assert "design" in capsys.readouterr().err

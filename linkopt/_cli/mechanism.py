@@ -24,7 +24,7 @@ from .._engine.loader import load
 from .._engine.model import OUTPUT_KINDS
 from .._engine.readout import motor_values, output_values
 from . import payloads
-from .values import MAX_ROWS, read_values
+from .values import MAX_ROWS, design_arg, read_values
 
 
 def _print_table(title: str, items: dict) -> None:
@@ -143,16 +143,17 @@ def run_solve(args, kind: str) -> int:
         solver = solve_fk_path if kind == "fk" else solve_bk_path
     else:
         solver = solve_fk if kind == "fk" else solve_bk
-    solution = solver(mech, values)
+    design = design_arg(mech, args.design)
+    solution = solver(mech, values, design=design)
     states = np.atleast_2d(np.asarray(solution.state))
     converged = np.atleast_1d(np.asarray(solution.converged))
     residual = np.atleast_1d(np.asarray(solution.residual))
     progress = np.atleast_1d(np.asarray(solution.progress))
     asked = np.atleast_2d(values)
     records = [
-        payloads.configuration(mech, s, c, r)
-        | {"progress": float(f), "closure": payloads.closure(mech, s)}
-        | {"miss": _miss(mech, kind, _reached(mech, kind, s), a)}
+        payloads.configuration(mech, s, c, r, design)
+        | {"progress": float(f), "closure": payloads.closure(mech, s, design)}
+        | {"miss": _miss(mech, kind, _reached(mech, kind, s, design), a)}
         for s, c, r, f, a in zip(states, converged, residual, progress, asked)
     ]
     payload = (
@@ -168,10 +169,10 @@ def run_solve(args, kind: str) -> int:
     return 0
 
 
-def _reached(mech, kind: str, state) -> np.ndarray:
+def _reached(mech, kind: str, state, design) -> np.ndarray:
     """The motor (FK) or output (BK) values of ``state``, file units."""
     read = motor_values if kind == "fk" else output_values
-    return np.asarray(read(mech, state))
+    return np.asarray(read(mech, state, design=design))
 
 
 def _miss(mech, kind: str, reached: np.ndarray, asked: np.ndarray) -> float:
@@ -270,6 +271,13 @@ def register(subparsers) -> None:
             type=int,
             default=MAX_ROWS,
             help=f"refuse a CSV file of more rows (default {MAX_ROWS})",
+        )
+        cmd.add_argument(
+            "--design",
+            help=(
+                "design values in parameter order (comma-separated), or a mechanism "
+                "file with the same parameters (default: the file's design)"
+            ),
         )
         cmd.add_argument("--json", action="store_true", help="machine-readable output")
         cmd.set_defaults(run=run)
