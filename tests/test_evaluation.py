@@ -249,3 +249,23 @@ def test_a_malformed_design_is_refused_naming_it(five_bar, design, field):
 
     with pytest.raises(InputError, match=rf"^{re.escape(field)}: expected"):
         evaluate(five_bar, design)
+
+
+def test_an_adversarial_sample_never_ends_below_its_start():
+    """Regression: on the delta's deep box, 6 of 27 adversarial samples ended at a lower
+    f_sing than the IK sample they started from (the range barrier pulled them inward
+    from the box's boundary), so f_design read low. A sample whose start lies in the
+    range is now never below that start."""
+    mech = linkopt.load(MECHANISMS / "delta_deep_box.toml")
+    ev = linkopt.evaluate(mech)
+    outputs = np.asarray(linkopt.output_values(mech, ev.ik_states))
+    slack = 1e-9 * np.asarray(mech.output_scale)
+    low, high = mech.output_min - slack, mech.output_max + slack
+    inside = np.all((outputs >= low) & (outputs <= high), axis=1)
+    assert inside.sum() >= 6
+    ik, adv = np.asarray(ev.ik_f_sing), np.asarray(ev.adv_f_sing)
+    assert np.all(adv[inside] >= ik[inside])
+    # the sample is a configuration: its state has the f_sing it reports
+    np.testing.assert_allclose(
+        np.asarray(linkopt.f_sing(mech, ev.adv_states)), adv, rtol=1e-9
+    )

@@ -30,7 +30,7 @@ import weakref
 
 import numpy as np
 
-from .model import Mechanism, _digest
+from .model import Mechanism, digest
 
 #: Mechanism fields taken as data, and those of its design space and point attachment.
 FIELDS = (
@@ -100,6 +100,6 @@ def structure_key(mech: Mechanism) -> str:
     key = _KEYS.get(mech)
     if key is None:
         sink = hashlib.sha256()
-        _digest(_skeleton(mech), sink)
+        digest(_skeleton(mech), sink)
         key = _KEYS[mech] = sink.hexdigest()
     return key

@@ -308,7 +308,7 @@ class Mechanism:
         )
 
 
-def _digest(value, sink) -> None:
+def digest(value, sink) -> None:
     """Feed ``value`` into the hash ``sink``: dataclasses field by field (a field named
     ``source`` left out), arrays by dtype, shape and bytes, containers item by item,
     anything else by its ``repr``."""
@@ -317,19 +317,19 @@ def _digest(value, sink) -> None:
         for f in dataclasses.fields(value):
             if f.name != "source":
                 sink.update(f.name.encode())
-                _digest(getattr(value, f.name), sink)
+                digest(getattr(value, f.name), sink)
     elif isinstance(value, np.ndarray):
         sink.update(f"{value.dtype.str}{value.shape}".encode())
         sink.update(np.ascontiguousarray(value).tobytes())
     elif isinstance(value, (tuple, list)):
         sink.update(f"{type(value).__name__}{len(value)}".encode())
         for item in value:
-            _digest(item, sink)
+            digest(item, sink)
     elif isinstance(value, dict):
         sink.update(f"dict{len(value)}".encode())
         for key in sorted(value, key=str):
             sink.update(repr(key).encode())
-            _digest(value[key], sink)
+            digest(value[key], sink)
     else:
         sink.update(repr(value).encode())
 
@@ -343,5 +343,5 @@ def fingerprint(mech: Mechanism) -> str:
     its mechanism (:mod:`linkopt._design.run`).
     """
     sink = hashlib.sha256()
-    _digest(mech, sink)
+    digest(mech, sink)
     return sink.hexdigest()
