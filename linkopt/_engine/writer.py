@@ -22,9 +22,35 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import InputError
+from .._folders import write_atomic
 from .geometry import geometry
 from .kinematics import check_design
 from .model import Mechanism
+
+#: TOML basic-string escapes; other control characters are written as ``\\uXXXX``.
+_ESCAPES = {
+    "\\": "\\\\",
+    '"': '\\"',
+    "\n": "\\n",
+    "\t": "\\t",
+    "\r": "\\r",
+    "\b": "\\b",
+    "\f": "\\f",
+}
+
+
+def _escaped(c: str) -> str:
+    return f"\\u{ord(c):04x}" if ord(c) < 0x20 or ord(c) == 0x7F else c
+
+
+def _key(k) -> str:
+    """A TOML key: bare when it can be, else a quoted string."""
+    k = str(k)
+    return (
+        k
+        if k and all(c.isascii() and (c.isalnum() or c in "_-") for c in k)
+        else (_value(k))
+    )
 
 
 def _value(v, key: str = "") -> str:
@@ -37,11 +63,15 @@ def _value(v, key: str = "") -> str:
             raise InputError(f"{key}: cannot write {v!r} to a mechanism file")
         return repr(v)
     if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        return '"' + "".join(_ESCAPES.get(c, _escaped(c)) for c in v) + '"'
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_value(x, key) for x in v) + "]"
     if isinstance(v, dict):
-        return "{ " + ", ".join(f"{k} = {_value(x, key)}" for k, x in v.items()) + " }"
+        return (
+            "{ "
+            + ", ".join(f"{_key(k)} = {_value(x, key)}" for k, x in v.items())
+            + " }"
+        )
     raise InputError(
         f"{key}: cannot write a {type(v).__name__} value to a mechanism file"
     )
@@ -53,8 +83,10 @@ def dumps(data: dict) -> str:
     lines: list[str] = []
     for key, value in data.items():
         if isinstance(value, dict):
-            lines.append(f"[{key}]")
-            lines += [f"{k} = {_value(v, f'{key}.{k}')}" for k, v in value.items()]
+            lines.append(f"[{_key(key)}]")
+            lines += [
+                f"{_key(k)} = {_value(v, f'{key}.{k}')}" for k, v in value.items()
+            ]
             lines.append("")
         elif (
             isinstance(value, list)
@@ -62,11 +94,13 @@ def dumps(data: dict) -> str:
             and all(isinstance(x, dict) for x in value)
         ):
             for entry in value:
-                lines.append(f"[[{key}]]")
-                lines += [f"{k} = {_value(v, f'{key}.{k}')}" for k, v in entry.items()]
+                lines.append(f"[[{_key(key)}]]")
+                lines += [
+                    f"{_key(k)} = {_value(v, f'{key}.{k}')}" for k, v in entry.items()
+                ]
                 lines.append("")
         else:
-            lines.insert(0, f"{key} = {_value(value, key)}")
+            lines.insert(0, f"{_key(key)} = {_value(value, key)}")
     return "\n".join(lines)
 
 
@@ -114,7 +148,6 @@ def write_design(
         raise InputError(f"alpha_minus: expected a finite number, got {alpha_minus!r}")
     path = Path(path)
     comment = "".join(f"# {line}\n" for line in header.splitlines())
-    path.write_text(
-        comment + dumps(design_definition(mech, design, alpha_minus)), encoding="utf-8"
-    )
+    text = comment + dumps(design_definition(mech, design, alpha_minus))
+    write_atomic(path, text)  # a reader sees the old file or the whole new one
     return path
