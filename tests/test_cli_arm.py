@@ -124,3 +124,23 @@ def test_arm_design_meaningless_task_exits_2(tmp_path, capsys):
         f"linkopt: error: {path}: [task].payload: expected a payload (kg) >= 0, "
         "got -1.0\n"
     )
+
+
+def test_an_earlier_simplifys_stage_files_go_with_the_staged_write(tmp_path):
+    """Regression: a second ``arm simplify`` into the same folder left the earlier
+    run's ``stage<k>_*`` files beside its own. The stage files of the folder are the
+    obsolete ones of the staged write, which removes those the new run lacks."""
+    from linkopt._cli.arm import stage_files
+    from linkopt._folders import staged
+
+    for name in ("stage0_arm.toml", "stage3_arm.toml", "stage3_path.png", "other.txt"):
+        (tmp_path / name).write_text("earlier run\\n")
+    (tmp_path / "stages_notes.txt").write_text("not a stage file\\n")
+    earlier = stage_files(tmp_path)
+    assert earlier == ["stage0_arm.toml", "stage3_arm.toml", "stage3_path.png"]
+    with staged(tmp_path, "summary.json", obsolete=earlier) as stage:
+        (stage / "stage0_arm.toml").write_text("new run\\n")
+        (stage / "summary.json").write_text("{}\\n")
+    left = sorted(p.name for p in tmp_path.iterdir())
+    assert left == ["other.txt", "stage0_arm.toml", "stages_notes.txt", "summary.json"]
+    assert (tmp_path / "stage0_arm.toml").read_text() == "new run\\n"

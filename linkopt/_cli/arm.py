@@ -304,7 +304,8 @@ def run_simplify(args) -> int:
             else [elimination.Stage(problem, best, None)]
         )
         final = max((k for k, s in enumerate(stages) if s.solution.feasible), default=0)
-        with staged(out, marker="summary.json") as stage:
+        earlier = stage_files(out)  # an earlier run's stages that this one lacks
+        with staged(out, marker="summary.json", obsolete=earlier) as stage:
             _write_simplified(args, stages, final, runs, stage)
     joints = " -> ".join(str(s.problem.arm.num_joints) for s in stages)
     print(
@@ -313,6 +314,13 @@ def run_simplify(args) -> int:
         f"written to {out}"
     )
     return 0 if stages[final].solution.feasible else 1
+
+
+def stage_files(folder: Path) -> list[str]:
+    """Names of the ``stage<k>_*`` files in ``folder`` (an earlier ``simplify``'s)."""
+    return sorted(
+        p.name for p in folder.glob("stage*_*") if p.name[5:].split("_")[0].isdigit()
+    )
 
 
 def _write_simplified(args, stages, final: int, runs, out: Path) -> None:
