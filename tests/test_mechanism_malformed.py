@@ -712,3 +712,47 @@ def test_evaluation_targets_are_read(tmp_path):
     data = five_bar(put(("evaluation", "targets"), [[0.0, 40.0], [10, 20.5]]))
     mech = linkopt.load(write(tmp_path, "five_bar", data))
     assert mech.evaluation.targets == ((0.0, 40.0), (10.0, 20.5))
+
+
+def serial_chain(count: int, island: bool = False) -> str:
+    """A planar chain of ``count`` revolute joints (``count + 1`` bodies), one motor
+    and one angle output each; ``island`` adds two bodies joined to each other only."""
+    lines = ['[mechanism]\nname = "chain"\nground = "b0"\n']
+    lines += [f'[[bodies]]\nname = "b{k}"\n' for k in range(count + 1)]
+    lines += [
+        f'[[joints]]\nname = "j{k}"\ntype = "revolute"\nbodies = ["b{k}", "b{k + 1}"]\n'
+        f"anchor = [{10.0 * k}, 0.0, 0.0]\naxis = [0.0, 0.0, 1.0]\n"
+        for k in range(count)
+    ]
+    if island:
+        lines += ['[[bodies]]\nname = "i0"\n[[bodies]]\nname = "i1"\n']
+        lines += [
+            '[[joints]]\nname = "ij"\ntype = "revolute"\nbodies = ["i0", "i1"]\n'
+            "anchor = [0.0, 5.0, 0.0]\naxis = [0.0, 0.0, 1.0]\n"
+        ]
+    lines += [f'[[motors]]\nname = "m{k}"\njoint = "j{k}"\n' for k in range(count)]
+    lines += [
+        f'[[outputs]]\nname = "o{k}"\njoint = "j{k}"\nmin = -0.1\nmax = 0.1\n'
+        for k in range(count)
+    ]
+    return "\n".join(lines)
+
+
+@pytest.mark.parametrize("count, island", [(300, False), (999, False), (9999, True)])
+def test_a_mechanism_too_large_for_the_dense_solver_is_refused_before_work(
+    count, island, monkeypatch
+):
+    """Regression: a 1,000-body chain ran past 300 s and a 10,000-body one past 6 GB.
+    Refused while reading, with what the dense solver would need, before any solve."""
+    from linkopt._engine import programs
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("a program ran for a mechanism that should be refused")
+
+    monkeypatch.setattr(programs, "call", no_work)
+    with pytest.raises(linkopt.MechanismFileError) as error:
+        linkopt.loads(serial_chain(count, island), "chain.toml")
+    message = str(error.value)
+    bodies = count + 1 + 2 * island
+    assert "chain.toml: [[bodies]]" in message and f"{bodies} bodies" in message
+    assert f"{7 * bodies} x {7 * bodies} matrix" in message and "at most 300" in message

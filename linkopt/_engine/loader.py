@@ -99,6 +99,12 @@ SETTING_RANGES: dict[str, tuple[float, float]] = {
 }
 #: Most IK targets of an evaluation (the grid's and ``[evaluation].targets``).
 MAX_TARGETS = 100_000
+#: Most bodies of a mechanism (:func:`_check_size`): the solver works on dense square
+#: matrices of 7 numbers per body, batched 64 at a time (``blocks.BLOCK``) with a few
+#: copies each; at 300 bodies a block holds about 2 GB of them.
+MAX_BODIES = 300
+#: Matrices of a block of solves held at once in that estimate (64 rows, 3 copies).
+BLOCK_COPIES = 64 * 3
 
 
 def load(path: str | Path) -> Mechanism:
@@ -117,8 +123,9 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
     skips the mobility/rest-singularity check (for test geometry only)."""
     from .assembly import prepare  # [mechanism].assemble, [[lengths]], body frames
 
-    data = prepare(data, source)
     rd = Reader(source)
+    _check_size(rd, data)
+    data = prepare(data, source)
     head = _read_head(rd, data)
     bodies, body_index = _read_bodies(rd, data)
     ground = rd.lookup(body_index, head["ground"], "[mechanism].ground", "body")
@@ -221,6 +228,23 @@ def _sees_spin(body, mine, start, end, points, outputs, scale) -> bool:
             if np.linalg.norm(offset - (offset @ axis) * axis) > IDLE_TOL * scale:
                 return True
     return any(o["joint"] in mine or body in o["bodies"] for o in outputs)
+
+
+def _check_size(rd: Reader, data: dict) -> None:
+    """Refuse, before any work, a mechanism too large for the dense linear algebra:
+    the state has 7 numbers per body and every solve factors its square."""
+    bodies = data.get("bodies")
+    if not isinstance(bodies, list) or len(bodies) <= MAX_BODIES:
+        return
+    size = 7 * len(bodies)
+    matrix = 8.0 * size * size
+    raise rd.fail(
+        "[[bodies]]",
+        f"{len(bodies)} bodies make a state of {size} numbers: every solve factors "
+        f"a {size} x {size} matrix ({matrix / 2**20:.0f} MB, about "
+        f"{BLOCK_COPIES * matrix / 2**30:.0f} GB for a block of solves); linkopt's "
+        f"dense solver takes at most {MAX_BODIES} bodies",
+    )
 
 
 def _read_head(rd: Reader, data: dict) -> dict:
