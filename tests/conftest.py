@@ -20,6 +20,38 @@ settings.register_profile(
 )
 settings.load_profile("linkopt")
 
+#: Memory mappings of a test worker above which its compiled programs are dropped
+#: after a test (Linux allows 65,530; each loaded XLA:CPU executable holds a few
+#: hundred, and past the limit XLA aborts or segfaults while compiling or loading).
+#: A worker runs hundreds of tests, each compiling programs of its own (the arm
+#: programs and tests' own jits are not bounded by linkopt's program table), so this
+#: keeps a worker far from the limit; dropped programs load again from the disk caches.
+MAX_MAPS = 40_000
+
+
+def _maps() -> int:
+    try:
+        with open("/proc/self/maps") as maps:
+            return sum(1 for _ in maps)
+    except OSError:  # not Linux: no such limit to keep under
+        return 0
+
+
+@pytest.fixture(autouse=True)
+def _bounded_mappings():
+    yield
+    if _maps() > MAX_MAPS:
+        import gc
+
+        import jax
+
+        from linkopt._engine import programs
+
+        programs.PROGRAMS.clear()
+        jax.clear_caches()
+        gc.collect()
+
+
 ROOT = Path(__file__).resolve().parent.parent
 MECHANISMS = ROOT / "mechanisms"
 

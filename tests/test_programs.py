@@ -181,3 +181,19 @@ def test_the_program_table_does_not_keep_a_mechanism_alive(five_bar, cache):
     del mech
     gc.collect()
     assert gone() is None
+
+
+def test_the_program_table_keeps_only_the_most_recently_used(
+    five_bar, cache, monkeypatch
+):
+    """Each loaded executable holds hundreds of memory mappings, and a process that
+    kept every program it used ran past Linux's 65,530 and crashed inside XLA; the
+    table drops the least recently used, which load again from disk when needed."""
+    monkeypatch.setattr(programs, "LIVE_PROGRAMS", 3)
+    x, y = jnp.ones(2), jnp.asarray(1.0)
+    for name in ("p0", "p1", "p2", "p0", "p3"):
+        programs.call(name, five_bar, _program(five_bar), x, y)
+    assert [name for name, *_ in programs.PROGRAMS] == ["p2", "p0", "p3"]
+    again = programs.call("p1", five_bar, _program(five_bar), x, y)  # from disk
+    np.testing.assert_allclose(again, np.sin(1.0) * five_bar.length_scale + 1.0)
+    assert [name for name, *_ in programs.PROGRAMS] == ["p0", "p3", "p1"]

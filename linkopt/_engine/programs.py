@@ -46,10 +46,20 @@ from .model import Mechanism
 #: The package folder whose sources key every program (:func:`source_digest`).
 PACKAGE = Path(__file__).resolve().parents[1]
 #: This process's programs: ``(name, structure key, argument signature)`` → jitted
-#: call of the (de)serialised program. Keyed by the structure's digest, not the
-#: mechanism, so it keeps no mechanism alive (an earlier verification round's is
-#: freed) and serves every mechanism of one structure.
+#: call of the (de)serialised program, least recently used first. Keyed by the
+#: structure's digest, not the mechanism, so it keeps no mechanism alive (an earlier
+#: verification round's is freed) and serves every mechanism of one structure.
 PROGRAMS: dict[tuple, Callable] = {}
+#: Most programs kept loaded (:data:`PROGRAMS`). Each loaded XLA:CPU executable holds
+#: its JIT-linked code in a few hundred memory mappings (about 350 for a solve or
+#: σ_min program of a small mechanism), and Linux allows a process 65,530
+#: (``vm.max_map_count``): past that, XLA aborts ("Unable to allocate section
+#: memory") or segfaults while compiling, loading or serialising the next one. A
+#: process that kept every program it ever used (a test worker, a notebook going
+#: through many mechanisms) crashed so; a program dropped here is loaded again from
+#: the disk caches when it is needed again. The five-bar's optimiser uses 9 (7,200
+#: mappings in all).
+LIVE_PROGRAMS = 48
 #: Errors of tracing itself (a lifted number used as a constant, :mod:`.lifting`),
 #: raised as they are rather than taken for a program that cannot be exported.
 TRACE_ERRORS = (
@@ -173,7 +183,10 @@ def _program(name: str, mech: Mechanism, fn: Callable, values, args) -> Callable
     signature = (_numbers(mech)[1], _signature(args))
     memo = (name, structure_key(mech), signature)
     if memo in PROGRAMS:
+        PROGRAMS[memo] = PROGRAMS.pop(memo)  # most recently used last
         return PROGRAMS[memo]
+    while len(PROGRAMS) >= LIVE_PROGRAMS:  # the least recently used goes
+        del PROGRAMS[next(iter(PROGRAMS))]
     key = _key(name, mech, signature)
     path = _directory() / f"{name}-{key[:32]}.jaxexport"
     exported = _load(path)
