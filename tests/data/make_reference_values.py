@@ -3,7 +3,7 @@ mechanism at a few motor rows, and the five-bar's evaluation, as a given linkopt
 computes them. ``tests/test_reference_values.py`` holds later code to them.
 
 Run from the repository root: ``.venv/bin/python tests/data/make_reference_values.py``
-(the shipped file was written at commit e2471a8, before the mechanism's numbers
+(the shipped file was written at commit 0fa6ec3, before the mechanism's numbers
 became program arguments, when every program baked them in as constants).
 """
 
