@@ -22,7 +22,6 @@ from .._engine.kinematics import (
 )
 from .._engine.loader import load
 from .._engine.model import OUTPUT_KINDS
-from .._engine.readout import motor_values, output_values
 from . import payloads
 from .values import MAX_ROWS, design_arg, read_values
 
@@ -149,13 +148,14 @@ def run_solve(args, kind: str) -> int:
     converged = np.atleast_1d(np.asarray(solution.converged))
     residual = np.atleast_1d(np.asarray(solution.residual))
     progress = np.atleast_1d(np.asarray(solution.progress))
-    asked = np.atleast_2d(values)
     records = [
         payloads.configuration(mech, s, c, r, design)
         | {"progress": float(f), "closure": payloads.closure(mech, s, design)}
-        | {"miss": _miss(mech, kind, _reached(mech, kind, s, design), a)}
-        for s, c, r, f, a in zip(states, converged, residual, progress, asked)
+        for s, c, r, f in zip(states, converged, residual, progress)
     ]
+    for record, row in zip(records, np.atleast_2d(values)):
+        reached = np.array(list(record[what].values()))
+        record["miss"] = _miss(mech, kind, reached, row)
     payload = (
         {"converged": bool(converged.all()), "path": records} if is_path else records[0]
     )
@@ -167,12 +167,6 @@ def run_solve(args, kind: str) -> int:
         _report_failure(kind, is_path, records)
         return 1
     return 0
-
-
-def _reached(mech, kind: str, state, design) -> np.ndarray:
-    """The motor (FK) or output (BK) values of ``state``, file units."""
-    read = motor_values if kind == "fk" else output_values
-    return np.asarray(read(mech, state, design=design))
 
 
 def _miss(mech, kind: str, reached: np.ndarray, asked: np.ndarray) -> float:
