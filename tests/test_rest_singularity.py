@@ -117,10 +117,15 @@ def test_a_nan_sigma_min_is_refused_not_let_through(five_bar, monkeypatch):
     from linkopt._design.evaluation import RestConditioning
     from linkopt._engine import mobility
 
-    monkeypatch.setattr(mobility, "_rest_sigmas", lambda mech: np.array([np.nan, 1.0]))
+    real = mobility.rest_jacobians(five_bar)
+
+    def with_sigmas(*sigmas):
+        return lambda mech: real._replace(sigmas=np.array(sigmas))
+
+    monkeypatch.setattr(mobility, "rest_jacobians", with_sigmas(np.nan, 1.0))
     with pytest.raises(linkopt.MechanismFileError, match="forward singularity"):
         mobility.check_mobility(five_bar)
-    monkeypatch.setattr(mobility, "_rest_sigmas", lambda mech: np.array([1.0, np.nan]))
+    monkeypatch.setattr(mobility, "rest_jacobians", with_sigmas(1.0, np.nan))
     with pytest.raises(linkopt.MechanismFileError, match="backward singularity"):
         mobility.check_mobility(five_bar)
     assert RestConditioning(1.0, float("nan"), np.ones(2)).near_singular

@@ -50,8 +50,8 @@ from .._engine import programs
 from .._engine.constraints import homogenised_output_values, output_residual
 from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.kinematics import check_design
+from .._engine.mobility import rest_jacobians
 from .._engine.model import Mechanism, per_length
-from .._engine.singularity import sigma_min_pair, stacked_jacobians
 from .._errors import MechanismFileError
 from .metrics import culled, thresholds
 from .sampling import (
@@ -167,15 +167,6 @@ class RestConditioning(NamedTuple):
         }
 
 
-def _rest_jacobians(mech: Mechanism):
-    def program(mech):
-        geom = geometry(mech)
-        state = rest_state(mech)
-        return sigma_min_pair(mech, geom, state), stacked_jacobians(mech, geom, state)
-
-    return programs.call("rest_jacobians", mech, program)
-
-
 def input_output_jacobian(
     mech: Mechanism, jac_fk: Float[np.ndarray, "R S"], jac_bk: Float[np.ndarray, "R S"]
 ) -> Float[np.ndarray, "K M"]:
@@ -193,7 +184,8 @@ def input_output_jacobian(
 
 def rest_conditioning(mech: Mechanism) -> RestConditioning:
     """:class:`RestConditioning` of the file's initial design."""
-    sigmas, (jac_fk, jac_bk) = _rest_jacobians(mech)
+    rest = rest_jacobians(mech)
+    sigmas, (jac_fk, jac_bk) = rest.sigmas, rest.stacked
     jac = input_output_jacobian(mech, np.asarray(jac_fk), np.asarray(jac_bk))
     sigma_fk, sigma_bk = (float(v) for v in np.asarray(sigmas))
     return RestConditioning(sigma_fk, sigma_bk, np.linalg.svd(jac, compute_uv=False))

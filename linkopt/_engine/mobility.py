@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import jax
 import numpy as np
+from jaxtyping import Array, Float
 
 from .._errors import MechanismFileError
 from . import programs
 from .constraints import passive_residual
 from .geometry import geometry, rest_state
 from .model import Mechanism
-from .singularity import sigma_min_pair
+from .singularity import sigma_min_pair, stacked_jacobians
 
 RANK_TOL = 1e-9  # relative to the largest singular value
 SINGULAR_TOL = (
@@ -18,29 +21,43 @@ SINGULAR_TOL = (
 )
 
 
-def _passive_jacobian(mech: Mechanism):
-    def program(mech):
-        geom = geometry(mech)
-        return jax.jacfwd(lambda s: passive_residual(mech, geom, s))(rest_state(mech))
+class RestJacobians(NamedTuple):
+    """What the load-time checks and α₋ read at the rest pose, homogenised. The FK
+    and BK Jacobians have one row per motor and per output on top of the passive
+    rows, so a file whose motor and output counts differ (refused by
+    :func:`check_mobility`) has ``sigmas`` and ``stacked`` None."""
 
-    return programs.call("passive_jacobian", mech, program)
+    passive: Float[Array, "P S"]  # ∂C_passive/∂s (motors as passive joints)
+    sigmas: Float[Array, 2] | None  # (σ_min^FK, σ_min^BK)
+    stacked: Float[Array, "2 R S"] | None  # [∂C_FK/∂s, ∂C_BK/∂s]
 
 
-def _rest_sigmas(mech: Mechanism):
-    """σ_min of the rest pose (a program whose trace is kept on disk, as every load
-    runs it: :mod:`.programs`)."""
-    return programs.call(
-        "rest_sigmas",
-        mech,
-        lambda m: sigma_min_pair(m, geometry(m), rest_state(m)),
+def _rest_program(mech: Mechanism) -> tuple:
+    geom = geometry(mech)
+    state = rest_state(mech)
+    passive = jax.jacfwd(lambda s: passive_residual(mech, geom, s))(state)
+    if mech.num_motors != mech.num_outputs:
+        return passive, None, None
+    return (
+        passive,
+        sigma_min_pair(mech, geom, state),
+        stacked_jacobians(mech, geom, state),
     )
+
+
+def rest_jacobians(mech: Mechanism) -> RestJacobians:
+    """:class:`RestJacobians` of the file's initial design: one program for every
+    check that loading runs and for α₋ (:mod:`.programs`: each new structure compiles
+    it once, where three separate programs compiled the shared Jacobian rows three
+    times)."""
+    return RestJacobians(*programs.call("rest_jacobians", mech, _rest_program))
 
 
 def mobility(mech: Mechanism) -> int:
     """Degrees of freedom at rest: ``|s| - rank(∂C_passive/∂s)`` (motors as passive
     joints). Idle spins are not counted: the passive rows include their gauge rows
     (:func:`linkopt._engine.constraints.gauge_rows`)."""
-    values = np.linalg.svd(np.asarray(_passive_jacobian(mech)), compute_uv=False)
+    values = np.linalg.svd(np.asarray(rest_jacobians(mech).passive), compute_uv=False)
     rank = int(np.sum(values > RANK_TOL * values[0]))
     return mech.state_size - rank
 
@@ -63,7 +80,7 @@ def check_mobility(mech: Mechanism) -> None:
             f"the mechanism has mobility {dof} at the rest pose but {mech.num_outputs} "
             "output(s); they must be equal",
         )
-    sigma_fk, sigma_bk = np.asarray(_rest_sigmas(mech))
+    sigma_fk, sigma_bk = np.asarray(rest_jacobians(mech).sigmas)
     if not sigma_fk >= SINGULAR_TOL:  # NaN too
         raise MechanismFileError(
             mech.source,
