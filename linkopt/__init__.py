@@ -3,11 +3,68 @@
 The public API; everything else is internal. States are homogenised (positions divided
 by ``Mechanism.length_scale``); motors, outputs, positions and designs are in file
 units.
+
+linkopt computes in float64 and keeps compiled programs in a bounded on-disk cache
+(:mod:`linkopt._config`). Importing :mod:`linkopt` does not import JAX; JAX is set up
+for linkopt when the first linkopt module that uses it is imported (on first use of a
+public name), or at once when JAX is already imported.
 """
 
+import importlib
+import sys
 from typing import TYPE_CHECKING
 
-from . import _config  # noqa: F401  (float64 and the compilation cache, first)
+#: The modules that never import JAX: the command line (it imports the rest inside its
+#: handlers) and what it checks before any computation, so that ``linkopt --help``, a
+#: usage error and a file that cannot be read answer without waiting for JAX.
+#: ``tests/test_cli_startup.py`` imports each linkopt module in a fresh process and
+#: checks that float64 is on wherever JAX was imported.
+_JAX_FREE = {
+    f"{__name__}.{name}"
+    for name in (
+        "__main__",
+        "_cache",
+        "_config",
+        "_errors",
+        "_folders",
+        "_arms",
+        "_arms.checks",
+        "_arms.dh",
+        "_arms.dh.points",
+        "_arms.limits",
+        "_arms.trace",
+        "_arms.trace.task",
+        "_design",
+        "_engine",
+        "_engine.fields",
+        "_export",
+    )
+}
+
+
+class _ConfigFirst:
+    """A finder on ``sys.meta_path`` that finds nothing: it imports :mod:`._config`
+    (float64 and the compilation cache, which must come before JAX computes anything)
+    before the first linkopt module that is not in :data:`_JAX_FREE` or the command
+    line, so that importing :mod:`linkopt`, or the command line to print its help,
+    does not import JAX."""
+
+    @staticmethod
+    def find_spec(name, path=None, target=None):
+        if (
+            name.startswith(f"{__name__}.")
+            and name not in _JAX_FREE
+            and not name.startswith(f"{__name__}._cli")
+            and f"{__name__}._config" not in sys.modules
+        ):
+            importlib.import_module("._config", __name__)
+        return None
+
+
+if not any(isinstance(finder, _ConfigFirst) for finder in sys.meta_path):
+    sys.meta_path.insert(0, _ConfigFirst())
+if "jax" in sys.modules:  # JAX is loaded already: configure it now, it costs nothing
+    from . import _config  # noqa: F401
 
 # name → (module, attribute). Imported on first use (PEP 562), so that a process that
 # needs one part (a worker evaluating designs, ``linkopt check``) does not pay for the
@@ -93,8 +150,6 @@ def __getattr__(name: str):
         module, attribute = _EXPORTS[name]
     except KeyError:
         raise AttributeError(f"module 'linkopt' has no attribute {name!r}") from None
-    import importlib
-
     value = getattr(importlib.import_module(f".{module}", __name__), attribute)
     globals()[name] = value
     return value

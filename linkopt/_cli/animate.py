@@ -17,19 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._design.animation import (
-    DEFAULT_FRAMES,
-    MAX_FRAMES,
-    check_frames,
-    default_path,
-    draw,
-    motion,
-    unreached_message,
-)
-from .._engine.kinematics import MAX_VALUE
-from .._engine.loader import load
 from .._errors import InputError
-from .values import MAX_ROWS, design_arg, read_values
+from .constants import constant
+from .values import MAX_ROWS, design_arg, load, read_values
 
 
 def _header(arg: str) -> list[str] | None:
@@ -48,6 +38,9 @@ def _header(arg: str) -> list[str] | None:
 def path_rows(mech, arg: str) -> tuple[str, np.ndarray]:
     """``--path``: ``("fk", motor rows)`` or ``("bk", output rows)`` from a CSV file
     whose header names the motors or the outputs; at most ``MAX_FRAMES`` rows."""
+    from .._design.animation import MAX_FRAMES
+    from .._engine.kinematics import MAX_VALUE
+
     if not Path(arg).is_file():
         raise InputError(f"--path: {arg}: no such CSV file")
     header = _header(arg)
@@ -86,6 +79,8 @@ def _out(text: str) -> Path:
 
 def _note_short_frames(mech, item, frames: int, design) -> None:
     """A note on the frames of the default loop that the design does not reach."""
+    from .._design.animation import default_path, unreached_message
+
     pulled = int(np.sum(np.any(item.path != default_path(mech, frames, design), 1)))
     if pulled:
         print(
@@ -101,11 +96,19 @@ def _note_short_frames(mech, item, frames: int, design) -> None:
 
 
 def run_animate(args) -> int:
-    mech = load(args.file)
     out = _out(args.out)
-    design = design_arg(mech, args.design)
     if args.path is not None and args.frames is not None:
         raise InputError("--frames: not with --path (each row of the CSV is a frame)")
+    mech = load(args.file)
+    from .._design.animation import (
+        DEFAULT_FRAMES,
+        check_frames,
+        draw,
+        motion,
+        unreached_message,
+    )
+
+    design = design_arg(mech, args.design)
     frames = check_frames(
         DEFAULT_FRAMES if args.frames is None else args.frames, "--frames"
     )
@@ -136,6 +139,8 @@ def run_animate(args) -> int:
 
 def register(subparsers) -> None:
     """Add ``animate`` to the ``linkopt`` sub-commands."""
+    default_frames = constant("_design.animation", "DEFAULT_FRAMES")
+    max_frames = constant("_design.animation", "MAX_FRAMES")
     cmd = subparsers.add_parser(
         "animate", help="GIF of the mechanism moving along a path"
     )
@@ -149,14 +154,14 @@ def register(subparsers) -> None:
         "--frames",
         type=int,
         default=None,
-        help=f"frames of the default loop (default {DEFAULT_FRAMES}, at most "
-        f"{MAX_FRAMES})",
+        help=f"frames of the default loop (default {default_frames}, at most "
+        f"{max_frames})",
     )
     cmd.add_argument(
         "--path",
         help=(
             "CSV file of motor or output rows (header: their names), one frame each, "
-            f"at most {MAX_FRAMES}"
+            f"at most {max_frames}"
         ),
     )
     cmd.set_defaults(run=run_animate)

@@ -26,15 +26,16 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._arms import checks
-from .._arms.codesign import nlp
-from .._arms.codesign.model import mechanism_definition
-from .._engine.writer import dumps
 from .._errors import InputError
 from .._folders import run_folder, staged
+
+if TYPE_CHECKING:
+    from .._arms.codesign import nlp
 
 
 def _progress(solution: nlp.ArmSolution) -> None:
@@ -68,6 +69,7 @@ def write_solution(
     problem: nlp.Problem, solution: nlp.ArmSolution, out: Path, prefix: str = ""
 ) -> dict:
     """Write one solved arm (module docstring); returns its summary dictionary."""
+    from .._arms.codesign import nlp
     from .._arms.codesign.plots import plot_solution
 
     arm = problem.arm
@@ -99,6 +101,9 @@ def write_solution(
 
 def _write_design(arm, solution: nlp.ArmSolution, path: Path) -> None:
     """The arm at its optimised design as a mechanism file, the design in a header."""
+    from .._arms.codesign.model import mechanism_definition
+    from .._engine.writer import dumps
+
     header = (
         f"{arm.name}: optimised by linkopt arm (paper 000), "
         f"feasible = {solution.feasible}\n"
@@ -152,6 +157,8 @@ def _write_tables(
 def _write_constraints(
     problem: nlp.Problem, solution: nlp.ArmSolution, z, report: dict, path: Path
 ) -> None:
+    from .._arms.codesign import nlp
+
     _, _, g, _ = nlp.evaluate(problem, z)
     path.write_text(
         json.dumps(
@@ -173,9 +180,9 @@ MAX_WORKERS = 64
 
 
 def _check_arguments(args) -> None:
-    from .._arms.codesign.task import LIMITS
-
     if args.starts is not None:
+        from .._arms.codesign.task import LIMITS
+
         checks.count(args.starts, "--starts", maximum=LIMITS["solver"]["starts"])
     if args.seed is not None:
         checks.seed(args.seed, "--seed")
@@ -186,9 +193,9 @@ def _check_arguments(args) -> None:
 
 def _task(args):
     """The checked arguments' task file, loaded: all input is checked here."""
+    _check_arguments(args)
     from .._arms.codesign.task import load_task
 
-    _check_arguments(args)
     task = load_task(args.task)
     joints = task.arm.num_joints
     if hasattr(args, "min_joints") and args.min_joints > joints:
@@ -200,6 +207,8 @@ def _task(args):
 
 
 def _solve(args, task):
+    from .._arms.codesign import nlp
+
     problem = nlp.prepare(task)
     print(
         f"{task.name}: {task.arm.num_joints} joints, {task.arm.num_design} design "

@@ -18,13 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._engine.assembly import NEAR_SINGULAR, assemble
 from .._engine.fields import parse_text
-from .._engine.geometry import rest_state
-from .._engine.loader import build
-from .._engine.mobility import check_mobility
-from .._engine.singularity import singular_values
-from .._engine.writer import dumps
 from .._errors import InputError
 from .._folders import write_atomic
 from .values import parse_row
@@ -43,7 +37,15 @@ def run_assemble(args) -> int:
             "in an existing folder"
         )
     data = parse_text(source)
-    result = assemble(data, str(source), _motor_values(args.motors, data))
+    motors = _motor_values(args.motors, data)
+    from .._engine.assembly import assemble
+    from .._engine.geometry import rest_state
+    from .._engine.loader import build
+    from .._engine.mobility import check_mobility
+    from .._engine.singularity import singular_values
+    from .._engine.writer import dumps
+
+    result = assemble(data, str(source), motors)
     mech = build(copy.deepcopy(result.data), str(out), check=False)
     sigma_fk, sigma_bk = (float(v) for v in singular_values(mech, rest_state(mech)))
     check_mobility(mech)
@@ -86,6 +88,8 @@ def _header(source: Path, report) -> str:
 
 
 def _payload(source: Path, out: Path, report, sigma_fk: float, sigma_bk: float):
+    from .._engine.assembly import NEAR_SINGULAR
+
     warnings = []
     if not sigma_fk >= NEAR_SINGULAR:  # NaN too
         warnings.append(

@@ -14,18 +14,22 @@ from pathlib import Path
 
 import numpy as np
 
-from .._design.evaluation import alpha_minus, evaluate, rest_conditioning
-from .._design.maps import MAX_CELLS, check_count, check_plot_resolution
-from .._engine.loader import load
-from .._engine.readout import output_values
 from .._errors import InputError
 from .._folders import output_folder
-from .values import design_arg
+from .constants import constant
+from .values import design_arg, load
 
 _DESIGN_HELP = (
     "design values in parameter order (comma-separated), or a mechanism file with "
     "the same parameters"
 )
+
+
+def evaluate(mech, design):
+    """:func:`linkopt.evaluate`, its module imported on the first call."""
+    from .._design.evaluation import evaluate
+
+    return evaluate(mech, design)
 
 
 def _motors(mech, motors) -> dict:
@@ -56,7 +60,8 @@ def _sample(mech, ev, t: int, goal, ik_out, adv_out) -> dict:
 
 def evaluation_payload(mech, ev) -> dict:
     """What ``linkopt evaluate`` reports (``--json``) for one evaluation."""
-    from .._design.evaluation import capped, targets
+    from .._design.evaluation import alpha_minus, capped, rest_conditioning, targets
+    from .._engine.readout import output_values
 
     ik_out = np.asarray(output_values(mech, ev.ik_states))
     adv_out = np.asarray(output_values(mech, ev.adv_states))
@@ -125,14 +130,16 @@ def run_evaluate(args) -> int:
 
 
 def run_plot(args) -> int:
-    from .._design.plots import plot_mechanism
-
-    mech = load(args.file)
-    design = design_arg(mech, args.design)
     if args.resolution is not None and args.resolution < 8:
         raise InputError(
             f"--resolution: expected at least 8 cells per axis, got {args.resolution}"
         )
+    label = _label(args.label, args.design)
+    mech = load(args.file)
+    from .._design.maps import check_count, check_plot_resolution
+    from .._design.plots import plot_mechanism
+
+    design = design_arg(mech, args.design)
     max_cells = check_count(args.max_cells, "--max-cells", 1)
     spaces = mech.num_motors == mech.num_outputs and mech.num_motors in (2, 3)
     resolution = args.resolution
@@ -144,7 +151,6 @@ def run_plot(args) -> int:
             max_cells=max_cells,
             raise_with="--max-cells",
         )
-    label = _label(args.label, design)
     out = output_folder(args.out, "--out")  # before any solve: a bad --out is exit 2
     stem = Path(args.file).stem
     if spaces:
@@ -163,8 +169,9 @@ def run_plot(args) -> int:
     return 0
 
 
-def _label(label: str | None, design) -> str:
-    """``--label``, a plain file-name part (default 'initial', or 'design')."""
+def _label(label: str | None, design: str | None) -> str:
+    """``--label``, a plain file-name part (default 'initial', or 'design' with
+    ``--design``)."""
     if label is None:
         return "initial" if design is None else "design"
     if not label or label in (".", "..") or any(c in label for c in "/\\\0"):
@@ -248,15 +255,16 @@ def verification_payload(mech, result) -> dict:
 
 
 def run_verify(args) -> int:
-    from .._design.verify import check_resolution, verify
-
-    mech = load(args.file)
-    design = design_arg(mech, args.design)
     if args.resolution is not None and args.resolution < 2:
         raise InputError(
             "--resolution: expected at least 2 points per output, "
             f"got {args.resolution}"
         )
+    mech = load(args.file)
+    from .._design.maps import check_count
+    from .._design.verify import check_resolution, verify
+
+    design = design_arg(mech, args.design)
     max_cells = check_count(args.max_cells, "--max-cells", 1)
     resolution = check_resolution(
         mech,
@@ -309,12 +317,13 @@ def register(subparsers) -> None:
 
 
 def _add_max_cells(cmd) -> None:
+    max_cells = constant("_design.maps", "MAX_CELLS")
     cmd.add_argument(
         "--max-cells",
         type=int,
-        default=MAX_CELLS,
+        default=max_cells,
         help=(
-            f"refuse a grid of more cells (default {MAX_CELLS}); the estimated "
+            f"refuse a grid of more cells (default {max_cells}); the estimated "
             "memory is capped too (12 GiB)"
         ),
     )

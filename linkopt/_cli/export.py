@@ -12,10 +12,9 @@ import json
 import time
 from pathlib import Path
 
-from .._engine.loader import load
 from .._errors import InputError
 from .._folders import output_folder
-from .values import design_arg
+from .values import design_arg, load
 
 FORMATS = ("mjcf", "urdf", "stl", "glb")
 

@@ -7,6 +7,13 @@ Each command family lives in its own module with a ``register(subparsers)``:
 :mod:`.manipulability` and :mod:`.trace`. This module assembles the parser and handles
 what every command shares.
 
+Building the parser imports no part of the engine (nor JAX): the command modules import
+it inside their handlers, and the defaults and limits the help shows are read from the
+engine's source (:mod:`.constants`). A handler checks first what needs neither the file
+nor the engine, then reads the file (:func:`.values.load`: an unreadable or malformed
+file is refused before the engine is imported), and imports the engine only then, so
+that ``--help``, a usage error and a bad flag or file answer at once.
+
 Bad input exits with status 2 and one line on stderr (argparse's own errors too: the
 usage text is left to ``--help``); a failed solve exits with 1.
 """
@@ -49,7 +56,8 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageError(self.prog, " ".join(message.split()))
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
+    """The ``linkopt`` argument parser, with every command."""
     parser = _Parser(
         prog="linkopt",
         description="Singularity-aware design of closed-loop spatial linkages.",
@@ -99,7 +107,7 @@ def _join_value_options(argv: list[str]) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     try:
-        args = _parser().parse_args(_join_value_options(list(argv)))
+        args = build_parser().parse_args(_join_value_options(list(argv)))
     except _UsageError as err:
         print(err, file=sys.stderr)
         return 2

@@ -23,22 +23,20 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._arms import checks
-from .._arms.dh.drawing import draw
 from .._arms.dh.points import read_points
-from .._arms.dh.synthesis import (
-    LIMITS,
-    DHSynthesis,
-    DHSynthesisSettings,
-    configurations,
-    engine_report,
-    rest_configuration,
-    synthesize_dh,
-)
 from .._folders import run_folder, staged
+from .constants import constant, defaults
+
+if TYPE_CHECKING:
+    from .._arms.dh.synthesis import DHSynthesis, DHSynthesisSettings
+
+#: Where the synthesis and its settings live (:func:`.constants.defaults`).
+SYNTHESIS = "_arms.dh.synthesis"
 
 CONVENTION = (
     "A_i = Rot_z(theta_i) Trans_z(d_i) Trans_x(a_i) Rot_x(alpha_i) (standard, distal "
@@ -48,6 +46,8 @@ CONVENTION = (
 
 def _joints_argument(text: str) -> str | int:
     """``--joints``: an R/P string or a number of joints, checked before any work."""
+    from .._arms.dh.synthesis import configurations
+
     stripped = text.strip()
     joints = int(stripped) if stripped.isdigit() else stripped
     configurations(joints, "--joints")
@@ -109,6 +109,8 @@ def _payload(
     synthesis: DHSynthesis, report: dict, results: dict, settings: DHSynthesisSettings
 ) -> dict:
     """The content of ``dh.json``."""
+    from .._arms.dh.synthesis import rest_configuration
+
     types, table = synthesis.types, synthesis.table
     revolute = [c == "R" for c in types]
     targets = _targets(synthesis, report)
@@ -139,8 +141,17 @@ def _progress(types: str, synthesis: DHSynthesis) -> None:
     )
 
 
+def synthesize_dh(points, joints, settings, progress):
+    """:func:`linkopt.synthesize_dh`, its module imported on the first call."""
+    from .._arms.dh.synthesis import synthesize_dh
+
+    return synthesize_dh(points, joints, settings, progress=progress)
+
+
 def _settings(args) -> DHSynthesisSettings:
     """The synthesis settings of the command's options."""
+    from .._arms.dh.synthesis import DHSynthesisSettings
+
     return DHSynthesisSettings(
         precision=args.precision,
         size_damping=args.size_damping,
@@ -153,13 +164,14 @@ def _settings(args) -> DHSynthesisSettings:
 def _check_flags(args) -> None:
     """Every flag meaningful and within :data:`~linkopt._arms.dh.synthesis.LIMITS`,
     before any work."""
+    limits = constant(SYNTHESIS, "LIMITS")
     checks.number(
-        args.precision, "--precision", positive=True, maximum=LIMITS["weights"]
+        args.precision, "--precision", positive=True, maximum=limits["weights"]
     )
-    checks.number(args.size_damping, "--size-damping", maximum=LIMITS["weights"])
+    checks.number(args.size_damping, "--size-damping", maximum=limits["weights"])
     checks.seed(args.seed, "--seed")
-    checks.count(args.starts, "--starts", maximum=LIMITS["starts"])
-    checks.count(args.iterations, "--iterations", maximum=LIMITS["max_iterations"])
+    checks.count(args.starts, "--starts", maximum=limits["starts"])
+    checks.count(args.iterations, "--iterations", maximum=limits["max_iterations"])
 
 
 def run(args) -> int:
@@ -199,6 +211,9 @@ def _write_files(
 ) -> tuple[dict, dict]:
     """``arm.toml``, ``dh.json`` and ``manipulability.png``; returns the engine
     report and the ``dh.json`` payload."""
+    from .._arms.dh.drawing import draw
+    from .._arms.dh.synthesis import engine_report, rest_configuration
+
     _, text, report = engine_report(best, name=f"{best.types} arm from {source}")
     header = (
         "# DH arm synthesised by `linkopt arm manipulability` (paper 004) from "
@@ -256,25 +271,20 @@ def register(arm_subparsers) -> None:
         required=True,
         help="output directory (dh.json, arm.toml, manipulability.png)",
     )
-    p.add_argument(
-        "--precision", type=float, default=25.0, help="ε of eq. 8-10 (default 25)"
-    )
-    p.add_argument(
-        "--size-damping", type=float, default=12.0, help="ξ of eq. 9-10 (default 12)"
-    )
-    p.add_argument(
-        "--seed",
-        type=int,
-        default=0,
-        help="seed of the multi-start initial guesses (default 0)",
-    )
-    p.add_argument(
-        "--starts", type=int, default=8, help="number of seeded starts (default 8)"
-    )
-    p.add_argument(
-        "--iterations",
-        type=int,
-        default=4000,
-        help="L-BFGS iteration cap per minimisation (default 4000)",
-    )
+    d = defaults(SYNTHESIS, "DHSynthesisSettings")
+    for flag, kind, default, text in (
+        ("--precision", float, d.precision, "ε of eq. 8-10"),
+        ("--size-damping", float, d.size_damping, "ξ of eq. 9-10"),
+        ("--seed", int, d.seed, "seed of the multi-start initial guesses"),
+        ("--starts", int, d.starts, "number of seeded starts"),
+        (
+            "--iterations",
+            int,
+            d.max_iterations,
+            "L-BFGS iteration cap per minimisation",
+        ),
+    ):
+        p.add_argument(
+            flag, type=kind, default=default, help=f"{text} (default {default:g})"
+        )
     p.set_defaults(run=run)

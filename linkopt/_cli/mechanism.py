@@ -11,19 +11,7 @@ import sys
 
 import numpy as np
 
-from .._design.evaluation import near_singular_message, rest_conditioning
-from .._design.maps import check_count
-from .._engine.kinematics import (
-    MAX_VALUE,
-    solve_bk,
-    solve_bk_path,
-    solve_fk,
-    solve_fk_path,
-)
-from .._engine.loader import load
-from .._engine.model import OUTPUT_KINDS
-from . import payloads
-from .values import MAX_ROWS, design_arg, read_values
+from .values import MAX_ROWS, design_arg, load, read_values
 
 
 def _print_table(title: str, items: dict) -> None:
@@ -37,6 +25,8 @@ def run_check(args) -> int:
     a valid mechanism (the file may set ``alpha_minus``), so it is said, not
     refused."""
     mech = load(args.file)
+    from . import payloads
+
     info = payloads.summary(mech)
     info["rest_pose"], warnings = _rest_pose(mech)
     info["warnings"] = warnings
@@ -60,6 +50,8 @@ def run_check(args) -> int:
 def _rest_pose(mech) -> tuple[dict, list[str]]:
     """The rest pose's conditioning (homogenised σ_min and f_sing, and the singular
     values of the textbook Jacobian ∂b/∂a in file units) and the warnings about it."""
+    from .._design.evaluation import near_singular_message, rest_conditioning
+
     rest = rest_conditioning(mech)
     info = rest.as_json()
     warnings = []
@@ -131,6 +123,16 @@ def _print_summary(info: dict) -> None:
 def run_solve(args, kind: str) -> int:
     """``linkopt fk`` (``kind`` "fk") or ``linkopt bk`` ("bk")."""
     mech = load(args.file)
+    from .._design.maps import check_count
+    from .._engine.kinematics import (
+        MAX_VALUE,
+        solve_bk,
+        solve_bk_path,
+        solve_fk,
+        solve_fk_path,
+    )
+    from . import payloads
+
     names = mech.motor_names if kind == "fk" else mech.output_names
     what = "motors" if kind == "fk" else "outputs"
     scale = mech.motor_scale if kind == "fk" else mech.output_scale
@@ -171,6 +173,8 @@ def run_solve(args, kind: str) -> int:
 
 def _miss(mech, kind: str, reached: np.ndarray, asked: np.ndarray) -> float:
     """Largest ``|reached - asked|``, angles compared modulo 2π (file units)."""
+    from .._engine.model import OUTPUT_KINDS
+
     if kind == "fk":
         angular = ~np.asarray(mech.motor_linear, dtype=bool)
     else:

@@ -23,9 +23,10 @@ import os
 import sys
 from pathlib import Path
 
-from .._engine.loader import load
 from .._errors import InputError
+from .constants import defaults
 from .evaluation import map_progress
+from .values import load
 
 WORKERS = max(1, min(2, os.cpu_count() or 1))
 #: Most sample lanes (particles x IK targets) one iteration may evaluate: the five-bar's
@@ -48,12 +49,9 @@ _SUMMARY_KEYS = (
 )
 
 
-def _check_arguments(args, mech) -> None:
-    if mech.design.size == 0:
-        raise InputError(
-            f"{args.file}: [[parameters]]: the file declares no design parameters "
-            "to optimise"
-        )
+def check_run_flags(args) -> None:
+    """The run options ``optimize`` and ``sweep`` share (all but ``--seed``), checked
+    before the file is read."""
     for flag in ("particles", "iterations", "workers"):
         if getattr(args, flag) < 1:
             raise InputError(
@@ -69,9 +67,6 @@ def _check_arguments(args, mech) -> None:
             f"--workers: expected at most {MAX_WORKERS} processes (each holds its own "
             f"JAX runtime), got {args.workers}"
         )
-    _check_work(args, mech)
-    if args.seed < 0:
-        raise InputError(f"--seed: expected a non-negative integer, got {args.seed}")
     if args.resolution is not None and args.resolution < 8:  # before the run
         raise InputError(
             f"--resolution: expected at least 8 cells per axis, got {args.resolution}"
@@ -81,6 +76,22 @@ def _check_arguments(args, mech) -> None:
             "--tolerance must be > 0, --improvement in [0, 1), --patience >= 0; "
             f"got {args.tolerance}, {args.improvement}, {args.patience}"
         )
+    if args.scheduler is not None and not args.connect_timeout > 0:
+        raise InputError(
+            f"--connect-timeout: expected a positive number of seconds, got "
+            f"{args.connect_timeout}"
+        )
+
+
+def check_mechanism(args, mech) -> None:
+    """What the run options ask of the file: design parameters, and a swarm whose
+    iterations finish (:func:`_check_work`)."""
+    if mech.design.size == 0:
+        raise InputError(
+            f"{args.file}: [[parameters]]: the file declares no design parameters "
+            "to optimise"
+        )
+    _check_work(args, mech)
 
 
 def _round_line(record: dict) -> str:
@@ -140,11 +151,14 @@ def _progress():
 
 
 def run_optimize(args) -> int:
+    check_run_flags(args)
+    if args.seed < 0:
+        raise InputError(f"--seed: expected a non-negative integer, got {args.seed}")
+    mech = load(args.file)
     from .._design.optimizer import OptimizerSettings
     from .._design.run import locked_run_folder, write_outputs
 
-    mech = load(args.file)
-    _check_arguments(args, mech)
+    check_mechanism(args, mech)
     settings = OptimizerSettings(
         particles=args.particles,
         iterations=args.iterations,
@@ -194,31 +208,12 @@ def _optimize(args, mech, settings):
     cluster's workers (:mod:`linkopt._design.cluster`)."""
     from .._design.run import optimize
 
+    run = {"resume": args.resume, "progress": _progress(), "workers": args.workers}
     if args.scheduler is None:
-        return optimize(
-            mech,
-            args.out,
-            settings,
-            resume=args.resume,
-            progress=_progress(),
-            workers=args.workers,
-        )
-    if not args.connect_timeout > 0:
-        raise InputError(
-            f"--connect-timeout: expected a positive number of seconds, got "
-            f"{args.connect_timeout}"
-        )
+        return optimize(mech, args.out, settings, **run)
     cluster = cluster_module()
     with cluster.connect(args.scheduler, args.connect_timeout) as client:
-        return cluster.optimize_on_cluster(
-            client,
-            mech,
-            args.out,
-            settings,
-            resume=args.resume,
-            progress=_progress(),
-            workers=args.workers,
-        )
+        return cluster.optimize_on_cluster(client, mech, args.out, settings, **run)
 
 
 def cluster_module():
@@ -257,8 +252,6 @@ def add_scheduler_options(opt, what: str) -> None:
 def register(subparsers) -> None:
     """Add ``optimize`` to the ``linkopt`` sub-commands; its defaults are those of
     :class:`~linkopt.OptimizerSettings`."""
-    from .._design.optimizer import OptimizerSettings
-
     opt = subparsers.add_parser(
         "optimize",
         help=(
@@ -272,9 +265,9 @@ def register(subparsers) -> None:
         required=True,
         help="run directory (checkpoint, history, optimised file, figures)",
     )
-    defaults = OptimizerSettings()
-    _add_swarm_options(opt, defaults)
-    _add_stopping_options(opt, defaults)
+    settings = defaults("_design.optimizer", "OptimizerSettings")
+    add_swarm_options(opt, settings)
+    add_stopping_options(opt, settings)
     opt.add_argument(
         "--resume", action="store_true", help="continue the run checkpointed in --out"
     )
@@ -301,8 +294,10 @@ def register(subparsers) -> None:
     opt.set_defaults(run=run_optimize)
 
 
-def _add_swarm_options(opt, d) -> None:
-    """``--particles``, ``--iterations``, ``--seed``, ``--mode``."""
+def add_swarm_options(opt, d, seed: bool = True, each: str = "") -> None:
+    """``--particles``, ``--iterations`` (the cap ``each`` run), ``--seed`` (with
+    ``seed``), ``--mode``; ``d`` holds :class:`~linkopt.OptimizerSettings`'s
+    defaults."""
     opt.add_argument(
         "--particles",
         type=int,
@@ -313,11 +308,12 @@ def _add_swarm_options(opt, d) -> None:
         "--iterations",
         type=int,
         default=d.iterations,
-        help=f"iteration cap (default {d.iterations})",
+        help=f"iteration cap{each} (default {d.iterations})",
     )
-    opt.add_argument(
-        "--seed", type=int, default=d.seed, help=f"random seed (default {d.seed})"
-    )
+    if seed:
+        opt.add_argument(
+            "--seed", type=int, default=d.seed, help=f"random seed (default {d.seed})"
+        )
     opt.add_argument(
         "--mode",
         choices=["hybrid", "gradient"],
@@ -326,8 +322,8 @@ def _add_swarm_options(opt, d) -> None:
     )
 
 
-def _add_stopping_options(opt, d) -> None:
-    """``--tolerance``, ``--patience``, ``--improvement``."""
+def add_stopping_options(opt, d) -> None:
+    """``--tolerance``, ``--patience``, ``--improvement``, ``--verify-rounds``."""
     opt.add_argument(
         "--tolerance",
         type=float,

@@ -18,9 +18,10 @@ import sys
 import time
 from pathlib import Path
 
-from .._engine.loader import load
 from .._errors import InputError
 from . import optimize as optimize_cli
+from .constants import defaults
+from .values import load
 
 
 def _settings(args, seed: int):
@@ -105,21 +106,16 @@ def _on_cluster(args, mech, seeds, report) -> list[dict]:
 
 
 def run_sweep(args) -> int:
+    optimize_cli.check_run_flags(args)
+    mech = load(args.file)
     from .._design.run import locked_run_folder
     from .._design.sweep import parse_seeds, write_summary
 
-    mech = load(args.file)
     try:
         seeds = parse_seeds(args.seeds)
     except ValueError as err:
         raise InputError(f"--seeds: expected A:B or a comma list; {err}") from None
-    args.seed, args.resume = seeds[0], False  # what optimize's checks read
-    optimize_cli._check_arguments(args, mech)
-    if args.scheduler is not None and not args.connect_timeout > 0:
-        raise InputError(
-            f"--connect-timeout: expected a positive number of seconds, got "
-            f"{args.connect_timeout}"
-        )
+    optimize_cli.check_mechanism(args, mech)
     began = time.perf_counter()
     done = []
 
@@ -157,8 +153,6 @@ def run_sweep(args) -> int:
 
 def register(subparsers) -> None:
     """Add ``sweep``; its run options are ``optimize``'s."""
-    from .._design.optimizer import OptimizerSettings
-
     opt = subparsers.add_parser(
         "sweep",
         help="independent optimisations, one per seed, in DIR/seed_NNN (resumable)",
@@ -174,26 +168,9 @@ def register(subparsers) -> None:
         required=True,
         help="sweep directory: seed_NNN run folders, summary.csv, best.toml",
     )
-    d = OptimizerSettings()
-    opt.add_argument(
-        "--particles",
-        type=int,
-        default=d.particles,
-        help=f"swarm size (default {d.particles})",
-    )
-    opt.add_argument(
-        "--iterations",
-        type=int,
-        default=d.iterations,
-        help=f"iteration cap of each run (default {d.iterations})",
-    )
-    opt.add_argument(
-        "--mode",
-        choices=["hybrid", "gradient"],
-        default=d.mode,
-        help="hybrid PSO + partial gradient (default), or partial gradient only",
-    )
-    optimize_cli._add_stopping_options(opt, d)
+    settings = defaults("_design.optimizer", "OptimizerSettings")
+    optimize_cli.add_swarm_options(opt, settings, seed=False, each=" of each run")
+    optimize_cli.add_stopping_options(opt, settings)
     opt.add_argument(
         "--workers",
         type=int,

@@ -28,6 +28,7 @@ from pathlib import Path
 from .._arms import checks
 from .._errors import InputError
 from .._folders import run_folder, staged
+from .constants import defaults
 
 
 def register(arm_subparsers) -> None:
@@ -43,20 +44,24 @@ def register(arm_subparsers) -> None:
         help="task file (TOML: primitives, obstacles, base_regions, link diameter)",
     )
     p.add_argument("--out", required=True, help="output directory")
+    d = defaults("_arms.trace.synthesis", "TraceSettings")
     p.add_argument(
         "--seed", type=int, default=0, help="seed of the initial guesses (default 0)"
     )
     p.add_argument(
-        "--restarts", type=int, default=6, help="initial guesses per stage (default 6)"
+        "--restarts",
+        type=int,
+        default=d.restarts,
+        help=f"initial guesses per stage (default {d.restarts})",
     )
     p.add_argument(
         "--best-of",
         type=int,
-        default=1,
+        default=d.best_of,
         metavar="K",
         help=(
             "collect K verified designs in the first successful stage and keep the "
-            "shortest (default 1)"
+            f"shortest (default {d.best_of})"
         ),
     )
     p.add_argument(
@@ -98,11 +103,12 @@ def _say(msg: str) -> None:
 
 
 def run(args) -> int:
-    from .._arms.trace.synthesis import TraceSettings, synthesize
     from .._arms.trace.task import load_task
 
     _check_flags(args)
     task = load_task(args.task)
+    from .._arms.trace.synthesis import TraceSettings, synthesize
+
     with run_folder(args.out) as out:
         result = synthesize(
             task,

@@ -1,5 +1,5 @@
-"""Values given on the command line: ``v1,v2,...`` rows, CSV files of rows, and
-``--design``.
+"""Values given on the command line: the mechanism file (:func:`load`), ``v1,v2,...``
+rows, CSV files of rows, and ``--design``.
 
 Each reader raises :class:`~linkopt.InputError` with one line naming the option or the
 file (and row) and what was expected. Values are finite and, where ``bounds`` are
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._engine.loader import load
+from .._engine.fields import parse_text
 from .._errors import InputError
 
 #: Largest CSV file read (bytes): a path of :data:`MAX_ROWS` rows of a few numbers each
@@ -165,6 +165,17 @@ def _is_number(text: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+def load(path):
+    """The mechanism file at ``path``, as :func:`linkopt.load` reads it; a file that
+    cannot be read or is not TOML is refused before the engine (and JAX) is
+    imported."""
+    path = Path(path)
+    data = parse_text(path)
+    from .._engine.loader import build
+
+    return build(data, str(path))
 
 
 def design_arg(mech, text: str | None) -> np.ndarray | None:

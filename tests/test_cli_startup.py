@@ -1,0 +1,291 @@
+"""The command line answers without JAX, and linkopt turns float64 on wherever JAX is
+imported through it (issue 29).
+
+``--help`` of every command, a usage error, a flag out of range and a file that cannot
+be read or is not TOML answer before the engine (and JAX, most of the start-up) is
+imported; the defaults and limits the parser shows, read from the engine's source
+(:mod:`linkopt._cli.constants`), are the engine's own. Importing :mod:`linkopt` imports
+no JAX; every linkopt module that imports it, imported alone in a fresh process, finds
+float64 on (:mod:`linkopt._config` comes first).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from linkopt._cli.constants import constant, defaults
+from linkopt._cli.main import build_parser
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "linkopt"
+FIVE_BAR = str(ROOT / "mechanisms" / "five_bar.toml")
+TASKS = ROOT / "tasks"
+POINTS = str(TASKS / "curve_cos5t_sin3t_sint.csv")
+TRACE_TASK = str(TASKS / "wipe_table.toml")
+ARM_TASK = str(TASKS / "elimination_square.toml")
+#: The commands that read a mechanism file, with the arguments each needs besides it.
+MECHANISM_COMMANDS = {
+    "check": [],
+    "fk": ["--motors", "0,0"],
+    "bk": ["--outputs", "0,0"],
+    "evaluate": [],
+    "plot": ["--out", "{tmp}/plot"],
+    "verify": [],
+    "optimize": ["--out", "{tmp}/run"],
+    "sweep": ["--seeds", "0:2", "--out", "{tmp}/sweep"],
+    "export": ["--format", "mjcf", "--out", "{tmp}/five_bar.xml"],
+    "animate": ["--out", "{tmp}/motion.gif"],
+    "assemble": ["--out", "{tmp}/assembled.toml"],
+}
+
+#: Runs ``linkopt`` (its ``main``, as ``python -m linkopt`` does) on each command line
+#: in turn, output swallowed, and prints per line the exit status and whether JAX was
+#: imported by then; stops at the first that imported it.
+SCRIPT = """
+import contextlib, io, json, sys
+from linkopt._cli.main import main
+results = []
+for argv in json.loads(sys.argv[1]):
+    with contextlib.redirect_stdout(io.StringIO()) as out, \\
+            contextlib.redirect_stderr(io.StringIO()) as err:
+        try:
+            status = main(argv)
+        except SystemExit as exit_:
+            status = exit_.code
+    results.append([argv, status, "jax" in sys.modules, err.getvalue()])
+    if "jax" in sys.modules:
+        break
+print(json.dumps(results))
+"""
+
+
+def _python(code: str, *args: str) -> subprocess.CompletedProcess:
+    """``python -c code args`` in a fresh process, in the repository root; asserts
+    that it exits 0."""
+    done = subprocess.run(
+        [sys.executable, "-c", code, *args],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    return done
+
+
+def _command_paths(parser: argparse.ArgumentParser, path=()):
+    """Every command of ``parser``: ``()``, ``("check",)``, ``("arm", "trace")``..."""
+    yield path
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _command_paths(sub, (*path, name))
+
+
+def _without_jax(argvs: list[list[str]]) -> list:
+    """Each command line's ``[argv, status, jax imported, stderr]``, in a fresh
+    process."""
+    results = json.loads(_python(SCRIPT, json.dumps(argvs)).stdout)
+    for argv, status, jax, err in results:
+        assert not jax, f"linkopt {' '.join(argv)} imported jax (exit {status}: {err})"
+    assert len(results) == len(argvs)
+    return results
+
+
+def test_python_m_linkopt_help_does_not_import_jax():
+    code = (
+        "import runpy, sys\n"
+        "sys.argv = ['linkopt', '--help']\n"
+        "try:\n"
+        "    runpy.run_module('linkopt', run_name='__main__', alter_sys=True)\n"
+        "except SystemExit as exit_:\n"
+        "    assert exit_.code == 0, exit_.code\n"
+        "heavy = sorted(m for m in sys.modules if m.split('.')[0] in\n"
+        "               ('jax', 'jaxlib', 'scipy', 'matplotlib', 'pyswarms'))\n"
+        "assert not heavy, heavy\n"
+    )
+    assert "usage: linkopt" in _python(code).stdout
+
+
+def test_every_help_answers_without_jax():
+    paths = list(_command_paths(build_parser()))
+    assert ("optimize",) in paths and ("arm", "trace") in paths
+    results = _without_jax([[*path, "--help"] for path in paths])
+    assert all(status == 0 for _, status, _, _ in results)
+
+
+def test_usage_errors_and_bad_flags_answer_without_jax(tmp_path):
+    tmp = str(tmp_path)
+    usage = [
+        [],
+        ["no-such-command"],
+        ["check"],
+        ["fk", FIVE_BAR],
+        ["export", FIVE_BAR, "--format", "xyz", "--out", f"{tmp}/x"],
+        ["optimize", FIVE_BAR, "--out", f"{tmp}/run", "--particles", "many"],
+    ]
+    optimize = ["optimize", FIVE_BAR, "--out", f"{tmp}/run"]
+    sweep = ["sweep", FIVE_BAR, "--seeds", "0:2", "--out", f"{tmp}/sweep"]
+    scheduler = ["--scheduler", "tcp://127.0.0.1:1", "--connect-timeout"]
+    plot = ["plot", FIVE_BAR, "--out", f"{tmp}/plot"]
+    animate = ["animate", FIVE_BAR, "--out"]
+    dh = ["arm", "manipulability", POINTS, "--out", f"{tmp}/m"]
+    trace = ["arm", "trace", TRACE_TASK, "--out", f"{tmp}/t"]
+    flags = [  # (the flag the error names, the command line)
+        ("--particles", [*optimize, "--particles", "0"]),
+        ("--seed", [*optimize, "--seed", "-1"]),
+        ("--resolution", [*optimize, "--resolution", "4"]),
+        ("--connect-timeout", [*optimize, *scheduler, "0"]),
+        ("--workers", [*sweep, "--workers", "0"]),
+        ("--connect-timeout", [*sweep, *scheduler, "-1"]),
+        ("--resolution", [*plot, "--resolution", "4"]),
+        ("--label", [*plot, "--label", "a/b"]),
+        ("--resolution", ["verify", FIVE_BAR, "--resolution", "1"]),
+        ("--out", [*animate, f"{tmp}/motion.png"]),
+        ("--frames", [*animate, f"{tmp}/m.gif", "--frames", "9", "--path", "p.csv"]),
+        ("--starts", [*dh, "--starts", "0"]),
+        ("--precision", [*dh, "--precision", "0"]),
+        ("--restarts", [*trace, "--restarts", "0"]),
+        ("--discretised", [*trace, "--discretised", "1"]),
+        (
+            "--workers",
+            ["arm", "design", ARM_TASK, "--out", f"{tmp}/a", "--workers", "0"],
+        ),
+    ]
+    results = _without_jax(usage + [argv for _, argv in flags])
+    assert all(status == 2 for _, status, _, _ in results)
+    for (argv, _, _, err), (flag, _) in zip(results[len(usage) :], flags):
+        assert err.startswith(f"linkopt: error: {flag}: "), (argv, err)
+    assert not any(tmp_path.iterdir())  # refused before anything was written
+
+
+def test_unreadable_and_malformed_files_answer_without_jax(tmp_path):
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[mechanism\nname = 1\n")
+    missing = str(tmp_path / "missing.toml")
+    argvs, expected = [], []
+    for command, extra in MECHANISM_COMMANDS.items():
+        extra = [a.format(tmp=tmp_path) for a in extra]
+        for path, words in ((missing, "file not found"), (str(broken), "invalid TOML")):
+            argvs.append([command, path, *extra])
+            expected.append(f"linkopt: error: {path}: {words}")
+    argvs.append(["arm", "trace", missing, "--out", str(tmp_path / "t")])
+    expected.append(f"linkopt: error: {missing}: ")
+    for (argv, status, _, err), words in zip(_without_jax(argvs), expected):
+        assert status == 2 and err.startswith(words), (argv, err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["broken.toml"]
+
+
+def _command(parser: argparse.ArgumentParser, *path: str) -> argparse.ArgumentParser:
+    for name in path:
+        action = next(
+            a for a in parser._actions if isinstance(a, argparse._SubParsersAction)
+        )
+        parser = action.choices[name]
+    return parser
+
+
+def test_the_defaults_shown_are_the_engines():
+    """The parser's defaults and limits, read from the engine's source, equal the
+    engine's own values (imported here)."""
+    from linkopt import DHSynthesisSettings, OptimizerSettings, TraceSettings
+    from linkopt._arms.dh import synthesis
+    from linkopt._design import animation, maps
+
+    parser = build_parser()
+    optimizer = OptimizerSettings()
+    for command, names in (
+        ("optimize", ["particles", "iterations", "seed", "mode"]),
+        ("sweep", ["particles", "iterations", "mode"]),
+    ):
+        names += ["tolerance", "patience", "improvement", "verify_rounds"]
+        cmd = _command(parser, command)
+        for name in names:
+            assert cmd.get_default(name) == getattr(optimizer, name), (command, name)
+    dh = DHSynthesisSettings()
+    cmd = _command(parser, "arm", "manipulability")
+    for option, name in (
+        ("precision", "precision"),
+        ("size_damping", "size_damping"),
+        ("seed", "seed"),
+        ("starts", "starts"),
+        ("iterations", "max_iterations"),
+    ):
+        assert cmd.get_default(option) == getattr(dh, name), option
+    trace = TraceSettings()
+    cmd = _command(parser, "arm", "trace")
+    assert cmd.get_default("restarts") == trace.restarts
+    assert cmd.get_default("best_of") == trace.best_of
+    for command in ("plot", "verify"):
+        assert _command(parser, command).get_default("max_cells") == maps.MAX_CELLS
+    assert constant("_design.animation", "DEFAULT_FRAMES") == animation.DEFAULT_FRAMES
+    assert constant("_design.animation", "MAX_FRAMES") == animation.MAX_FRAMES
+    assert constant("_arms.dh.synthesis", "LIMITS") == synthesis.LIMITS
+
+
+@pytest.mark.parametrize(
+    "module, name",
+    [
+        ("_design.optimizer", "OptimizerSettings"),
+        ("_arms.dh.synthesis", "DHSynthesisSettings"),
+        ("_arms.trace.synthesis", "TraceSettings"),
+    ],
+)
+def test_settings_defaults_read_from_the_source_are_the_classes(module, name):
+    import dataclasses
+    import importlib
+
+    instance = getattr(importlib.import_module(f"linkopt.{module}"), name)()
+    fields = {f.name: getattr(instance, f.name) for f in dataclasses.fields(instance)}
+    assert vars(defaults(module, name)) == fields
+
+
+def test_a_value_that_is_not_a_literal_is_imported():
+    from linkopt._design import maps
+
+    assert constant("_design.maps", "MAX_BYTES") == maps.MAX_BYTES  # 12 * 2**30
+
+
+def test_import_linkopt_imports_no_jax_and_its_names_turn_float64_on():
+    code = (
+        "import sys, linkopt\n"
+        "assert 'jax' not in sys.modules\n"
+        "assert issubclass(linkopt.InputError, linkopt.LinkoptError)\n"
+        "assert 'jax' not in sys.modules\n"
+        "linkopt.Mechanism\n"
+        "import jax\n"
+        "assert jax.config.jax_enable_x64\n"
+    )
+    _python(code)
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = [
+    _module_name(p) for p in sorted(PACKAGE.rglob("*.py")) if p.stem != "__main__"
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("module", MODULES)
+def test_a_module_that_imports_jax_finds_float64_on(module):
+    """Imported alone in a fresh process: where the import brought in JAX, float64
+    is on (and the compilation cache installed) before any of it ran."""
+    code = (
+        "import importlib, sys\n"
+        f"importlib.import_module({module!r})\n"
+        "if 'jax' in sys.modules:\n"
+        "    import jax\n"
+        "    assert jax.config.jax_enable_x64, 'float64 is off'\n"
+        "    assert 'linkopt._config' in sys.modules\n"
+    )
+    _python(code)
