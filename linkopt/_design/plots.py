@@ -135,12 +135,20 @@ def _inside(mech: Mechanism, outputs: np.ndarray) -> np.ndarray:
     return np.where(np.isnan(outputs[..., 0]), 0.0, inside.astype(float))
 
 
+#: Where the motor-space sections cut the third motor's range over the IK samples
+#: (:func:`section_maps`).
+SECTION_FRACTIONS = (0.25, 0.5, 0.75)
+
+
 def section_maps(
     mech: Mechanism, evaluation: Evaluation, resolution: int, design=None, progress=None
 ):
     """Three motors and three outputs: 2-D sections of both spaces at three values of
-    the third variable (output: the range's ends and middle; motor: the smallest, median
-    and largest third motor value of the IK samples). Returns
+    the third variable (output: the range's ends and middle; motor: a quarter, half and
+    three quarters of the way between the smallest and largest third motor value of
+    the IK samples, so that each motor section cuts the target range's image, whose
+    third motor values span that interval, where its ends would only touch it).
+    Returns
     ``[(motor_map, output_map, motor_cut, output_cut)]``, one per section."""
     _check_spaces(mech, (3,), "sections")
     rest = rest_state(mech)
@@ -153,7 +161,8 @@ def section_maps(
         0.5 * (mech.output_min[2] + mech.output_max[2]),
         mech.output_max[2],
     ]
-    a_cuts = list(np.quantile(ik_motors[:, 2], [0.0, 0.5, 1.0]))
+    third = ik_motors[:, 2]
+    a_cuts = [float(np.min(third) + f * np.ptp(third)) for f in SECTION_FRACTIONS]
     motors = sections(
         mech,
         "fk",
