@@ -313,3 +313,91 @@ def test_a_run_animates_along_its_targets_with_the_file_mechanism(five_bar):
     np.testing.assert_allclose(item.f_sing, same.f_sing, rtol=1e-9)
     with pytest.raises(linkopt.InputError, match="loop_of"):
         linkopt.motion(five_bar, frames=FRAMES, loop_of=linkopt.loads(FOUR_BAR))
+
+
+#: A planar 3R arm whose outputs are its tip's x and y and the last link's heading, as
+#: a planar parallel platform's are: two positions and an angle.
+PLANAR_3R = """
+[mechanism]
+name = "planar 3R"
+ground = "ground"
+[[bodies]]
+name = "ground"
+[[bodies]]
+name = "a"
+[[bodies]]
+name = "b"
+[[bodies]]
+name = "c"
+[[joints]]
+name = "j1"
+type = "revolute"
+bodies = ["ground", "a"]
+anchor = [0.0, 0.0, 0.0]
+axis = [0.0, 0.0, 1.0]
+[[joints]]
+name = "j2"
+type = "revolute"
+bodies = ["a", "b"]
+anchor = [30.0, 0.0, 0.0]
+axis = [0.0, 0.0, 1.0]
+[[joints]]
+name = "j3"
+type = "revolute"
+bodies = ["b", "c"]
+anchor = [30.0, 25.0, 0.0]
+axis = [0.0, 0.0, 1.0]
+[[motors]]
+name = "m1"
+joint = "j1"
+[[motors]]
+name = "m2"
+joint = "j2"
+[[motors]]
+name = "m3"
+joint = "j3"
+[[points]]
+name = "tip"
+body = "c"
+position = [45.0, 25.0, 0.0]
+[[outputs]]
+name = "heading"
+kind = "orientation"
+body = "c"
+angle = "yaw"
+min = -0.2
+max = 0.2
+[[outputs]]
+name = "y"
+point = "tip"
+coordinate = "y"
+min = 20.0
+max = 30.0
+[[outputs]]
+name = "x"
+point = "tip"
+coordinate = "x"
+min = 40.0
+max = 50.0
+"""
+
+
+@pytest.mark.parametrize("text", ["five_bar", PLANAR_3R])
+def test_target_rectangle_is_drawn_for_two_positions_beside_an_angle(text):
+    """Regression: the rectangle was drawn only when the outputs were exactly two
+    positions; a planar platform's x, y and heading got none."""
+    import matplotlib.pyplot as plt
+
+    from linkopt._design.animation import _target_box
+
+    mech = linkopt.load(MECHANISMS / "five_bar.toml") if text == "five_bar" else None
+    mech = mech or linkopt.loads(text)
+    basis = plane_basis(mech)
+    fig, ax = plt.subplots()
+    _target_box(ax, mech, basis)
+    (line,) = [ln for ln in ax.lines if ln.get_label() == "target range"]
+    x, y = (mech.output_names.index(n) for n in ("x", "y"))
+    lo, hi = mech.output_min, mech.output_max
+    assert sorted(set(line.get_xdata())) == [lo[x], hi[x]]
+    assert sorted(set(line.get_ydata())) == [lo[y], hi[y]]
+    plt.close(fig)

@@ -429,16 +429,23 @@ def _axis_labels(ax, mech: Mechanism, basis) -> None:
 
 
 def _target_box(ax, mech: Mechanism, basis) -> None:
-    """The target range, where the outputs are two position coordinates of the
-    drawing's plane (in its order)."""
-    if basis is None or set(mech.output_kinds) != {"position"} or mech.num_outputs != 2:
+    """The target range of the position outputs, where exactly two outputs are
+    positions, of one point, and they are the drawing plane's two coordinates (in
+    either order; other outputs, an angle of a planar platform say, are not drawn)."""
+    if basis is None:
         return
-    if [_world_axis(b) for b in basis] != [int(c) for c in mech.output_coords]:
+    positions = [k for k, kind in enumerate(mech.output_kinds) if kind == "position"]
+    if len(positions) != 2 or len(set(mech.output_points[positions])) != 1:
         return
+    axes = [_world_axis(b) for b in basis]
+    coords = [int(mech.output_coords[k]) for k in positions]
+    if sorted(coords) != sorted(a for a in axes if a is not None) or None in axes:
+        return
+    first, second = (positions[coords.index(a)] for a in axes)  # drawing order
     lo, hi = mech.output_min, mech.output_max
     ax.plot(
-        [lo[0], hi[0], hi[0], lo[0], lo[0]],
-        [lo[1], lo[1], hi[1], hi[1], lo[1]],
+        [lo[first], hi[first], hi[first], lo[first], lo[first]],
+        [lo[second], lo[second], hi[second], hi[second], lo[second]],
         color=MAGENTA,
         lw=1.0,
         ls="--",
