@@ -401,3 +401,16 @@ def test_target_rectangle_is_drawn_for_two_positions_beside_an_angle(text):
     assert sorted(set(line.get_xdata())) == [lo[x], hi[x]]
     assert sorted(set(line.get_ydata())) == [lo[y], hi[y]]
     plt.close(fig)
+
+
+def test_a_plate_is_drawn_as_its_hull_without_its_interior_point():
+    """Regression: a platform with three joints and a centre point was drawn as a
+    four-sided ring through the centre; a bar's collinear members are one segment."""
+    from linkopt._design.animation import _outline
+
+    corners = np.array([[1.0, 0.0, 0.0], [-0.5, 0.8, 0.0], [-0.5, -0.8, 0.0]])
+    coords = np.vstack([corners[:2], [0.0, 0.0, 0.0], corners[2:]])  # centre third
+    ring = _outline(np.arange(4) + 10, coords)
+    assert ring[0] == ring[-1] and sorted(ring[:-1]) == [10, 11, 13]
+    bar = np.array([[0.0, 0.0, 0.0], [2.0, 1.0, 0.0], [1.0, 0.5, 0.0]])
+    assert sorted(_outline(np.arange(3), bar)) == [0, 1]

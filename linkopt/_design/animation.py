@@ -35,12 +35,13 @@ reach". A path the caller gives is drawn only when every row is reached
 Drawing. A mechanism is planar when its rest joint anchors lie in one plane (to
 ``PLANAR_TOLERANCE`` of its reference length) and every joint axis is normal to it; it
 is drawn in that plane (the world axes' names when the plane is a coordinate plane),
-others in a fixed 3-D view. Each moving body is the closed ring through its joint
-anchors and named points (ordered by angle about their centroid in their best-fit
-plane), all bodies coloured by the frame's ``f_sing`` on the maps' scale (viridis, log,
-brighter = closer to a singularity; :func:`linkopt._design.plots._colour_norm`'s bounds
-over the frames unless ``f_sing_range`` is given); the ground's joints are triangles,
-the motors' joints squares, and the traced points' paths grow frame by frame. The
+others in a fixed 3-D view. Each moving body is the outline of the convex hull of its
+joint anchors and named points in their best-fit plane (a segment when they are
+collinear; members inside the hull are not on it), all bodies coloured by the
+frame's ``f_sing`` on the maps' scale (viridis, log, brighter = closer to a
+singularity; :func:`linkopt._design.plots._colour_norm`'s bounds over the frames unless
+``f_sing_range`` is given); the ground's joints are triangles, the motors' joints
+squares, and the traced points' paths grow frame by frame. The
 traced points are the points of the position outputs (reported ones too), or every
 named point when all outputs are angles.
 """
@@ -363,19 +364,37 @@ def _members(mech: Mechanism, body: int) -> np.ndarray:
     return np.array(joints + points, dtype=int)
 
 
+#: Spread (relative to the largest) below which a body's members count as collinear.
+COLLINEAR_TOL = 1e-9
+
+
+def _outline(members: np.ndarray, coords: Float[np.ndarray, "N 3"]) -> np.ndarray:
+    """``members`` (indices of ``coords``' rows) on the outline of their convex hull
+    in their best-fit plane, counter-clockwise and closed; the two extreme members
+    along their line when they are collinear. Members inside the hull (a platform's
+    centre point) are left out, so a body reads as its plate, not a ring through an
+    interior point."""
+    centred = coords - coords.mean(axis=0)
+    _, spread, vt = np.linalg.svd(centred, full_matrices=False)
+    if len(spread) < 2 or spread[1] <= COLLINEAR_TOL * max(spread[0], 1e-300):
+        along = centred @ vt[0]
+        return members[[int(np.argmin(along)), int(np.argmax(along))]]
+    from scipy.spatial import ConvexHull
+
+    flat = centred @ vt[:2].T
+    hull = ConvexHull(flat).vertices  # counter-clockwise in 2-D
+    return np.append(members[hull], members[hull[0]])
+
+
 def body_rings(mech: Mechanism, rest: Float[np.ndarray, "X 3"]) -> list[np.ndarray]:
-    """Per moving body, its members (:func:`_members`) as a closed ring, ordered by
-    angle about their centroid in their best-fit plane at ``rest``."""
+    """Per moving body, the outline of its members (:func:`_members`) at ``rest``
+    (:func:`_outline`): a segment for a bar, a closed polygon for a plate."""
     rings = []
     for body in range(mech.num_bodies):
         members = _members(mech, body)
         if body == mech.ground or len(members) < 2:
             continue
-        coords = rest[members] - rest[members].mean(axis=0)
-        _, _, vt = np.linalg.svd(coords)
-        u, v = coords @ vt[0], coords @ vt[1] if len(vt) > 1 else 0.0 * coords[:, 0]
-        order = members[np.argsort(np.arctan2(v, u), kind="stable")]
-        rings.append(order if len(order) == 2 else np.append(order, order[0]))
+        rings.append(_outline(members, rest[members]))
     return rings
 
 
