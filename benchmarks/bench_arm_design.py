@@ -1,24 +1,24 @@
 """Solve times of the two arm examples over 8 seeds, beside the paper's means.
 
-Paper 000 (MATLAB fmincon with MEX inner loops, 4-core i5): rover arm 85 min, backpack
-arm 1.8 min mean per solve over 8 random seeds. Here: SLSQP with exact JAX gradients,
-one process, one XLA thread. Compilation (once per arm, then kept in the persistent
-cache) is reported separately from the per-seed solve times.
+Paper 000 (MATLAB fmincon with MEX inner loops, 4-core i5) gives a mean time per solve
+over 8 random seeds for each arm (``PAPER_MINUTES``). Here: SLSQP with exact JAX
+gradients, one process, one XLA thread. Compilation (once per arm, then kept in the
+persistent cache) is reported separately from the per-seed solve times.
 
     nice -n 10 .venv/bin/python benchmarks/bench_arm_design.py [backpack|rover ...]
     [--starts N]
 
-Writes ``runs/bench_arm_design.json`` and the figures ``figures/arm_<task>.png`` of the
-best solution of each task.
+Writes ``benchmarks/results/bench_arm_design.json`` and the figures
+``figures/arm_<task>.png`` of the best solution of each task.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
+import _results
 import numpy as np
 
 import linkopt  # noqa: F401  (float64, cache)
@@ -27,6 +27,7 @@ from linkopt._arms.codesign.plots import plot_solution
 from linkopt._arms.codesign.task import load_task
 
 ROOT = Path(__file__).resolve().parent.parent
+#: The paper's mean minutes per solve over 8 random seeds (paper 000).
 PAPER_MINUTES = {"backpack": 1.8, "rover": 85.0}
 
 
@@ -77,9 +78,7 @@ def main() -> None:
     parser.add_argument("--starts", type=int, default=8)
     args = parser.parse_args()
     results = [bench(name, args.starts) for name in args.tasks]
-    out = ROOT / "runs"
-    out.mkdir(exist_ok=True)
-    (out / "bench_arm_design.json").write_text(json.dumps(results, indent=1))
+    _results.write(__file__, {"tasks": results})
     for r in results:
         print(
             f"{r['task']}: mean {r['mean_solve_min']:.2f} min per seed (paper "

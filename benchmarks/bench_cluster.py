@@ -23,7 +23,8 @@ overhead per iteration is its median minus the local pool's: the two tasks'
 scheduling, pickling of designs and results and the round trips, against the local
 pool's one pickled chunk. Baseline: the local pool (the default ``linkopt optimize``).
 Figures are the median and the spread (min-max) over ``--repeats`` calls; on a loaded
-machine the spread is large, so compare medians.
+machine the spread is large, so compare medians. Writes them to
+``benchmarks/results/bench_cluster.json``.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ import statistics
 import time
 from pathlib import Path
 
+import _results
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -108,8 +110,10 @@ def main() -> None:
     for name, times in trips.items():
         print(_line(name, times))
     reference = results["local"][1]
+    identical = {}
     for name, (_, ev) in results.items():
         same = all(np.array_equal(a, b, equal_nan=True) for a, b in zip(ev, reference))
+        identical[name] = same
         print(f"{name:11s} bit-identical to local: {same}")
     local = statistics.median(results["local"][0])
     dask = statistics.median(results["cluster"][0])
@@ -118,6 +122,25 @@ def main() -> None:
         f"{(dask - local) * 1e3:+.1f} ms ({dask / local:.2f}x); fixed cost "
         f"{statistics.median(trips['cluster']) * 1e3:.1f} ms against "
         f"{statistics.median(trips['local']) * 1e3:.1f} ms"
+    )
+    pools = [
+        {
+            "pool": name,
+            "evaluate_s": times,
+            "round_trip_s": trips.get(name),
+            "bit_identical_to_local": identical[name],
+        }
+        for name, (times, _) in results.items()
+    ]
+    _results.write(
+        __file__,
+        {
+            "mechanism": "five_bar",
+            "particles": args.particles,
+            "chunks": 2,
+            "pools": pools,
+            "cluster_overhead_s": dask - local,
+        },
     )
 
 

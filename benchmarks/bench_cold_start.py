@@ -16,12 +16,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+import _results
 
 ROOT = Path(__file__).resolve().parent.parent
 LINKOPT = [sys.executable, "-m", "linkopt"]
@@ -56,18 +57,10 @@ def _case(path: str, first: str | None) -> tuple[float, float]:
     return seconds, float(payload["f_design"])
 
 
-def _commit() -> str:
-    run = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-        text=True,
-    )  # fmt: skip
-    return run.stdout.strip() or "unknown"
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=1)
-    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
+    parser.add_argument("--out", default=str(_results.RESULTS))
     args = parser.parse_args()
     rows = []
     for label, path, first, target in CASES:
@@ -82,19 +75,7 @@ def main() -> None:
         verdict = "met" if best <= target else "not met"
         print(f"{label:<34} {best:7.1f} s  (target {target:4.0f} s, {verdict})"
               f"  f_design {f_design:.6g}", flush=True)  # fmt: skip
-    record = {
-        "date": time.strftime("%Y-%m-%d %H:%M"),
-        "commit": _commit(),
-        "machine": {
-            "cores": os.cpu_count(),
-            "load": os.getloadavg()[0],
-            "python": platform.python_version(),
-        },
-        "cases": rows,
-    }
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "bench_cold_start.json").write_text(json.dumps(record, indent=2) + "\n")
+    _results.write(__file__, {"cases": rows}, args.out)
 
 
 if __name__ == "__main__":

@@ -14,29 +14,11 @@ for several argument shapes counts once per shape). ``--workers 1`` keeps every
 compilation in the one process that is measured (with two, the spawned processes
 compile too, in parallel, and are not counted).
 
-Targets (issue 19, 2-core machine): the cold main command ≤ 60 s; the warm one ≤ 15 s.
-
-Figures behind the choices (five-bar main command, ``--workers 1``, idle 2-core
-machine, cold):
-
-* before fixed blocks (:mod:`linkopt._engine.blocks`): 310 s wall, at least 204 s of
-  it compiling (the 40 costliest programs: 75 compilations); ``_solve`` (warm-started
-  FK/BK batches) compiled 9 times (82 s: one per padded wave size of each map and
-  verification grid), ``_sigmas`` 6 times (19 s), ``_solve_path`` 4 times (21 s), the
-  read-outs 20 times (5 s), the design evaluation 3 times (58 s with the partial
-  gradient: the swarm's chunk, the gradient, and one design at the end).
-* after (2026-12-03, ``--workers 2`` as the README's command): cold 178 s wall, 105 s
-  compiling (64 compilations, 62 s of them the evaluation and its partial gradient,
-  one ``_solve`` program each for FK and BK); warm 63 s (311 s and 77 s before).
-* with the solves' traces on disk (:mod:`linkopt._engine.programs`) and σ_min's Jacobi
-  rotations as row and column updates (2026-12-03, ``--workers 2``): cold 139.7 s
-  wall, 89.3 s compiling (70 compilations: the evaluation 25.1 s, its partial
-  gradient 23.8 s, the FK solves 11.2 s for one row and blocks of 64); warm 44.8 s,
-  of it 0.0 s tracing (5.8 s before), 1.0 s lowering and 3.9 s loading executables
-  from the cache. Warm-started batches of one row then went back to the block's
-  program (the maps' first one-cell wave had compiled the one-row one too): cold
-  145.3 s wall (run-to-run noise is about ±5 s), 87.1 s compiling, 67 compilations,
-  FK 8.6 s and BK 5.6 s; warm 46.8 s.
+Targets (issue 19, 2-core machine): ``TARGET_COLD`` seconds for the cold main command,
+``TARGET_WARM`` for the warm one. The figures go to
+``benchmarks/results/bench_compile.json``. The choices they led to are documented where
+they are made: one program per batch size (:mod:`linkopt._engine.blocks`), traces kept
+on disk (:mod:`linkopt._engine.programs`), the XLA options (:mod:`linkopt._config`).
 """
 
 from __future__ import annotations
@@ -51,9 +33,15 @@ import tempfile
 import time
 from pathlib import Path
 
+import _results
+
 ROOT = Path(__file__).resolve().parent.parent
+#: Seconds for the main command from an empty cache, and with the cache it filled
+#: (issue 19, 2-core machine).
 TARGET_COLD = 60.0
 TARGET_WARM = 15.0
+#: Programs listed per pass, by total compile time.
+TOP_PROGRAMS = 8
 
 
 def _child(command: list[str], report: Path) -> None:
@@ -96,7 +84,8 @@ def _pass(command: list[str], cache: Path) -> dict:
         return json.loads(report.read_text())
 
 
-def _summary(label: str, result: dict) -> None:
+def _summary(label: str, result: dict) -> dict:
+    """Print a pass's totals and its costliest programs; return them as a record."""
     totals = collections.defaultdict(float)
     programs = collections.defaultdict(lambda: [0, 0.0])
     for event, name, seconds in result["records"]:
@@ -113,8 +102,21 @@ def _summary(label: str, result: dict) -> None:
         f"cache retrieval {totals['cache_retrieval_time_sec']:.1f} s"
     )
     ranked = sorted(programs.items(), key=lambda item: -item[1][1])
-    for name, (count, seconds) in ranked[:8]:
+    for name, (count, seconds) in ranked[:TOP_PROGRAMS]:
         print(f"    {seconds:7.1f} s  {count:3d} x  {name}")
+    return {
+        "wall_s": result["wall"],
+        "exit": result["code"],
+        "tracing_s": totals["jaxpr_trace_duration"],
+        "lowering_s": totals["jaxpr_to_mlir_module_duration"],
+        "compiling_s": totals["backend_compile_duration"],
+        "compilations": compiled,
+        "cache_retrieval_s": totals["cache_retrieval_time_sec"],
+        "programs": [
+            {"program": name, "compile_s": seconds, "compilations": count}
+            for name, (count, seconds) in ranked[:TOP_PROGRAMS]
+        ],
+    }
 
 
 def main() -> None:
@@ -139,8 +141,17 @@ def main() -> None:
             passes[label] = _pass(command, Path(scratch) / "cache")
     cold, warm = passes["cold"], passes["warm"]
     print(f"linkopt {' '.join(command)}")
-    _summary(f"cold (target <= {TARGET_COLD:.0f} s)", cold)
-    _summary(f"warm (target <= {TARGET_WARM:.0f} s)", warm)
+    shown = ["DIR" if part.startswith(scratch) else part for part in command]
+    figures = {"command": "linkopt " + " ".join(shown), "passes": []}
+    for label, result, target in (
+        ("cold", cold, TARGET_COLD),
+        ("warm", warm, TARGET_WARM),
+    ):
+        record = _summary(f"{label} (target <= {target:.0f} s)", result)
+        programs = record.pop("programs")
+        figures["passes"].append({"pass": label, "target_s": target, **record})
+        figures[f"{label}_programs"] = programs
+    _results.write(__file__, figures)
 
 
 if __name__ == "__main__":

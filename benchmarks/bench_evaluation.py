@@ -4,40 +4,16 @@ once.
 Run: ``.venv/bin/python benchmarks/bench_evaluation.py``
 
 Prints the warm time of one evaluation and of a batch of 20 designs (one vmapped call),
-and the compile time of each with a cold and a warm persistent cache (fresh processes).
-Baseline: a prototype stand-in (20 designs x 18 samples x 30 fixed BFGS steps) took
-3.5 s per batch, 50 s to compile cold and 2 s with a warm cache; target <= 1 s a batch.
+and the compile time of each with a cold and a warm persistent cache (fresh processes),
+against the target ``TARGET_BATCH_S`` and the ``BASELINE_*`` figures of a prototype
+stand-in (20 designs x 18 samples x 30 fixed BFGS steps), and writes them to
+``benchmarks/results/bench_evaluation.json``.
 
-Figures behind the design choices (measured when each was made):
-
-* Traced programs on disk (``linkopt._engine.programs``): tracing and lowering the
-  batched five-bar evaluation took 5.9 s, against 2.1 s to load its executable from the
-  compilation cache; every optimiser run and worker process paid it again.
-* One step function for both phases of the sample queue (``linkopt._design.sampling``):
-  the program that held the expensive evaluation four times (IK start and step,
-  adversarial start and step) took 2.0 s to load from the compilation cache and 27 s to
-  compile for 10 five-bar designs, against 0.6 s and 9 s with the shared step.
-* Plain-JAX linear algebra (:mod:`linkopt._engine.dense`) instead of LAPACK calls, and
-  XLA's default thread pool instead of ``PJRT_NPROC=1``: 20 five-bar designs
-  (``p0`` + N(0, 1) offsets, seed 0), best of two warm calls, 37.2 s -> 5.7 s on the
-  shared 2-core machine at load average 8.5 and 11.6 (first call in a fresh process
-  116 s -> 114 s). The load was far too high for absolute figures; rerun on a quiet
-  machine.
-* ``QUEUE_WIDTH`` = 12 (``linkopt._design.evaluation``): ten five-bar designs (90
-  lanes) took 0.83-0.87 s at widths 6-15, 0.97 s at 45 and 1.14 s at 90; ten 3-motor
-  neck designs (270 lanes) 5.9-6.5 s at 8 and 15, 6.7 s at 45 and 8.1-9.1 s at 135.
-  Re-measured with the plain-JAX linear algebra (2026-12-03, idle machine, ten
-  five-bar designs): 2.74 s at width 12, 2.83 s at 24, 3.21 s at 48, so 12 stays.
-* The cyclic Jacobi eigen-solver of σ_min's 6 x 6 Ritz matrix
-  (:func:`linkopt._engine.dense.symmetric_eigh`): each rotation now updates only rows
-  and columns ``p`` and ``q``, where it formed the rotation ``G`` and took three 6 x 6
-  matrix products. For the 24 matrices of a 12-slot queue step, 2.2 ms -> 0.58 ms
-  alone, and σ_min with its gradient 4.9 ms -> about 2.2 ms a step; ten five-bar
-  designs 2.74 s -> 2.2-2.9 s (2026-12-03, idle machine; the spread is run-to-run
-  noise on the shared VM). Unrolling each sweep's 15 rotations with static ``(p, q)``
-  was 0.25 ms alone, but inside the evaluation no faster (2.41-2.53 s against
-  2.20-2.53 s, same process, alternating) and its compilation 3 s slower (29.1 s
-  against 26.3 s); the loop form compiles the 10-design evaluation in 20.2 s.
+The choices behind the time it measures are documented where they are made: the
+queue's width (``QUEUE_WIDTH`` in :mod:`linkopt._design.evaluation`), one step
+function for both sample phases (:mod:`linkopt._design.sampling`), plain-JAX linear
+algebra and the Jacobi eigen-solver (:mod:`linkopt._engine.dense`), traced programs on
+disk (:mod:`linkopt._engine.programs`).
 """
 
 from __future__ import annotations
@@ -49,9 +25,16 @@ import tempfile
 import time
 from pathlib import Path
 
+import _results
+
 ROOT = Path(__file__).resolve().parent.parent
 FILE = ROOT / "mechanisms/five_bar.toml"
+#: The prototype stand-in's seconds per batch of 20 designs, and to compile it from an
+#: empty and from a warm cache.
 BASELINE_BATCH_S = 3.5
+BASELINE_COMPILE_COLD_S = 50.0
+BASELINE_COMPILE_WARM_S = 2.0
+#: Seconds per batch of 20 designs.
 TARGET_BATCH_S = 1.0
 
 FIRST_CALL = """
@@ -115,6 +98,32 @@ def main() -> None:
     print(
         f"  first call, 20 designs    cold cache {cold[1]:6.1f} s,"
         f" warm cache {warm[1]:6.1f} s"
+    )
+    _results.write(
+        __file__,
+        {
+            "mechanism": "five_bar",
+            "targets": 9,
+            "warm": [
+                {"designs": 1, "seconds": timings["one design"]},
+                {
+                    "designs": 20,
+                    "seconds": batch,
+                    "target_s": TARGET_BATCH_S,
+                    "baseline_s": BASELINE_BATCH_S,
+                },
+            ],
+            "first_call": [
+                {"designs": 1, "cold_cache_s": cold[0], "warm_cache_s": warm[0]},
+                {
+                    "designs": 20,
+                    "cold_cache_s": cold[1],
+                    "warm_cache_s": warm[1],
+                    "baseline_cold_s": BASELINE_COMPILE_COLD_S,
+                    "baseline_warm_s": BASELINE_COMPILE_WARM_S,
+                },
+            ],
+        },
     )
 
 

@@ -6,45 +6,17 @@ comparison needs ``pip install -e '.[bench]'``)
 
 Prints, for the five-bar and the Jansen leg: a single warm-started solve, solves per
 second in batches of 1, 1 000 and 100 000 configurations, compile time with a cold and
-a warm persistent cache (each in a fresh process), and the baselines as ratios.
-Targets (five-bar, 2 cores): <= 200 µs a single solve, >= 30 000 solves/s batched
-(issue 19: the Jansen leg >= 15 000). Last run (2026-12-03, idle machine, ``--quick``):
-five-bar 16 845 solves/s in batches of 1000, a single warm-started solve 290 µs
-pipelined (720 µs synchronised each call, a noisy figure: 410 µs earlier the same
-day), a batch of one row 651/s (139/s when it ran as a padded block of 64); Jansen
-6 947/s. Not met: a solve's time is its Cholesky factors and the normal equations
-(:mod:`linkopt._engine.dense`; the README's "Architecture" says what would help).
+a warm persistent cache (each in a fresh process), and the baselines as ratios, against
+the targets ``TARGET_SINGLE_US`` and ``TARGET_RATE`` (issue 19, 2 cores); writes them to
+``benchmarks/results/bench_kinematics.json``.
 
-Figures behind design choices in :mod:`linkopt._engine` (2 cores, measured when each
-choice was made; rerun this script for today's):
-
-* Plain-JAX linear algebra (:mod:`linkopt._engine.dense`) instead of jaxlib's LAPACK
-  calls, so XLA keeps its default thread pool (``PJRT_NPROC`` is no longer set; the
-  LAPACK kernels could deadlock it, :mod:`linkopt._config`). Measured on the shared
-  2-core machine at load average ~12 (so only the ratios mean much), FK solves/s,
-  before (LAPACK, ``PJRT_NPROC=1``) -> after (dense, default pool): five-bar batch 1
-  4150 -> 2180, batch 1000 12 100 -> 12 500; Jansen batch 1 2750 -> 1050, batch 1000
-  3760 -> 4820, batch 10 000 -> 4510. Single solves are slower (the factor and the
-  solves are loops of 35-56 steps, each with XLA's per-iteration overhead); batches
-  break even (five-bar) or gain (Jansen). Earlier, at load 3.7-8.5, the LAPACK code
-  gave five-bar 2990 / 17 300 / 8970 and Jansen 3230 / 3970 / 2930 solves/s at
-  batches 1 / 1000 / 100 000. ``PJRT_NPROC=1`` with LAPACK had been measured at
-  19.4k solves/s against 10.8k with the default pool (five-bar, batches of 1e5).
-* Batched solves in chunks of ``kinematics.CHUNK`` = 32 lanes (``lax.map``): one vmap
-  over the whole batch made every step of the plain-JAX Cholesky stream all the
-  batch's matrices through memory (1000 factors of 56 x 56: 200 ms in one vmap, 48 ms
-  in chunks of 8, LAPACK 35 ms; 35 x 35: 27 ms, 21 ms in chunks of 32, LAPACK 16 ms).
-  Panels of 8 columns per loop step were slower than one column (76 against 27 ms per
-  1000 factors of 35 x 35), so only the triangular solves work by panels.
-* Hand-written LM against ``optimistix.LevenbergMarquardt``: about 6x faster a solve.
-* σ_min by block inverse iteration (:mod:`linkopt._engine.singularity`): the LAPACK SVD
-  of a few dozen columns cost 0.2 ms per matrix and was 80 % of a design evaluation;
-  for 180 five-bar states (two matrices each, one thread) the SVD took 64 ms and the
-  iteration 26 ms, agreeing to 7e-5 relative with 4 sweeps. Forming ``A⁻¹`` once
-  instead of two batched triangular solves per sweep (about 2.6 µs per 35 x 35 matrix
-  and 6-column block): a 10-design five-bar evaluation 1.06 s -> 0.98 s.
-* Jitting the residual and Jacobian entry points with the mechanism static: tracing a
-  20-design evaluation 14.5 s -> 5 s.
+The choices behind these figures are documented where they are made: the hand-written
+Levenberg–Marquardt (:mod:`linkopt._engine.lm`), plain-JAX linear algebra and its
+one-column Cholesky (:mod:`linkopt._engine.dense`), batches in chunks of
+``kinematics.CHUNK`` lanes (:mod:`linkopt._engine.kinematics`), σ_min by block inverse
+iteration (:mod:`linkopt._engine.singularity`), the Jacobian entry points jitted with
+the mechanism static (:mod:`linkopt._engine.jacobian`). Where a solve's time goes, and
+what would make it faster: the documentation's Architecture page.
 """
 
 from __future__ import annotations
@@ -57,13 +29,17 @@ import tempfile
 import time
 from pathlib import Path
 
+import _results
+
 ROOT = Path(__file__).resolve().parent.parent
 MECHANISMS = {
     "five-bar": ROOT / "mechanisms/five_bar.toml",
     "jansen": ROOT / "mechanisms/jansen_1dof.toml",
 }
+#: Microseconds of a single warm-started solve (five-bar).
 TARGET_SINGLE_US = 200.0
-TARGET_RATE = 30_000.0
+#: Batched solves per second.
+TARGET_RATE = {"five-bar": 30_000.0, "jansen": 15_000.0}
 
 
 def _timed(fn, repeats: int) -> float:
@@ -199,6 +175,7 @@ def main() -> None:
     import linkopt
 
     print(f"jax {jax.__version__}, devices {jax.devices()}, {os.cpu_count()} CPU cores")
+    figures = {"jax": jax.__version__, "solves": [], "batches": [], "baselines": []}
     for name, path in MECHANISMS.items():
         if not path.exists():
             print(f"\n{name}: {path} missing, skipped")
@@ -210,11 +187,50 @@ def main() -> None:
         ours = bench_linkopt(mech, sizes)
         scipy_ = bench_scipy(mech)
         print(f"\n{name}: |s| = {mech.state_size}")
-        _print_ours(ours, sizes, cold, warm)
-        _print_baselines(mech, ours, scipy_)
+        _print_ours(ours, sizes, cold, warm, TARGET_RATE[name])
+        optx = _print_baselines(mech, ours, scipy_)
+        compiled = {"compile_cold_s": cold, "compile_warm_s": warm}
+        _record(figures, name, mech, sizes, compiled, ours, optx, scipy_)
+    _results.write(__file__, figures)
 
 
-def _print_ours(ours: dict, sizes: list[int], cold: float, warm: float) -> None:
+def _record(figures: dict, name: str, mech, sizes, compiled, ours, optx, scipy_):
+    """One mechanism's figures as rows of the results file's three tables."""
+    figures["solves"].append(
+        {
+            "mechanism": name,
+            "state_size": mech.state_size,
+            "single_us": ours["single_us"],
+            "single_pipelined_us": ours["single_pipelined_us"],
+            "target_single_us": TARGET_SINGLE_US,
+            **compiled,
+        }
+    )
+    figures["batches"] += [
+        {
+            "mechanism": name,
+            "batch": n,
+            "solves_per_s": ours[f"rate_{n}"],
+            "target": TARGET_RATE[name],
+            "converged": ours[f"converged_{n}"],
+        }
+        for n in sizes
+    ]
+    for solver, result in (("linkopt", ours), ("optimistix", optx), ("scipy", scipy_)):
+        if result is not None:
+            figures["baselines"].append(
+                {
+                    "mechanism": name,
+                    "solver": solver,
+                    "single_us": result["single_us"],
+                    "rate_1000": result.get("rate_1000"),
+                }
+            )
+
+
+def _print_ours(
+    ours: dict, sizes: list[int], cold: float, warm: float, target_rate: float
+) -> None:
     print(
         f"  single warm-started solve     {ours['single_us']:10.1f} µs   "
         f"synchronised each call (target <= {TARGET_SINGLE_US:.0f} µs)"
@@ -228,14 +244,16 @@ def _print_ours(ours: dict, sizes: list[int], cold: float, warm: float) -> None:
             f"  batch {n:>7}                 {ours[f'rate_{n}']:10.0f} solves/s "
             f"(converged {ours[f'converged_{n}']:.3f})"
         )
-    print(f"  target batched rate           {TARGET_RATE:10.0f} solves/s")
+    print(f"  target batched rate           {target_rate:10.0f} solves/s")
     print(f"  compile (load + 2 kernels)    cold {cold:.1f} s, warm cache {warm:.1f} s")
 
 
-def _print_baselines(mech, ours: dict, scipy_: dict) -> None:
+def _print_baselines(mech, ours: dict, scipy_: dict) -> dict | None:
+    """Print the baselines beside ours; optimistix's figures, None without it."""
     try:
         optx = bench_optimistix(mech, 1000)
     except ImportError:
+        optx = None
         print("  optimistix LM                 skipped (pip install -e '.[bench]')")
     else:
         print(
@@ -250,6 +268,7 @@ def _print_baselines(mech, ours: dict, scipy_: dict) -> None:
         f"  scipy least_squares(lm) FD    {scipy_['single_us']:10.1f} µs   "
         f"ratio {scipy_['single_us'] / ours['single_us']:.0f}x slower"
     )
+    return optx
 
 
 if __name__ == "__main__":

@@ -3,9 +3,9 @@
 Run: ``.venv/bin/python benchmarks/bench_manipulability.py [--starts 8] [--seed 0]
 [--enumerate]``
 
-Prints, beside the paper's printed result (Sec. VI: average ellipsoid volume 1.451,
-smallest 0.81001, DH table a = (1.62611, 1.56317, 1.56376), ...), the mean and smallest
-manipulability, the largest residual, the total size Σ|a| + Σ|d| and the wall time of
+Prints, beside the paper's printed result (Sec. VI: ``PAPER_PRINTED``, its DH table
+``PAPER_TABLE``), the mean and smallest manipulability, the largest residual, the total
+size Σ|a| + Σ|d| and the wall time of
 
 * the paper's own DH table, re-evaluated here: per target the best of 24 local IK
   solutions (nearest random joint vectors polished by Gauss–Newton), i.e. the table's
@@ -19,13 +19,14 @@ manipulability, the largest residual, the total size Σ|a| + Σ|d| and the wall 
 The paper's "ellipsoid volume" is w of eq. 1-2 (|det J| of the 3×3 position Jacobian, no
 4π/3 factor): its table reproduces the printed volumes of Fig. 3 (0.97050 vs 0.97052,
 0.86918 vs 0.86919; see tests/test_dh_synthesis.py). The paper gives no run time. Writes
-figures/manipulability_sample_run.png. ``--enumerate`` also runs all 2^3 joint-type
-strings (Sec. V) and prints their mean manipulability.
+figures/manipulability_sample_run.png and the figures to
+``benchmarks/results/bench_manipulability.json``. ``--enumerate`` also runs all 2^3
+joint-type strings (Sec. V) and prints their mean manipulability.
 
 The minimiser runs BLAS single-threaded (:func:`linkopt._config.one_blas_thread`):
 L-BFGS-B's vector updates call OpenBLAS, whose worker threads spin for vectors of a few
-hundred entries; on 2 busy cores one sample-run start took 6.5 s of CPU with the default
-pool and 0.85 s with one thread (same iterates).
+hundred entries, so on 2 busy cores the default pool takes several times the CPU time
+for the same iterates.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ import sys
 import time
 from pathlib import Path
 
+import _results
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -148,14 +150,16 @@ def _arguments() -> argparse.Namespace:
     return parser.parse_args()
 
 
-def _print_table(paper: dict, ours, report: dict, synth_seconds: float) -> None:
-    """The comparison table: the paper's printed result, its table re-evaluated, our
-    stage 1 and our final arm on the engine."""
-    print(f"| {'':<48} | mean w  |  min w  | max resid | size   | wall s  |")
-    print(f"|{'-' * 50}|---------|---------|-----------|--------|---------|")
+#: The comparison table's columns, as they are named in the results file.
+COLUMNS = ("case", "mean_w", "min_w", "max_residual", "size", "wall_s")
+
+
+def _comparison(paper: dict, ours, report: dict, synth_seconds: float) -> list[tuple]:
+    """The comparison table's rows: the paper's printed result, its table re-evaluated,
+    our stage 1 and our final arm on the engine."""
     p, s1 = PAPER_PRINTED, ours.stage1
     w, r = report["manipulability"], report["residual"]
-    rows = [
+    return [
         (
             "paper, printed (Sec. VI, Fig. 3)",
             p["mean_manipulability"],
@@ -197,12 +201,19 @@ def _print_table(paper: dict, ours, report: dict, synth_seconds: float) -> None:
             synth_seconds,
         ),
     ]
+
+
+def _print_table(rows: list[tuple]) -> None:
+    """The comparison table (:func:`_comparison`)."""
+    print(f"| {'':<48} | mean w  |  min w  | max resid | size   | wall s  |")
+    print(f"|{'-' * 50}|---------|---------|-----------|--------|---------|")
     for item in rows:
         print(row(*item))
 
 
-def _print_summary(paper: dict, ours, report: dict, engine_seconds: float) -> None:
-    """Eq. 10 values, ratios to the paper, engine vs closed form, our DH table."""
+def _print_summary(paper: dict, ours, report: dict, engine_seconds: float) -> dict:
+    """Print eq. 10 values, ratios to the paper, engine vs closed form, our DH table;
+    return them as a record."""
     p, s1 = PAPER_PRINTED, ours.stage1
     w, r = report["manipulability"], report["residual"]
     print(
@@ -229,6 +240,34 @@ def _print_summary(paper: dict, ours, report: dict, engine_seconds: float) -> No
             f"  {i + 1}  {float(t.a[i]):+.5f}  {float(t.alpha[i]):+.5f}  "
             f"{float(t.offset[i]):+.6f}"
         )
+    return {
+        "eq10": {
+            "paper's table (q re-optimised)": paper["eq10"],
+            "ours, stage 1": s1["cost"],
+            "ours, final": ours.cost,
+        },
+        "ours_over_paper": {
+            "mean w": w.mean() / p["mean_manipulability"],
+            "min w": w.min() / p["min_manipulability"],
+            "size": ours.size / p["size"],
+        },
+        "reached": f"{int(np.sum(r <= 1e-3))}/{len(r)}",
+        "engine_vs_closed_form": {
+            "max |Δw|": np.abs(w - ours.manipulability).max(),
+            "max |Δresidual|": np.abs(r - ours.residual).max(),
+        },
+        "engine_seconds": engine_seconds,
+        "eq10_per_start": ", ".join(f"{v:.4g}" for v in ours.starts),
+        "dh_table": [
+            {
+                "joint": i + 1,
+                "a": float(t.a[i]),
+                "alpha": float(t.alpha[i]),
+                "d": float(t.offset[i]),
+            }
+            for i in range(3)
+        ],
+    }
 
 
 def _draw(ours, report: dict) -> None:
@@ -239,14 +278,16 @@ def _draw(ours, report: dict) -> None:
         FIGURE,
         count=5,
         title=(
-            f"paper 004 sample run, RRR: mean w {w.mean():.3f} (paper 1.451), min "
-            f"{w.min():.3f} (0.810), size {ours.size:.2f} ({p['size']:.2f})"
+            f"paper 004 sample run, RRR: mean w {w.mean():.3f} (paper "
+            f"{p['mean_manipulability']}), min {w.min():.3f} "
+            f"({p['min_manipulability']:.3f}), size {ours.size:.2f} ({p['size']:.2f})"
         ),
     )
     print(f"wrote {FIGURE.relative_to(ROOT)}")
 
 
-def _enumerate(targets: np.ndarray, settings) -> None:
+def _enumerate(targets: np.ndarray, settings) -> dict:
+    """Print the mean manipulability of every joint-type string; return them."""
     start = time.perf_counter()
     best, results = syn.synthesize_dh(targets, 3, settings)
     ranked = sorted(results.items(), key=lambda kv: -np.mean(kv[1].manipulability))
@@ -255,6 +296,10 @@ def _enumerate(targets: np.ndarray, settings) -> None:
         + ", ".join(f"{k} {np.mean(v.manipulability):.3f}" for k, v in ranked)
         + f"; chosen {best.types}"
     )
+    return {
+        "chosen": best.types,
+        "mean_w": {k: float(np.mean(v.manipulability)) for k, v in ranked},
+    }
 
 
 def _paper(targets: np.ndarray) -> dict:
@@ -291,11 +336,22 @@ def main() -> None:
         f"Paper 004 sample run: {len(targets)} points, RRR, precision 25, size damping "
         f"12; {args.starts} starts, seed {args.seed}\n"
     )
-    _print_table(paper, ours, report, synth_seconds)
-    _print_summary(paper, ours, report, engine_seconds)
+    rows = _comparison(paper, ours, report, synth_seconds)
+    _print_table(rows)
+    summary = _print_summary(paper, ours, report, engine_seconds)
     _draw(ours, report)
+    figures = {
+        "points": len(targets),
+        "starts": args.starts,
+        "seed": args.seed,
+        "comparison": [dict(zip(COLUMNS, item)) for item in rows],
+        **summary,
+    }
     if args.enumerate:
-        _enumerate(targets, settings)
+        enumerated = _enumerate(targets, settings)
+        figures["joint_types_mean_w"] = enumerated["mean_w"]
+        figures["joint_types_chosen"] = enumerated["chosen"]
+    _results.write(__file__, figures)
 
 
 if __name__ == "__main__":

@@ -11,29 +11,13 @@ and prints the iterations and design evaluations, the optimiser's wall time (and
 much of it iteration 0, which carries the start-up, took, and the mean of the others),
 the whole command's wall time (compilation, verification, plots), the final ``f_design``
 and whether ``linkopt verify`` passes on the result, then the median over the warm runs.
-Baseline: the paper's Table I, five-bar: 8 iterations, about 15 min (C++, 4 cores).
+Baseline: the paper's Table I, five-bar (``PAPER_ITERATIONS``, ``PAPER_SECONDS``; C++, 4
+cores). Writes every run and the medians to ``benchmarks/results/bench_optimizer.json``.
 
-The number of swarm iterations a seed needs varies a lot (8 to 24 over seeds 0-7 in our
-runs, median 12), and a change anywhere in the evaluation can move every seed's count,
-so compare medians over many seeds, not one seed's time. Our last run (2026-12-03,
-2 workers, idle machine, warm cache, after σ_min's Jacobi rotations stopped forming
-each rotation and the solves' traces went to disk) gave a median of 12 iterations and
-31.3 s in the optimiser, 29x the paper (seed 0: 8 iterations, 22.2 s, the whole
-command 47.7 s; cold, the whole command 147 s), with all eight results verified and
-every seed's iterations and ``f_design`` unchanged; the whole command took 47.7-87.1 s.
-Earlier the same day: median 41.4 s (seed 0 27.5 s, the command 62.6 s warm, 163 s
-cold). With jaxlib's LAPACK and one XLA thread (before the plain-JAX linear algebra)
-the median was 11.3 s, on a machine at load 8-12.
-
-Figures behind the worker split (``linkopt._design.workers``, measured when it was
-made): a spawned process costs about 1 s of Python and JAX start-up before its first
-evaluation, so the calling process evaluates the first chunk itself (five-bar, 2
-processes, warm cache: 14.4 s in the optimiser instead of 15.3 s). A partial gradient of
-10 five-bar designs takes 0.03 s once its executable is loaded, and loading it takes
-each process about 1 s, so gradients are computed in the calling process only. A worker
-starts about 1.3 s after the caller, so in the first iteration the caller
-differentiates its chunk while it waits (the first evaluation and partial gradient of
-20 designs took 5.2 s instead of 5.75 s).
+The number of swarm iterations a seed needs varies a lot from seed to seed, and a change
+anywhere in the evaluation can move every seed's count, so compare medians over many
+seeds, not one seed's time. The worker split this measures (``--workers 1,2``) is
+documented in :mod:`linkopt._design.workers`.
 """
 
 from __future__ import annotations
@@ -48,10 +32,12 @@ import tempfile
 import time
 from pathlib import Path
 
+import _results
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 FILE = ROOT / "mechanisms/five_bar.toml"
+#: The paper's Table I, five-bar: swarm iterations and seconds.
 PAPER_ITERATIONS = 8
 PAPER_SECONDS = 15 * 60
 
@@ -128,6 +114,7 @@ def main() -> None:
         f"five-bar optimisation; paper: {PAPER_ITERATIONS} iterations,"
         f" {PAPER_SECONDS / 60:.0f} min"
     )
+    runs, medians = [], []
     for workers in (int(w) for w in args.workers.split(",")):
         warm = []
         with tempfile.TemporaryDirectory() as cache:
@@ -141,6 +128,7 @@ def main() -> None:
                     if label == "warm":
                         warm.append(r)
                     print(_line(workers, label, r), flush=True)
+                    runs.append(_row(workers, label, r))
         if warm:
             iterations = float(np.median([r["iterations"] for r in warm]))
             seconds = float(np.median([r["wall_time"] for r in warm]))
@@ -152,6 +140,42 @@ def main() -> None:
                 f" {verified} of {len(warm)} verified",
                 flush=True,
             )
+            medians.append(
+                {
+                    "workers": workers,
+                    "warm_runs": len(warm),
+                    "iterations": iterations,
+                    "optimiser_s": seconds,
+                    "paper_over_optimiser": PAPER_SECONDS / seconds,
+                    "verified": verified,
+                }
+            )
+    _results.write(
+        __file__,
+        {
+            "mechanism": "five_bar",
+            "paper": {"iterations": PAPER_ITERATIONS, "seconds": PAPER_SECONDS},
+            "medians_of_warm_runs": medians,
+            "runs": runs,
+        },
+    )
+
+
+def _row(workers: int, label: str, r: dict) -> dict:
+    """One run as a row of the results file."""
+    return {
+        "workers": workers,
+        "seed": r["seed"],
+        "cache": label,
+        "iterations": r["iterations"],
+        "evaluations": r["evaluations"],
+        "optimiser_s": r["wall_time"],
+        "iteration_0_s": r["first"],
+        "per_iteration_s": r["per_iteration"],
+        "command_s": r["seconds"],
+        "f_design": r["f_design"],
+        "verified": r["verified"],
+    }
 
 
 if __name__ == "__main__":

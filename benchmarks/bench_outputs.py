@@ -11,8 +11,8 @@ shared machine) of
 * the evaluation the plot needs and the plot at its default resolution (three outputs:
   40 cells per axis, six 2-D sections solved in their planes from a coarse 3-D seed
   grid, :func:`linkopt._design.maps.sections`);
-* with ``--old``, the fine 3-D continuation grids (60² x 13 cells per space) that the
-  sections were cut from before;
+* with ``--old``, the alternative to the sections: a fine 3-D continuation grid
+  (60² x 13 cells) per space, to cut the sections from;
 * with ``--optimize``, a 4-particle, 2-iteration optimisation and its
   :func:`linkopt._design.run.write_outputs` (both designs' verification, the figures);
 * with ``--defaults``, ``optimize`` at its default settings (20 particles, verification
@@ -21,46 +21,18 @@ shared machine) of
   ``DIR`` (of FILE), its optimisation's wall time read from the checkpoint.
 
 CPU here counts this process and its finished child processes (the workers and the
-spawned process of the initial design's outputs).
+spawned process of the initial design's outputs). ``--delta --defaults`` and ``--run
+DIR`` measure the outputs at the default settings; they take long, so run them on an
+idle machine. Baseline: ``BASELINE_PLOT_CPU_S``, ``linkopt plot`` of the neck with one
+60 x 60 x 13 continuation grid per space. Writes the steps' seconds to
+``benchmarks/results/bench_outputs.json``.
 
-Baseline (before, on the 2-core machine shared by six processes, so CPU seconds
-count): ``linkopt plot mechanisms/neck_3dof.toml`` at the old default (60, one
-60 x 60 x 13 continuation grid per space) took 349 CPU s (19 min wall); the issue
-measured 496 s warm on the 3-output delta, and ``optimize --iterations 5`` 373 s
-optimising against 926 s of outputs.
-
-After (same machine and load, warm cache, one process; CPU seconds): evaluate 11.9;
-``plot_spaces`` at 40 74.4 (wall 333 under a load of 6 on 2 cores), against the old
-fine grids alone 36.9 (FK, mostly unreachable, so few cells visited) + 92.1 (BK) =
-129 before drawing; the whole ``linkopt plot`` 272 CPU s cold after, 349 before.
-``optimize`` of 4 particles x 2 iterations (no verification round) 125, its
-``write_outputs`` 346: two verifications at 13³ (unchanged: they decide what is
-accepted, about 170), two evaluations and two space plots (about 150; the old maps
-would have added about 110 more). With the default ``--verify-rounds`` the optimised
-design's verification comes from the last round and is not repeated.
-
-Outputs cut (issue 20, part 6, second pass): where ``write_outputs`` traced and compiled
-again what it had compiled already. Every compiled program is keyed by the mechanism's
-fingerprint, which includes the ``[evaluation]`` targets, so after a verification
-round added targets the optimised design's space plot and motion GIF were traced and
-compiled for the run's mechanism beside the file's; they now solve with the file's
-mechanism (the GIF still follows the loop through the run's targets). Verification
-computed the reached cells' singular values as a batch of the reached-cell count, a new
-program for every coverage; it is now one batch of the grid's shape. The last round's
-verification also serves a verification resolution equal to the default. Nothing that
-verification decides changed (the same cells, the same solves, the same threshold).
-
-Not measured at the default optimise settings: on this 2-core machine shared at a load
-of 10-13 (two other helpers' optimisations and test runs), ``--run`` on the delta
-deep-box run (10 iterations, one passed round) had not finished ``write_outputs`` after
-20 min wall and was stopped, and a default-settings neck or delta run did not fit the
-time. ``bench_outputs.py --delta --defaults`` and ``--run DIR`` are the commands for
-the before/after figures on an idle machine. Measured here: the Stewart example
-(``stewart_wide_tilt.toml``, 6 outputs): one ``verify`` at its default 4⁶ grid, 130 CPU
-s (779 s wall under that load); its ``optimize --particles 8 --iterations 6`` (after the
-changes above): optimisation 2616 s wall, the verification round about 420 s, the
-outputs (the initial design's 4⁶ verification in the spawned process, the drawing, two
-GIFs) about 240 s wall, 1113 CPU s for the whole command.
+The choices behind these figures are documented where they are made: sections solved
+in their planes (:func:`linkopt._design.maps.sections`); the optimised design's space
+plot solved with the file's mechanism, so it shares the initial design's programs, and
+the last round's verification reused (:func:`linkopt._design.run.write_outputs`);
+verification's singular values as one batch of the grid's shape
+(:mod:`linkopt._design.verify`).
 """
 
 from __future__ import annotations
@@ -73,12 +45,17 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
+import _results
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 FILE = ROOT / "mechanisms/neck_3dof.toml"
 DELTA = ROOT / "mechanisms/delta.toml"
+#: CPU seconds of ``linkopt plot mechanisms/neck_3dof.toml`` with a 60 x 60 x 13
+#: continuation grid per space instead of the sections (2-core machine).
 BASELINE_PLOT_CPU_S = 349.0
+#: What :func:`timed` measured, in order: the results file's rows.
+STEPS: list[dict] = []
 
 
 def _cpu() -> float:
@@ -92,11 +69,9 @@ def _cpu() -> float:
 def timed(label: str):
     wall, cpu = time.perf_counter(), _cpu()
     yield
-    print(
-        f"{label:<44} wall {time.perf_counter() - wall:8.1f} s   "
-        f"CPU {_cpu() - cpu:8.1f} s",
-        flush=True,
-    )
+    wall, cpu = time.perf_counter() - wall, _cpu() - cpu
+    print(f"{label:<44} wall {wall:8.1f} s   CPU {cpu:8.1f} s", flush=True)
+    STEPS.append({"step": label, "wall_s": wall, "cpu_s": cpu})
 
 
 def bench_plot(mech, out: Path) -> None:
@@ -215,6 +190,19 @@ def main() -> None:
             bench_defaults(mech, Path(tmp))
         if args.run is not None:
             bench_run(mech, args.run, Path(tmp))
+    flags = ("no_plot", "old", "delta", "optimize", "defaults")
+    options = [f"--{k.replace('_', '-')}" for k in flags if getattr(args, k)]
+    _results.write(
+        __file__,
+        {
+            "mechanism": mech.name,
+            "outputs": mech.num_outputs,
+            "state_size": mech.state_size,
+            "options": " ".join(options + ([f"--run {args.run}"] if args.run else [])),
+            "baseline_plot_cpu_s": BASELINE_PLOT_CPU_S,
+            "steps": STEPS,
+        },
+    )
 
 
 if __name__ == "__main__":

@@ -4,10 +4,9 @@ Run: ``nice -n 10 .venv/bin/python benchmarks/bench_trace.py [--figures] [--seed
 
 Each case runs in its own process (so each pays its own JIT compilation, from the
 persistent cache when warm) and reports wall and CPU seconds, the resulting arm and its
-verification, beside the paper's computing times (MATLAB fmincon, 3.6 GHz desktop):
-rose 0.5 min with SV^over and 2.7 min with SV^app, wipe 9.6 min, clean 7.5 min, and the
-discretised approach on the rose (25 points) 6.8 min. Ratios are ours / paper's.
-``--figures`` writes ``figures/trace_*.png`` and ``figures/trace_rose.gif``.
+verification, beside the paper's computing times (``PAPER_MIN``; MATLAB fmincon, 3.6 GHz
+desktop), and writes them to ``benchmarks/results/bench_trace.json``. Ratios are ours /
+paper's. ``--figures`` writes ``figures/trace_*.png`` and ``figures/trace_rose.gif``.
 """
 
 from __future__ import annotations
@@ -19,7 +18,11 @@ import sys
 import time
 from pathlib import Path
 
+import _results
+
 ROOT = Path(__file__).resolve().parent.parent
+#: The paper's computing time of each case, minutes: the rose with SV^over and with
+#: SV^app, wipe, clean, and the discretised approach on the rose (25 points).
 PAPER_MIN = {
     "rose_over": 0.5,
     "rose_app": 2.7,
@@ -163,6 +166,7 @@ def main() -> None:
     print(
         f"{'case':<17} {'wall s':>7} {'cpu s':>7} {'paper min':>9} {'ratio':>6}  result"
     )
+    rows = []
     for name, paper in PAPER_MIN.items():
         r = run_case(name, args.seed, args.figures)
         ratio = r["wall_s"] / (60 * paper)
@@ -171,6 +175,18 @@ def main() -> None:
             f"{ratio:6.3f}  {_describe(name, r)}",
             flush=True,
         )
+        rows.append(
+            {
+                "case": name,
+                "wall_s": r["wall_s"],
+                "cpu_s": r["cpu_s"],
+                "paper_min": paper,
+                "ours_over_paper": ratio,
+                "verified": r.get("verified", False),
+                "result": _describe(name, r),
+            }
+        )
+    _results.write(__file__, {"seed": args.seed, "cases": rows})
 
 
 if __name__ == "__main__":

@@ -149,6 +149,7 @@ def _result_section(path: Path) -> str:
         head.append("machine: " + _cell(data["machine"]))
     if head:
         lines.append("Measured " + ", ".join(head) + ".\n")
+    items: list[str] = []  # consecutive single values, shown as one list
     for key, value in data.items():
         if key in ("date", "commit", "machine"):
             continue
@@ -157,12 +158,18 @@ def _result_section(path: Path) -> str:
             and value
             and all(isinstance(v, dict) for v in value)
         ):
-            lines.append(f"{key}:\n\n{_table(value)}\n")
+            table = _table(value)
         elif isinstance(value, dict):
-            rows = [{"": k, "value": v} for k, v in value.items()]
-            lines.append(f"{key}:\n\n{_table(rows)}\n")
+            table = _table([{"": k, "value": v} for k, v in value.items()])
         else:
-            lines.append(f"{key}: {_cell(value)}\n")
+            items.append(f"- {key}: {_cell(value)}")
+            continue
+        if items:
+            lines.append("\n".join(items) + "\n")
+            items = []
+        lines.append(f"{key}:\n\n{table}\n")
+    if items:
+        lines.append("\n".join(items) + "\n")
     return "\n".join(lines)
 
 

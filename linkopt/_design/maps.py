@@ -10,8 +10,9 @@ started from; otherwise it is infeasible (NaN in the maps). Python iterates over
 
 A wave of any size is solved in blocks of a fixed number of cells
 (:mod:`linkopt._engine.blocks`), so every map, section and verification grid of a
-mechanism runs the same compiled FK or BK program (before, each padded wave size was
-its own program: four to five per map, 8-12 s of compilation each).
+mechanism runs the same compiled FK or BK program, where a program per padded wave size
+would compile four to five per map, each taking seconds
+(``benchmarks/bench_compile.py`` lists a command's compilations).
 
 Three motors and outputs are drawn as 2-D sections, each solved in its own plane from
 seeds on a coarse 3-D grid (:func:`sections`), not as one fine 3-D
@@ -323,11 +324,12 @@ def sections(
     (``SECTION_SEED²`` in-plane values and ``depth`` on the third axis, each merged with
     the start value, the third also with the cuts): a section shows the start state's
     assembly branch, reached through the third dimension, and not a branch found by a
-    fresh solve at the cut. Where the fine grid of ``resolution² × depth`` cells that
-    this replaces was mostly never drawn, this solves ``3 resolution²`` cells plus the
-    coarse ``SECTION_SEED² · depth`` (``benchmarks/bench_outputs.py``). What may differ:
-    a part of a section that the branch reaches through the third dimension only
-    between two coarse cells is not drawn (our choice, for the time).
+    fresh solve at the cut. Instead of a fine grid of ``resolution² × depth`` cells,
+    most of which would never be drawn, this solves ``3 resolution²`` cells plus the
+    coarse ``SECTION_SEED² · depth`` (``benchmarks/bench_outputs.py --old`` times
+    both). What may differ: a part of a section that the branch reaches through the
+    third dimension only between two coarse cells is not drawn (our choice, for the
+    time).
     ``progress`` gets ``{"stage", "cells", "of"}`` after each wave.
     """
     if len(low) != 3 or len(high) != 3 or len(start_values) != 3:

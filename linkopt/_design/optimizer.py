@@ -25,8 +25,8 @@ follows pyswarms' global best by total, which may be a design with a tiny but no
 from being returned or from holding the run open. ``tolerance`` = 1e-12 is our choice:
 feasible five-bar, finger, neck and Jansen designs score 1e-27 to 1e-18 (reach residuals
 at the solver's constraint tolerance), while one adversarial sample a fraction ``t`` of
-the way from ``α₋`` to ``α₊`` adds about ``10 t³ α₋ / T`` to ``f_design``. With the
-earlier 1e-6, a five-bar run (seed 2) returned a design at 7e-8, a sample 0.06 % above
+the way from ``α₋`` to ``α₊`` adds about ``10 t³ α₋ / T`` to ``f_design``. 1e-6 is too
+loose: with it a five-bar run (seed 2) returned a design at 7e-8, a sample 0.06 % above
 ``α₋``, and ``linkopt verify`` found ``f_sing`` 0.6 % above ``α₋`` on its grid; 1e-12
 admits ``t ≈ 3e-5`` on the five-bar (0.0014 % above ``α₋``) or a reach miss of 4e-6
 (homogenised output units). The run stops once the returned design is feasible and its

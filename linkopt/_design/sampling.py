@@ -159,7 +159,7 @@ def _trial(mech: Mechanism, geom: Geometry, it: _Iterate, fresh) -> _Trial:
     its linear prediction ``s + (ds/da) δ``."""
     size = it.motors.shape[0]
     system = it.hessian + it.damping * jnp.eye(size)
-    delta = -dense.solve(system, it.gradient)  # LU: as jnp.linalg.solve was
+    delta = -dense.solve(system, it.gradient)  # LU, as jnp.linalg.solve
     norm = jnp.sqrt(delta @ delta)
     shortened = norm > it.radius
     delta = jnp.where(

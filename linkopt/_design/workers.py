@@ -19,14 +19,13 @@ chunks and so the same numbers: once its executable is loaded a chunk's gradient
 far less than loading that executable in every worker would. When the caller has
 evaluated its chunk before the workers answer (every first iteration: a worker starts
 after the caller), it differentiates that chunk while it waits, so most of the load
-falls in time it would have spent idle. The timings behind these choices are in
-``benchmarks/bench_optimizer.py``.
+falls in time it would have spent idle. ``benchmarks/bench_optimizer.py`` measures the
+optimiser with one and two processes (``--workers 1,2``).
 
 A worker that dies (killed, out of memory, or a crash in XLA) breaks the pool: a new
 pool recomputes the chunks that had no result, up to ``RETRIES`` times, and then the
 calling process computes them itself, so a lost worker costs time but never hangs or
-changes the run (``multiprocessing.Pool``, used before, waited for ever on the lost
-task).
+changes the run (``multiprocessing.Pool`` would wait for ever on the lost task).
 
 OpenBLAS is held to one thread while a chunk computes (:mod:`linkopt._config`): in the
 workers for their lifetime, in the calling process only while it computes.

@@ -2,15 +2,15 @@
 every batch size.
 
 A jitted function is traced and compiled once per argument shape, and for linkopt's
-solves a compilation costs seconds (8-12 s for a five-bar warm-started FK batch on a
-2-core machine, more for larger mechanisms) where running a block costs milliseconds.
-Maps, verification and animations ask for many batch sizes (each continuation wave has
-its own; a 60² map had four, a 41² verification three more, each σ_min and read-out
-batch one), so a first run spent most of its time compiling. :func:`in_blocks` calls
-the function on consecutive blocks of exactly :data:`BLOCK` rows instead (the last
-block padded by repeating its last row, whose results are dropped): whatever the batch
-size, one program. The cost is the padding (at most ``BLOCK - 1`` rows a call) and one
-dispatch per block (about 0.1 ms).
+solves a compilation costs seconds where running a block costs milliseconds
+(``benchmarks/bench_compile.py`` lists a command's compilations). Maps, verification
+and animations ask for many batch sizes (each continuation wave has its own: about four
+for a 60² map, three more for a 41² verification, one for each σ_min and read-out
+batch), so with a program per batch size a first run would spend most of its time
+compiling. :func:`in_blocks` calls the function on consecutive blocks of exactly
+:data:`BLOCK` rows instead (the last block padded by repeating its last row, whose
+results are dropped): whatever the batch size, one program. The cost is the padding (at
+most ``BLOCK - 1`` rows a call) and one dispatch per block (about 0.1 ms).
 
 Only concrete arrays are blocked: under ``jax.jit``, ``vmap`` or ``grad`` (a tracer
 among the arguments) the function is called once on the whole batch, so solves stay
@@ -48,8 +48,8 @@ def in_blocks(
 
     ``one`` (optional) computes the same for one row without its batch axis: a batch
     of one row then runs that program (the one a single solve uses) instead of a block
-    padded with ``width - 1`` copies (a five-bar FK batch of one row took 7 ms as a
-    block)."""
+    padded with ``width - 1`` copies, which costs many single solves
+    (``benchmarks/bench_kinematics.py`` times a batch of one)."""
     rows = [np.asarray(r) for r in rows]
     count = len(rows[0])
     if count == 0:

@@ -73,10 +73,10 @@ def cholesky(a: Float[Array, "n n"]) -> Float[Array, "n n"]:
     ``fori_loop`` step; reads the lower triangle only; NaN from the first non-positive
     pivot on).
 
-    One column a step (a matrix-vector product with the finished columns) measured
-    faster than panels of :data:`PANEL` columns, both alone (42 against 65 µs for
-    35 x 35) and vmapped over chunks of 32 (21 against 32 ms per 1000), because the
-    panel's unrolled column updates each pass over the whole batch."""
+    One column a step (a matrix-vector product with the finished columns) rather than
+    panels of :data:`PANEL` columns: panels ran slower, both alone and vmapped over
+    chunks of 32, because the panel's unrolled column updates each pass over the whole
+    batch (``benchmarks/bench_kinematics.py`` times the solves)."""
     n = a.shape[-1]
     rows = jnp.arange(n)
 
@@ -290,7 +290,7 @@ def symmetric_eigh(
     ``G`` and taking three ``k x k`` matrix products a step made σ_min's Ritz step
     most of a sample step (``benchmarks/bench_evaluation.py``); unrolling a sweep's
     rotations with static ``(p, q)`` ran no faster inside the evaluation and compiled
-    3 s slower."""
+    slower."""
     k = a.shape[-1]
     if k == 1:
         return a[0], jnp.ones_like(a)

@@ -248,8 +248,8 @@ def _prepare(mech: Mechanism, kind: str, values, start, design):
 #: Lanes per vmapped chunk of a batched solve (``lax.map`` runs the chunks in turn).
 #: A whole batch vmapped at once makes every operation of the solve (the plain-JAX
 #: Cholesky's column steps above all) stream the batch's matrices through memory; in
-#: chunks they stay in cache: 1000 Cholesky factors of 56 x 56 took 48 ms in chunks of
-#: 8 and 200 ms in one vmap (``benchmarks/bench_kinematics.py``).
+#: chunks they stay in cache, which runs several times faster
+#: (``benchmarks/bench_kinematics.py`` times batched solves).
 CHUNK = 32
 
 
@@ -297,7 +297,7 @@ def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
 def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
     """:func:`_solve`; a concrete batch in fixed blocks (:mod:`.blocks`), each row
     with its own start. Concrete calls here and below keep their traces on disk
-    (:func:`.programs.call`: a warm process skips tracing a solve, 0.5-1.5 s)."""
+    (:func:`.programs.call`: a warm process skips tracing a solve)."""
     if traced(values, start, design):
         return _solve(mech, kind, values, start, design)
     design = design_array(mech, design)
@@ -313,7 +313,8 @@ def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
         return solve(values, start)
     # no single-row shortcut (``in_blocks``'s ``one``): warm-started batches are the
     # maps' and verification's waves, whose first wave of one cell would compile the
-    # one-row program beside the block's (9 s of the cold main command)
+    # one-row program beside the block's (seconds of the cold main command's
+    # compilation, benchmarks/bench_compile.py)
     starts = np.broadcast_to(start, (len(values), mech.state_size))
     return in_blocks(solve, (values, starts))
 

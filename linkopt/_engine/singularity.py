@@ -9,16 +9,17 @@ The motor and output rows' Jacobians do not depend on the motor/output *targets*
 
 σ_min is found by block inverse iteration with a Rayleigh–Ritz step on ``A = JᵀJ``
 (``BLOCK`` vectors, ``ITERATIONS`` sweeps, a fixed seeded start block) instead of a full
-SVD: the LAPACK SVD of a few dozen columns was most of a design evaluation (figures in
-``benchmarks/bench_kinematics.py``). ``tests/test_singularity.py`` checks it against the
-SVD, also along a five-bar path whose two smallest singular values come within 0.7 % of
-each other. ``A⁻¹ = L⁻ᵀL⁻¹`` is formed once from the Cholesky factor (one triangular
-solve with ``n`` right-hand sides) and each sweep is a matrix product rather than two
-batched triangular solves, which were most of σ_min's cost. Close to a singularity the
-smallest eigenvalue separates and the iteration converges faster. The value returned is
-``σ = ‖J(s) v‖`` with the Ritz vector ``v`` held fixed, an upper bound on σ_min that
-equals it at convergence, and whose derivative is the exact first derivative of σ_min
-for a simple smallest singular value (``dσ = uᵀ dJ v``, ``u = Jv/σ``).
+SVD, because the LAPACK SVD of a few dozen columns would be most of a design
+evaluation's time (``benchmarks/bench_evaluation.py`` times the evaluation).
+``tests/test_singularity.py`` checks it against the SVD, also along a five-bar path
+whose two smallest singular values come within 0.7 % of each other. ``A⁻¹ = L⁻ᵀL⁻¹`` is
+formed once from the Cholesky factor (one triangular solve with ``n`` right-hand sides)
+and each sweep is a matrix product rather than two batched triangular solves, which
+would be most of σ_min's cost. Close to a singularity the smallest eigenvalue separates
+and the iteration converges faster. The value returned is ``σ = ‖J(s) v‖`` with the
+Ritz vector ``v`` held fixed, an upper bound on σ_min that equals it at convergence, and
+whose derivative is the exact first derivative of σ_min for a simple smallest singular
+value (``dσ = uᵀ dJ v``, ``u = Jv/σ``).
 
 The Cholesky factor, its inverse and the ``BLOCK × BLOCK`` Ritz eigenproblem (cyclic
 Jacobi) come from :mod:`linkopt._engine.dense`, not LAPACK: jaxlib's batched LAPACK

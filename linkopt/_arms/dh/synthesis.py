@@ -245,8 +245,9 @@ def minimise(
         return float(value), np.asarray(grad, dtype=float)
 
     # L-BFGS-B's vector updates call OpenBLAS, whose worker threads spin for vectors of
-    # a few hundred entries (same iterates, several times the CPU time; figures in
-    # benchmarks/bench_manipulability.py), so BLAS runs single-threaded here.
+    # a few hundred entries (same iterates, several times the CPU time;
+    # benchmarks/bench_manipulability.py times the sample run), so BLAS runs
+    # single-threaded here.
     with one_blas_thread():
         result = scipy.optimize.minimize(
             fun,
