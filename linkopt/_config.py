@@ -53,8 +53,8 @@ def one_blas_thread():
 
     jaxlib's LAPACK kernels call the OpenBLAS that scipy ships, which starts one thread
     per core and keeps it spinning between calls: two processes, each with that thread
-    beside its own, overbook a 2-core machine and every chunk runs several times slower
-    (figures in ``benchmarks/bench_optimizer.py``). Every chunk therefore runs with
+    beside its own, overbook a 2-core machine and every chunk runs several times
+    slower. Every chunk therefore runs with
     OpenBLAS held to one thread (``threadpoolctl``): in the workers for their lifetime,
     in the calling process only while it computes, so the user's own numpy keeps its
     threads. ``threadpoolctl`` only limits libraries already loaded, and jaxlib loads

@@ -17,8 +17,9 @@ A batch of ``D`` designs is ``D·T`` independent lanes, each an IK minimisation 
 by an adversarial one from its result, run through
 :func:`linkopt._design.sampling.minimise_queue` with ``QUEUE_WIDTH`` slots.
 
-``QUEUE_WIDTH`` = 12 is measured (``benchmarks/bench_evaluation.py``): a lane-step
-costs more in a wider batch (we think because a few dozen lanes' matrices stay in the
+``QUEUE_WIDTH`` = 12 was chosen by timing the evaluation at several widths
+(``benchmarks/bench_evaluation.py`` times it at this one): a lane-step costs more in a
+wider batch (we think because a few dozen lanes' matrices stay in the
 CPU caches, and because the trial solve's inner loop runs to its slowest lane), more
 than the per-step overhead that favours width saves.
 
@@ -384,8 +385,8 @@ def evaluate_in_batch(mech: Mechanism, design, rows: int) -> Evaluation:
     """:func:`evaluate` of one design ``(n_p,)`` (None: the file's), computed as the
     first of ``rows`` copies of it: with ``rows`` the optimiser's chunk size, the
     program that evaluated the swarm serves it (in memory, or from the disk caches in
-    another process) instead of a program for one design, which cost a first run 15-20
-    s of tracing and compiling. A design's lanes do not depend on the other designs in
+    another process) instead of a program for one design, which a first run would trace and
+    compile again (``benchmarks/bench_compile.py`` lists them). A design's lanes do not depend on the other designs in
     the batch."""
     check_design(mech, design)
     single = np.asarray(design_vector(mech, design), dtype=np.float64)
