@@ -275,17 +275,52 @@ MODULES = [
 ]
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("module", MODULES)
+#: Modules under ``linkopt._cli`` that import the engine, and so JAX, at the top: the
+#: finder then imports ``_config`` on their first engine import.
+CLI_WITH_ENGINE = ("linkopt._cli.payloads",)
+
+
+def _jax_free(module: str) -> bool:
+    from linkopt import _JAX_FREE
+
+    if module in ("linkopt._config", *CLI_WITH_ENGINE):
+        return False
+    return module in (*_JAX_FREE, "linkopt") or module.startswith("linkopt._cli")
+
+
+def test_the_modules_listed_as_jax_free_import_no_jax():
+    """linkopt imports ``_config`` (float64, the cache) before the first module that
+    is not listed as JAX-free; so no listed module may import JAX itself, or JAX would
+    run unconfigured. One process imports them all and finds no JAX."""
+    free = [m for m in MODULES if _jax_free(m)]
+    assert len(free) > 10
+    code = (
+        "import importlib, sys\n"
+        f"for name in {free!r}:\n"
+        "    importlib.import_module(name)\n"
+        "loaded = sorted(m for m in sys.modules if m.split('.')[0] in "
+        "('jax', 'jaxlib'))\n"
+        "assert not loaded, loaded[:5]\n"
+    )
+    _python(code)
+
+
+@pytest.mark.parametrize(
+    "module",
+    [
+        *CLI_WITH_ENGINE,
+        *[m for m in MODULES if not _jax_free(m)][:: max(1, len(MODULES) // 8)],
+    ],
+)
 def test_a_module_that_imports_jax_finds_float64_on(module):
-    """Imported alone in a fresh process: where the import brought in JAX, float64
-    is on (and the compilation cache installed) before any of it ran."""
+    """Imported alone in a fresh process (a sample of the JAX-using modules; the
+    finder treats them all alike): float64 is on and the compilation cache installed
+    before any of it ran."""
     code = (
         "import importlib, sys\n"
         f"importlib.import_module({module!r})\n"
-        "if 'jax' in sys.modules:\n"
-        "    import jax\n"
-        "    assert jax.config.jax_enable_x64, 'float64 is off'\n"
-        "    assert 'linkopt._config' in sys.modules\n"
+        "import jax\n"
+        "assert jax.config.jax_enable_x64, 'float64 is off'\n"
+        "assert 'linkopt._config' in sys.modules\n"
     )
     _python(code)
