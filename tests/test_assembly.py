@@ -599,7 +599,26 @@ def test_cli_refuses_bad_arguments(tmp_path, capsys):
         == 2
     )
     assert "--motors: expected 1 finite numbers (crank)" in capsys.readouterr().err
-    assert (
-        main(["assemble", str(drawing), "--out", str(tmp_path / "no" / "x.toml")]) == 2
-    )
+    assert main(["assemble", str(drawing), "--out", str(tmp_path)]) == 2
+    assert "is a folder" in capsys.readouterr().err
     assert not (tmp_path / "x.toml").exists()
+
+
+def test_cli_out_in_a_missing_folder_is_made_and_a_failure_writes_nothing(
+    tmp_path, capsys
+):
+    """--out in a folder that does not exist is made, as export/animate/optimize do;
+    a drawing whose loops do not close names the file it did not write and leaves no
+    folder behind."""
+    drawing = tmp_path / "drawn.toml"
+    drawing.write_text(four_bar())
+    out = tmp_path / "new" / "deeper" / "x.toml"
+    assert main(["assemble", str(drawing), "--out", str(out)]) == 0
+    assert linkopt.load(out).num_motors == 1
+    capsys.readouterr()
+    drawing.write_text(four_bar(coupler=100.0))
+    failed = tmp_path / "other" / "y.toml"
+    assert main(["assemble", str(drawing), "--out", str(failed)]) == 2
+    err = capsys.readouterr().err
+    assert "does not close" in err and f"({failed} was not written)" in err
+    assert not failed.parent.exists()

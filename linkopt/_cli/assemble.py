@@ -6,7 +6,8 @@ file (world anchors to full precision, an ordinary mechanism file that every com
 reads) and reports how far each anchor moved, the declared lengths as assembled and
 σ_min at the assembled rest pose, with a warning when that pose is near a singularity.
 Nothing is written when the loops do not close or the assembled file would not pass
-``linkopt check``.
+``linkopt check`` (the error says so); a missing folder of ``--out`` is made, as every
+command's ``--out`` does, once the file can be written.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .._engine.fields import parse_text
-from .._errors import InputError
+from .._errors import InputError, LinkoptError
 from .._folders import write_atomic
 from .values import parse_row
 
@@ -31,11 +32,8 @@ def run_assemble(args) -> int:
             f"--out: {args.out!r} is the input file; give another path (the "
             "assembled file has no [[lengths]] or body frames left)"
         )
-    if not out.parent.is_dir():
-        raise InputError(
-            f"--out: the folder {str(out.parent)!r} does not exist; expected a path "
-            "in an existing folder"
-        )
+    if out.is_dir():
+        raise InputError(f"--out: {args.out!r} is a folder; expected a file path")
     data = parse_text(source)
     motors = _motor_values(args.motors, data)
     from .._engine.assembly import assemble
@@ -45,10 +43,15 @@ def run_assemble(args) -> int:
     from .._engine.singularity import singular_values
     from .._engine.writer import dumps
 
-    result = assemble(data, str(source), motors)
-    mech = build(copy.deepcopy(result.data), str(out), check=False)
-    sigma_fk, sigma_bk = (float(v) for v in singular_values(mech, rest_state(mech)))
-    check_mobility(mech)
+    try:
+        result = assemble(data, str(source), motors)
+        mech = build(copy.deepcopy(result.data), str(out), check=False)
+        sigma_fk, sigma_bk = (float(v) for v in singular_values(mech, rest_state(mech)))
+        check_mobility(mech)
+    except LinkoptError as err:
+        raise InputError(f"{err} ({out} was not written)") from err
+    # a missing folder is made, as every command's --out does, once there is a file
+    out.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(out, _header(source, result.report) + dumps(result.data))
     payload = _payload(source, out, result.report, sigma_fk, sigma_bk)
     if args.json:
