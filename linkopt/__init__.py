@@ -11,60 +11,11 @@ public name), or at once when JAX is already imported.
 """
 
 import importlib
-import sys
 from typing import TYPE_CHECKING
 
-#: The modules that never import JAX: the command line (it imports the rest inside its
-#: handlers) and what it checks before any computation, so that ``linkopt --help``, a
-#: usage error and a file that cannot be read answer without waiting for JAX.
-#: ``tests/test_cli_startup.py`` imports each linkopt module in a fresh process and
-#: checks that float64 is on wherever JAX was imported.
-_JAX_FREE = {
-    f"{__name__}.{name}"
-    for name in (
-        "__main__",
-        "_cache",
-        "_config",
-        "_errors",
-        "_folders",
-        "_arms",
-        "_arms.checks",
-        "_arms.dh",
-        "_arms.dh.points",
-        "_arms.limits",
-        "_arms.trace",
-        "_arms.trace.task",
-        "_design",
-        "_engine",
-        "_engine.fields",
-        "_export",
-    )
-}
+from ._imports import configure_before_jax
 
-
-class _ConfigFirst:
-    """A finder on ``sys.meta_path`` that finds nothing: it imports :mod:`._config`
-    (float64 and the compilation cache, which must come before JAX computes anything)
-    before the first linkopt module that is not in :data:`_JAX_FREE` or the command
-    line, so that importing :mod:`linkopt`, or the command line to print its help,
-    does not import JAX."""
-
-    @staticmethod
-    def find_spec(name, path=None, target=None):
-        if (
-            name.startswith(f"{__name__}.")
-            and name not in _JAX_FREE
-            and not name.startswith(f"{__name__}._cli")
-            and f"{__name__}._config" not in sys.modules
-        ):
-            importlib.import_module("._config", __name__)
-        return None
-
-
-if not any(isinstance(finder, _ConfigFirst) for finder in sys.meta_path):
-    sys.meta_path.insert(0, _ConfigFirst())
-if "jax" in sys.modules:  # JAX is loaded already: configure it now, it costs nothing
-    from . import _config  # noqa: F401
+configure_before_jax()
 
 # name → (module, attribute). Imported on first use (PEP 562), so that a process that
 # needs one part (a worker evaluating designs, ``linkopt check``) does not pay for the

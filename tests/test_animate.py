@@ -388,13 +388,13 @@ def test_target_rectangle_is_drawn_for_two_positions_beside_an_angle(text):
     positions; a planar platform's x, y and heading got none."""
     import matplotlib.pyplot as plt
 
-    from linkopt._design.animation import _target_box
+    from linkopt._design.animation import target_box
 
     mech = linkopt.load(MECHANISMS / "five_bar.toml") if text == "five_bar" else None
     mech = mech or linkopt.loads(text)
     basis = plane_basis(mech)
     fig, ax = plt.subplots()
-    _target_box(ax, mech, basis)
+    target_box(ax, mech, basis)
     (line,) = [ln for ln in ax.lines if ln.get_label() == "target range"]
     x, y = (mech.output_names.index(n) for n in ("x", "y"))
     lo, hi = mech.output_min, mech.output_max
@@ -406,11 +406,11 @@ def test_target_rectangle_is_drawn_for_two_positions_beside_an_angle(text):
 def test_a_plate_is_drawn_as_its_hull_without_its_interior_point():
     """Regression: a platform with three joints and a centre point was drawn as a
     four-sided ring through the centre; a bar's collinear members are one segment."""
-    from linkopt._design.animation import _outline
+    from linkopt._design.animation import body_outline
 
     corners = np.array([[1.0, 0.0, 0.0], [-0.5, 0.8, 0.0], [-0.5, -0.8, 0.0]])
     coords = np.vstack([corners[:2], [0.0, 0.0, 0.0], corners[2:]])  # centre third
-    ring = _outline(np.arange(4) + 10, coords)
+    ring = body_outline(np.arange(4) + 10, coords)
     assert ring[0] == ring[-1] and sorted(ring[:-1]) == [10, 11, 13]
     bar = np.array([[0.0, 0.0, 0.0], [2.0, 1.0, 0.0], [1.0, 0.5, 0.0]])
-    assert sorted(_outline(np.arange(3), bar)) == [0, 1]
+    assert sorted(body_outline(np.arange(3), bar)) == [0, 1]

@@ -281,11 +281,11 @@ CLI_WITH_ENGINE = ("linkopt._cli.payloads",)
 
 
 def _jax_free(module: str) -> bool:
-    from linkopt import _JAX_FREE
+    from linkopt._imports import JAX_FREE
 
     if module in ("linkopt._config", *CLI_WITH_ENGINE):
         return False
-    return module in (*_JAX_FREE, "linkopt") or module.startswith("linkopt._cli")
+    return module in (*JAX_FREE, "linkopt") or module.startswith("linkopt._cli")
 
 
 def test_the_modules_listed_as_jax_free_import_no_jax():

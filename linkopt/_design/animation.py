@@ -368,7 +368,7 @@ def _members(mech: Mechanism, body: int) -> np.ndarray:
 COLLINEAR_TOL = 1e-9
 
 
-def _outline(members: np.ndarray, coords: Float[np.ndarray, "N 3"]) -> np.ndarray:
+def body_outline(members: np.ndarray, coords: Float[np.ndarray, "N 3"]) -> np.ndarray:
     """``members`` (indices of ``coords``' rows) on the outline of their convex hull
     in their best-fit plane, counter-clockwise and closed; the two extreme members
     along their line when they are collinear. Members inside the hull (a platform's
@@ -388,13 +388,13 @@ def _outline(members: np.ndarray, coords: Float[np.ndarray, "N 3"]) -> np.ndarra
 
 def body_rings(mech: Mechanism, rest: Float[np.ndarray, "X 3"]) -> list[np.ndarray]:
     """Per moving body, the outline of its members (:func:`_members`) at ``rest``
-    (:func:`_outline`): a segment for a bar, a closed polygon for a plate."""
+    (:func:`body_outline`): a segment for a bar, a closed polygon for a plate."""
     rings = []
     for body in range(mech.num_bodies):
         members = _members(mech, body)
         if body == mech.ground or len(members) < 2:
             continue
-        rings.append(_outline(members, rest[members]))
+        rings.append(body_outline(members, rest[members]))
     return rings
 
 
@@ -447,7 +447,7 @@ def _axis_labels(ax, mech: Mechanism, basis) -> None:
         set_label(("xyz"[k] if k is not None else f"{other} (in the plane)") + unit)
 
 
-def _target_box(ax, mech: Mechanism, basis) -> None:
+def target_box(ax, mech: Mechanism, basis) -> None:
     """The target range of the position outputs, where exactly two outputs are
     positions, of one point, and they are the drawing plane's two coordinates (in
     either order; other outputs, an angle of a planar platform say, are not drawn)."""
@@ -485,7 +485,7 @@ def _scene(ax, mech: Mechanism, item: Motion, basis) -> _Scene:
     ground = [k for k, (i, j) in enumerate(mech.joint_bodies) if mech.ground in (i, j)]
     fixed = _project(item.joints[0, ground], basis)
     ax.plot(*fixed.T, "^", color="0.45", ms=9, ls="none", label="ground joints")
-    _target_box(ax, mech, basis)
+    target_box(ax, mech, basis)
     collection = LineCollection if basis is not None else Line3DCollection
     links = collection([], linewidths=3, animated=True)
     ax.add_collection(links)

@@ -385,9 +385,9 @@ def evaluate_in_batch(mech: Mechanism, design, rows: int) -> Evaluation:
     """:func:`evaluate` of one design ``(n_p,)`` (None: the file's), computed as the
     first of ``rows`` copies of it: with ``rows`` the optimiser's chunk size, the
     program that evaluated the swarm serves it (in memory, or from the disk caches in
-    another process) instead of a program for one design, which a first run would trace and
-    compile again (``benchmarks/bench_compile.py`` lists them). A design's lanes do not depend on the other designs in
-    the batch."""
+    another process) instead of a program for one design, which a first run would
+    trace and compile again (``benchmarks/bench_compile.py`` lists them). A design's
+    lanes do not depend on the other designs in the batch."""
     check_design(mech, design)
     single = np.asarray(design_vector(mech, design), dtype=np.float64)
     batch = evaluate(mech, np.repeat(single[None], max(int(rows), 1), axis=0))

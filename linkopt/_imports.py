@@ -1,0 +1,67 @@
+"""JAX configured for linkopt before it computes, without importing JAX for the
+command line's help and its input errors.
+
+Importing :mod:`linkopt` does not import JAX: ``linkopt --help``, a usage error and a
+file that cannot be read answer without waiting for it. :func:`configure_before_jax`
+puts a finder on ``sys.meta_path`` that imports :mod:`linkopt._config` (float64 and the
+compilation cache) before the first linkopt module outside :data:`JAX_FREE` and the
+command line; every module that computes with JAX is such a module.
+``tests/test_cli_startup.py`` checks that the listed modules import no JAX and that a
+module that does finds float64 on.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+PACKAGE = __name__.rpartition(".")[0]
+#: The modules that never import JAX: what the command line checks before any
+#: computation (it imports the rest inside its handlers, ``linkopt._cli``).
+JAX_FREE = frozenset(
+    f"{PACKAGE}.{name}"
+    for name in (
+        "__main__",
+        "_cache",
+        "_config",
+        "_errors",
+        "_folders",
+        "_imports",
+        "_arms",
+        "_arms.checks",
+        "_arms.dh",
+        "_arms.dh.points",
+        "_arms.limits",
+        "_arms.trace",
+        "_arms.trace.task",
+        "_design",
+        "_engine",
+        "_engine.fields",
+        "_export",
+    )
+)
+
+
+class ConfigFirst:
+    """A finder that finds nothing: it imports :mod:`linkopt._config` before the first
+    linkopt module that is not in :data:`JAX_FREE` or the command line."""
+
+    @staticmethod
+    def find_spec(name, path=None, target=None):
+        if (
+            name.startswith(f"{PACKAGE}.")
+            and name not in JAX_FREE
+            and not name.startswith(f"{PACKAGE}._cli")
+            and f"{PACKAGE}._config" not in sys.modules
+        ):
+            importlib.import_module(f"{PACKAGE}._config")
+        return None
+
+
+def configure_before_jax() -> None:
+    """Install :class:`ConfigFirst` (once); configure at once when JAX is already
+    imported (it then costs nothing)."""
+    if not any(isinstance(finder, ConfigFirst) for finder in sys.meta_path):
+        sys.meta_path.insert(0, ConfigFirst())
+    if "jax" in sys.modules:
+        importlib.import_module(f"{PACKAGE}._config")
