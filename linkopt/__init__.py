@@ -24,6 +24,8 @@ configure_before_jax()
 # optimisation), ``_arms`` (serial arms: ``codesign``, ``dh``, ``trace``), ``_cli``.
 _EXPORTS = {
     "constraint_rows": ("_engine.constraints", "constraint_rows"),
+    "Clearance": ("_engine.collision", "Clearance"),
+    "clearance": ("_engine.collision", "clearance"),
     "InputError": ("_errors", "InputError"),
     "LinkoptError": ("_errors", "LinkoptError"),
     "MechanismFileError": ("_errors", "MechanismFileError"),
@@ -165,6 +167,7 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._design.partial import partial_gradient
     from ._design.run import optimize, write_outputs
     from ._design.verify import Verification, verify
+    from ._engine.collision import Clearance, clearance
     from ._engine.constraints import constraint_rows
     from ._engine.geometry import geometry, rest_state
     from ._engine.kinematics import (

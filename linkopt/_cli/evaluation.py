@@ -58,8 +58,9 @@ def _sample(mech, ev, t: int, goal, ik_out, adv_out) -> dict:
     }
 
 
-def evaluation_payload(mech, ev) -> dict:
-    """What ``linkopt evaluate`` reports (``--json``) for one evaluation."""
+def evaluation_payload(mech, ev, design=None) -> dict:
+    """What ``linkopt evaluate`` reports (``--json``) for one evaluation of
+    ``design`` (file units, None: the file's)."""
     from .._design.evaluation import alpha_minus, capped, rest_conditioning, targets
     from .._engine.readout import output_values
 
@@ -78,13 +79,49 @@ def evaluation_payload(mech, ev) -> dict:
         "rest_pose": rest_conditioning(mech).as_json(),
         "capped_samples": dict(zip(("ik", "adversarial"), capped(mech, ev))),
         "samples": samples,
+        **_evaluated_collision(mech, ev, design, ik_out, adv_out),
     }
+
+
+def _evaluated_collision(mech, ev, design, ik_out, adv_out) -> dict:
+    """``evaluate --json``'s ``collision`` entry, only for a file that checks them:
+    the collision term (the mean over the IK and adversarial sample states of the
+    barrier, :mod:`linkopt._engine.collision`), and the least clearance with its pair
+    and pose."""
+    from .._engine.collision import clearance, has_collision, pair_names
+
+    if not has_collision(mech):
+        return {}
+    states = np.concatenate([np.asarray(ev.ik_states), np.asarray(ev.adv_states)])
+    result = clearance(mech, states, design=design)
+    entry = {
+        "term": float(np.mean(result.value)),
+        "weight": mech.collision.weight,
+        "clearance": mech.collision.clearance,
+        "min_clearance": float(np.min(result.minimum)),
+        "pair": None,
+        "pose": None,
+    }
+    if len(states) and result.worst[0] >= 0:
+        k = int(np.argmin(result.minimum))
+        count = len(ev.ik_states)
+        kind, t = ("ik", k) if k < count else ("adversarial", k - count)
+        motors = (ev.ik_motors if kind == "ik" else ev.adv_motors)[t]
+        outputs = (ik_out if kind == "ik" else adv_out)[t]
+        entry["pair"] = list(pair_names(mech, result.worst[k]))
+        entry["pose"] = {
+            "sample": kind,
+            "target": t,
+            "motors": _motors(mech, motors),
+            "outputs": dict(zip(mech.output_names, map(float, outputs))),
+        }
+    return {"collision": entry}
 
 
 def run_evaluate(args) -> int:
     mech = load(args.file)
     design = design_arg(mech, args.design)
-    payload = evaluation_payload(mech, evaluate(mech, design))
+    payload = evaluation_payload(mech, evaluate(mech, design), design)
     if args.json:
         print(json.dumps(payload, indent=2))
         return 0
@@ -126,7 +163,27 @@ def run_evaluate(args) -> int:
             f"{settings.adversarial_iterations} iterations): their f_design share may "
             "read low; `linkopt verify` checks the whole range"
         )
+    if "collision" in payload:
+        _print_collision(payload["collision"])
     return 0
+
+
+def _print_collision(entry: dict) -> None:
+    """``evaluate``'s lines on the collision term and the closest pair."""
+    print(
+        f"  collision term {entry['term']:.4g} (weight {entry['weight']:g}, "
+        f"clearance {entry['clearance']:.4g}); least clearance "
+        f"{entry['min_clearance']:.4g}"
+        + ("" if entry["pair"] is None else " between " + " and ".join(entry["pair"]))
+    )
+    pose = entry["pose"]
+    if pose is not None:
+        outputs = ", ".join(f"{n}={v:.4g}" for n, v in pose["outputs"].items())
+        motors = ", ".join(f"{n}={v:.4g}" for n, v in pose["motors"].items())
+        print(
+            f"    at the {pose['sample']} sample of target {pose['target']}: "
+            f"{outputs} (motors {motors})"
+        )
 
 
 def run_plot(args) -> int:
@@ -251,6 +308,26 @@ def verification_payload(mech, result) -> dict:
         "unreached_example": None
         if result.unreached_example is None
         else dict(zip(mech.output_names, map(float, result.unreached_example))),
+        **_verified_collision(mech, result),
+    }
+
+
+def _verified_collision(mech, result) -> dict:
+    """``verify --json``'s ``collision`` entry, only for a file that checks them."""
+    if result.min_clearance is None:
+        return {}
+    cell = result.collision_outputs
+    return {
+        "collision": {
+            "clearance": mech.collision.clearance,
+            "min_clearance": result.min_clearance,
+            "pair": None
+            if result.collision_pair is None
+            else list(result.collision_pair),
+            "cell": None
+            if cell is None
+            else dict(zip(mech.output_names, map(float, cell))),
+        }
     }
 
 
@@ -299,6 +376,22 @@ def _print_verification(mech, payload: dict) -> None:
             "  e.g. unreached "
             + ", ".join(f"{n}={v:.4g}" for n, v in payload["unreached_example"].items())
         )
+    if "collision" in payload:
+        print("  " + _collision_line(payload["collision"]))
+
+
+def _collision_line(entry: dict) -> str:
+    """One line on the least clearance of a verification (file units)."""
+    if entry["pair"] is None:
+        return f"collision: no checked pair in a reached cell ({entry['clearance']:g})"
+    closer = entry["min_clearance"] < entry["clearance"]
+    a, b = entry["pair"]
+    cell = ", ".join(f"{n}={v:.4g}" for n, v in entry["cell"].items())
+    return (
+        f"collision: {'FAIL' if closer else 'clear'}: {a} and {b} "
+        f"{entry['min_clearance']:.4g} apart at {cell} (clearance "
+        f"{entry['clearance']:.4g}{'; closer than it' if closer else ''})"
+    )
 
 
 def register(subparsers) -> None:
@@ -354,7 +447,10 @@ def _register_plot(subparsers) -> None:
 def _register_verify(subparsers) -> None:
     verify_cmd = subparsers.add_parser(
         "verify",
-        help="dense check of the whole target range: coverage and singularity distance",
+        help=(
+            "dense check of the whole target range: coverage and singularity "
+            "distance (and link clearance, with [collision])"
+        ),
     )
     verify_cmd.add_argument("file")
     verify_cmd.add_argument("--design", help="as for evaluate")

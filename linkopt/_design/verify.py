@@ -5,6 +5,9 @@ gridded (``resolution`` points per output) and solved by backward-kinematics
 continuation from the rest pose (:func:`linkopt._design.maps.continuation_grid`,
 batched). A design passes when every cell is reached on the rest branch (coverage 1) and
 every cell has ``f_sing < α₋``, the threshold below which the culled metric is zero.
+A file with ``[collision]`` enabled must also keep every pair of checked links at
+least the clearance apart in every reached cell (:mod:`linkopt._engine.collision`);
+the result then names the closest pair and its cell.
 
 A grid of ``resolution^K`` cells is costed before it is allocated
 (:func:`check_resolution`, against :data:`linkopt._design.maps.MAX_CELLS` and
@@ -18,6 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._engine.collision import clearance, has_collision, pair_names
 from .._engine.geometry import rest_state
 from .._engine.kinematics import check_design, solve_bk, solve_bk_path
 from .._engine.model import Mechanism
@@ -47,14 +51,45 @@ class Verification(NamedTuple):
     worst_outputs: np.ndarray  # (K,) cell with the largest f_sing (file units)
     unreached_example: np.ndarray | None  # (K,) one unreached cell, if any
     grid_shape: tuple[int, ...]
+    #: With ``[collision]`` enabled (else None): the least clearance over the reached
+    #: cells (file units), its body pair, and its cell (output values, file units).
+    min_clearance: float | None = None
+    collision_pair: tuple[str, str] | None = None
+    collision_outputs: np.ndarray | None = None
 
     def as_json(self) -> dict:
         """The fields as JSON-ready values (arrays and the grid shape as lists), as
-        ``verification.json`` and a run's verification rounds hold them."""
+        ``verification.json`` and a run's verification rounds hold them; the collision
+        fields only when the file checks collisions."""
         return {
             k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple)) else v)
             for k, v in self._asdict().items()
+            if k not in COLLISION_FIELDS or self.min_clearance is not None
         }
+
+
+#: The :class:`Verification` fields of a file with ``[collision]`` enabled.
+COLLISION_FIELDS = ("min_clearance", "collision_pair", "collision_outputs")
+
+
+def collision_check(
+    mech: Mechanism, states: np.ndarray, feasible: np.ndarray, reached, design
+) -> dict:
+    """The collision fields of a verification: the least clearance over the reached
+    cells, its pair and cell (``inf``, None, None when no cell was reached or no pair
+    is checked); empty without ``[collision]`` enabled."""
+    if not has_collision(mech):
+        return {}
+    flat = states.reshape(-1, states.shape[-1])[feasible.reshape(-1)]
+    result = clearance(mech, flat, design=design)
+    if not len(flat) or result.worst[0] < 0:
+        return {"min_clearance": float("inf")}
+    cell = int(np.argmin(result.minimum))
+    return {
+        "min_clearance": float(result.minimum[cell]),
+        "collision_pair": pair_names(mech, result.worst[cell]),
+        "collision_outputs": reached[cell],
+    }
 
 
 def _entry_state(mech: Mechanism, design, box_point: np.ndarray):
@@ -182,8 +217,10 @@ def verify(
         worst, max_f, min_fk, min_bk = np.full(k, np.nan), float("inf"), 0.0, 0.0
     coverage = float(np.mean(feasible))
     missing = values[~feasible]
+    collision = collision_check(mech, states, feasible, reached, design)
+    clear = collision.get("min_clearance", np.inf) >= _band(mech)
     return Verification(
-        passed=coverage == 1.0 and max_f < threshold,
+        passed=coverage == 1.0 and max_f < threshold and clear,
         coverage=coverage,
         cells=int(feasible.size),
         threshold=threshold,
@@ -193,4 +230,10 @@ def verify(
         worst_outputs=worst,
         unreached_example=missing[0] if len(missing) else None,
         grid_shape=shape,
+        **collision,
     )
+
+
+def _band(mech: Mechanism) -> float:
+    """The clearance a verified design keeps (file units; 0 without collisions)."""
+    return mech.collision.clearance if has_collision(mech) else 0.0

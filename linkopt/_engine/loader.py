@@ -31,6 +31,7 @@ Axes and the symmetry normal are directions: any finite non-zero vector is one.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +47,7 @@ from .fields import (
     parse_toml,
     shown,
 )
+from .links import read_collision
 from .model import (
     AXIAL_JOINTS,
     JOINT_ROWS,
@@ -68,6 +70,7 @@ TOP_LEVEL = {
     "parameters",
     "solver",
     "evaluation",
+    "collision",
 }
 ORTHOGONAL_TOL = 1e-9
 #: Smallest and largest reference length (file units).
@@ -163,6 +166,9 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
         raw=data,
         **idle_spins(joints, points, outputs + reported, ground, len(bodies), scale),
     )
+    collision = read_collision(rd, mech)  # [collision], bodies' radius and layer
+    if collision is not None:
+        mech = dataclasses.replace(mech, collision=collision)
     if check:
         from .mobility import check_mobility  # needs JAX; kept out of pure parsing
 
@@ -268,7 +274,7 @@ def _read_bodies(rd: Reader, data: dict) -> tuple[list[dict], dict[str, int]]:
     bodies = rd.entries(data, "bodies", required=True)
     body_index = rd.names(bodies, "bodies")
     for k, body in enumerate(bodies):
-        rd.keys(body, f"bodies[{k}]", {"name", "origin"}, {"name"})
+        rd.keys(body, f"bodies[{k}]", {"name", "origin", "radius", "layer"}, {"name"})
     return bodies, body_index
 
 

@@ -84,6 +84,41 @@ class EvaluationSettings:
     targets: tuple[tuple[float, ...], ...] = ()
 
 
+@dataclass(frozen=True, eq=False)
+class Collision:
+    """Link solids and the pairs checked for collision, from ``[collision]`` (static;
+    built by :func:`linkopt._engine.links.read_collision`, distances in
+    :mod:`linkopt._engine.collision`).
+
+    ``G`` capsules, ``Q`` checked body pairs, ``C`` capsule pairs.
+    ``segment_places (G, 2)``: each capsule's end places, indices into the anchors
+    followed by the named points (so they follow the design). ``segment_bodies (G,)``;
+    ``segment_radii (G,)`` and ``body_radii (B,)`` (file units). ``body_offsets
+    (B, 3)``: each body's layer offset along the plane normal (file units; world and
+    body frame agree at rest). ``pairs (Q, 2)``: checked body pairs; ``capsule_pairs
+    (C, 2)``: the capsule pairs between them, ``capsule_owners (C,)`` the body pair of
+    each. ``clearance``: the band (file units); ``weight``: the term's weight in
+    ``f_design``; ``enabled``: ``[collision].enable``.
+    """
+
+    enabled: bool
+    clearance: float
+    weight: float
+    segment_bodies: np.ndarray
+    segment_places: np.ndarray
+    segment_radii: np.ndarray
+    body_offsets: np.ndarray
+    body_radii: np.ndarray
+    pairs: np.ndarray
+    capsule_pairs: np.ndarray
+    capsule_owners: np.ndarray
+
+
+#: A field with this metadata is left out of :func:`digest` while it is None, so that
+#: adding it changes no existing fingerprint or program key.
+UNLESS_SET = {"digest": "unless set"}
+
+
 @dataclass(frozen=True)
 class DesignSpace:
     """Free design parameters ``p`` (after ties) and their linear map onto the geometry.
@@ -243,6 +278,8 @@ class Mechanism:
     idle_joints: np.ndarray = field(  # (I, 2) int
         default_factory=lambda: np.zeros((0, 2), dtype=int)
     )
+    #: Link solids and checked pairs of ``[collision]`` (None without the table).
+    collision: Collision | None = field(default=None, metadata=UNLESS_SET)
 
     @property
     def num_bodies(self) -> int:
@@ -310,12 +347,17 @@ class Mechanism:
 
 def digest(value, sink) -> None:
     """Feed ``value`` into the hash ``sink``: dataclasses field by field (a field named
-    ``source`` left out), arrays by dtype, shape and bytes, containers item by item,
+    ``source`` left out, and one marked :data:`UNLESS_SET` while it is None), arrays
+    by dtype, shape and bytes, containers item by item,
     anything else by its ``repr``."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         sink.update(type(value).__name__.encode())
         for f in dataclasses.fields(value):
-            if f.name != "source":
+            unset = (
+                f.metadata.get("digest") == UNLESS_SET["digest"]
+                and getattr(value, f.name) is None
+            )
+            if f.name != "source" and not unset:
                 sink.update(f.name.encode())
                 digest(getattr(value, f.name), sink)
     elif isinstance(value, np.ndarray):

@@ -1,12 +1,13 @@
 """STL and GLB solids of a mechanism at the rest pose of one design (trimesh).
 
 Each body is one watertight mesh: capsules of diameter ``thickness`` along the segments
-between its joint anchors and named points (:func:`linkopt._export.tree.segments`)
-and a sphere of diameter 1.5 ``thickness`` at each of its joints, merged into one
-solid by a boolean union (manifold3d). STL has no units: its files are in the
-mechanism's file units (what CAD and slicers take for a mm file). GLB is in metres,
-glTF's unit, one scene with one node per body, named like the body, whose transform
-places the body's frame (its rest origin) and whose mesh is in that frame.
+between its joint anchors and named points (:func:`linkopt._export.tree.body_capsules`,
+the capsules ``[collision]`` checks) and a sphere of diameter 1.5 ``thickness`` at each
+of its joints, merged into one solid by a boolean union (manifold3d). STL has no
+units: its files are in the mechanism's file units (what CAD and slicers take for a mm
+file). GLB is in metres, glTF's unit, one scene with one node per body, named like the
+body, whose transform places the body's frame (its rest origin) and whose mesh is in
+that frame.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import trimesh
 
 from .._engine.model import Mechanism
 from .._errors import InputError
-from .tree import Rest, body_anchors, default_thickness, metres_per_unit, rest, segments
+from .tree import Rest, body_capsules, default_thickness, metres_per_unit, rest
 
 #: Joint spheres are this much thicker than the links.
 JOINT_FACTOR = 1.5
@@ -40,16 +41,22 @@ def _sphere(at: np.ndarray, radius: float) -> trimesh.Trimesh:
 
 
 def body_mesh(
-    mech: Mechanism, rest_pose: Rest, body: int, thickness: float
+    mech: Mechanism, rest_pose: Rest, body: int, thickness: float | None
 ) -> trimesh.Trimesh:
-    """The watertight solid of ``body`` in world coordinates at rest (file units)."""
-    places = body_anchors(mech, rest_pose, body)
-    radius = 0.5 * thickness
-    parts = [_capsule(places[a], places[b], radius) for a, b in segments(places)]
+    """The watertight solid of ``body`` in world coordinates at rest (file units):
+    its link capsules (:func:`~.tree.body_capsules`; a file with ``[collision]`` gets
+    the ones it checks, in the body's layer) and its joint spheres."""
+    capsules = body_capsules(mech, rest_pose, body, thickness)
+    parts = [_capsule(a, b, r) for a, b, r in capsules if np.any(a != b)]
+    model = mech.collision
+    shift = np.zeros(3) if model is None else model.body_offsets[body]
+    radius = 0.5 * thickness if thickness else float(model.body_radii[body])
     on_body = mech.joints_on(body)
-    parts += [_sphere(rest_pose.anchors[j], JOINT_FACTOR * radius) for j in on_body]
-    if not parts:
-        parts = [_sphere(places[0], radius)]
+    parts += [
+        _sphere(rest_pose.anchors[j] + shift, JOINT_FACTOR * radius) for j in on_body
+    ]
+    if not parts:  # one place and no joint: a sphere there
+        parts = [_sphere(capsules[0][0], capsules[0][2])]
     _require_manifold()
     solid = (
         parts[0] if len(parts) == 1 else trimesh.boolean.union(parts, engine="manifold")
@@ -86,8 +93,10 @@ def check_thickness(mech: Mechanism, thickness) -> float:
 
 def body_meshes(mech: Mechanism, design=None, thickness=None) -> list[trimesh.Trimesh]:
     """One watertight solid per body (file order), world coordinates at the rest pose
-    of ``design``, file units."""
-    thickness = check_thickness(mech, thickness)
+    of ``design``, file units; ``thickness`` None: the file's ``[collision]`` radii,
+    or the default thickness."""
+    if thickness is not None or mech.collision is None:
+        thickness = check_thickness(mech, thickness)
     rest_pose = rest(mech, design)
     return [body_mesh(mech, rest_pose, b, thickness) for b in range(mech.num_bodies)]
 

@@ -39,14 +39,13 @@ from .tree import (
     Edge,
     Rest,
     Tree,
-    body_anchors,
+    body_capsules,
     body_poses,
     default_thickness,
     edge_values,
     joint_dofs,
     metres_per_unit,
     rest,
-    segments,
     spanning_tree,
 )
 
@@ -95,6 +94,7 @@ class _Writer:
         self.rest: Rest = rest(mech, design)
         self.tree: Tree = spanning_tree(mech, self.rest)
         self.s, self.unit = metres_per_unit(mech)
+        self.thickness = thickness
         self.radius = 0.5 * (thickness or default_thickness(mech)) * self.s
         self.mass = 0.0  # kg, summed over the geoms written
 
@@ -102,30 +102,31 @@ class _Writer:
         return xml_numbers((np.asarray(world) - self.rest.origins[body]) * self.s)
 
     def add_geoms(self, element, body: int) -> None:
-        places = body_anchors(self.mech, self.rest, body)
-        r = self.radius
-        for a, b in segments(places):
-            fromto = np.concatenate([places[a], places[b]])
+        """The body's link capsules (:func:`~.tree.body_capsules`), a sphere where a
+        capsule has no length."""
+        for start, end, radius in body_capsules(
+            self.mech, self.rest, body, self.thickness
+        ):
+            r = radius * self.s
+            if np.array_equal(start, end):
+                ET.SubElement(
+                    element,
+                    "geom",
+                    type="sphere",
+                    size=xml_numbers(r),
+                    pos=self.local(body, start),
+                )
+                self.mass += DENSITY * 4 / 3 * math.pi * r**3
+                continue
             ET.SubElement(
                 element,
                 "geom",
                 type="capsule",
                 size=xml_numbers(r),
-                fromto=self.local(body, fromto[:3])
-                + " "
-                + self.local(body, fromto[3:]),
+                fromto=self.local(body, start) + " " + self.local(body, end),
             )
-            length = np.linalg.norm(places[a] - places[b]) * self.s
+            length = np.linalg.norm(start - end) * self.s
             self.mass += DENSITY * (math.pi * r * r * length + 4 / 3 * math.pi * r**3)
-        if len(places) == 1:
-            ET.SubElement(
-                element,
-                "geom",
-                type="sphere",
-                size=xml_numbers(r),
-                pos=self.local(body, places[0]),
-            )
-            self.mass += DENSITY * 4 / 3 * math.pi * r**3
 
     def add_sites(self, element, body: int) -> None:
         for p in np.flatnonzero(self.mech.point_bodies == body):

@@ -20,7 +20,9 @@ from typing import NamedTuple
 import numpy as np
 from jaxtyping import Float
 
+from .._engine import links
 from .._engine.geometry import geometry
+from .._engine.links import body_places, segments
 from .._engine.model import Mechanism
 from .._errors import MechanismFileError
 
@@ -88,17 +90,45 @@ def metres_per_unit(mech: Mechanism) -> tuple[float, str]:
 def body_anchors(mech: Mechanism, rest_pose: Rest, body: int) -> np.ndarray:
     """Distinct rest positions of the joints on ``body`` and its named points, in file
     order, shape ``(k, 3)``; two positions closer than 1e-9 reference lengths are
-    one."""
-    on_body = mech.joints_on(body)
-    places = [rest_pose.anchors[j] for j in on_body]
-    places += [rest_pose.points[p] for p in np.flatnonzero(mech.point_bodies == body)]
-    distinct: list[np.ndarray] = []
-    for place in places:
-        if all(np.linalg.norm(place - d) > 1e-9 * mech.length_scale for d in distinct):
-            distinct.append(place)
-    if not distinct:  # a body with neither joints nor points: its origin
-        distinct.append(rest_pose.origins[body])
-    return np.array(distinct)
+    one (:func:`linkopt._engine.links.body_places`)."""
+    refs = body_places(mech, rest_pose.anchors, rest_pose.points, body)
+    if not refs:  # a body with neither joints nor points: its origin
+        return rest_pose.origins[body][None]
+    return _places(rest_pose)[refs]
+
+
+def _places(rest_pose: Rest) -> np.ndarray:
+    """The anchors followed by the named points, ``(J + P, 3)``: what a place index
+    (:mod:`linkopt._engine.links`) points into."""
+    return np.concatenate([rest_pose.anchors, rest_pose.points.reshape(-1, 3)])
+
+
+def body_capsules(
+    mech: Mechanism, rest_pose: Rest, body: int, thickness: float | None = None
+) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """The link capsules of ``body`` at ``rest_pose``: ``(start, end, radius)`` in file
+    units (a sphere where start is end).
+
+    A file with ``[collision]`` gets the capsules it checks
+    (:class:`~linkopt._engine.model.Collision`: its segments, radii and layer
+    offsets), ``thickness`` (given: the ``--thickness`` of an export) replacing every
+    radius; any other file the segments between :func:`body_anchors`
+    (:func:`segments`) of diameter ``thickness`` (None: :func:`default_thickness`)."""
+    model = mech.collision
+    if model is None:
+        places = body_anchors(mech, rest_pose, body)
+        radius = 0.5 * (thickness or default_thickness(mech))
+        if len(places) == 1:
+            return [(places[0], places[0], radius)]
+        return [(places[a], places[b], radius) for a, b in segments(places)]
+    where = _places(rest_pose)
+    out = []
+    for g in np.flatnonzero(model.segment_bodies == body):
+        a, b = model.segment_places[g]
+        shift = model.body_offsets[body]
+        radius = 0.5 * thickness if thickness else float(model.segment_radii[g])
+        out.append((where[a] + shift, where[b] + shift, radius))
+    return out
 
 
 @dataclass(frozen=True)
@@ -229,32 +259,10 @@ def spanning_tree(mech: Mechanism, rest_pose: Rest, *, hinges_only=False) -> Tre
     return Tree(order=tuple(order), edges=edges, closures=closures)
 
 
-#: Default solid thickness (capsule diameter) as a fraction of the reference length.
-THICKNESS_FRACTION = 0.04
-
-
 def default_thickness(mech: Mechanism) -> float:
-    """The default thickness of link solids (file units): 4 % of the reference
-    length, thin enough that the links of the shipped mechanisms stay apart at rest."""
-    return THICKNESS_FRACTION * mech.length_scale
-
-
-def segments(places: np.ndarray) -> list[tuple[int, int]]:
-    """Index pairs of the link segments drawn between a body's ``places``: every pair
-    for up to four places (a triangle or tetrahedron of bars), else the edges of the
-    minimum spanning tree (Prim), so that a ground with many anchors stays light."""
-    k = len(places)
-    if k <= 4:
-        return [(a, b) for a in range(k) for b in range(a + 1, k)]
-    inside, pairs = {0}, []
-    while len(inside) < k:
-        a, b = min(
-            ((a, b) for a in inside for b in range(k) if b not in inside),
-            key=lambda ab: np.linalg.norm(places[ab[0]] - places[ab[1]]),
-        )
-        pairs.append((a, b))
-        inside.add(b)
-    return pairs
+    """The default thickness of link solids (file units):
+    :func:`linkopt._engine.links.default_thickness` of the reference length."""
+    return links.default_thickness(mech.length_scale)
 
 
 # ---- joint coordinates of a state -------------------------------------------------
