@@ -27,10 +27,12 @@
 from __future__ import annotations
 
 import ast
+import contextlib
 import dataclasses
 import functools
 import importlib.util
 import inspect
+import io
 import re
 import shlex
 import shutil
@@ -43,6 +45,7 @@ from pathlib import Path
 import pytest
 
 import linkopt
+from linkopt._cli.main import main
 from linkopt._engine.fields import Reader, parse_toml
 from linkopt._engine.loader import build
 
@@ -187,16 +190,20 @@ def run_blocks(path: Path, folder: Path) -> None:
 
 
 def run_command(command: Command, folder: Path) -> None:
-    done = subprocess.run(
-        [sys.executable, "-m", "linkopt", *command.argv],
-        cwd=folder,
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
-    assert done.returncode == command.status, (
+    """``linkopt ARGS`` as the command line runs it, in this process (in ``folder``,
+    the current directory): the blocks' commands then share compiled programs, where a
+    process each compiled or loaded them again (``tests/test_cli_startup.py`` runs the
+    entry point in fresh processes)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            status = main(list(command.argv))
+        except SystemExit as stop:  # argparse's --help
+            status = stop.code
+    assert Path.cwd() == folder
+    assert status == command.status, (
         f"{command.where}: linkopt {shlex.join(command.argv)} exited "
-        f"{done.returncode}, expected {command.status}\n{done.stdout}\n{done.stderr}"
+        f"{status}, expected {command.status}\n{out.getvalue()}\n{err.getvalue()}"
     )
 
 
