@@ -1,12 +1,23 @@
 """Shared fixtures. Mechanisms are loaded once per session (loading compiles a
 kernel)."""
 
+import os
 from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
 
 import linkopt
+from linkopt._config import COMPILER_OPTIONS
+
+#: The tests' own ``jax.jit`` programs (references, checks) compile with the options of
+#: linkopt's programs too: they compile faster and agree with them to round-off. Set
+#: before JAX starts its backend, which reads ``XLA_FLAGS`` once; the test processes'
+#: subprocesses inherit it.
+os.environ["XLA_FLAGS"] = " ".join(
+    [os.environ.get("XLA_FLAGS", "")]
+    + [f"--{name}={str(value).lower()}" for name, value in COMPILER_OPTIONS.items()]
+).strip()
 
 #: Generated-input tests (hypothesis) are reproducible and bounded: the same examples
 #: on every run, no example database, no deadline (the first example may compile).
