@@ -28,11 +28,11 @@ cache (:func:`info` says so).
 from __future__ import annotations
 
 import os
-import tempfile
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
+from . import _folders as folders
 from ._errors import InputError
 
 #: Total size of the caches when ``$LINKOPT_CACHE_SIZE_MB`` is not set, in megabytes.
@@ -81,16 +81,11 @@ def folder(kind: str) -> Path:
 
 def write_atomic(path: Path, blob: bytes) -> None:
     """``blob`` into ``path`` through a temporary file in the same folder, renamed
-    into place (readers see the old file, no file, or the whole new one)."""
+    into place (readers see the old file, no file, or the whole new one;
+    :func:`linkopt._folders.write_atomic`, without its fsync: an entry lost in a power
+    cut is computed again)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(blob)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    folders.write_atomic(path, blob, durable=False)
 
 
 def read_used(path: Path) -> bytes | None:
@@ -118,6 +113,8 @@ def entries(kind: str) -> list[Entry]:
     """``kind``'s entries, least recently used first."""
     found = []
     for path in folder(kind).glob(PATTERNS[kind]):
+        if path.name.startswith(folders.TEMP_PREFIX):
+            continue  # being written (or left by a killed writer: clear() removes it)
         try:
             stat = path.stat()
         except FileNotFoundError:
@@ -182,7 +179,7 @@ def clear() -> dict[str, int]:
     writers); the number removed per kind."""
     removed = {kind: trim(kind, keep=0) for kind in SHARES}
     for kind in SHARES:
-        for stray in folder(kind).glob("*.tmp"):
+        for stray in folder(kind).glob(f"{folders.TEMP_PREFIX}*"):
             stray.unlink(missing_ok=True)
     return removed
 

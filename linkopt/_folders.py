@@ -121,15 +121,19 @@ def _temporary(folder: Path, name: str) -> Path:
     raise FileExistsError(f"{folder}: no free temporary name for {name}")
 
 
-def write_atomic(path: str | Path, text: str) -> None:
-    """Replace ``path`` by a file holding ``text`` (module docstring)."""
+def write_atomic(path: str | Path, data: str | bytes, *, durable: bool = True) -> None:
+    """Replace ``path`` by a file holding ``data`` (text as UTF-8; module docstring).
+    ``durable=False`` skips the fsync, for files that may be lost in a power cut
+    without harm (cache entries, which are computed again)."""
     path = Path(path)
     tmp = _temporary(path.parent, path.name)
+    blob = data.encode("utf-8") if isinstance(data, str) else data
     try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
+        with open(tmp, "wb") as f:
+            f.write(blob)
+            if durable:
+                f.flush()
+                os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)

@@ -38,7 +38,7 @@ def test_the_least_recently_used_entries_go_first(cache, monkeypatch):
     left = sorted(p.name for p in (cache / "traces").glob("*.jaxexport"))
     # 0.25 MB holds two old entries beside the new one: the two used last
     assert left == sorted([names[0], names[5], "new-key.jaxexport"])
-    assert not list((cache / "traces").glob("*.tmp"))
+    assert not list((cache / "traces").glob(".linkopt-tmp-*"))
 
 
 def test_a_reader_never_sees_a_half_written_entry(cache):
@@ -61,7 +61,8 @@ def test_a_bad_size_limit_is_named(cache, monkeypatch, capsys):
 def test_cache_info_and_clear(cache, capsys):
     fill(cache, ["a-cache", "b-cache"], 1000)
     fill(cache / "traces", ["p-key.jaxexport"], 500)
-    (cache / "traces" / "left.tmp").write_bytes(b"killed writer")
+    # a killed writer's temporary file: not an entry, and removed by clear
+    (cache / "traces" / ".linkopt-tmp-0a1b-q-key.jaxexport").write_bytes(b"killed")
     assert main(["cache", "info", "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["kinds"]["executables"]["entries"] == 2
@@ -93,7 +94,7 @@ def test_jax_writes_its_executables_through_the_bounded_cache(tmp_path):
     )  # fmt: skip
     assert run.stdout.split()[0] == "Executables"
     entries = list((tmp_path / "c").glob("*-cache"))
-    assert entries and not list((tmp_path / "c").glob("*.tmp"))
+    assert entries and not list((tmp_path / "c").glob(".linkopt-tmp-*"))
     used = {p: p.stat().st_mtime for p in entries}
     time.sleep(0.05)
     subprocess.run(

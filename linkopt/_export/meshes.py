@@ -12,7 +12,6 @@ that frame.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,7 @@ import trimesh
 
 from .._engine.model import Mechanism
 from .._errors import InputError
+from .._folders import write_atomic
 from .tree import Rest, body_capsules, default_thickness, metres_per_unit, rest
 
 #: Joint spheres are this much thicker than the links.
@@ -101,17 +101,6 @@ def body_meshes(mech: Mechanism, design=None, thickness=None) -> list[trimesh.Tr
     return [body_mesh(mech, rest_pose, b, thickness) for b in range(mech.num_bodies)]
 
 
-def _write_bytes(path: Path, data: bytes) -> None:
-    """Replace ``path`` by ``data`` through a temporary file beside it."""
-    tmp = path.with_name(f".linkopt-tmp-{os.getpid()}-{path.name}")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def _summary(kind: str, meshes, s: float, files: list[str]) -> dict:
     return {
         "format": kind,
@@ -135,7 +124,7 @@ def export_stl(mech: Mechanism, path, design=None, *, thickness=None) -> dict:
     files = []
     for name, mesh in zip(mech.body_names, meshes):
         target = path / f"{name}.stl"
-        _write_bytes(target, mesh.export(file_type="stl"))
+        write_atomic(target, mesh.export(file_type="stl"))
         files.append(str(target))
     return _summary("stl", meshes, s, files)
 
@@ -160,6 +149,6 @@ def scene(mech: Mechanism, design=None, *, thickness=None) -> trimesh.Scene:
 def export_glb(mech: Mechanism, path, design=None, *, thickness=None) -> dict:
     """Write the GLB scene of ``design`` to ``path`` (metres); returns a summary."""
     world = scene(mech, design, thickness=thickness)
-    _write_bytes(Path(path), world.export(file_type="glb"))
+    write_atomic(Path(path), world.export(file_type="glb"))
     s, _ = metres_per_unit(mech)
     return _summary("glb", list(world.geometry.values()), s, [str(path)])
