@@ -123,17 +123,21 @@ def _combine(size: int, parts) -> Float[Array, " K"]:
     return out
 
 
+def _joint_angles(mech: Mechanism, geom: Geometry, state, joints, targets, index):
+    """The relative angles at ``joints`` (``targets`` None), or their wrapped errors
+    against ``targets[index]``."""
+    _, qi, _, _, qj, _, n, u, _ = _joint_frames(mech, geom, state, joints)
+    if targets is None:
+        return jax.vmap(joint_types.relative_angle)(qi, qj, n, u)
+    return jax.vmap(joint_types.angle_error)(qi, qj, n, u, targets[index])
+
+
 def _motor_rows(mech: Mechanism, geom: Geometry, state, motors):
     linear = np.flatnonzero(mech.motor_linear)
     rotary = np.flatnonzero(~mech.motor_linear)
 
     def angles(index):
-        _, qi, _, _, qj, _, n, u, _ = _joint_frames(
-            mech, geom, state, mech.motor_joints[index]
-        )
-        if motors is None:
-            return jax.vmap(joint_types.relative_angle)(qi, qj, n, u)
-        return jax.vmap(joint_types.angle_error)(qi, qj, n, u, motors[index])
+        return _joint_angles(mech, geom, state, mech.motor_joints[index], motors, index)
 
     def shifts(index):
         xi, qi, ri, xj, qj, rj, n, _, _ = _joint_frames(
@@ -196,12 +200,7 @@ def _output_rows(mech: Mechanism, geom: Geometry, state, outputs, table=None):
         return world if outputs is None else world - outputs[index]
 
     def angles(index):
-        _, qi, _, _, qj, _, n, u, _ = _joint_frames(
-            mech, geom, state, table.joints[index]
-        )
-        if outputs is None:
-            return jax.vmap(joint_types.relative_angle)(qi, qj, n, u)
-        return jax.vmap(joint_types.angle_error)(qi, qj, n, u, outputs[index])
+        return _joint_angles(mech, geom, state, table.joints[index], outputs, index)
 
     def sequence(index):
         _, qi, _, _, qj, _, n, _, n2 = _joint_frames(

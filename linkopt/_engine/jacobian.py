@@ -279,6 +279,18 @@ def _passive_groups(mech: Mechanism, geom: Geometry, x, q) -> list[_Rows]:
     return groups
 
 
+def _joint_rows(mech: Mechanism, joints: np.ndarray, value, ji, jj) -> _Rows:
+    """One row per joint of ``joints`` (values ``(G,)``, blocks ``(G, 7)`` on each
+    joint's two bodies)."""
+    return _Rows(
+        value[:, None],
+        (
+            (mech.joint_bodies[joints, 0], ji[:, None]),
+            (mech.joint_bodies[joints, 1], jj[:, None]),
+        ),
+    )
+
+
 def _motor_groups(mech: Mechanism, geom: Geometry, x, q, motors):
     """Motor rows (values, or errors against ``motors``) and their raw row order."""
     groups, order = [], []
@@ -297,15 +309,7 @@ def _motor_groups(mech: Mechanism, geom: Geometry, x, q, motors):
                 value = value - target
         else:
             value, ji, jj = _angle_row(f.qi, f.qj, f.n, f.u, target)
-        groups.append(
-            _Rows(
-                value[:, None],
-                (
-                    (mech.joint_bodies[joints, 0], ji[:, None]),
-                    (mech.joint_bodies[joints, 1], jj[:, None]),
-                ),
-            )
-        )
+        groups.append(_joint_rows(mech, joints, value, ji, jj))
         order.append(index)
     return groups, order
 
@@ -336,15 +340,7 @@ def _output_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
         f = _frames(mech, geom, x, q, joints)
         target = None if outputs is None else _take(outputs, angular)
         value, ji, jj = _angle_row(f.qi, f.qj, f.n, f.u, target)
-        groups.append(
-            _Rows(
-                value[:, None],
-                (
-                    (mech.joint_bodies[joints, 0], ji[:, None]),
-                    (mech.joint_bodies[joints, 1], jj[:, None]),
-                ),
-            )
-        )
+        groups.append(_joint_rows(mech, joints, value, ji, jj))
         order.append(angular)
     if tait_bryan.size:
         joints = mech.output_joints[tait_bryan]
@@ -353,15 +349,7 @@ def _output_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
         value, ji, jj = _tait_bryan_row(
             f.qi, f.qj, f.n, f.n2, mech.output_coords[tait_bryan], target
         )
-        groups.append(
-            _Rows(
-                value[:, None],
-                (
-                    (mech.joint_bodies[joints, 0], ji[:, None]),
-                    (mech.joint_bodies[joints, 1], jj[:, None]),
-                ),
-            )
-        )
+        groups.append(_joint_rows(mech, joints, value, ji, jj))
         order.append(tait_bryan)
     return groups, order
 
