@@ -108,3 +108,31 @@ def test_maps_read_reported_outputs_over_their_cells(five_bar, tmp_path):
     assert plain.reported is None  # no reported output: no read-out
     out = plot_spaces(mech, evaluate(mech), tmp_path / "spaces.png", resolution=9)
     assert mpimg.imread(out).shape[2] in (3, 4)
+
+
+def test_plotting_leaves_the_users_backend_and_pyplot_alone(tmp_path):
+    """linkopt draws on figures of its own (no matplotlib.use, no pyplot): a user's
+    backend stays as chosen and pyplot holds no figure of linkopt's afterwards."""
+    import subprocess
+    import sys
+
+    code = (
+        "import matplotlib\n"
+        "matplotlib.use('svg')\n"
+        "import matplotlib.pyplot as plt\n"
+        "import linkopt._design.plots as plots, linkopt._design.animation\n"
+        "import linkopt._arms.trace.plots, linkopt._arms.codesign.plots\n"
+        "import linkopt._arms.dh.drawing\n"
+        "keys = ('best_total', 'best_f_design', 'reach', 'singularity', "
+        "'regularizer')\n"
+        "history = [{'iteration': k, **{key: 1.0 / (k + 1) for key in keys}} "
+        "for k in range(3)]\n"
+        f"plots.plot_convergence(history, {str(tmp_path / 'c.png')!r})\n"
+        "assert matplotlib.get_backend() == 'svg', matplotlib.get_backend()\n"
+        "assert plt.get_fignums() == [], plt.get_fignums()\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert (tmp_path / "c.png").stat().st_size > 0

@@ -147,12 +147,12 @@ def file_stem(name: str) -> str:
 def _figures(task, result, out: Path, gif: bool) -> list[str]:
     """The task figure always; the solution, swept-area figures and GIF with a
     design."""
-    import matplotlib.pyplot as plt
 
     from .._arms.trace import plots as tp
+    from .._figures import subplots
 
     stem, names = file_stem(task.name), []
-    fig, ax = plt.subplots(figsize=(6, 6))
+    fig, ax = subplots(figsize=(6, 6))
     tp.draw_task(ax, task)
     tp.set_limits(ax, task, result.design)
     ax.set_title(f"task {task.name}")
@@ -173,7 +173,6 @@ def _figures(task, result, out: Path, gif: bool) -> list[str]:
     for name, make in figures:
         figure = make()
         figure.savefig(out / f"{stem}_{name}.png", dpi=110, bbox_inches="tight")
-        plt.close(figure)
         names.append(f"{stem}_{name}.png")
     if gif and result.success:
         tp.write_gif(out / f"{stem}.gif", task, result.design, result.verification)
@@ -182,7 +181,6 @@ def _figures(task, result, out: Path, gif: bool) -> list[str]:
 
 
 def _discretised(task, args, out: Path, figures: list[str]) -> dict:
-    import matplotlib.pyplot as plt
 
     from .._arms.trace import plots as tp
     from .._arms.trace.discrete import compare, discretised_design
@@ -199,7 +197,6 @@ def _discretised(task, args, out: Path, figures: list[str]) -> dict:
     fig.savefig(
         out / f"{file_stem(task.name)}_discretised.png", dpi=110, bbox_inches="tight"
     )
-    plt.close(fig)
     figures.append(f"{file_stem(task.name)}_discretised.png")
     return {
         "points": args.discretised,

@@ -52,32 +52,30 @@ from pathlib import Path
 from typing import NamedTuple
 
 import matplotlib
+import numpy as np
+from jaxtyping import Bool, Float
+from matplotlib.collections import LineCollection
+from matplotlib.colors import LogNorm
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from jaxtyping import Bool, Float  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
-from matplotlib.colors import LogNorm  # noqa: E402
-
-from .._engine.geometry import design_vector, geometry, rest_state  # noqa: E402
-from .._engine.kinematics import (  # noqa: E402
+from .. import _figures as figures
+from .._engine.geometry import design_vector, geometry, rest_state
+from .._engine.kinematics import (
     check_design,
     check_values,
     solve_bk,
     solve_bk_path,
     solve_fk_path,
 )
-from .._engine.model import AXIAL_JOINTS, Mechanism  # noqa: E402
-from .._engine.readout import (  # noqa: E402
+from .._engine.model import AXIAL_JOINTS, Mechanism
+from .._engine.readout import (
     joint_positions,
     motor_values,
     output_values,
     point_positions,
 )
-from .._engine.singularity import f_sing  # noqa: E402
-from .._errors import InputError, LinkoptError  # noqa: E402
-from .maps import check_count  # noqa: E402
+from .._engine.singularity import f_sing
+from .._errors import InputError, LinkoptError
+from .maps import check_count
 
 #: Frames of an animation by default, and the most it accepts: 600 frames of the
 #: five-bar take about 20 s to draw and some 3 MB of GIF.
@@ -516,7 +514,7 @@ def _update(k: int, scene: _Scene, mech, item: Motion, rings, basis, norm) -> No
     scene.links.set_segments(
         [every[[r[i], r[i + 1]]] for r in rings for i in range(len(r) - 1)]
     )
-    scene.links.set_color(plt.get_cmap("viridis")(norm(item.f_sing[k])))
+    scene.links.set_color(matplotlib.colormaps["viridis"](norm(item.f_sing[k])))
     _set(scene.joints, every[: len(mech.joint_names)])
     _set(scene.motors, every[mech.motor_joints])
     for q, line in enumerate(scene.traces):
@@ -528,7 +526,7 @@ def _update(k: int, scene: _Scene, mech, item: Motion, rings, basis, norm) -> No
 
 
 def _figure(mech: Mechanism, item: Motion, basis, norm, title: str, dpi: int):
-    fig = plt.figure(figsize=(4.6, 4.0), dpi=dpi)
+    fig = figures.figure(figsize=(4.6, 4.0), dpi=dpi)
     ax = fig.add_subplot(111, projection=None if basis is not None else "3d")
     if basis is None:
         ax.view_init(elev=25, azim=-60)
@@ -536,7 +534,7 @@ def _figure(mech: Mechanism, item: Motion, basis, norm, title: str, dpi: int):
     _limits(ax, _project(every, basis), basis)
     _axis_labels(ax, mech, basis)
     ax.tick_params(labelsize=7)
-    mappable = plt.cm.ScalarMappable(norm=norm, cmap="viridis")
+    mappable = matplotlib.cm.ScalarMappable(norm=norm, cmap="viridis")
     bar = fig.colorbar(mappable, ax=ax, shrink=0.8, pad=0.12 if basis is None else 0.04)
     bar.set_label("f_sing (brighter = closer to a singularity)", fontsize=7)
     bar.ax.tick_params(labelsize=7)
@@ -587,15 +585,12 @@ def draw(
     scene = _scene(ax, mech, item, basis)
     if basis is not None:
         ax.legend(loc="best", fontsize=6, framealpha=0.6)
-    try:
-        images = _render(
-            fig,
-            scene,
-            lambda k: _update(k, scene, mech, item, rings, basis, norm),
-            len(item.states),
-        )
-    finally:
-        plt.close(fig)
+    images = _render(
+        fig,
+        scene,
+        lambda k: _update(k, scene, mech, item, rings, basis, norm),
+        len(item.states),
+    )
     path = Path(path)
     images[0].save(
         path,

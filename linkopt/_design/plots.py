@@ -15,24 +15,22 @@ from pathlib import Path
 from typing import NamedTuple
 
 import matplotlib
+import numpy as np
+from jaxtyping import Bool, Float
+from matplotlib.colors import LogNorm
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from jaxtyping import Bool, Float  # noqa: E402
-from matplotlib.colors import LogNorm  # noqa: E402
-
-from .._engine.geometry import rest_state  # noqa: E402
-from .._engine.kinematics import check_design  # noqa: E402
-from .._engine.model import Mechanism  # noqa: E402
-from .._engine.readout import (  # noqa: E402
+from .. import _figures as figures
+from .._engine.geometry import rest_state
+from .._engine.kinematics import check_design
+from .._engine.model import Mechanism
+from .._engine.readout import (
     joint_positions,
     output_values,
     point_positions,
 )
-from .._errors import InputError  # noqa: E402
-from .evaluation import Evaluation  # noqa: E402
-from .maps import (  # noqa: E402
+from .._errors import InputError
+from .evaluation import Evaluation
+from .maps import (
     MAX_BYTES,
     MAX_CELLS,
     Map2D,
@@ -112,7 +110,7 @@ def space_maps(
 def _panel(ax, grid: Map2D, norm, title: str, labels):
     extent = [grid.axis0[0], grid.axis0[-1], grid.axis1[0], grid.axis1[-1]]
     ax.set_facecolor("black")
-    cmap = plt.get_cmap("viridis").with_extremes(bad="black")
+    cmap = matplotlib.colormaps["viridis"].with_extremes(bad="black")
     image = ax.imshow(
         grid.f_sing.T,
         origin="lower",
@@ -437,7 +435,7 @@ def plot_spaces(
     samples = _samples(mech, evaluation, design)
     rows = _rows(mech, evaluation, resolution, design, samples, progress)
     norm = _colour_norm(rows)
-    fig, axes = plt.subplots(
+    fig, axes = figures.subplots(
         len(rows),
         2,
         figsize=(12, 5.2 * len(rows)),
@@ -454,7 +452,6 @@ def plot_spaces(
     fig.suptitle(title or _spaces_title(mech, evaluation))
     path = Path(path)
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return path
 
 
@@ -571,7 +568,7 @@ def plot_mechanism(
     views (:func:`_planes`)."""
     designs = designs or {"initial": None}
     planes = _planes(mech)
-    fig, axes = plt.subplots(
+    fig, axes = figures.subplots(
         1,
         len(planes),
         figsize=(6.5 * len(planes), 6.5),
@@ -591,7 +588,6 @@ def plot_mechanism(
     axes[0, 0].legend(loc="best", fontsize=8)
     path = Path(path)
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return path
 
 
@@ -602,7 +598,7 @@ def plot_convergence(
     round) and its parts per iteration, and each iteration's best total as dots (log
     scale); histories written before the running best have only the latter."""
     it = [h["iteration"] for h in history]
-    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    fig, ax = figures.subplots(figsize=(7, 4.5), constrained_layout=True)
     floor = 1e-16
     for key, style in (
         ("best_total", "k-"),
@@ -630,5 +626,4 @@ def plot_convergence(
     ax.legend(fontsize=8)
     path = Path(path)
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return path

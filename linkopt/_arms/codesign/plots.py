@@ -10,17 +10,15 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
+from ... import _figures as figures
 from ..._config import jit
-from ..._engine.constraints import homogenised_point_positions  # noqa: E402
-from .model import Arm, arm_state  # noqa: E402
-from .sdf import Obstacle  # noqa: E402
+from ..._engine.constraints import homogenised_point_positions
+from .model import Arm, arm_state
+from .sdf import Obstacle
 
-COLOURS = plt.get_cmap("rainbow")
+COLOURS = matplotlib.colormaps["rainbow"]
 
 
 @partial(jit, static_argnums=0)
@@ -129,7 +127,7 @@ def draw_solution(
 
 def plot_solution(problem, solution, path: str | Path, title: str = "") -> Path:
     """Figure of one solved problem (:mod:`linkopt._arms.codesign.nlp`) as PNG."""
-    fig = plt.figure(figsize=(7, 6))
+    fig = figures.figure(figsize=(7, 6))
     ax = fig.add_subplot(projection="3d")
     draw_solution(
         ax,
@@ -144,13 +142,12 @@ def plot_solution(problem, solution, path: str | Path, title: str = "") -> Path:
     )
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return Path(path)
 
 
 def plot_stages(stages, path: str | Path) -> Path:
     """The elimination sequence: the optimised arm of every stage, side by side."""
-    fig = plt.figure(figsize=(4.2 * len(stages), 4.4))
+    fig = figures.figure(figsize=(4.2 * len(stages), 4.4))
     for k, stage in enumerate(stages):
         ax = fig.add_subplot(1, len(stages), k + 1, projection="3d")
         sol, prob = stage.solution, stage.problem
@@ -175,5 +172,4 @@ def plot_stages(stages, path: str | Path) -> Path:
         )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return Path(path)

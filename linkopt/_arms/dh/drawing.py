@@ -5,8 +5,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 
+from ... import _figures as figures
 from . import table as dh
 from .synthesis import DHSynthesis
 
@@ -16,12 +18,7 @@ def draw(
 ) -> Path:
     """PNG of the task points and the arm (links through the DH frame origins) at
     ``count`` targets spread over the list; headless matplotlib."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig = plt.figure(figsize=(7, 6))
+    fig = figures.figure(figsize=(7, 6))
     ax = fig.add_subplot(projection="3d")
     pts = synthesis.targets
     ax.scatter(
@@ -31,7 +28,7 @@ def draw(
         s=14,
         label="task points (colour = w)",
     )
-    drawn = [pts, np.zeros((1, 3)), *_draw_poses(ax, plt, synthesis, count)]
+    drawn = [pts, np.zeros((1, 3)), *_draw_poses(ax, synthesis, count)]
     ax.scatter([0], [0], [0], marker="s", s=60, color="k", label="base (frame 0)")
     _equal_axes(ax, np.concatenate(drawn))
     ax.set_xlabel("x")
@@ -42,11 +39,10 @@ def draw(
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
-def _draw_poses(ax, plt, synthesis: DHSynthesis, count: int) -> list[np.ndarray]:
+def _draw_poses(ax, synthesis: DHSynthesis, count: int) -> list[np.ndarray]:
     """The arm at ``count`` targets spread over the list; returns the frame origins
     drawn."""
     types, table = synthesis.types, dh.DHTable(*synthesis.table)
@@ -63,7 +59,7 @@ def _draw_poses(ax, plt, synthesis: DHSynthesis, count: int) -> list[np.ndarray]
             "-o",
             lw=2.5,
             ms=4,
-            color=plt.cm.tab10(k),
+            color=matplotlib.colormaps["tab10"](k),
             label=f"target {i}: w = {synthesis.manipulability[i]:.3f}",
         )
     return drawn

@@ -10,18 +10,16 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 import matplotlib
+import numpy as np
+from matplotlib.animation import FuncAnimation, PillowWriter
+from matplotlib.patches import Circle, Rectangle, Wedge
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
-from matplotlib.patches import Circle, Rectangle, Wedge  # noqa: E402
-
-from . import geometry as geo  # noqa: E402
-from .discrete import DiscreteComparison  # noqa: E402
-from .swept import outline, swept_support  # noqa: E402
-from .task import TraceTask  # noqa: E402
-from .verify import PlanarArm, TraceVerification, critical_states  # noqa: E402
+from ... import _figures as figures
+from . import geometry as geo
+from .discrete import DiscreteComparison
+from .swept import outline, swept_support
+from .task import TraceTask
+from .verify import PlanarArm, TraceVerification, critical_states
 
 PATH = dict(color="0.45", lw=2.0, zorder=3)
 
@@ -153,10 +151,10 @@ def solution_figure(
 ):
     """Task, obstacle-free reachable space (light grey), arm at the critical states of
     every primitive (one colour per primitive)."""
-    fig, ax = plt.subplots(figsize=(6, 6))
+    fig, ax = figures.subplots(figsize=(6, 6))
     draw_reachable(ax, task, design)
     draw_task(ax, task)
-    colors = plt.cm.viridis(np.linspace(0, 0.9, len(task.primitives)))
+    colors = matplotlib.colormaps["viridis"](np.linspace(0, 0.9, len(task.primitives)))
     for j, states in enumerate(critical_states(task, design)):
         for s in states[[0, 2, 3]]:
             draw_arm(ax, s, task, color=colors[j], alpha=0.85)
@@ -179,13 +177,13 @@ def swept_figure(
 ):
     """SV^kind bounds (dashed) of each primitive against the true swept area (the dense
     link positions of the verification, thin grey)."""
-    fig, ax = plt.subplots(figsize=(6, 6))
+    fig, ax = figures.subplots(figsize=(6, 6))
     for seg in verification.segments:
         for s in seg.states[:: max(1, len(seg.states) // 120)]:
             ax.plot(s[:, 0], s[:, 1], color="0.6", lw=0.4, alpha=0.5, zorder=1)
     draw_task(ax, task)
     lengths = jnp.asarray(design.lengths)
-    colors = plt.cm.tab10(np.arange(len(task.primitives)) % 10)
+    colors = matplotlib.colormaps["tab10"](np.arange(len(task.primitives)) % 10)
     for j, prim in enumerate(task.primitives):
         phi = design.proximal_angles[j] if design.n_links == 3 else 0.0
         origin = geo.distal_origin(design.base, lengths, phi)
@@ -204,7 +202,7 @@ def swept_figure(
 def discretised_figure(task: TraceTask, cmp: DiscreteComparison):
     """Fig. 6: reachable space of the discretised design, its 25 points, and the parts
     of the continuous curve outside it (red), with a zoom on the largest excursion."""
-    fig, axes = plt.subplots(1, 2, figsize=(11, 5.5))
+    fig, axes = figures.subplots(1, 2, figsize=(11, 5.5))
     a, b = cmp.design.lengths
     d = np.linalg.norm(cmp.curve - cmp.design.base, axis=1)
     worst = cmp.curve[np.argmax(np.maximum(d - a - b, abs(a - b) - d))]
@@ -269,7 +267,7 @@ def write_gif(
     """Animation of the arm along every primitive and transition (PillowWriter)."""
     states = np.concatenate([s.states for s in verification.segments])
     pick = np.unique(np.linspace(0, len(states) - 1, frames).round().astype(int))
-    fig, ax = plt.subplots(figsize=(4.5, 4.5))
+    fig, ax = figures.subplots(figsize=(4.5, 4.5))
     draw_task(ax, task)
     lo, hi = _view_points(task, None)
     flat = states.reshape(-1, 2)
@@ -289,4 +287,3 @@ def write_gif(
 
     anim = FuncAnimation(fig, update, frames=len(pick), blit=True)
     anim.save(str(path), writer=PillowWriter(fps=15), dpi=dpi)
-    plt.close(fig)
