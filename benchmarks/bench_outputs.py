@@ -111,10 +111,12 @@ def bench_old_grids(mech, resolution: int = 60) -> None:
         ),
     )
     for kind, low, high, start, cuts in spaces:
-        third = maps._merged(low[2], high[2], maps.SECTION_DEPTH, [*cuts, start[2]])
-        axes = maps._axes(low[:2], high[:2], resolution) + [third]
+        third = maps.merged_values(
+            low[2], high[2], maps.SECTION_DEPTH, [*cuts, start[2]]
+        )
+        axes = maps.grid_axes(low[:2], high[:2], resolution) + [third]
         with timed(f"old {kind.upper()} grid {resolution}² x {len(third)}"):
-            maps._solve_from(mech, kind, axes, start, rest, None)
+            maps.solve_grid(mech, kind, axes, start, rest, None)
 
 
 def bench_optimize(mech, out: Path) -> None:

@@ -81,7 +81,7 @@ def test_cluster_run_is_bit_identical_to_the_local_run(
         SETTINGS,
         workers=WORKERS,
         progress=lambda record: held.append(
-            client.run(lambda: sorted(cluster._MECHANISMS))
+            client.run(lambda: sorted(cluster.MECHANISMS))
         ),
     )
     assert run.iteration == SETTINGS.iterations
@@ -90,9 +90,7 @@ def test_cluster_run_is_bit_identical_to_the_local_run(
     assert [len(h) for h in held] == [2] * SETTINGS.iterations
     assert all(v == [fingerprint(five_bar)] for h in held for v in h.values())
     # unregistered at close: the workers drop it
-    assert all(
-        v == [] for v in client.run(lambda: sorted(cluster._MECHANISMS)).values()
-    )
+    assert all(v == [] for v in client.run(lambda: sorted(cluster.MECHANISMS)).values())
 
 
 class KillFirstChunk(distributed.WorkerPlugin):

@@ -93,3 +93,55 @@ def test_tests_and_benchmarks_import_public_or_module_public_names(path):
                 assert not private or _is_module(parts + (alias.name,)), (
                     f"{path.name} imports {alias.name} from {node.module}"
                 )
+
+
+def _module_names(tree: ast.Module, path: Path) -> set[str]:
+    """Names that ``path`` binds to linkopt modules (``import linkopt.x as y``,
+    ``from linkopt._engine import programs``, ``from . import dense``)."""
+    here = _module_of(path) if path.is_relative_to(PACKAGE) else None
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.split(".")[0] == "linkopt":
+                    names.add(alias.asname or alias.name.split(".")[0])
+        elif isinstance(node, ast.ImportFrom):
+            if node.level == 0 and (node.module or "").split(".")[0] == "linkopt":
+                base = tuple(node.module.split("."))[1:]
+            elif node.level > 0 and here is not None:
+                package = here[:-1]
+                base = package[: len(package) - (node.level - 1)]
+                base += tuple(node.module.split(".")) if node.module else ()
+            else:
+                continue
+            for alias in node.names:
+                if _is_module(base + (alias.name,)):
+                    names.add(alias.asname or alias.name)
+    return names
+
+
+@pytest.mark.parametrize(
+    "path",
+    SOURCES
+    + sorted((ROOT / "tests").glob("*.py"))
+    + sorted((ROOT / "benchmarks").glob("*.py")),
+    ids=lambda p: str(p.relative_to(ROOT)),
+)
+def test_no_code_reads_another_modules_private_attributes(path):
+    """``module._name`` of a linkopt module (a function, constant or table, not a
+    private subpackage) outside that module: the attribute-access form of a private
+    import."""
+    tree = ast.parse(path.read_text())
+    modules = _module_names(tree, path)
+    for node in ast.walk(tree):
+        if (
+            isinstance(node, ast.Attribute)
+            and isinstance(node.value, ast.Name)
+            and node.value.id in modules
+            and node.attr.startswith("_")
+            and not node.attr.startswith("__")
+        ):
+            assert node.value.id == "linkopt" and _is_module((node.attr,)), (
+                f"{path.relative_to(ROOT)}:{node.lineno} reads "
+                f"{node.value.id}.{node.attr}"
+            )

@@ -245,10 +245,9 @@ def test_public_names_resolve_and_match_the_type_checking_imports():
         for stmt in block.body
         for alias in stmt.names
     }
-    assert eager == linkopt._EXPORTS
     assert linkopt.__all__ == sorted(eager)
-    for name in linkopt.__all__:
-        module, attribute = linkopt._EXPORTS[name]
+    for name in linkopt.__all__:  # the lazy name is the eagerly imported object
+        module, attribute = eager[name]
         assert getattr(linkopt, name) is getattr(
             importlib.import_module(f"linkopt.{module}"), attribute
         )

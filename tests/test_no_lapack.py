@@ -56,18 +56,24 @@ def test_kinematics_and_singularity_programs_have_no_lapack(five_bar):
     states = jnp.broadcast_to(rest, (8,) + rest.shape)
     outputs = jnp.zeros((8, mech.num_outputs))
     programs = {
-        "fk from rest": kinematics._solve_from_rest.lower(mech, "fk", motors, None),
-        "fk warm": kinematics._solve.lower(mech, "fk", motors, states, None),
-        "bk warm": kinematics._solve.lower(mech, "bk", outputs, states, None),
-        "f_sing": singularity._sigmas.lower(mech, states, None),
+        "fk from rest": kinematics.solve_batch_from_rest.lower(
+            mech, "fk", motors, None
+        ),
+        "fk warm": kinematics.solve_batch.lower(mech, "fk", motors, states, None),
+        "bk warm": kinematics.solve_batch.lower(mech, "bk", outputs, states, None),
+        "f_sing": singularity.sigma_pairs.lower(mech, states, None),
         "sensitivity": jax.jit(
             jax.vmap(
-                jax.jacfwd(lambda a, s: kinematics._solve(mech, "fk", a, s, None).state)
+                jax.jacfwd(
+                    lambda a, s: kinematics.solve_batch(mech, "fk", a, s, None).state
+                )
             )
         ).lower(motors, states),
         "design sensitivity": jax.jit(
             jax.jacrev(
-                lambda p: kinematics._solve(mech, "fk", motors, states, p).state.sum()
+                lambda p: kinematics.solve_batch(
+                    mech, "fk", motors, states, p
+                ).state.sum()
             )
         ).lower(jnp.asarray(mech.design.p0)),
     }

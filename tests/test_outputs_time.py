@@ -46,12 +46,12 @@ def test_sections_agree_with_the_fine_3d_grid(arm):
         progress=records.append,
     )
     # the replaced method: one fine 3-D continuation through every cut
-    third = maps._merged(LOW[2], HIGH[2], 5, [*CUTS, start_b[2]])
-    axes = maps._axes(LOW[:2], HIGH[:2], 9) + [third]
-    states, feasible = maps._solve_from(arm, "bk", axes, start_b, rest, None)
+    third = maps.merged_values(LOW[2], HIGH[2], 5, [*CUTS, start_b[2]])
+    axes = maps.grid_axes(LOW[:2], HIGH[:2], 9) + [third]
+    states, feasible = maps.solve_grid(arm, "bk", axes, start_b, rest, None)
     for section, cut in zip(new, CUTS):
         k = int(np.argmin(np.abs(third - cut)))
-        old = maps._finish(arm, axes, states[:, :, k], feasible[:, :, k], None)
+        old = maps.finish_map(arm, axes, states[:, :, k], feasible[:, :, k], None)
         assert 0.2 < section.feasible.mean() < 0.95  # a reach boundary is crossed
         assert (section.feasible == old.feasible).mean() >= 0.95
         both = section.feasible & old.feasible

@@ -49,7 +49,7 @@ from .optimizer import OptimizerSettings, SwarmRun
 from .sweep import optimize_with_pool
 from .workers import Workers, concatenate
 
-_MECHANISMS: dict[str, Mechanism] = {}  # in each Dask worker, by fingerprint
+MECHANISMS: dict[str, Mechanism] = {}  # in each Dask worker, by fingerprint
 
 
 class MechanismPlugin(WorkerPlugin):
@@ -60,16 +60,16 @@ class MechanismPlugin(WorkerPlugin):
         self.key = fingerprint(mech)
 
     def setup(self, worker) -> None:
-        _MECHANISMS[self.key] = self.mech
+        MECHANISMS[self.key] = self.mech
         one_blas_thread()  # for the worker's lifetime, as in Workers' processes
 
     def teardown(self, worker) -> None:
-        _MECHANISMS.pop(self.key, None)
+        MECHANISMS.pop(self.key, None)
 
 
 def _evaluate_on_worker(key: str, designs: np.ndarray) -> Evaluation:
     """One chunk, on a Dask worker holding the mechanism ``key``."""
-    mech = _MECHANISMS.get(key)
+    mech = MECHANISMS.get(key)
     if mech is None:  # the plugin runs before any task; this would be a Dask bug
         raise RuntimeError(f"this Dask worker holds no mechanism {key[:12]}")
     return jax.tree_util.tree_map(np.asarray, evaluate(mech, designs))

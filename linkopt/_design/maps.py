@@ -266,12 +266,12 @@ def continuation_grid(
     return states, status == 1
 
 
-def _axes(low, high, resolution):
+def grid_axes(low, high, resolution):
     resolution = check_count(resolution, "resolution", 2)
     return [np.linspace(lo, hi, resolution) for lo, hi in zip(low, high)]
 
 
-def _finish(mech, axes, states, feasible, design) -> Map2D:
+def finish_map(mech, axes, states, feasible, design) -> Map2D:
     flat = states.reshape(-1, states.shape[-1])
     shape = feasible.shape
     fs = np.asarray(f_sing(mech, flat, design=design)).reshape(shape)
@@ -295,7 +295,7 @@ def _finish(mech, axes, states, feasible, design) -> Map2D:
     )
 
 
-def _merged(low: float, high: float, steps: int, extra) -> np.ndarray:
+def merged_values(low: float, high: float, steps: int, extra) -> np.ndarray:
     """``steps`` even values over ``[low, high]`` merged with the ``extra`` values."""
     return np.unique(
         np.concatenate([np.linspace(low, high, steps), np.asarray(extra, float)])
@@ -339,21 +339,22 @@ def sections(
         )
     resolution = check_count(resolution, "resolution", 2)
     coarse = [
-        _merged(low[i], high[i], SECTION_SEED, [start_values[i]]) for i in range(2)
+        merged_values(low[i], high[i], SECTION_SEED, [start_values[i]])
+        for i in range(2)
     ]
-    coarse.append(_merged(low[2], high[2], depth, [*cuts, start_values[2]]))
+    coarse.append(merged_values(low[2], high[2], depth, [*cuts, start_values[2]]))
     report = _stage(progress, f"{kind.upper()} sections: coarse 3-D grid")
-    coarse_states, coarse_ok = _solve_from(
+    coarse_states, coarse_ok = solve_grid(
         mech, kind, coarse, start_values, start_state, design, report
     )
-    fine = _axes(low[:2], high[:2], resolution)
+    fine = grid_axes(low[:2], high[:2], resolution)
     out = []
     for number, cut in enumerate(cuts):
         k = int(np.argmin(np.abs(coarse[2] - cut)))
         seeds = _seeds(coarse, fine, coarse_states[:, :, k], coarse_ok[:, :, k])
         report = _stage(progress, f"{kind.upper()} section {number + 1} of {len(cuts)}")
         states, feasible = _plane(mech, kind, fine, coarse[2][k], seeds, design, report)
-        out.append(_finish(mech, fine, states, feasible, design))
+        out.append(finish_map(mech, fine, states, feasible, design))
     return out
 
 
@@ -393,7 +394,7 @@ def _plane(mech: Mechanism, kind: str, fine, third: float, seeds, design, report
     return continuation_grid(solve, values, None, None, seeds=seeds, progress=report)
 
 
-def _solve_from(
+def solve_grid(
     mech: Mechanism,
     kind: str,
     axes,
@@ -433,12 +434,12 @@ def motor_map(
 ) -> Map2D:
     """FK over a motor-space box ``[low, high]`` (2 motors), from a solved start
     state."""
-    axes = _axes(low, high, resolution)
+    axes = grid_axes(low, high, resolution)
     report = _stage(progress, "motor space")
-    states, feasible = _solve_from(
+    states, feasible = solve_grid(
         mech, "fk", axes, start_motors, start_state, design, report
     )
-    return _finish(mech, axes, states, feasible, design)
+    return finish_map(mech, axes, states, feasible, design)
 
 
 def output_map(
@@ -454,9 +455,9 @@ def output_map(
 ) -> Map2D:
     """BK over an end-effector-space box ``[low, high]`` (2 outputs), from a solved
     start state."""
-    axes = _axes(low, high, resolution)
+    axes = grid_axes(low, high, resolution)
     report = _stage(progress, "output space")
-    states, feasible = _solve_from(
+    states, feasible = solve_grid(
         mech, "bk", axes, start_outputs, start_state, design, report
     )
-    return _finish(mech, axes, states, feasible, design)
+    return finish_map(mech, axes, states, feasible, design)

@@ -259,7 +259,7 @@ def _chunked(fn, xs):
 
 
 @partial(jit, static_argnums=(0, 1))
-def _solve(mech: Mechanism, kind: str, values, start, design) -> Solution:
+def solve_batch(mech: Mechanism, kind: str, values, start, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, start, design)
     if values.ndim == 1:
         return solve_single(mech, kind, geom, values, start)
@@ -269,7 +269,7 @@ def _solve(mech: Mechanism, kind: str, values, start, design) -> Solution:
 
 
 @partial(jit, static_argnums=(0, 1))
-def _solve_from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
+def solve_batch_from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, None, design)
     v_rest = _VALUES[kind](mech, geom, start)
 
@@ -295,18 +295,18 @@ def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
 
 
 def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
-    """:func:`_solve`; a concrete batch in fixed blocks (:mod:`.blocks`), each row
+    """:func:`solve_batch`; a concrete batch in fixed blocks (:mod:`.blocks`), each row
     with its own start. Concrete calls here and below keep their traces on disk
     (:func:`.programs.call`: a warm process skips tracing a solve)."""
     if traced(values, start, design):
-        return _solve(mech, kind, values, start, design)
+        return solve_batch(mech, kind, values, start, design)
     design = design_array(mech, design)
     values = np.asarray(values, dtype=np.float64)
     start = np.asarray(start, dtype=np.float64)
 
     def solve(v, s):
         return programs.call(
-            f"solve_{kind}", mech, lambda m, *a: _solve(m, kind, *a), v, s, design
+            f"solve_{kind}", mech, lambda m, *a: solve_batch(m, kind, *a), v, s, design
         )
 
     if values.ndim == 1:
@@ -320,9 +320,9 @@ def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
 
 
 def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
-    """:func:`_solve_from_rest`; a concrete batch in fixed blocks."""
+    """:func:`solve_batch_from_rest`; a concrete batch in fixed blocks."""
     if traced(values, design):
-        return _solve_from_rest(mech, kind, values, design)
+        return solve_batch_from_rest(mech, kind, values, design)
     design = design_array(mech, design)
     values = np.asarray(values, dtype=np.float64)
 
@@ -330,7 +330,7 @@ def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
         return programs.call(
             f"from_rest_{kind}",
             mech,
-            lambda m, *a: _solve_from_rest(m, kind, *a),
+            lambda m, *a: solve_batch_from_rest(m, kind, *a),
             v,
             design,
         )

@@ -105,7 +105,7 @@ def f_sing_value(mech: Mechanism, geom: Geometry, state) -> Float[Array, ""]:
 
 
 @partial(jit, static_argnums=0)
-def _sigmas(mech: Mechanism, state, design):
+def sigma_pairs(mech: Mechanism, state, design):
     geom = geometry(mech, design_vector(mech, design))
     state = jnp.asarray(state, dtype=jnp.float64)
     fn = lambda s: sigma_min_pair(mech, geom, s)  # noqa: E731
@@ -119,11 +119,11 @@ def singular_values(mech: Mechanism, state, *, design=None) -> Float[Array, "...
     if not isinstance(state, jax.core.Tracer):
         _check_shape(mech, state)
     if traced(state, design):
-        return _sigmas(mech, state, design)
+        return sigma_pairs(mech, state, design)
     design = design_array(mech, design)  # None and arrays: one program
 
     def sigmas(s):  # the trace kept on disk (.programs)
-        return programs.call("sigmas", mech, _sigmas, s, design)
+        return programs.call("sigmas", mech, sigma_pairs, s, design)
 
     state = np.asarray(state, dtype=np.float64)
     return sigmas(state) if state.ndim == 1 else in_blocks(sigmas, (state,), one=sigmas)
