@@ -190,6 +190,16 @@ def test_gradient_is_finite_where_the_closest_pair_is_not_unique(pair):
     assert np.all(np.isfinite(np.asarray(grad)))
 
 
+def test_crossing_segments_have_zero_distance_and_gradient_after_rounding():
+    """Segments that cross at a point no float represents: the computed distance is
+    0, not a rounding residue, and its gradient is zero, not a unit vector in an
+    arbitrary direction."""
+    x = jnp.array([0.1, 0.3, 0.0, 0.7, -0.2, 0.0, 0.2, -0.3, 0.0, 0.5, 0.9, 0.0])
+    value, grad = jax.value_and_grad(_flat_distance)(x)
+    assert float(value) == 0.0
+    assert np.all(np.asarray(grad) == 0.0)
+
+
 def test_parallel_gradient_moves_the_segments_apart():
     """Parallel segments a unit apart: the distance grows at unit rate when the second
     moves away along the normal."""

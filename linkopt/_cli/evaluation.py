@@ -86,17 +86,19 @@ def evaluation_payload(mech, ev, design=None) -> dict:
 def _evaluated_collision(mech, ev, design, ik_out, adv_out) -> dict:
     """``evaluate --json``'s ``collision`` entry, only for a file that checks them:
     the collision term (the mean over the IK and adversarial sample states of the
-    barrier, :mod:`linkopt._engine.collision`), and the least clearance with its pair
-    and pose."""
+    barrier, :mod:`linkopt._engine.collision`), its share of ``f_design`` (``weight``
+    times it), and the least clearance with its pair and pose."""
     from .._engine.collision import clearance, has_collision, pair_names
 
     if not has_collision(mech):
         return {}
     states = np.concatenate([np.asarray(ev.ik_states), np.asarray(ev.adv_states)])
     result = clearance(mech, states, design=design)
+    term = float(np.mean(result.value))
     entry = {
-        "term": float(np.mean(result.value)),
+        "term": term,
         "weight": mech.collision.weight,
+        "share": mech.collision.weight * term,
         "clearance": mech.collision.clearance,
         "min_clearance": float(np.min(result.minimum)),
         "pair": None,
@@ -127,7 +129,13 @@ def run_evaluate(args) -> int:
         return 0
     print(
         f"{mech.name}: f_design = {payload['f_design']:.4g} (reach "
-        f"{payload['reach']:.4g}, singularity {payload['singularity']:.4g}); "
+        f"{payload['reach']:.4g}, singularity {payload['singularity']:.4g}"
+        + (
+            f", collision {payload['collision']['share']:.4g}"
+            if "collision" in payload
+            else ""
+        )
+        + "); "
         f"regulariser {payload['regularizer']:.4g}; α₋ = {payload['alpha_minus']:.4g}"
     )
     rest = payload["rest_pose"]
@@ -171,7 +179,8 @@ def run_evaluate(args) -> int:
 def _print_collision(entry: dict) -> None:
     """``evaluate``'s lines on the collision term and the closest pair."""
     print(
-        f"  collision term {entry['term']:.4g} (weight {entry['weight']:g}, "
+        f"  collision term {entry['term']:.4g} (weight {entry['weight']:g}: "
+        f"{entry['share']:.4g} of f_design; "
         f"clearance {entry['clearance']:.4g}); least clearance "
         f"{entry['min_clearance']:.4g}"
         + ("" if entry["pair"] is None else " between " + " and ".join(entry["pair"]))

@@ -7,6 +7,17 @@ target was reached, its second (*singularity*) is zero iff no adversarial sample
 ``f_sing > α₋``. The regulariser ``w ½|p - p₀|²`` (lengths divided by the reference
 length) is reported separately; the optimiser minimises their sum.
 
+A file with ``[collision]`` enabled adds a third part (issue 30): ``weight`` times the
+collision term (:func:`linkopt._engine.collision.collision_value`) averaged over the
+IK and the adversarial sample states, i.e. ``weight · ½ (c(s_IK^t) + c(s_adv^t))`` in
+each target's summand. Both kinds of sample: the IK samples are the poses the design
+must reach (a collision there is one the box demands), the adversarial samples the
+extreme poses around them; it is the term ``linkopt evaluate`` reports. It is
+``f_design - reach - singularity`` (no field of its own, so every consumer of
+:class:`Evaluation` stays as it was). Whether it is there is decided in Python from
+the file, so a file without it traces the program and computes every number exactly
+as before.
+
 Targets: a grid of ``samples_per_dimension`` values per output spanning each range,
 keeping the points on the box's boundary and, with ``interior = true``, the interior
 ones too (3 per dimension, 2 outputs: 9 targets; 4 per dimension: 16; 3 per dimension,
@@ -48,6 +59,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 from .._engine import programs
+from .._engine.collision import collision_value, has_collision
 from .._engine.constraints import homogenised_output_values, output_residual
 from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.kinematics import check_design
@@ -69,7 +81,9 @@ RANGE_SLACK = 1e-9
 
 
 class Evaluation(NamedTuple):
-    """One design's evaluation; a batch of designs adds a leading axis. Homogenised."""
+    """One design's evaluation; a batch of designs adds a leading axis. Homogenised.
+    With ``[collision]`` enabled, ``f_design`` also holds the weighted collision term
+    (module docstring): ``f_design - reach - singularity``."""
 
     f_design: Float[Array, ""]
     reach: Float[Array, ""]
@@ -264,8 +278,13 @@ def _evaluation(
     reach = per(0.5 * jnp.sum(residuals**2, axis=1))
     adv_sing = adv_samples.f_sing
     adv_culled = per(culled(adv_sing, th))
+    summands = reach + adv_culled
+    if has_collision(mech):  # static: without it, the program is as it was
+        summands = summands + per(
+            sample_collision(mech, lane_geoms, ik_samples.state, adv_samples.state)
+        )
     return Evaluation(
-        f_design=jnp.mean(reach + adv_culled, axis=1),
+        f_design=jnp.mean(summands, axis=1),
         reach=jnp.mean(reach, axis=1),
         singularity=jnp.mean(adv_culled, axis=1),
         regularizer=jax.vmap(lambda p: regularizer(mech, p))(designs),
@@ -280,6 +299,15 @@ def _evaluation(
         ik_iterations=per(ik_samples.iterations),
         adv_iterations=per(adv_samples.iterations),
     )
+
+
+def sample_collision(mech: Mechanism, geoms, ik_states, adv_states):
+    """Each lane's share of the collision part of ``f_design`` (module docstring):
+    ``weight · ½ (c(s_IK) + c(s_adv))``, for lanes ``geoms`` (leading axis) with those
+    sample states."""
+    value = jax.vmap(lambda g, s: collision_value(mech, g, s))
+    both = value(geoms, ik_states) + value(geoms, adv_states)
+    return (0.5 * mech.collision.weight) * both
 
 
 def _evaluate_batch(

@@ -14,6 +14,12 @@ the scalar whose ``p``-gradient is the partial gradient (its value equals
 gradient a straight-line program, quick to compile, where reverse mode through
 the LM while-loops of :func:`frozen_objective` under ``vmap`` compiled far too slowly.
 :func:`frozen_objective` (which re-solves) stays as the reference for the tests.
+
+With ``[collision]`` enabled, each IK and each adversarial sample term also carries
+its half of the weighted collision term (:mod:`linkopt._design.evaluation`), so its
+design gradient comes through the same adjoint, with the same frozen motors: the
+term moves with the design both through the capsules' anchors (``∂g/∂p``) and through
+the sample's state (``μ``). Without it, the terms are as they were.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ import jax
 import jax.numpy as jnp
 
 from .._engine import dense, programs
+from .._engine.collision import collision_value, has_collision
 from .._engine.constraints import fk_residual, output_residual
 from .._engine.geometry import geometry
 from .._engine.jacobian import state_jacobian
@@ -32,16 +39,29 @@ from .evaluation import Evaluation, regularizer, targets
 from .metrics import culled, thresholds
 
 
+def _with_collision(mech: Mechanism, term):
+    """``term`` plus the sample's half of the weighted collision term, when the file
+    checks collisions (module docstring); ``term`` itself otherwise."""
+    if not has_collision(mech):
+        return term
+    half = 0.5 * mech.collision.weight
+    return lambda state, geom: (
+        term(state, geom) + half * collision_value(mech, geom, state)
+    )
+
+
 def _reach_term(mech: Mechanism, goal):
     def term(state, geom):
         residual = output_residual(mech, geom, goal, state)
         return 0.5 * residual @ residual
 
-    return term
+    return _with_collision(mech, term)
 
 
 def _singular_term(mech: Mechanism, th):
-    return lambda state, geom: culled(f_sing_value(mech, geom, state), th)
+    return _with_collision(
+        mech, lambda state, geom: culled(f_sing_value(mech, geom, state), th)
+    )
 
 
 def frozen_objective(

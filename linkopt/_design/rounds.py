@@ -10,7 +10,10 @@ there and its adversarial sample starts there):
 
 - one unreached cell (the first in grid order), so the reach term counts it;
 - the cell of the largest ``f_sing`` when that is at or above ``α₋``, so the IK sample
-  sits where the culled singularity term is already positive.
+  sits where the culled singularity term is already positive;
+- with ``[collision]`` enabled, the cell of the least clearance when that is below the
+  clearance, so the IK sample sits in the collision and the collision term of
+  ``f_design`` counts it.
 
 and the run goes on (:func:`linkopt._design.optimizer.reopen`). The budget is
 ``verify_rounds`` such continuations of at most ``iterations`` iterations each; a run
@@ -64,6 +67,8 @@ def failing_places(mech: Mechanism, check: Verification) -> list[list[float]]:
         places.append(np.asarray(check.unreached_example, dtype=float))
     if check.coverage > 0 and check.max_f_sing >= check.threshold:
         places.append(np.asarray(check.worst_outputs, dtype=float))
+    if collided(mech, check):
+        places.append(np.asarray(check.collision_outputs, dtype=float))
     known = targets(mech)
     scale = np.asarray(mech.output_scale, dtype=float)
     new = []
@@ -72,6 +77,16 @@ def failing_places(mech: Mechanism, check: Verification) -> list[list[float]]:
         if not np.any(np.all(np.abs(seen - place) <= 1e-9 * scale, axis=1)):
             new.append(place)
     return [p.tolist() for p in new]
+
+
+def collided(mech: Mechanism, check: Verification) -> bool:
+    """Whether ``check`` found two checked links closer than the clearance (never
+    without ``[collision]`` enabled)."""
+    return (
+        check.min_clearance is not None
+        and check.collision_outputs is not None
+        and check.min_clearance < mech.collision.clearance
+    )
 
 
 def _record(run: SwarmRun, check: Verification, added: list) -> dict:

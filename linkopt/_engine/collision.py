@@ -12,7 +12,10 @@ named points do (:func:`.constraints.homogenised_point_positions`).
   fixed (``stop_gradient``) and the distance between ``P(s*)`` and ``Q(t*)`` is
   differentiated, which is the derivative of the minimum wherever the closest pair is
   unique; parallel and zero-length segments (whose closest pair is not unique) give
-  a finite gradient too, and crossing segments (distance 0) a zero one.
+  a finite gradient too, and crossing segments (distance 0, or below
+  :data:`CROSSING` after rounding) a zero one: in the plane of two crossing links
+  the distance stays 0 as they move, so the term's gradient there is zero, and only
+  the pairs in the band short of crossing pull on the design.
 * :func:`barrier` of a clearance ``g`` with the band ``c`` (``[collision].clearance``)
   is ``(max(0, c - g) / c)²``: zero when the capsules are clear by more than the band,
   1 at contact, 4 at an overlap of ``c``; C¹ at the band's edge (value and slope zero
@@ -47,6 +50,11 @@ from .quaternion import rotate
 
 #: Squared lengths below this (homogenised²) count as a zero-length segment.
 TINY = 1e-30
+#: Squared distances below this (homogenised²: 1e-12 reference lengths) count as
+#: zero, crossing segments: rounding leaves two crossing segments ~1e-17 apart, and the
+#: gradient of so small a distance is a unit vector in an arbitrary direction (the
+#: distance has a cone's kink at 0), which would pull a design or a state at random.
+CROSSING = 1e-24
 
 
 def _safe_divide(num, den):
@@ -86,9 +94,10 @@ def _candidates(p1, q1, p2, q2) -> Float[Array, "5 2"]:
 
 
 def _norm(v: Float[Array, " 3"]) -> Float[Array, ""]:
-    """``|v|`` with a zero (not NaN) gradient at ``v = 0``."""
+    """``|v|``, 0 with a zero (not NaN, not arbitrary) gradient below
+    :data:`CROSSING`."""
     squared = v @ v
-    positive = squared > 0.0
+    positive = squared > CROSSING
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, squared, 1.0)), 0.0)
 
 
