@@ -537,7 +537,6 @@ def test_collision_term_gradients_match_finite_differences():
 
 
 def test_meshes_put_each_body_in_its_layer():
-    pytest.importorskip("manifold3d")
     from linkopt._export.meshes import body_meshes
 
     mech = linkopt.load(LAYERED)
