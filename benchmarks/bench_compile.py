@@ -134,8 +134,9 @@ def main() -> None:
             template = [*template, "--out"]
         passes = {}
         for label in ("cold", "warm"):  # a new run folder each, one cache for both
-            command = [*template, "--workers", str(args.workers)]
+            command = list(template)
             if command[0] in ("optimize", "sweep"):
+                command += ["--workers", str(args.workers)]
                 at = command.index("--out") + 1
                 command.insert(at, str(Path(scratch) / label))
             passes[label] = _pass(command, Path(scratch) / "cache")

@@ -9,11 +9,12 @@ We never differentiate through a solve. For a sample term ``g(s, p)`` the chain 
 ``dg/dp = ∂/∂p [g(s, p) - μᵀ C(s, p)]`` at fixed ``s``, with ``μ = J (JᵀJ)⁻¹ ∂g/∂s``
 (one small linear solve per sample). The samples' states are already solved at the
 evaluated design, so no forward solve is needed at all; :func:`frozen_lagrangian` is
-the scalar whose ``p``-gradient is the partial gradient (its value equals
-``f_design + regulariser`` up to the loop-closure residual). This keeps the batched
-gradient a straight-line program, quick to compile, where reverse mode through
-the LM while-loops of :func:`frozen_objective` under ``vmap`` compiled far too slowly.
-:func:`frozen_objective` (which re-solves) stays as the reference for the tests.
+the scalar whose ``p``-gradient is the partial gradient (each sample's ``∂g/∂p``
+enters through the geometry as ``⟨∂g/∂x, x(p)⟩``, :func:`_adjoint_term`). This keeps
+the batched gradient a straight-line program, quick to compile, where reverse mode
+through the LM while-loops of :func:`frozen_objective` under ``vmap`` compiled far
+too slowly. :func:`frozen_objective` (which re-solves) stays as the reference for the
+tests.
 
 With ``[collision]`` enabled, each IK and each adversarial sample term also carries
 its half of the weighted collision term (:mod:`linkopt._design.evaluation`), so its
@@ -92,22 +93,29 @@ def frozen_objective(
 
 
 def _adjoint_term(mech: Mechanism, term, design, motors, state):
-    """``g(s, p) - μᵀ C_FK(s, p; a)`` with ``μ`` held fixed (module docstring)."""
+    """A scalar whose ``p``-gradient is that of ``g(s, p) - μᵀ C_FK(s, p; a)`` with
+    ``μ`` held fixed (module docstring): ``⟨∂g/∂x, x(p)⟩ - μᵀ C_FK(s, x(p); a)``, where
+    ``x(p)`` is the design's geometry and ``∂g/∂x`` is taken once, in the same reverse
+    pass as ``∂g/∂s``. Differentiating ``g`` again through ``x(p)`` (the form before)
+    ran the sample term, σ_min and all, forward and backward twice per sample, in the
+    program and in its compile time (``benchmarks/bench_compile.py``). The value is
+    not ``g``; only the gradient is used."""
     motors = jax.lax.stop_gradient(motors)
     state = jax.lax.stop_gradient(state)
     geom = geometry(mech, design)
     fixed = jax.lax.stop_gradient(geom)
-    d_state = jax.grad(term)(state, fixed)
+    d_state, d_geom = jax.grad(term, argnums=(0, 1))(state, fixed)
     jac = state_jacobian(mech, fixed, "fk", state)
     mu = jac @ dense.solve_spd(jac.T @ jac, d_state)  # built from `fixed`: no gradient
-    return term(state, geom) - mu @ fk_residual(mech, geom, motors, state)
+    direct = sum(jnp.vdot(g, x) for g, x in zip(d_geom, geom))
+    return direct - mu @ fk_residual(mech, geom, motors, state)
 
 
 def frozen_lagrangian(
     mech: Mechanism, design, evaluation: Evaluation, alpha
 ) -> jax.Array:
     """Scalar whose gradient in ``design`` is the partial gradient (module
-    docstring)."""
+    docstring); its value is not the objective."""
     th = thresholds(alpha)
     goals = jnp.asarray(targets(mech) / mech.output_scale)
     reach = jax.vmap(

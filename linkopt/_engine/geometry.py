@@ -29,8 +29,13 @@ class Geometry(NamedTuple):
 
 
 def _unit(v: Float[Array, "... 3"]) -> Float[Array, "... 3"]:
-    norm = jnp.sqrt(jnp.sum(v * v, axis=-1, keepdims=True))
-    return v / jnp.where(norm > 0.0, norm, 1.0)
+    """``v / |v|``, and ``v`` (zero) where ``|v| = 0``: an unused axis, e.g. the second
+    axis of a joint that has none. The square root never sees that zero, so its
+    derivative holds no ``0 · inf`` and a zero cotangent gives a zero gradient, not
+    NaN (:mod:`linkopt._design.partial` pulls every field of the geometry back)."""
+    square = jnp.sum(v * v, axis=-1, keepdims=True)
+    positive = square > 0.0
+    return v / jnp.sqrt(jnp.where(positive, square, 1.0))
 
 
 def _perpendicular(
