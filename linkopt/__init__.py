@@ -20,8 +20,9 @@ configure_before_jax()
 # name → (module, attribute). Imported on first use (PEP 562), so that a process that
 # needs one part (a worker evaluating designs, ``linkopt check``) does not pay for the
 # rest (jax, pyswarms and scipy.spatial are most of the import time). The folders, in
-# pipeline order: ``_engine`` (the constraint engine), ``_design`` (design
-# optimisation), ``_arms`` (serial arms: ``codesign``, ``dh``, ``trace``), ``_cli``.
+# pipeline order: ``_engine`` (the constraint engine), ``_files`` (mechanism files),
+# ``_export``, ``_design`` (design optimisation), ``_arms`` (serial arms: ``codesign``,
+# ``dh``, ``trace``), ``_cli``.
 _EXPORTS = {
     "constraint_rows": ("_engine.constraints", "constraint_rows"),
     "Clearance": ("_engine.collision", "Clearance"),
@@ -39,8 +40,8 @@ _EXPORTS = {
     "solve_bk_path": ("_engine.kinematics", "solve_bk_path"),
     "solve_fk": ("_engine.kinematics", "solve_fk"),
     "solve_fk_path": ("_engine.kinematics", "solve_fk_path"),
-    "load": ("_engine.loader", "load"),
-    "loads": ("_engine.loader", "loads"),
+    "load": ("_files.loader", "load"),
+    "loads": ("_files.loader", "loads"),
     "mobility": ("_engine.mobility", "mobility"),
     "Mechanism": ("_engine.model", "Mechanism"),
     "OptimizerSettings": ("_design.optimizer", "OptimizerSettings"),
@@ -61,7 +62,7 @@ _EXPORTS = {
     "singular_values": ("_engine.singularity", "singular_values"),
     "Verification": ("_design.verify", "Verification"),
     "verify": ("_design.verify", "verify"),
-    "write_design": ("_engine.writer", "write_design"),
+    "write_design": ("_files.writer", "write_design"),
     "ArmSolution": ("_arms.codesign.nlp", "ArmSolution"),
     "prepare_arm": ("_arms.codesign.nlp", "prepare"),
     "solve_arm": ("_arms.codesign.nlp", "solve"),
@@ -178,7 +179,6 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
         solve_fk,
         solve_fk_path,
     )
-    from ._engine.loader import load, loads
     from ._engine.manipulability import manipulability, point_jacobian
     from ._engine.mobility import mobility
     from ._engine.model import Mechanism
@@ -192,10 +192,11 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     )
     from ._engine.singularity import f_sing, singular_values
     from ._engine.statics import static_torques
-    from ._engine.writer import write_design
     from ._errors import InputError, LinkoptError, MechanismFileError
     from ._export.meshes import export_glb, export_stl
     from ._export.mjcf import export_mjcf
     from ._export.urdf import export_urdf
+    from ._files.loader import load, loads
+    from ._files.writer import write_design
 
 __all__ = sorted(_EXPORTS)

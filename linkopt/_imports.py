@@ -38,6 +38,7 @@ JAX_FREE = frozenset(
         "_engine",
         "_engine.fields",
         "_export",
+        "_files",
     )
 )
 
