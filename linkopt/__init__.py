@@ -44,7 +44,7 @@ _EXPORTS = {
     "loads": ("_files.loader", "loads"),
     "mobility": ("_engine.mobility", "mobility"),
     "Mechanism": ("_engine.model", "Mechanism"),
-    "OptimizerSettings": ("_design.optimizer", "OptimizerSettings"),
+    "OptimizerSettings": ("_design.settings", "OptimizerSettings"),
     "partial_gradient": ("_design.partial", "partial_gradient"),
     "joint_positions": ("_engine.readout", "joint_positions"),
     "motor_values": ("_engine.readout", "motor_values"),
@@ -73,7 +73,7 @@ _EXPORTS = {
     "DHTable": ("_arms.dh.table", "DHTable"),
     "dh_mechanism": ("_arms.dh.table", "to_mechanism"),
     "DHSynthesis": ("_arms.dh.synthesis", "DHSynthesis"),
-    "DHSynthesisSettings": ("_arms.dh.synthesis", "DHSynthesisSettings"),
+    "DHSynthesisSettings": ("_arms.dh.settings", "DHSynthesisSettings"),
     "synthesize_dh": ("_arms.dh.synthesis", "synthesize_dh"),
     "eliminate": ("_arms.codesign.elimination", "eliminate"),
     "simplify": ("_arms.codesign.elimination", "simplify"),
@@ -84,7 +84,7 @@ _EXPORTS = {
     "compare_discretised": ("_arms.trace.discrete", "compare"),
     "discretised_design": ("_arms.trace.discrete", "discretised_design"),
     "TraceResult": ("_arms.trace.synthesis", "TraceResult"),
-    "TraceSettings": ("_arms.trace.synthesis", "TraceSettings"),
+    "TraceSettings": ("_arms.trace.settings", "TraceSettings"),
     "synthesize_trace": ("_arms.trace.synthesis", "synthesize"),
     "TraceTask": ("_arms.trace.task", "TraceTask"),
     "load_trace_task": ("_arms.trace.task", "load_task"),
@@ -134,7 +134,8 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._arms.codesign.task import (
         loads_task as loads_arm_task,
     )
-    from ._arms.dh.synthesis import DHSynthesis, DHSynthesisSettings, synthesize_dh
+    from ._arms.dh.settings import DHSynthesisSettings
+    from ._arms.dh.synthesis import DHSynthesis, synthesize_dh
     from ._arms.dh.table import DHTable
     from ._arms.dh.table import to_mechanism as dh_mechanism
     from ._arms.trace.discrete import (
@@ -144,10 +145,8 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._arms.trace.discrete import (
         compare as compare_discretised,
     )
-    from ._arms.trace.synthesis import (
-        TraceResult,
-        TraceSettings,
-    )
+    from ._arms.trace.settings import TraceSettings
+    from ._arms.trace.synthesis import TraceResult
     from ._arms.trace.synthesis import (
         synthesize as synthesize_trace,
     )
@@ -164,9 +163,9 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._arms.trace.verify import verify as verify_trace
     from ._design.animation import Motion, PathNotReached, animate, motion
     from ._design.evaluation import Evaluation, evaluate
-    from ._design.optimizer import OptimizerSettings
     from ._design.partial import partial_gradient
     from ._design.run import optimize, write_outputs
+    from ._design.settings import OptimizerSettings
     from ._design.verify import Verification, verify
     from ._engine.collision import Clearance, clearance
     from ._engine.constraints import constraint_rows
