@@ -20,8 +20,9 @@ configure_before_jax()
 # name → (module, attribute). Imported on first use (PEP 562), so that a process that
 # needs one part (a worker evaluating designs, ``linkopt check``) does not pay for the
 # rest (jax, pyswarms and scipy.spatial are most of the import time). The folders, in
-# pipeline order: ``_engine`` (the constraint engine), ``_design`` (design
-# optimisation), ``_arms`` (serial arms: ``codesign``, ``dh``, ``trace``), ``_cli``.
+# pipeline order: ``_engine`` (the constraint engine), ``_files`` (mechanism files),
+# ``_export``, ``_design`` (design optimisation), ``_arms`` (serial arms: ``codesign``,
+# ``dh``, ``trace``), ``_cli``.
 _EXPORTS = {
     "constraint_rows": ("_engine.constraints", "constraint_rows"),
     "Clearance": ("_engine.collision", "Clearance"),
@@ -39,11 +40,11 @@ _EXPORTS = {
     "solve_bk_path": ("_engine.kinematics", "solve_bk_path"),
     "solve_fk": ("_engine.kinematics", "solve_fk"),
     "solve_fk_path": ("_engine.kinematics", "solve_fk_path"),
-    "load": ("_engine.loader", "load"),
-    "loads": ("_engine.loader", "loads"),
+    "load": ("_files.loader", "load"),
+    "loads": ("_files.loader", "loads"),
     "mobility": ("_engine.mobility", "mobility"),
     "Mechanism": ("_engine.model", "Mechanism"),
-    "OptimizerSettings": ("_design.optimizer", "OptimizerSettings"),
+    "OptimizerSettings": ("_design.settings", "OptimizerSettings"),
     "partial_gradient": ("_design.partial", "partial_gradient"),
     "joint_positions": ("_engine.readout", "joint_positions"),
     "motor_values": ("_engine.readout", "motor_values"),
@@ -61,7 +62,7 @@ _EXPORTS = {
     "singular_values": ("_engine.singularity", "singular_values"),
     "Verification": ("_design.verify", "Verification"),
     "verify": ("_design.verify", "verify"),
-    "write_design": ("_engine.writer", "write_design"),
+    "write_design": ("_files.writer", "write_design"),
     "ArmSolution": ("_arms.codesign.nlp", "ArmSolution"),
     "prepare_arm": ("_arms.codesign.nlp", "prepare"),
     "solve_arm": ("_arms.codesign.nlp", "solve"),
@@ -72,7 +73,7 @@ _EXPORTS = {
     "DHTable": ("_arms.dh.table", "DHTable"),
     "dh_mechanism": ("_arms.dh.table", "to_mechanism"),
     "DHSynthesis": ("_arms.dh.synthesis", "DHSynthesis"),
-    "DHSynthesisSettings": ("_arms.dh.synthesis", "DHSynthesisSettings"),
+    "DHSynthesisSettings": ("_arms.dh.settings", "DHSynthesisSettings"),
     "synthesize_dh": ("_arms.dh.synthesis", "synthesize_dh"),
     "eliminate": ("_arms.codesign.elimination", "eliminate"),
     "simplify": ("_arms.codesign.elimination", "simplify"),
@@ -83,7 +84,7 @@ _EXPORTS = {
     "compare_discretised": ("_arms.trace.discrete", "compare"),
     "discretised_design": ("_arms.trace.discrete", "discretised_design"),
     "TraceResult": ("_arms.trace.synthesis", "TraceResult"),
-    "TraceSettings": ("_arms.trace.synthesis", "TraceSettings"),
+    "TraceSettings": ("_arms.trace.settings", "TraceSettings"),
     "synthesize_trace": ("_arms.trace.synthesis", "synthesize"),
     "TraceTask": ("_arms.trace.task", "TraceTask"),
     "load_trace_task": ("_arms.trace.task", "load_task"),
@@ -133,7 +134,8 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._arms.codesign.task import (
         loads_task as loads_arm_task,
     )
-    from ._arms.dh.synthesis import DHSynthesis, DHSynthesisSettings, synthesize_dh
+    from ._arms.dh.settings import DHSynthesisSettings
+    from ._arms.dh.synthesis import DHSynthesis, synthesize_dh
     from ._arms.dh.table import DHTable
     from ._arms.dh.table import to_mechanism as dh_mechanism
     from ._arms.trace.discrete import (
@@ -143,10 +145,8 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._arms.trace.discrete import (
         compare as compare_discretised,
     )
-    from ._arms.trace.synthesis import (
-        TraceResult,
-        TraceSettings,
-    )
+    from ._arms.trace.settings import TraceSettings
+    from ._arms.trace.synthesis import TraceResult
     from ._arms.trace.synthesis import (
         synthesize as synthesize_trace,
     )
@@ -163,9 +163,9 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._arms.trace.verify import verify as verify_trace
     from ._design.animation import Motion, PathNotReached, animate, motion
     from ._design.evaluation import Evaluation, evaluate
-    from ._design.optimizer import OptimizerSettings
     from ._design.partial import partial_gradient
     from ._design.run import optimize, write_outputs
+    from ._design.settings import OptimizerSettings
     from ._design.verify import Verification, verify
     from ._engine.collision import Clearance, clearance
     from ._engine.constraints import constraint_rows
@@ -178,7 +178,6 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
         solve_fk,
         solve_fk_path,
     )
-    from ._engine.loader import load, loads
     from ._engine.manipulability import manipulability, point_jacobian
     from ._engine.mobility import mobility
     from ._engine.model import Mechanism
@@ -192,10 +191,11 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     )
     from ._engine.singularity import f_sing, singular_values
     from ._engine.statics import static_torques
-    from ._engine.writer import write_design
     from ._errors import InputError, LinkoptError, MechanismFileError
     from ._export.meshes import export_glb, export_stl
     from ._export.mjcf import export_mjcf
     from ._export.urdf import export_urdf
+    from ._files.loader import load, loads
+    from ._files.writer import write_design
 
 __all__ = sorted(_EXPORTS)

@@ -31,13 +31,17 @@ JAX_FREE = frozenset(
         "_arms.checks",
         "_arms.dh",
         "_arms.dh.points",
+        "_arms.dh.settings",
         "_arms.limits",
         "_arms.trace",
+        "_arms.trace.settings",
         "_arms.trace.task",
         "_design",
+        "_design.settings",
         "_engine",
         "_engine.fields",
         "_export",
+        "_files",
     )
 )
 

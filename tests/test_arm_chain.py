@@ -21,7 +21,7 @@ from linkopt._arms.trace.task import loads_task as loads_trace_task
 from linkopt._arms.trace.verify import PlanarArm
 from linkopt._engine.constraints import fk_residual
 from linkopt._engine.geometry import geometry
-from linkopt._engine.writer import dumps
+from linkopt._files.writer import dumps
 
 RNG = np.random.default_rng(7)
 TRACE_TASK = (

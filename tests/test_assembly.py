@@ -19,7 +19,7 @@ import linkopt
 from linkopt._cli.main import main
 from linkopt._engine.assembly import assemble
 from linkopt._engine.fields import parse_text, parse_toml
-from linkopt._engine.loader import build, loads
+from linkopt._files.loader import build, loads
 
 DATA = Path(__file__).parent / "data"
 FOUR_BAR = """

@@ -3,8 +3,8 @@ imported through it (issue 29).
 
 ``--help`` of every command, a usage error, a flag out of range and a file that cannot
 be read or is not TOML answer before the engine (and JAX, most of the start-up) is
-imported; the defaults and limits the parser shows, read from the engine's source
-(:mod:`linkopt._cli.constants`), are the engine's own. Importing :mod:`linkopt` imports
+imported; the defaults and limits the parser shows come from JAX-free settings modules
+and are the engine's own objects. Importing :mod:`linkopt` imports
 no JAX; every linkopt module that imports it, imported alone in a fresh process, finds
 float64 on (:mod:`linkopt._config` comes first).
 """
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from linkopt._cli.constants import constant, defaults
+from linkopt._cli import animate, evaluation, manipulability
 from linkopt._cli.main import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -192,8 +192,7 @@ def _command(parser: argparse.ArgumentParser, *path: str) -> argparse.ArgumentPa
 
 
 def test_the_defaults_shown_are_the_engines():
-    """The parser's defaults and limits, read from the engine's source, equal the
-    engine's own values (imported here)."""
+    """The parser's defaults equal the settings classes' own (imported here)."""
     from linkopt import DHSynthesisSettings, OptimizerSettings, TraceSettings
     from linkopt._arms.dh import synthesis
     from linkopt._design import animation, maps
@@ -224,32 +223,23 @@ def test_the_defaults_shown_are_the_engines():
     assert cmd.get_default("best_of") == trace.best_of
     for command in ("plot", "verify"):
         assert _command(parser, command).get_default("max_cells") == maps.MAX_CELLS
-    assert constant("_design.animation", "DEFAULT_FRAMES") == animation.DEFAULT_FRAMES
-    assert constant("_design.animation", "MAX_FRAMES") == animation.MAX_FRAMES
-    assert constant("_arms.dh.synthesis", "LIMITS") == synthesis.LIMITS
+    assert animate.DEFAULT_FRAMES is animation.DEFAULT_FRAMES
+    assert animate.MAX_FRAMES is animation.MAX_FRAMES
+    assert manipulability.LIMITS is synthesis.LIMITS
 
 
-@pytest.mark.parametrize(
-    "module, name",
-    [
-        ("_design.optimizer", "OptimizerSettings"),
-        ("_arms.dh.synthesis", "DHSynthesisSettings"),
-        ("_arms.trace.synthesis", "TraceSettings"),
-    ],
-)
-def test_settings_defaults_read_from_the_source_are_the_classes(module, name):
-    import dataclasses
-    import importlib
+def test_the_settings_the_command_line_reads_are_the_engines_own():
+    """One class per settings, one object per limit: the JAX-free modules the parser
+    reads hold what the engine and the public API use, not copies."""
+    import linkopt
+    from linkopt._arms.dh import synthesis
+    from linkopt._arms.trace import synthesis as trace
+    from linkopt._design import maps, optimizer
 
-    instance = getattr(importlib.import_module(f"linkopt.{module}"), name)()
-    fields = {f.name: getattr(instance, f.name) for f in dataclasses.fields(instance)}
-    assert vars(defaults(module, name)) == fields
-
-
-def test_a_value_that_is_not_a_literal_is_imported():
-    from linkopt._design import maps
-
-    assert constant("_design.maps", "MAX_BYTES") == maps.MAX_BYTES  # 12 * 2**30
+    assert optimizer.OptimizerSettings is linkopt.OptimizerSettings
+    assert synthesis.DHSynthesisSettings is linkopt.DHSynthesisSettings
+    assert trace.TraceSettings is linkopt.TraceSettings
+    assert evaluation.MAX_CELLS is maps.MAX_CELLS
 
 
 def test_import_linkopt_imports_no_jax_and_its_names_turn_float64_on():

@@ -13,7 +13,7 @@ from conftest import MECHANISMS
 import linkopt
 from linkopt._engine.geometry import geometry
 from linkopt._engine.jacobian import stacked_jacobians
-from linkopt._engine.loader import build
+from linkopt._files.loader import build
 
 MOTORS = np.array(
     [

@@ -12,8 +12,8 @@ import linkopt
 from linkopt._engine.constraints import passive_residual
 from linkopt._engine.fields import parse_toml
 from linkopt._engine.geometry import geometry, rest_state
-from linkopt._engine.loader import build
-from linkopt._engine.writer import design_definition, dumps
+from linkopt._files.loader import build
+from linkopt._files.writer import design_definition, dumps
 
 
 def rotation(k: int, order: int = 3) -> np.ndarray:

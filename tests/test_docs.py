@@ -47,7 +47,7 @@ import pytest
 import linkopt
 from linkopt._cli.main import main
 from linkopt._engine.fields import Reader, parse_toml
-from linkopt._engine.loader import build
+from linkopt._files.loader import build
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "docs" / "reference" / "mechanism-file.md"
@@ -503,8 +503,8 @@ def test_joint_types_and_their_rows_are_documented():
 
 def test_enumerated_values_are_documented():
     from linkopt._engine.design_kinds import KINDS
-    from linkopt._engine.loader import ORIENTATION_ANGLES
     from linkopt._engine.model import COORDINATES, OUTPUT_KINDS
+    from linkopt._files.outputs import ORIENTATION_ANGLES
 
     sections = reference_sections()
     for table, values in (

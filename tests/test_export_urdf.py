@@ -40,7 +40,7 @@ def _arm_design_file():
 
     from linkopt._arms.codesign.model import mechanism_definition
     from linkopt._arms.codesign.task import loads_task
-    from linkopt._engine.writer import dumps
+    from linkopt._files.writer import dumps
 
     target = "[[targets]]\nposition = [0.0, 0.0, 0.0]\n"
     arm = loads_task(TINY_ARM + target, "tiny.toml").arm

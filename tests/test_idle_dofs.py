@@ -19,7 +19,7 @@ from linkopt._cli.main import main
 from linkopt._engine.constraints import bk_residual, fk_residual, passive_residual
 from linkopt._engine.geometry import geometry, rest_state
 from linkopt._engine.jacobian import linearise, stacked_jacobians
-from linkopt._engine.loader import build
+from linkopt._files.loader import build
 
 RODS = ("rod1a", "rod1b", "rod2a", "rod2b", "rod3a", "rod3b")
 MOTORS = np.array(

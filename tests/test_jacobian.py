@@ -13,7 +13,7 @@ from conftest import MECHANISMS, ROOT
 import linkopt
 from linkopt._engine.constraints import bk_residual, fk_residual
 from linkopt._engine.jacobian import linearise, normal_equations, state_jacobian
-from linkopt._engine.loader import build
+from linkopt._files.loader import build
 
 FILES = [
     MECHANISMS / "five_bar.toml",

@@ -19,11 +19,12 @@ ROOT_MODULES = {"__init__", "__main__", "_errors", "_config"}
 # folder -> the folders (and root modules) it may import from
 ALLOWED = {
     "_engine": {"_engine", "root"},
-    "_export": {"_engine", "_export", "root"},
-    "_design": {"_engine", "_export", "_design", "root"},
-    "_arms": {"_engine", "_arms", "root"},
-    "_cli": {"_engine", "_export", "_design", "_arms", "_cli", "root"},
-    "root": {"root", "_engine", "_export", "_design", "_arms", "_cli"},
+    "_files": {"_engine", "_files", "root"},
+    "_export": {"_engine", "_files", "_export", "root"},
+    "_design": {"_engine", "_files", "_export", "_design", "root"},
+    "_arms": {"_engine", "_files", "_arms", "root"},
+    "_cli": {"_engine", "_files", "_export", "_design", "_arms", "_cli", "root"},
+    "root": {"root", "_engine", "_files", "_export", "_design", "_arms", "_cli"},
 }
 
 

@@ -17,7 +17,7 @@ from linkopt._cli.values import read_values
 from linkopt._engine import constraints, jacobian
 from linkopt._engine.fields import parse_toml
 from linkopt._engine.geometry import geometry
-from linkopt._engine.loader import build
+from linkopt._files.loader import build
 
 #: Test geometry (not a mechanism whose mobility matches its outputs: built with
 #: ``check=False``): an arm on a revolute joint, a plate on a ball joint at its tip and

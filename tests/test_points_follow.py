@@ -18,7 +18,7 @@ from linkopt._engine.assembly import assemble
 from linkopt._engine.attachment import LINE, PLANE, POINT, SPACE, attach, follow
 from linkopt._engine.fields import parse_toml
 from linkopt._engine.geometry import geometry
-from linkopt._engine.writer import write_design
+from linkopt._files.writer import write_design
 
 DESIGNS = np.array([[80.0, 180.0], [80.0, 210.0], [95.0, 160.0], [70.0, 200.0]])
 MOTORS = np.array([[0.0, 0.0, 0.0], [0.3, -0.2, 0.5], [-0.4, 0.2, 0.1]])

@@ -146,7 +146,7 @@ def test_capped_counts_the_minimisations_that_ran_to_their_cap(five_bar):
 
 def test_an_optimised_file_keeps_the_added_targets(five_bar, tmp_path):
     from linkopt import load
-    from linkopt._engine.writer import write_design
+    from linkopt._files.writer import write_design
 
     added = with_targets(five_bar, [[-40.0, 75.125], [0.0, 32.875]])
     path = write_design(added, five_bar.design.p0, 24.0, tmp_path / "optimized.toml")

@@ -1,4 +1,4 @@
-"""Designs written back as mechanism files (``linkopt._engine.writer``): any name a
+"""Designs written back as mechanism files (``linkopt._files.writer``): any name a
 TOML file can hold reads back the same, and a file is replaced whole or not at all."""
 
 import os
@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 import linkopt
 from linkopt._engine.fields import parse_toml
-from linkopt._engine.writer import dumps, write_design
+from linkopt._files.writer import dumps, write_design
 
 
 @given(

@@ -5,7 +5,7 @@ tables of :mod:`~linkopt._arms.dh`, the planar arms of :mod:`~linkopt._arms.trac
 the same mechanism to the engine: a ground body and one body per joint, joint ``k``
 joining body ``k - 1`` to body ``k`` with a motor on it, named points on the bodies and
 as many outputs as motors. :func:`chain_definition` writes that mechanism as the plain
-dictionary the loader (:func:`linkopt._engine.loader.build`) reads; the families differ
+dictionary the loader (:func:`linkopt._files.loader.build`) reads; the families differ
 only in names, units, body origins and the points and outputs they declare, and pass
 those in. :func:`chain_state` is the maximal-coordinate state of a configuration
 straight from the frames the bodies carry (a serial chain needs no solve).
@@ -20,7 +20,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._engine import quaternion as quat
-from .._engine.loader import diameter
+from .._files.bounds import diameter
 
 #: One named point: ``(name, body index, position at rest (3,))``.
 Point = tuple[str, int, Sequence[float]]

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._design.settings import DEFAULT_FRAMES, MAX_FRAMES
 from .._errors import InputError
-from .constants import constant
 from .values import MAX_ROWS, design_arg, load, read_values
 
 
@@ -38,7 +38,6 @@ def _header(arg: str) -> list[str] | None:
 def path_rows(mech, arg: str) -> tuple[str, np.ndarray]:
     """``--path``: ``("fk", motor rows)`` or ``("bk", output rows)`` from a CSV file
     whose header names the motors or the outputs; at most ``MAX_FRAMES`` rows."""
-    from .._design.animation import MAX_FRAMES
     from .._engine.kinematics import MAX_VALUE
 
     if not Path(arg).is_file():
@@ -101,7 +100,6 @@ def run_animate(args) -> int:
         raise InputError("--frames: not with --path (each row of the CSV is a frame)")
     mech = load(args.file)
     from .._design.animation import (
-        DEFAULT_FRAMES,
         check_frames,
         draw,
         motion,
@@ -139,8 +137,6 @@ def run_animate(args) -> int:
 
 def register(subparsers) -> None:
     """Add ``animate`` to the ``linkopt`` sub-commands."""
-    default_frames = constant("_design.animation", "DEFAULT_FRAMES")
-    max_frames = constant("_design.animation", "MAX_FRAMES")
     cmd = subparsers.add_parser(
         "animate", help="GIF of the mechanism moving along a path"
     )
@@ -154,14 +150,14 @@ def register(subparsers) -> None:
         "--frames",
         type=int,
         default=None,
-        help=f"frames of the default loop (default {default_frames}, at most "
-        f"{max_frames})",
+        help=f"frames of the default loop (default {DEFAULT_FRAMES}, at most "
+        f"{MAX_FRAMES})",
     )
     cmd.add_argument(
         "--path",
         help=(
             "CSV file of motor or output rows (header: their names), one frame each, "
-            f"at most {max_frames}"
+            f"at most {MAX_FRAMES}"
         ),
     )
     cmd.set_defaults(run=run_animate)

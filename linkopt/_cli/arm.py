@@ -102,7 +102,7 @@ def write_solution(
 def _write_design(arm, solution: nlp.ArmSolution, path: Path) -> None:
     """The arm at its optimised design as a mechanism file, the design in a header."""
     from .._arms.codesign.model import mechanism_definition
-    from .._engine.writer import dumps
+    from .._files.writer import dumps
 
     header = (
         f"{arm.name}: optimised by linkopt arm (paper 000), "

@@ -38,10 +38,10 @@ def run_assemble(args) -> int:
     motors = _motor_values(args.motors, data)
     from .._engine.assembly import assemble
     from .._engine.geometry import rest_state
-    from .._engine.loader import build
     from .._engine.mobility import check_mobility
     from .._engine.singularity import singular_values
-    from .._engine.writer import dumps
+    from .._files.loader import build
+    from .._files.writer import dumps
 
     try:
         result = assemble(data, str(source), motors)

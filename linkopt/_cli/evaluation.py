@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .._design.settings import MAX_CELLS
 from .._errors import InputError
 from .._folders import output_folder
-from .constants import constant
 from .values import design_arg, load
 
 _DESIGN_HELP = (
@@ -419,13 +419,12 @@ def register(subparsers) -> None:
 
 
 def _add_max_cells(cmd) -> None:
-    max_cells = constant("_design.maps", "MAX_CELLS")
     cmd.add_argument(
         "--max-cells",
         type=int,
-        default=max_cells,
+        default=MAX_CELLS,
         help=(
-            f"refuse a grid of more cells (default {max_cells}); the estimated "
+            f"refuse a grid of more cells (default {MAX_CELLS}); the estimated "
             "memory is capped too (12 GiB)"
         ),
     )

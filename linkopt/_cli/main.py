@@ -8,11 +8,13 @@ Each command family lives in its own module with a ``register(subparsers)``:
 what every command shares.
 
 Building the parser imports no part of the engine (nor JAX): the command modules import
-it inside their handlers, and the defaults and limits the help shows are read from the
-engine's source (:mod:`.constants`). A handler checks first what needs neither the file
-nor the engine, then reads the file (:func:`.values.load`: an unreadable or malformed
-file is refused before the engine is imported), and imports the engine only then, so
-that ``--help``, a usage error and a bad flag or file answer at once.
+it inside their handlers, and the defaults and limits the help shows come from the
+JAX-free settings modules (:mod:`linkopt._design.settings`,
+:mod:`linkopt._arms.dh.settings`, :mod:`linkopt._arms.trace.settings`). A handler
+checks first what needs neither the file nor the engine, then reads the file
+(:func:`.values.load`: an unreadable or malformed file is refused before the engine is
+imported), and imports the engine only then, so that ``--help``, a usage error and a
+bad flag or file answer at once.
 
 Bad input exits with status 2 and one line on stderr (argparse's own errors too: the
 usage text is left to ``--help``); a failed solve exits with 1.

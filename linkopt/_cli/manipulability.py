@@ -29,14 +29,21 @@ import numpy as np
 
 from .._arms import checks
 from .._arms.dh.points import read_points
+from .._arms.dh.settings import LIMITS, DHSynthesisSettings
 from .._folders import run_folder, staged
-from .constants import constant, defaults
+from .options import Option, add_options, settings_of
 
 if TYPE_CHECKING:
-    from .._arms.dh.synthesis import DHSynthesis, DHSynthesisSettings
+    from .._arms.dh.synthesis import DHSynthesis
 
-#: Where the synthesis and its settings live (:func:`.constants.defaults`).
-SYNTHESIS = "_arms.dh.synthesis"
+#: The options that set :class:`~linkopt.DHSynthesisSettings` fields.
+OPTIONS = (
+    Option("--precision", "precision", "ε of eq. 8-10"),
+    Option("--size-damping", "size_damping", "ξ of eq. 9-10"),
+    Option("--seed", "seed", "seed of the multi-start initial guesses"),
+    Option("--starts", "starts", "number of seeded starts"),
+    Option("--iterations", "max_iterations", "L-BFGS iteration cap per minimisation"),
+)
 
 CONVENTION = (
     "A_i = Rot_z(theta_i) Trans_z(d_i) Trans_x(a_i) Rot_x(alpha_i) (standard, distal "
@@ -148,37 +155,23 @@ def synthesize_dh(points, joints, settings, progress):
     return synthesize_dh(points, joints, settings, progress=progress)
 
 
-def _settings(args) -> DHSynthesisSettings:
-    """The synthesis settings of the command's options."""
-    from .._arms.dh.synthesis import DHSynthesisSettings
-
-    return DHSynthesisSettings(
-        precision=args.precision,
-        size_damping=args.size_damping,
-        seed=args.seed,
-        starts=args.starts,
-        max_iterations=args.iterations,
-    )
-
-
 def _check_flags(args) -> None:
-    """Every flag meaningful and within :data:`~linkopt._arms.dh.synthesis.LIMITS`,
+    """Every flag meaningful and within :data:`~linkopt._arms.dh.settings.LIMITS`,
     before any work."""
-    limits = constant(SYNTHESIS, "LIMITS")
     checks.number(
-        args.precision, "--precision", positive=True, maximum=limits["weights"]
+        args.precision, "--precision", positive=True, maximum=LIMITS["weights"]
     )
-    checks.number(args.size_damping, "--size-damping", maximum=limits["weights"])
+    checks.number(args.size_damping, "--size-damping", maximum=LIMITS["weights"])
     checks.seed(args.seed, "--seed")
-    checks.count(args.starts, "--starts", maximum=limits["starts"])
-    checks.count(args.iterations, "--iterations", maximum=limits["max_iterations"])
+    checks.count(args.starts, "--starts", maximum=LIMITS["starts"])
+    checks.count(args.iterations, "--iterations", maximum=LIMITS["max_iterations"])
 
 
 def run(args) -> int:
     _check_flags(args)
     joints = _joints_argument(args.joints)
     points = read_points(args.points)
-    settings = _settings(args)
+    settings = settings_of(args, DHSynthesisSettings, OPTIONS)
     with run_folder(args.out) as out:
         print(
             f"linkopt arm manipulability: {len(points)} points, joints {joints}, "
@@ -271,20 +264,5 @@ def register(arm_subparsers) -> None:
         required=True,
         help="output directory (dh.json, arm.toml, manipulability.png)",
     )
-    d = defaults(SYNTHESIS, "DHSynthesisSettings")
-    for flag, kind, default, text in (
-        ("--precision", float, d.precision, "ε of eq. 8-10"),
-        ("--size-damping", float, d.size_damping, "ξ of eq. 9-10"),
-        ("--seed", int, d.seed, "seed of the multi-start initial guesses"),
-        ("--starts", int, d.starts, "number of seeded starts"),
-        (
-            "--iterations",
-            int,
-            d.max_iterations,
-            "L-BFGS iteration cap per minimisation",
-        ),
-    ):
-        p.add_argument(
-            flag, type=kind, default=default, help=f"{text} (default {default:g})"
-        )
+    add_options(p, DHSynthesisSettings(), OPTIONS)
     p.set_defaults(run=run)

@@ -23,8 +23,8 @@ import os
 import sys
 from pathlib import Path
 
+from .._design.settings import OptimizerSettings
 from .._errors import InputError
-from .constants import defaults
 from .evaluation import map_progress
 from .values import load
 
@@ -155,7 +155,6 @@ def run_optimize(args) -> int:
     if args.seed < 0:
         raise InputError(f"--seed: expected a non-negative integer, got {args.seed}")
     mech = load(args.file)
-    from .._design.optimizer import OptimizerSettings
     from .._design.run import locked_run_folder, write_outputs
 
     check_mechanism(args, mech)
@@ -265,7 +264,7 @@ def register(subparsers) -> None:
         required=True,
         help="run directory (checkpoint, history, optimised file, figures)",
     )
-    settings = defaults("_design.optimizer", "OptimizerSettings")
+    settings = OptimizerSettings()
     add_swarm_options(opt, settings)
     add_stopping_options(opt, settings)
     opt.add_argument(

@@ -18,15 +18,13 @@ import sys
 import time
 from pathlib import Path
 
+from .._design.settings import OptimizerSettings
 from .._errors import InputError
 from . import optimize as optimize_cli
-from .constants import defaults
 from .values import load
 
 
 def _settings(args, seed: int):
-    from .._design.optimizer import OptimizerSettings
-
     return OptimizerSettings(
         particles=args.particles,
         iterations=args.iterations,
@@ -168,7 +166,7 @@ def register(subparsers) -> None:
         required=True,
         help="sweep directory: seed_NNN run folders, summary.csv, best.toml",
     )
-    settings = defaults("_design.optimizer", "OptimizerSettings")
+    settings = OptimizerSettings()
     optimize_cli.add_swarm_options(opt, settings, seed=False, each=" of each run")
     optimize_cli.add_stopping_options(opt, settings)
     opt.add_argument(

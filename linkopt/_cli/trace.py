@@ -26,9 +26,22 @@ import sys
 from pathlib import Path
 
 from .._arms import checks
+from .._arms.trace.settings import TraceSettings
 from .._errors import InputError
 from .._folders import run_folder, staged
-from .constants import defaults
+from .options import Option, add_options, settings_of
+
+#: The options that set :class:`~linkopt.TraceSettings` fields.
+OPTIONS = (
+    Option("--restarts", "restarts", "initial guesses per stage"),
+    Option(
+        "--best-of",
+        "best_of",
+        "collect K verified designs in the first successful stage and keep the "
+        "shortest",
+        metavar="K",
+    ),
+)
 
 
 def register(arm_subparsers) -> None:
@@ -44,26 +57,10 @@ def register(arm_subparsers) -> None:
         help="task file (TOML: primitives, obstacles, base_regions, link diameter)",
     )
     p.add_argument("--out", required=True, help="output directory")
-    d = defaults("_arms.trace.synthesis", "TraceSettings")
     p.add_argument(
         "--seed", type=int, default=0, help="seed of the initial guesses (default 0)"
     )
-    p.add_argument(
-        "--restarts",
-        type=int,
-        default=d.restarts,
-        help=f"initial guesses per stage (default {d.restarts})",
-    )
-    p.add_argument(
-        "--best-of",
-        type=int,
-        default=d.best_of,
-        metavar="K",
-        help=(
-            "collect K verified designs in the first successful stage and keep the "
-            f"shortest (default {d.best_of})"
-        ),
-    )
+    add_options(p, TraceSettings(), OPTIONS)
     p.add_argument(
         "--discretised",
         type=int,
@@ -107,13 +104,13 @@ def run(args) -> int:
 
     _check_flags(args)
     task = load_task(args.task)
-    from .._arms.trace.synthesis import TraceSettings, synthesize
+    from .._arms.trace.synthesis import synthesize
 
     with run_folder(args.out) as out:
         result = synthesize(
             task,
             seed=args.seed,
-            settings=TraceSettings(restarts=args.restarts, best_of=args.best_of),
+            settings=settings_of(args, TraceSettings, OPTIONS),
             progress=_say,
         )
         # without a design, an arm.toml of an earlier run must not outlive its result

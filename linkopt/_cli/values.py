@@ -173,7 +173,7 @@ def load(path):
     imported."""
     path = Path(path)
     data = parse_text(path)
-    from .._engine.loader import build
+    from .._files.loader import build
 
     return build(data, str(path))
 

@@ -76,11 +76,8 @@ from .._engine.readout import (
 from .._engine.singularity import f_sing
 from .._errors import InputError, LinkoptError
 from .maps import check_count
+from .settings import DEFAULT_FRAMES, MAX_FRAMES
 
-#: Frames of an animation by default, and the most it accepts: 600 frames of the
-#: five-bar take about 20 s to draw and some 3 MB of GIF.
-DEFAULT_FRAMES = 60
-MAX_FRAMES = 600
 #: Frames per second of the GIF.
 FPS = 15
 #: Out-of-plane spread of the anchors and axes, relative to the reference length, below

@@ -42,17 +42,10 @@ from .._engine.model import Mechanism
 from .._engine.readout import motor_values, output_values, reported_values
 from .._engine.singularity import f_sing
 from .._errors import InputError
+from .settings import MAX_BYTES, MAX_CELLS
 
 MAX_JUMP = 0.25
 
-#: Default cap on the cells of one dense grid: 100 000 cells (a 316² verify grid, a
-#: 46³ one) at ``SECONDS_PER_CELL`` is about 8 minutes on one core for the five-bar;
-#: ``verify``'s default grid has 1681 cells and ``plot``'s 3600.
-MAX_CELLS = 100_000
-#: Cap on a grid's estimated peak memory: half of a 24 GiB machine, leaving the rest to
-#: the interpreter, jax's compiled code and a second process. It binds before the cell
-#: cap for larger states (σ_min of every cell is one batch: ~120 kB a five-bar cell).
-MAX_BYTES = 12 * 2**30
 #: Solve time per cell, seconds, at state size 35 (scaled by (size / 35)²): the
 #: five-bar's verify grids at 41² and 81² took 11-14 ms a cell, compilation included,
 #: on a 2-core machine running three such processes; rounded to 5 ms for one.

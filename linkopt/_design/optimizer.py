@@ -43,50 +43,16 @@ the run for up to ``iterations`` more iterations, at most ``verify_rounds`` time
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 from jaxtyping import Bool, Float
 
 from .._engine.model import Mechanism
 from .evaluation import Evaluation, alpha_minus
+from .settings import OptimizerSettings
 from .swarm import BoundaryHandler, Star, compute_pbest, compute_position, create_swarm
 from .workers import Workers
-
-
-@dataclass(frozen=True)
-class OptimizerSettings:
-    """A run's settings (module docstring); its checkpoint records them, and a resume
-    with others is refused."""
-
-    particles: int = 20
-    iterations: int = 60
-    seed: int = 0
-    #: "hybrid" (PSO + partial gradient) or "gradient" (partial gradient only)
-    mode: str = "hybrid"
-    gradient_probability: float = 0.5
-    cognitive: float = 2.0
-    social: float = 2.0
-    inertia_start: float = 0.9
-    inertia_end: float = 0.4
-    inertia_iterations: int = 100
-    learning_rate: float = 1.0
-    spread: float = 0.05  # initial particles: p₀ ± spread · (upper - lower), uniform
-    gradient_rate: float = 0.01
-    gradient_step: float = 0.02  # reference lengths
-    #: f_design at or below which a design counts as feasible (module docstring)
-    tolerance: float = 1e-12
-    patience: int = 3
-    improvement: float = 1e-3
-    #: times a run whose design fails verification goes on with added targets
-    verify_rounds: int = 3
-
-    def inertia(self, iteration: int) -> float:
-        fraction = min(iteration / self.inertia_iterations, 1.0)
-        return self.inertia_start - (self.inertia_start - self.inertia_end) * fraction
-
-    def to_dict(self) -> dict:
-        return asdict(self)
 
 
 @dataclass(frozen=True, eq=False)

@@ -48,8 +48,8 @@ import numpy as np
 
 from .._config import one_blas_thread
 from .._engine.model import Mechanism
-from .._engine.writer import write_design
 from .._errors import InputError
+from .._files.writer import write_design
 from .._folders import check_path, run_folder, staged, write_atomic
 from .checkpoint import CHECKPOINT, HISTORY_FIELDS, check_match, decode, encode, read
 from .evaluation import Evaluation, alpha_minus, capped, evaluate_in_batch, targets

@@ -1,12 +1,12 @@
 """The constraint engine (paper 001, Sec. II-III).
 
-In pipeline order: a mechanism file is read (``fields``, ``loader``) into one
-:class:`~linkopt._engine.model.Mechanism` (``model``); bodies in maximal coordinates
-(``quaternion``) are tied by joint residual rows (``joints``, ``constraints``) whose
-Jacobians are written out (``jacobian``); Levenberg–Marquardt (``lm``) solves forward
-and backward kinematics and their sensitivities (``kinematics``); ``singularity`` gives
-σ_min and f_sing, ``mobility`` the rank at a state, ``statics`` and ``manipulability``
-torques and velocity ellipsoids; ``readout`` reads file-unit values off a state,
-``writer`` writes a design back to a file, and ``programs`` keeps traced programs on
-disk.
+In pipeline order: a mechanism file is read (``fields`` here, the file layer
+:mod:`linkopt._files`) into one :class:`~linkopt._engine.model.Mechanism`
+(``model``); bodies in maximal coordinates (``quaternion``) are tied by joint residual
+rows (``joints``, ``constraints``) whose Jacobians are written out (``jacobian``);
+Levenberg–Marquardt (``lm``) solves forward and backward kinematics and their
+sensitivities (``kinematics``); ``singularity`` gives σ_min and f_sing, ``mobility``
+the rank at a state, ``statics`` and ``manipulability`` torques and velocity
+ellipsoids; ``readout`` reads file-unit values off a state, and ``programs`` keeps
+traced programs on disk.
 """

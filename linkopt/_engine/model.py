@@ -271,7 +271,7 @@ class Mechanism:
     #: Reported outputs (``reported = true``): read off states like the outputs, but
     #: not used by BK or the design evaluation, so any number of them is allowed.
     reported: OutputTable | None = None
-    #: Idle spins (:func:`linkopt._engine.loader.idle_spins`): bodies held only by two
+    #: Idle spins (:func:`linkopt._files.points.idle_spins`): bodies held only by two
     #: spherical joints, whose spin about the line through them moves nothing else,
     #: and those two joints; each gets one gauge row (:func:`~.constraints.gauge_rows`).
     idle_bodies: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))

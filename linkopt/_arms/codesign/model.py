@@ -42,9 +42,9 @@ from ..._engine import quaternion as quat
 from ..._engine.constraints import homogenised_point_positions
 from ..._engine.geometry import Geometry
 from ..._engine.kinematics import implicit_state
-from ..._engine.loader import build
 from ..._engine.model import Mechanism
 from ..._errors import InputError
+from ..._files.loader import build
 from ..chain import chain_definition, chain_state, joint_output, span
 
 #: Continuous slots of each module kind, in order, and whether each is a length.

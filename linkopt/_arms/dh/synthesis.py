@@ -64,37 +64,11 @@ from ..._engine import dense
 from ..._errors import InputError
 from .. import checks
 from . import table as dh
+from .settings import LIMITS, DHSynthesisSettings
 
 _SMOOTH_ABS = 1e-4  # δ of the smoothed |x| in L, relative to the task scale
-#: Largest settings (:func:`_check_settings`): weights of eq. 10 and counts of work.
-LIMITS = {
-    "weights": 1e12,
-    "starts": 1000,
-    "max_iterations": 1_000_000,
-    "precision_rounds": 20,
-    "polish_iterations": 10_000,
-}
 MAX_JOINTS = 12  # of an R/P string (a number N: at most 8, 2^N strings)
 _POOL = 512  # random joint vectors per start for the initial per-target joint guesses
-
-
-@dataclass(frozen=True)
-class DHSynthesisSettings:
-    """Weights of eq. 10 and optimiser settings.
-
-    ``precision`` = ε (eq. 8), ``size_damping`` = ξ (eq. 9-10), ``b`` of eq. 6.
-    ``reach_tolerance``: residual (task units) below which a target counts as reached.
-    """
-
-    precision: float = 25.0
-    size_damping: float = 12.0
-    b: float = 1e-10
-    starts: int = 8
-    seed: int = 0
-    max_iterations: int = 4000
-    reach_tolerance: float = 1e-3
-    precision_rounds: int = 6
-    polish_iterations: int = 40
 
 
 @dataclass(frozen=True)

@@ -291,8 +291,8 @@ def to_mechanism(
 ):
     """``(Mechanism, TOML text)`` of the arm (see :func:`mechanism_definition`), loaded
     by :func:`linkopt.loads`, so it passes every check a mechanism file does."""
-    from ..._engine.loader import loads
-    from ..._engine.writer import dumps
+    from ..._files.loader import loads
+    from ..._files.writer import dumps
 
     text = dumps(mechanism_definition(types, table, q_rest, name=name, bounds=bounds))
     return loads(text, source), text

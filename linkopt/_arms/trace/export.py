@@ -18,7 +18,7 @@ from jaxtyping import Array, Float
 
 from ..._engine import quaternion as quat
 from ..._engine.model import Mechanism
-from ..._engine.writer import dumps
+from ..._files.writer import dumps
 from ..chain import chain_definition, chain_state, coordinate_output, joint_output
 from . import geometry as geo
 from .synthesis import TraceResult

@@ -56,6 +56,7 @@ from ..._config import jit
 from ..._errors import InputError
 from .. import checks
 from . import geometry as geo
+from .settings import TraceSettings
 from .swept import BOUNDS, signed_distance, swept_support
 from .task import TraceTask
 from .verify import PlanarArm, TraceVerification, verify
@@ -63,29 +64,6 @@ from .verify import PlanarArm, TraceVerification, verify
 EQ9_SAMPLES = 24
 TRANSITION_SAMPLES = 5
 POLISH_ROUNDS = 4
-
-
-@dataclass(frozen=True)
-class TraceSettings:
-    """Search settings.
-
-    ``restarts``: seeded initial guesses per (links, bound) stage; ``best_of``: verified
-    designs to collect in the successful stage before returning the shortest; ``links``
-    and ``swept``: the stages, in order. Fractions of the task size: ``reach_margin``
-    (distance kept from the annulus boundary), ``clearance_margin`` (added to every
-    obstacle radius in the NLP, so that tight optima survive the verifier's motion
-    bound), ``smoothing`` (temperature of the conservative soft maxima in the
-    swept-area distances) and ``feasibility_tol``."""
-
-    restarts: int = 6
-    max_iterations: int = 300
-    reach_margin: float = 2e-3
-    clearance_margin: float = 2e-3
-    smoothing: float = 1e-3
-    feasibility_tol: float = 1e-7
-    links: tuple[int, ...] = (2, 3)
-    best_of: int = 1
-    swept: tuple[str, ...] = ("over", "app")
 
 
 @dataclass

@@ -8,9 +8,9 @@ directions a length or radius moves along are the same at the written design (a
 length moves along its link, a radius radially), so reloading gives the same design
 space with the written design as its initial one (tests/test_design_parameters.py).
 Named points given by ``position`` are written where the design puts them
-(:mod:`.attachment`). The reference length, α₋ and body frame origins of the original
-are written explicitly so that the new file is homogenised and judged exactly as the
-design was during optimisation.
+(:mod:`linkopt._engine.attachment`). The reference length, α₋ and body frame origins
+of the original are written explicitly so that the new file is homogenised and judged
+exactly as the design was during optimisation.
 """
 
 from __future__ import annotations
@@ -21,11 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .._engine.geometry import geometry
+from .._engine.kinematics import check_design
+from .._engine.model import Mechanism
 from .._errors import InputError
 from .._folders import write_atomic
-from .geometry import geometry
-from .kinematics import check_design
-from .model import Mechanism
 
 #: TOML basic-string escapes; other control characters are written as ``\\uXXXX``.
 _ESCAPES = {
@@ -129,7 +129,7 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
             joint["axis"] = [float(v) for v in axes[k] / np.linalg.norm(axes[k])]
     points = np.asarray(geometry(mech, design).points) * mech.length_scale
     for k, point in enumerate(data.get("points", [])):
-        if "position" in point:  # where the design put it (:mod:`.attachment`)
+        if "position" in point:  # where the design put it (attachment)
             point["position"] = [float(v) for v in points[k]]
     return data
 

@@ -1,0 +1,176 @@
+"""Named points and motors of a mechanism file (``[[points]]``, ``[[motors]]``), and
+the bodies whose spin about their own axis is idle."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._engine.attachment import attach
+from .._engine.fields import Reader
+from .._engine.model import MOTOR_JOINTS
+from .bounds import position
+
+
+def read_points(
+    rd: Reader,
+    data: dict,
+    body_index: dict[str, int],
+    joints: list[dict],
+    scale: float,
+) -> list[dict]:
+    """``[[points]]``: each named point's body, the joint it follows (-1 for none) and
+    its rest position (file units)."""
+    items = rd.entries(data, "points", required=False)
+    rd.names(items, "points")
+    names = {"body": body_index, "joint": {j["name"]: k for k, j in enumerate(joints)}}
+    return [
+        _read_point(rd, item, f"points[{k}]", names, joints, scale)
+        for k, item in enumerate(items)
+    ]
+
+
+def _read_point(
+    rd: Reader,
+    item: dict,
+    where: str,
+    names: dict[str, dict[str, int]],
+    joints: list[dict],
+    scale: float,
+) -> dict:
+    """One point: at ``position``, or following the anchor of ``joint``."""
+    rd.keys(item, where, {"name", "body", "position", "joint"}, {"name", "body"})
+    body = rd.lookup(names["body"], item["body"], f"{where}.body", "body")
+    if ("position" in item) == ("joint" in item):
+        raise rd.fail(
+            where,
+            "give exactly one of 'position' (a rest position) or 'joint' "
+            "(follow that joint's anchor)",
+        )
+    if "joint" in item:
+        joint = rd.lookup(names["joint"], item["joint"], f"{where}.joint", "joint")
+        if body not in joints[joint]["bodies"]:
+            raise rd.fail(
+                f"{where}.joint",
+                f"joint {item['joint']!r} does not touch body {item['body']!r}",
+            )
+        rest = joints[joint]["anchor"]
+    else:
+        joint, rest = -1, position(rd, item, "position", where, scale)
+    return {"name": item["name"], "body": body, "joint": joint, "position": rest}
+
+
+def read_motors(rd: Reader, data: dict, joints: list[dict]) -> list[dict]:
+    """``[[motors]]``: each drives one revolute or prismatic joint, no joint twice."""
+    items = rd.entries(data, "motors", required=True)
+    rd.names(items, "motors")
+    joint_index = {j["name"]: k for k, j in enumerate(joints)}
+    motors, used = [], {}
+    for k, item in enumerate(items):
+        where = f"motors[{k}]"
+        rd.keys(item, where, {"name", "joint"}, {"name", "joint"})
+        joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
+        kind = joints[joint]["type"]
+        if kind not in MOTOR_JOINTS:
+            raise rd.fail(
+                f"{where}.joint",
+                f"joint {item['joint']!r} is {kind}; a motor drives a "
+                f"{' or '.join(MOTOR_JOINTS)} joint",
+            )
+        if joint in used:
+            raise rd.fail(
+                f"{where}.joint",
+                f"joint {item['joint']!r} already driven by motors[{used[joint]}]",
+            )
+        used[joint] = k
+        motors.append(
+            {"name": item["name"], "joint": joint, "linear": MOTOR_JOINTS[kind]}
+        )
+    return motors
+
+
+def point_fields(
+    points: list[dict], joints: list[dict], anchors: np.ndarray, scale: float
+) -> dict:
+    """The Mechanism fields of the named points, with how each follows its body."""
+    positions = np.array([p["position"] for p in points]).reshape(-1, 3)
+    on_body = [
+        np.array([k for k, j in enumerate(joints) if p["body"] in j["bodies"]])
+        for p in points
+    ]
+    follows = np.array([p["joint"] for p in points], dtype=int)
+    return {
+        "point_names": tuple(p["name"] for p in points),
+        "point_bodies": np.array([p["body"] for p in points], dtype=int),
+        "point_joints": follows,
+        "point_positions": positions,
+        "point_attachment": attach(anchors, on_body, positions, follows, scale),
+    }
+
+
+def motor_fields(motors: list[dict]) -> dict:
+    """The Mechanism fields of the motors."""
+    return {
+        "motor_names": tuple(m["name"] for m in motors),
+        "motor_joints": np.array([m["joint"] for m in motors], dtype=int),
+        "motor_linear": np.array([m["linear"] for m in motors], dtype=bool),
+    }
+
+
+#: Largest distance of a named point from an idle body's axis, in reference lengths.
+IDLE_TOL = 1e-9
+
+
+def idle_spins(
+    joints: list[dict],
+    points: list[dict],
+    outputs: list[dict],
+    ground: int,
+    num_bodies: int,
+    scale: float,
+) -> dict:
+    """The ``idle_bodies`` / ``idle_joints`` fields: bodies whose spin about their own
+    axis moves no other body and no output (issue 20, part 4).
+
+    Structural test, at load: a body other than the ground is idle when it has exactly
+    two joints, both spherical, at distinct anchors (a rod between two ball joints, as
+    in a Clavel delta), none of its named points lies off the line through them
+    (farther than :data:`IDLE_TOL` reference lengths), and no output reads its
+    orientation (an orientation output of the body or an angle of one of its joints).
+    Motors never touch it (they drive revolute or prismatic joints). A point given on
+    the axis stays on it only while the design keeps it there; off it, the point
+    follows the gauge (the rod turned without twist). A body with three
+    or more collinear ball joints is left alone: a design parameter could move them
+    off their line and make the spin a real constraint. A body with one ball joint
+    only (a free pendulum) has three idle freedoms, not handled: mobility then counts
+    them and the load fails with the mobility message.
+    """
+    idle, pairs = [], []
+    for body in range(num_bodies):
+        mine = [k for k, j in enumerate(joints) if body in j["bodies"]]
+        if body == ground or len(mine) != 2:
+            continue
+        if any(joints[k]["type"] != "spherical" for k in mine):
+            continue
+        start, end = (np.asarray(joints[k]["anchor"], dtype=float) for k in mine)
+        if np.linalg.norm(end - start) <= IDLE_TOL * scale:
+            continue
+        if _sees_spin(body, mine, start, end, points, outputs, scale):
+            continue
+        idle.append(body)
+        pairs.append(mine)
+    return {
+        "idle_bodies": np.array(idle, dtype=int),
+        "idle_joints": np.array(pairs, dtype=int).reshape(-1, 2),
+    }
+
+
+def _sees_spin(body, mine, start, end, points, outputs, scale) -> bool:
+    """Whether a named point off the axis ``start``-``end`` or an output of ``body``
+    would move with its spin."""
+    axis = (end - start) / np.linalg.norm(end - start)
+    for p in points:
+        if p["body"] == body:
+            offset = np.asarray(p["position"], dtype=float) - start
+            if np.linalg.norm(offset - (offset @ axis) * axis) > IDLE_TOL * scale:
+                return True
+    return any(o["joint"] in mine or body in o["bodies"] for o in outputs)

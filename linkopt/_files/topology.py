@@ -1,0 +1,219 @@
+"""The bodies and joints of a mechanism file: ``[[bodies]]``, ``[[joints]]``, the
+bodies' frame origins and the size the dense solver accepts."""
+
+from __future__ import annotations
+
+import numpy as np
+from jaxtyping import Float
+
+from .._engine.fields import Reader, shown
+from .._engine.model import AXIAL_JOINTS, JOINT_ROWS
+from .bounds import ORTHOGONAL_TOL, position
+
+#: Most bodies of a mechanism (:func:`check_size`): the solver works on dense square
+#: matrices of 7 numbers per body, batched 64 at a time (``blocks.BLOCK``) with a few
+#: copies each; at 300 bodies a block holds about 2 GB of them.
+MAX_BODIES = 300
+#: Matrices of a block of solves held at once in that estimate (64 rows, 3 copies).
+BLOCK_COPIES = 64 * 3
+
+
+def check_size(rd: Reader, data: dict) -> None:
+    """Refuse, before any work, a mechanism too large for the dense linear algebra:
+    the state has 7 numbers per body and every solve factors its square."""
+    bodies = data.get("bodies")
+    if not isinstance(bodies, list) or len(bodies) <= MAX_BODIES:
+        return
+    size = 7 * len(bodies)
+    matrix = 8.0 * size * size
+    raise rd.fail(
+        "[[bodies]]",
+        f"{len(bodies)} bodies make a state of {size} numbers: every solve factors "
+        f"a {size} x {size} matrix ({matrix / 2**20:.0f} MB, about "
+        f"{BLOCK_COPIES * matrix / 2**30:.0f} GB for a block of solves); linkopt's "
+        f"dense solver takes at most {MAX_BODIES} bodies",
+    )
+
+
+def read_bodies(rd: Reader, data: dict) -> tuple[list[dict], dict[str, int]]:
+    bodies = rd.entries(data, "bodies", required=True)
+    body_index = rd.names(bodies, "bodies")
+    for k, body in enumerate(bodies):
+        rd.keys(body, f"bodies[{k}]", {"name", "origin", "radius", "layer"}, {"name"})
+    return bodies, body_index
+
+
+def body_fields(bodies: list[dict], ground: int, origins: np.ndarray) -> dict:
+    return {
+        "body_names": tuple(b["name"] for b in bodies),
+        "ground": ground,
+        "body_origins": origins,
+    }
+
+
+def joint_fields(joints: list[dict], anchors: np.ndarray) -> dict:
+    pairs = np.array([j["bodies"] for j in joints], dtype=int).reshape(-1, 2)
+    axes = np.array([j["axis"] for j in joints]).reshape(-1, 3)
+    return {
+        "joint_names": tuple(j["name"] for j in joints),
+        "joint_types": tuple(j["type"] for j in joints),
+        "joint_bodies": pairs,
+        "anchors": anchors,
+        "axes": axes,
+        "axes2": np.array([j["axis2"] for j in joints]),
+        "axis_present": np.linalg.norm(axes, axis=1) > 0,
+        "helper_index": np.argmin(np.abs(axes), axis=1),
+    }
+
+
+def read_joints(rd: Reader, data: dict, body_index: dict[str, int]) -> list[dict]:
+    items = rd.entries(data, "joints", required=True)
+    rd.names(items, "joints")
+    return [
+        _read_joint(rd, item, f"joints[{k}]", body_index)
+        for k, item in enumerate(items)
+    ]
+
+
+def _read_joint(rd: Reader, item: dict, where: str, body_index: dict[str, int]) -> dict:
+    rd.keys(
+        item,
+        where,
+        {"name", "type", "bodies", "anchor", "axis", "axis2"},
+        {"name", "type", "bodies", "anchor"},
+    )
+    kind = item["type"]
+    if not isinstance(kind, str):
+        raise rd.fail(
+            f"{where}.type",
+            f"expected a joint type string, one of {list(JOINT_ROWS)}, got "
+            f"{shown(kind)}",
+        )
+    if kind not in JOINT_ROWS:
+        raise rd.fail(
+            f"{where}.type",
+            f"unknown joint type {shown(kind)}; expected one of {list(JOINT_ROWS)}",
+        )
+    pair = _joint_bodies(rd, item, where, body_index)
+    axis = _first_axis(rd, item, where, kind)
+    axis2 = _second_axis(rd, item, where, kind, axis)
+    return {
+        "name": item["name"],
+        "type": kind,
+        "bodies": pair,
+        "anchor": position(rd, item, "anchor", where, None),
+        "axis": axis,
+        "axis2": axis2,
+    }
+
+
+def _joint_bodies(
+    rd: Reader, item: dict, where: str, body_index: dict[str, int]
+) -> tuple[int, int]:
+    """The indices of the two different bodies a joint connects."""
+    pair = item["bodies"]
+    if not isinstance(pair, list) or len(pair) != 2:
+        raise rd.fail(
+            f"{where}.bodies",
+            f"expected a list of two body names, got {shown(pair)}",
+        )
+    bi = rd.lookup(body_index, pair[0], f"{where}.bodies", "body")
+    bj = rd.lookup(body_index, pair[1], f"{where}.bodies", "body")
+    if bi == bj:
+        raise rd.fail(
+            f"{where}.bodies",
+            f"a joint must connect two different bodies, got {shown(pair)}",
+        )
+    return bi, bj
+
+
+def _first_axis(
+    rd: Reader, item: dict, where: str, kind: str
+) -> Float[np.ndarray, " 3"]:
+    """``axis``: required for axial joints, ``z`` by default for a fixed one, and for
+    a spherical joint part of an optional frame for its angle outputs (else zero)."""
+    if kind in AXIAL_JOINTS:
+        if "axis" not in item:
+            raise rd.fail(f"{where}.axis", f"missing required field for a {kind} joint")
+        return rd.direction(item, "axis", where)
+    if kind == "fixed":
+        if "axis" in item:
+            return rd.direction(item, "axis", where)
+        return np.array([0.0, 0.0, 1.0])
+    if "axis" in item or "axis2" in item:  # spherical: an optional frame
+        for key in ("axis", "axis2"):
+            if key not in item:
+                raise rd.fail(
+                    f"{where}.{key}",
+                    "a spherical joint's frame for angle outputs needs both axis "
+                    "and axis2",
+                )
+        return rd.direction(item, "axis", where)
+    return np.zeros(3)
+
+
+def _second_axis(
+    rd: Reader, item: dict, where: str, kind: str, axis: np.ndarray
+) -> Float[np.ndarray, " 3"]:
+    """``axis2`` of a universal joint (or of a spherical joint's frame),
+    perpendicular to ``axis``; zero for the other joints."""
+    if kind in ("universal", "spherical") and (kind == "universal" or "axis2" in item):
+        if "axis2" not in item:
+            raise rd.fail(
+                f"{where}.axis2", "missing required field for a universal joint"
+            )
+        axis2 = rd.direction(item, "axis2", where)
+        if abs(axis @ axis2) > ORTHOGONAL_TOL:
+            raise rd.fail(
+                f"{where}.axis2", "must be perpendicular to axis at the rest pose"
+            )
+        return axis2
+    if "axis2" in item:
+        raise rd.fail(
+            f"{where}.axis2",
+            "only universal and spherical joints have a second axis",
+        )
+    return np.zeros(3)
+
+
+def body_origins(
+    rd: Reader, bodies: list[dict], joints: list[dict], ground: int, scale: float
+) -> Float[np.ndarray, "B 3"]:
+    """Each body's frame origin at rest: ``origin`` if given, else the centroid of its
+    joint anchors. Every body must reach the ground through joints."""
+    origins = np.zeros((len(bodies), 3))
+    for b, body in enumerate(bodies):
+        anchors = [j["anchor"] for j in joints if b in j["bodies"]]
+        if not anchors:
+            raise rd.fail(
+                f"bodies[{b}]",
+                f"body {body['name']!r} has no joint; every body must be connected",
+            )
+        origins[b] = (
+            position(rd, body, "origin", f"bodies[{b}]", scale)
+            if "origin" in body
+            else np.mean(anchors, axis=0)
+        )
+    _check_connected(rd, bodies, joints, ground)
+    return origins
+
+
+def _check_connected(
+    rd: Reader, bodies: list[dict], joints: list[dict], ground: int
+) -> None:
+    """Every body reaches the ground through joints."""
+    reached = {ground}
+    grew = True
+    while grew:
+        grew = False
+        for j in joints:
+            i, k = j["bodies"]
+            if (i in reached) != (k in reached):
+                reached |= {i, k}
+                grew = True
+    for b, body in enumerate(bodies):
+        if b not in reached:
+            raise rd.fail(
+                f"bodies[{b}]",
+                f"body {body['name']!r} is not connected to the ground through joints",
+            )
