@@ -7,8 +7,9 @@ loop closures (issue 20, part 1):
   two joint anchors (file units), held exactly;
 * a body in its own frame: ``frame = [x, y, z]`` (approximate world position of the
   body frame at rest), optional ``orientation = [w, x, y, z]`` (unit quaternion, body
-  to world, identity by default) and ``anchors = { joint = [x, y, z], ... }``, the
-  anchors of *all* its joints in that frame (as MJCF/URDF bodies), held exactly;
+  to world, identity by default), ``anchors = { joint = [x, y, z], ... }``, the
+  anchors of *all* its joints in that frame (as MJCF/URDF bodies), held exactly, and
+  optional ``axes = { joint = [x, y, z], ... }``, joint axes in that frame;
 * ``[mechanism].assemble = true`` asks the loader to assemble before reading the file,
   so every command uses such a file directly; ``linkopt assemble`` writes the result.
 
@@ -18,19 +19,24 @@ What is solved (choices the issue leaves open, made here):
   (position, rotation vector) of each body given in its own frame. The anchors of
   joints on the ground are the world frame: they are held where written, and a
   declared length between two of them must already hold.
-* Axes are kept as written (world directions at the rest pose); anchors move. A body
-  in its own frame is rigid and turns only about the axes of its joints (two rows per
-  axis: its image stays along the axis as written), so a spatial arm keeps its joint
-  axes. A body given by world anchors is held together only by the declared lengths
-  (fine for a planar loop, where every anchor stays in its plane); give the bodies of
-  a spatial mechanism in their own frames, and a slider too (its rail anchor on the
+* A body in its own frame is rigid and carries its joint axes: an axis in its
+  ``axes`` is in its frame, one written in ``[[joints]]`` is the world direction at
+  the body's drawn pose; both turn with the body. The ground and a body given by world
+  anchors hold their axes as written. Each joint keeps its carriers' axes together:
+  parallel (two rows) for a revolute, prismatic or cylindrical joint, perpendicular
+  (one row) for a universal joint's ``axis`` and ``axis2``. So a spatial loop of
+  bodies in their own frames (a spherical five-bar) closes with its moving axes
+  turned. A body given by world anchors is held together only by the declared lengths
+  (fine for a planar loop, where every anchor stays in its plane); give the bodies of a
+  spatial mechanism in their own frames, and a slider too (its rail anchor on the
   ground is held, so a slider in its own frame stays where that anchor is written).
 * Each motor is held at its drawn value: a rotary motor keeps the angle about its axis
-  between the anchor of its second body farthest from the axis and that of its first
-  body (a fixed world direction when the first body is the ground); a linear motor
-  keeps the offset along its axis. ``motors`` (``--motors``) turns them by these values
-  (rad, file units) from the drawing before assembling. The assembled rest pose then
-  *defines* motor zero, as for every file (motors are measured from the rest pose).
+  (as its first body carries it) between the anchor of its second body farthest from
+  the axis and that of its first body (a fixed world direction when the first body is
+  the ground); a linear motor keeps the offset along its axis. ``motors``
+  (``--motors``) turns them by these values (rad, file units) from the drawing before
+  assembling. The assembled rest pose then *defines* motor zero, as for every file
+  (motors are measured from the rest pose).
 * Of the assemblies that hold all of that, the one that moves the anchors least:
   ``min Σ_j |a_j - a_j⁰|² (+ 10⁻² Σ_b |Δframe_b|², rotations in rad, lengths in
   reference lengths)``. It is found from the drawing (so the drawing chooses the
@@ -41,10 +47,12 @@ What is solved (choices the issue leaves open, made here):
   Written here rather than with optimistix (as :mod:`.lm` is): neither step is one of
   its least-squares solvers, and the problems are tiny (tens of unknowns).
 * A file whose loops cannot close is refused, never changed silently: the message
-  names the declared dimensions that cannot all hold at the closest assembly (the
-  least squares minimum from the drawing) and the gap, the sum of their misses in file
-  units (for a single loop pulled straight that is the amount by which it fails to
-  close). Where the loops close only with the motors free, the message says so.
+  names the loop (its joints and bodies, a fundamental cycle of the body graph through
+  the joints that miss), the dimensions that cannot all hold at the closest assembly
+  (the least squares minimum from the drawing), the gap, the sum of their misses in
+  file units (for a single loop pulled straight that is the amount by which it fails
+  to close) and the axes' miss in degrees, and which of the loop's axes are held as
+  written. Where the loops close only with the motors free, the message says so.
 * Points given by ``position`` move with their body. On a body given in its own
   frame the position is in that frame, like the body's anchors, and follows the
   assembled frame exactly; on a body given by world anchors it is a world position
@@ -54,8 +62,8 @@ What is solved (choices the issue leaves open, made here):
 Without ``assemble = true``, declared ``[[lengths]]`` are checked against the anchors
 (to :data:`CHECK_TOL` reference lengths), so a hand-solved file can state them; a body
 in its own frame needs ``assemble = true``. The assembled definition has world anchors
-only (no ``[[lengths]]``, frames or ``assemble``), so that it, and every design written
-from it, is an ordinary file.
+and axes only (no ``[[lengths]]``, frames or ``assemble``), so that it, and every design
+written from it, is an ordinary file.
 """
 
 from __future__ import annotations
@@ -88,14 +96,17 @@ NEAR_SINGULAR = 1e-3
 #: Iteration caps: minimum-norm LM, projection onto the nearest assembly.
 LM_ITERATIONS = 400
 PROJECTION_ITERATIONS = 100
-BODY_KEYS = ("frame", "orientation", "anchors")
+BODY_KEYS = ("frame", "orientation", "anchors", "axes")
+#: Joint kinds whose one axis both bodies carry (their axes stay parallel).
+SHARED_AXIS = ("revolute", "prismatic", "cylindrical")
 
 
 class Rows(NamedTuple):
     """The constraint rows of an assembly (homogenised), as arrays (a pytree).
 
     ``J`` joints, ``F`` bodies in their own frame, ``N`` lengths, ``R`` local anchors,
-    ``M`` held motors.
+    ``A`` axis rows, ``M`` held motors. A vector carried by frame ``f`` turns with the
+    frame's turn from the drawing; a held one (``-1``) stays as written.
     """
 
     pairs: np.ndarray  # (N, 2) int joint indices
@@ -104,10 +115,12 @@ class Rows(NamedTuple):
     local_joint: np.ndarray  # (R,) int joint index
     local_at: np.ndarray  # (R, 3) anchor in the body frame
     rotation0: np.ndarray  # (F, 3, 3) drawn frame orientations
-    axis_frame: np.ndarray  # (A,) int frame index
-    axis_local: np.ndarray  # (A, 3) a joint axis in the body frame
-    axis_u: np.ndarray  # (A, 2, 3) two unit vectors ⟂ the axis as written
+    axis_p: np.ndarray  # (A,) int frame carrying p, -1 for a held (world) vector
+    axis_vp: np.ndarray  # (A, 3) p as drawn (world, at the drawn frame)
+    axis_q: np.ndarray  # (A,) int frame carrying q, -1 for a held vector
+    axis_vq: np.ndarray  # (A, 3) q as drawn: each row is p · q = 0
     motor_linear: np.ndarray  # (M,) bool
+    motor_frame: np.ndarray  # (M,) int: the frame of the first body, -1 if held
     motor_joint: np.ndarray  # (M,) int: the motor's joint (its axis point)
     motor_moved: np.ndarray  # (M,) int: an anchor of the second body
     motor_base: np.ndarray  # (M,) int: an anchor of the first body, -1 for ground
@@ -115,6 +128,22 @@ class Rows(NamedTuple):
     motor_e: np.ndarray  # (M, 3) unit, ⟂ n: angle zero
     motor_f: np.ndarray  # (M, 3) n × e
     motor_target: np.ndarray  # (M,) rad or reference lengths
+
+
+class Axis(NamedTuple):
+    """One axis of joint ``joint`` (field ``key``) and the bodies that carry it: per
+    carrier, its frame index (-1: held as written, on the ground or a body given by
+    world anchors) and its world direction as drawn."""
+
+    joint: int
+    key: str
+    carriers: tuple[tuple[int, np.ndarray], ...]
+    bodies: tuple[int, ...]  # the carrying bodies
+
+    @property
+    def held_bodies(self) -> tuple[int, ...]:
+        """The carriers that hold the axis as written."""
+        return tuple(b for b, (f, _) in zip(self.bodies, self.carriers) if f < 0)
 
 
 @dataclass(frozen=True)
@@ -130,6 +159,11 @@ class Problem:
     frames0: np.ndarray  # (F, 3) drawn frame origins
     rows: Rows
     row_labels: tuple[tuple[str, tuple[str, ...], str], ...]  # (where, joints, text)
+    row_joints: tuple[tuple[int, ...], ...]  # per row, the joints it concerns
+    axes: tuple[Axis, ...]  # the joint axes bodies carry
+    pairs: tuple[tuple[int, int], ...]  # per joint, its two bodies
+    body_names: tuple[str, ...]
+    ground: int
     declared: tuple[float, ...]  # the lengths as written (file units)
     motor_names: tuple[str, ...]
     scale: float
@@ -243,14 +277,15 @@ def read_problem(data: dict, source: str, motors=None) -> Problem:
     pairs = [
         _joint_pair(rd, j, f"joints[{k}]", body_index) for k, j in enumerate(joints)
     ]
-    frames = _read_frames(rd, bodies, ground, joint_index, pairs)
+    frames = _read_frames(rd, bodies, ground, joint_index, pairs, joints)
     anchors0 = _drawn_anchors(rd, joints, pairs, frames, ground)
     scale = _scale(rd, head, anchors0)
     lengths, length_labels = _read_lengths(rd, data, joint_index, scale)
     local, local_labels = _local_rows(frames, scale, joints)
-    axes, axis_labels = _axis_rows(rd, frames, joints, pairs)
+    axes = _read_axes(rd, frames, joints, pairs)
+    axis_rows, axis_labels = _axis_rows(axes, joints)
     motor_rows, motor_names, motor_labels = _read_motors(
-        rd, data, joints, joint_index, pairs, anchors0, ground, scale, motors
+        rd, data, joints, joint_index, pairs, anchors0, ground, scale, motors, axes
     )
     rows = Rows(
         pairs=lengths[0],
@@ -259,9 +294,10 @@ def read_problem(data: dict, source: str, motors=None) -> Problem:
         local_joint=local[1],
         local_at=local[2],
         rotation0=np.array([f["rotation"] for f in frames]).reshape(-1, 3, 3),
-        **axes,
+        **axis_rows,
         **motor_rows,
     )
+    labels = length_labels + local_labels + axis_labels + motor_labels
     return Problem(
         joint_names=tuple(j["name"] for j in joints),
         drawn=anchors0,
@@ -271,7 +307,12 @@ def read_problem(data: dict, source: str, motors=None) -> Problem:
         frame_bodies=tuple(f["body"] for f in frames),
         frames0=np.array([f["origin"] for f in frames]).reshape(-1, 3) / scale,
         rows=rows,
-        row_labels=tuple(length_labels + local_labels + axis_labels + motor_labels),
+        row_labels=tuple(lab[:3] for lab in labels),
+        row_joints=tuple(lab[3] for lab in labels),
+        axes=axes,
+        pairs=tuple(pairs),
+        body_names=tuple(b["name"] for b in bodies),
+        ground=ground,
         declared=tuple(float(v["length"]) for v in data.get("lengths", [])),
         motor_names=motor_names,
         scale=scale,
@@ -302,8 +343,8 @@ def _joint_pair(rd: Reader, joint: dict, where: str, body_index) -> tuple[int, i
     return tuple(rd.lookup(body_index, b, f"{where}.bodies", "body") for b in pair)
 
 
-def _read_frames(rd, bodies, ground, joint_index, pairs) -> list[dict]:
-    """Bodies given in their own frame: origin, rotation and local anchors."""
+def _read_frames(rd, bodies, ground, joint_index, pairs, joints) -> list[dict]:
+    """Bodies given in their own frame: origin, rotation, local anchors and axes."""
     frames = []
     for k in _frame_bodies({"bodies": bodies}):
         where, body = f"bodies[{k}]", bodies[k]
@@ -329,6 +370,7 @@ def _read_frames(rd, bodies, ground, joint_index, pairs) -> list[dict]:
                 "name": body["name"],
                 "rotation": _orientation(rd, body, where),
                 "anchors": _local_anchors(rd, body, where, k, joint_index, pairs),
+                "axes": _local_axes(rd, body, where, k, joint_index, pairs, joints),
             }
         )
     return frames
@@ -380,6 +422,35 @@ def _local_anchors(rd, body, where, k, joint_index, pairs) -> dict[int, np.ndarr
                 f"missing joint {names[joint]!r}: a body in its own frame lists the "
                 "anchors of all its joints",
             )
+    return local
+
+
+def _local_axes(
+    rd, body, where, k, joint_index, pairs, joints
+) -> dict[int, np.ndarray]:
+    """``axes`` (optional): joint axes in the body frame, by joint name (normalised);
+    the axis this body carries (a universal joint's ``axis`` on its first body,
+    ``axis2`` on its second)."""
+    table = body.get("axes", {})
+    if not isinstance(table, dict):
+        raise rd.fail(
+            f"{where}.axes",
+            f"expected a table of joint name = [x, y, z], got {shown(table)}",
+        )
+    local = {}
+    for name in table:
+        joint = rd.lookup(joint_index, name, f"{where}.axes", "joint")
+        if k not in pairs[joint]:
+            raise rd.fail(
+                f"{where}.axes", f"joint {name!r} does not touch body {body['name']!r}"
+            )
+        if _axis_key(joints[joint], pairs[joint], k) is None:
+            raise rd.fail(
+                f"{where}.axes",
+                f"joint {name!r} is {shown(joints[joint].get('type'))}: it has no "
+                "axis for a body to carry",
+            )
+        local[joint] = rd.direction(table, name, f"{where}.axes")
     return local
 
 
@@ -456,7 +527,9 @@ def _read_lengths(rd, data, joint_index, scale):
         length = rd.positive(item, "length", where)
         pairs.append(pair)
         values.append(length / scale)
-        labels.append((where, tuple(names), f"{names[0]}–{names[1]} = {length:g}"))
+        labels.append(
+            (where, tuple(names), f"{names[0]}–{names[1]} = {length:g}", pair)
+        )
     arrays = (np.array(pairs, dtype=int).reshape(-1, 2), np.array(values, dtype=float))
     return arrays, labels
 
@@ -471,7 +544,7 @@ def _local_rows(frames, scale, joints):
             at.append(local / scale)
             name = joints[j]["name"]
             where = f"bodies[{f['body']}].anchors.{field_name(name)}"
-            labels.append((where, (), f"the local anchor of {name}"))
+            labels.append((where, (), f"the local anchor of {name}", (j,)))
     arrays = (
         np.array(frame, dtype=int),
         np.array(joint, dtype=int),
@@ -480,42 +553,110 @@ def _local_rows(frames, scale, joints):
     return arrays, [lab for lab in labels for _ in range(3)]
 
 
-def _axis_rows(rd, frames, joints, pairs):
-    """Two rows per joint axis on a body in its own frame: the body turns only about
-    its axes (``R_b n_b`` stays along the axis as written; a universal joint's
-    ``axis`` is on its first body, ``axis2`` on its second)."""
-    frame, local, normals, labels = [], [], [], []
-    for f_index, f in enumerate(frames):
-        for j in f["anchors"]:
-            key = _axis_key(joints[j], pairs[j], f["body"])
-            if key is None or key not in joints[j]:
-                continue  # no axis on this body (or none given: the loader says so)
-            world = rd.direction(joints[j], key, f"joints[{j}]")
-            u = _any_normal(world)
-            frame.append(f_index)
-            local.append(f["rotation"].T @ world)
-            normals.append([u, np.cross(world, u)])
-            text = f"the {key} of {joints[j]['name']} on {f['name']}"
-            labels += [(f"joints[{j}].{key}", (), text)] * 2
+def _read_axes(rd, frames, joints, pairs) -> tuple[Axis, ...]:
+    """The axes the bodies carry: per joint axis, each carrier's frame (or -1 where
+    it is held: on the ground, or on a body given by world anchors) and its world
+    direction as drawn (from the body's ``axes``, else the joint's field)."""
+    frame_of = {f["body"]: k for k, f in enumerate(frames)}
+    axes = []
+    for j, joint in enumerate(joints):
+        for key, sides in _axis_sides(joint):
+            carriers = [_carrier(frames, frame_of, j, pairs[j][s]) for s in sides]
+            if all(v is not None for _, v in carriers) and key in joint:
+                raise rd.fail(
+                    f"joints[{j}].{key}",
+                    f"the {key} of joint {joint['name']!r} is given in the axes of "
+                    "the body frames that carry it; give it once: drop one of them",
+                )
+            if key not in joint and all(v is None for _, v in carriers):
+                continue  # none given: the loader says so
+            if key not in joint and any(v is None for _, v in carriers):
+                raise rd.fail(
+                    f"joints[{j}].{key}",
+                    f"missing: a body that carries the {key} of {joint['name']!r} "
+                    "without a frame (or without it in its axes) needs it here",
+                )
+            world = rd.direction(joint, key, f"joints[{j}]") if key in joint else None
+            carried = tuple((f, world if v is None else v) for f, v in carriers)
+            axes.append(Axis(j, key, carried, tuple(pairs[j][s] for s in sides)))
+    return tuple(axes)
+
+
+def _axis_sides(joint: dict) -> tuple[tuple[str, tuple[int, ...]], ...]:
+    """Each axis field of a joint and the sides (0: first body) that carry it."""
+    kind = joint.get("type")
+    if kind in SHARED_AXIS:
+        return (("axis", (0, 1)),)
+    if kind == "universal":
+        return (("axis", (0,)), ("axis2", (1,)))
+    return ()
+
+
+def _carrier(frames, frame_of, j, body) -> tuple[int, np.ndarray | None]:
+    """A body's frame index (-1 if it has none) and its drawn world direction of
+    joint ``j``'s axis when it gives it in its ``axes``."""
+    f = frame_of.get(body, -1)
+    if f < 0 or j not in frames[f]["axes"]:
+        return f, None
+    return f, frames[f]["rotation"] @ frames[f]["axes"][j]
+
+
+def _axis_rows(axes: tuple[Axis, ...], joints):
+    """Rows ``p · q = 0`` that keep the carriers of each axis together: two for a
+    shared axis (``q`` ⟂ two normals ``p`` of the first carrier: parallel), one for a
+    universal joint (its two axes perpendicular). None where no carrier moves."""
+    p_frame, p_vec, q_frame, q_vec, labels = [], [], [], [], []
+    for axis in axes:
+        name = joints[axis.joint]["name"]
+        if len(axis.carriers) == 1:  # a universal joint: axis ⟂ axis2
+            partner = _partner(axes, axis)
+            if axis.key == "axis2" or partner is None:
+                continue  # axis2 is its partner's row; a missing one the loader says
+            (fp, vp), (fq, vq) = axis.carriers[0], partner.carriers[0]
+            pairs = [(vp, vq)]
+            text = f"the axes of {name} (perpendicular)"
+        else:  # a held carrier first, so that its normals are fixed
+            (fp, vp), (fq, vq) = sorted(axis.carriers, key=lambda c: c[0] >= 0)
+            u = _any_normal(vp)
+            pairs = [(u, vq), (np.cross(vp, u), vq)]
+            text = f"the {axis.key} of {name}"
+        if fp < 0 and fq < 0:
+            continue  # held on both sides: nothing moves it
+        for p, q in pairs:
+            p_frame.append(fp)
+            p_vec.append(p)
+            q_frame.append(fq)
+            q_vec.append(q)
+            labels.append((f"joints[{axis.joint}].{axis.key}", (), text, (axis.joint,)))
     arrays = {
-        "axis_frame": np.array(frame, dtype=int),
-        "axis_local": np.array(local, dtype=float).reshape(-1, 3),
-        "axis_u": np.array(normals, dtype=float).reshape(-1, 2, 3),
+        "axis_p": np.array(p_frame, dtype=int),
+        "axis_vp": np.array(p_vec, dtype=float).reshape(-1, 3),
+        "axis_q": np.array(q_frame, dtype=int),
+        "axis_vq": np.array(q_vec, dtype=float).reshape(-1, 3),
     }
     return arrays, labels
 
 
+def _partner(axes: tuple[Axis, ...], axis: Axis) -> Axis | None:
+    """A universal joint's ``axis2`` given its ``axis`` (None if not given)."""
+    return next((a for a in axes if a.joint == axis.joint and a.key == "axis2"), None)
+
+
 def _axis_key(joint: dict, pair, body: int) -> str | None:
+    """The axis field of ``joint`` that ``body`` carries, if any."""
     kind = joint.get("type")
-    if kind in ("revolute", "prismatic", "cylindrical"):
+    if kind in SHARED_AXIS:
         return "axis"
     if kind == "universal":
         return "axis" if pair[0] == body else "axis2"
     return None
 
 
-def _read_motors(rd, data, joints, joint_index, pairs, anchors, ground, scale, turns):
-    """One row per motor that moves an anchor: its drawn value (+ ``turns``)."""
+def _read_motors(
+    rd, data, joints, joint_index, pairs, anchors, ground, scale, turns, axes
+):
+    """One row per motor that moves an anchor: its drawn value (+ ``turns``), about
+    its axis as its first body carries it."""
     items = rd.entries(data, "motors", required=False)
     if turns is None:
         turns = np.zeros(len(items))
@@ -538,22 +679,25 @@ def _read_motors(rd, data, joints, joint_index, pairs, anchors, ground, scale, t
                 f"joint {item['joint']!r} is {shown(kind)}; a motor drives a "
                 f"{' or '.join(MOTOR_JOINTS)} joint",
             )
-        if "axis" not in joints[m]:
+        carried = next((a for a in axes if a.joint == m and a.key == "axis"), None)
+        if carried is None:
             raise rd.fail(
                 f"joints[{m}].axis", f"missing required field for a {kind} joint"
             )
-        axis = rd.direction(joints[m], "axis", f"joints[{m}]")
+        frame, axis = carried.carriers[0]  # as its first body carries it
         row = _motor_row(m, pairs, anchors / scale, ground, axis, MOTOR_JOINTS[kind])
         if row is None:
             continue
+        row["motor_frame"] = frame
         value = turns[k] / (scale if MOTOR_JOINTS[kind] else 1.0)
         row["motor_target"] = row["motor_target"] + value
         for key in fields:
             fields[key].append(row[key])
         names.append(str(item["name"]))
-        labels.append((where, (joints[m]["name"],), f"motor {item['name']}"))
+        labels.append((where, (joints[m]["name"],), f"motor {item['name']}", (m,)))
     arrays = {
         "motor_linear": np.array(fields["motor_linear"], dtype=bool),
+        "motor_frame": np.array(fields["motor_frame"], dtype=int),
         "motor_joint": np.array(fields["motor_joint"], dtype=int),
         "motor_moved": np.array(fields["motor_moved"], dtype=int),
         "motor_base": np.array(fields["motor_base"], dtype=int),
@@ -678,8 +822,8 @@ def _rotation(omega):
 
 
 def _residual(sizes: tuple[int, int], rows: Rows, x):
-    """Length rows, local-anchor rows (3 each), axis rows (2 each), motor rows;
-    homogenised (rad for axes and rotary motors)."""
+    """Length rows, local-anchor rows (3 each), axis rows, motor rows; homogenised
+    (rad for axes and rotary motors)."""
     import jax.numpy as jnp
 
     joints, frames = sizes
@@ -687,19 +831,29 @@ def _residual(sizes: tuple[int, int], rows: Rows, x):
     pose = x[3 * joints :].reshape(frames, 6)
     d = a[rows.pairs[:, 0]] - a[rows.pairs[:, 1]]
     lengths = jnp.sqrt(jnp.sum(d * d, axis=-1) + 1e-300) - rows.lengths
-    rot = jnp.einsum("fij,fjk->fik", _rotation(pose[:, 3:]), rows.rotation0)
+    turn = _rotation(pose[:, 3:])
+    rot = jnp.einsum("fij,fjk->fik", turn, rows.rotation0)
     image = pose[rows.local_frame, :3] + jnp.einsum(
         "rij,rj->ri", rot[rows.local_frame], rows.local_at
     )
     local = (a[rows.local_joint] - image).ravel()
-    turned = jnp.einsum("aij,aj->ai", rot[rows.axis_frame], rows.axis_local)
-    axes = jnp.einsum("aki,ai->ak", rows.axis_u, turned).ravel()
-    return jnp.concatenate([lengths, local, axes, _motor_residual(rows, a)])
+    carry = jnp.concatenate([jnp.eye(3)[None], turn])  # index: frame + 1
+    p = jnp.einsum("aij,aj->ai", carry[rows.axis_p + 1], rows.axis_vp)
+    q = jnp.einsum("aij,aj->ai", carry[rows.axis_q + 1], rows.axis_vq)
+    axes = jnp.sum(p * q, axis=-1)
+    motors = _motor_residual(rows, a, carry[rows.motor_frame + 1])
+    return jnp.concatenate([lengths, local, axes, motors])
 
 
-def _motor_residual(rows: Rows, a):
+def _motor_residual(rows: Rows, a, carry):
+    """Held motors, about their axes as their first bodies carry them (``carry``
+    ``(M, 3, 3)``: each first body's turn from the drawing)."""
     import jax.numpy as jnp
 
+    def turned(v):
+        return jnp.einsum("mij,mj->mi", carry, v)
+
+    axis, e, f = turned(rows.motor_axis), turned(rows.motor_e), turned(rows.motor_f)
     pivot = a[rows.motor_joint]
     has_base = rows.motor_base >= 0
     base = a[jnp.maximum(rows.motor_base, 0)]
@@ -707,14 +861,12 @@ def _motor_residual(rows: Rows, a):
     w = base - pivot
 
     def angle(u):
-        return jnp.arctan2(
-            jnp.sum(u * rows.motor_f, axis=-1), jnp.sum(u * rows.motor_e, axis=-1)
-        )
+        return jnp.arctan2(jnp.sum(u * f, axis=-1), jnp.sum(u * e, axis=-1))
 
     turn = angle(v) - jnp.where(has_base, angle(w), 0.0) - rows.motor_target
     rotary = jnp.arctan2(jnp.sin(turn), jnp.cos(turn))
     ref = jnp.where(has_base[:, None], base, pivot)
-    linear = jnp.sum((a[rows.motor_moved] - ref) * rows.motor_axis, -1)
+    linear = jnp.sum((a[rows.motor_moved] - ref) * axis, -1)
     return jnp.where(rows.motor_linear, linear - rows.motor_target, rotary)
 
 
@@ -790,13 +942,11 @@ def _programs():
 
 
 def _refuse(rd: Reader, problem: Problem, x0, x) -> None:
-    """The loops do not close from the drawing: say which dimensions and by how much
-    (module docstring); with motors held, first whether freeing them would close."""
-    rows = problem.rows
+    """The loops do not close from the drawing: say which loop, which dimensions and
+    by how much, and which axes are held (module docstring); with motors held, first
+    whether freeing them would close."""
+    free = _without_motors(problem.rows)
     if len(problem.motor_names):
-        free = rows._replace(
-            **{k: getattr(rows, k)[:0] for k in Rows._fields if k.startswith("motor_")}
-        )
         y, residual, _ = _solve(problem, x0, free)
         if residual <= CLOSE_TOL:
             names = ", ".join(repr(n) for n in problem.motor_names)
@@ -808,43 +958,144 @@ def _refuse(rd: Reader, problem: Problem, x0, x) -> None:
             )
         x = y
     sizes = (len(problem.joint_names), len(problem.frame_names))
-    r = _residual_np(
-        sizes,
-        rows._replace(
-            **{k: getattr(rows, k)[:0] for k in Rows._fields if k.startswith("motor_")}
-        ),
-        x,
-    )
+    r = _residual_np(sizes, free, x)
     missing = np.abs(r) > max(1e-3 * float(np.max(np.abs(r))), CLOSE_TOL)
-    labels = [problem.row_labels[k] for k in np.flatnonzero(missing)]
-    misses = _row_misses(r, missing, len(rows.lengths), len(rows.axis_frame))
-    gap = float(np.sum(misses)) * problem.scale
-    joints = _joints_of(labels, problem, rows, missing)
-    dims = list(dict.fromkeys(lab[2] for lab in labels))
+    rows = np.flatnonzero(missing)
+    labels = [problem.row_labels[k] for k in rows]
+    gap, angle = _misses(r, missing, problem.rows)
+    gap *= problem.scale
+    missed = sorted({j for k in rows for j in problem.row_joints[k]})
+    joints, bodies, count = _loop(problem, missed)
+    dims = _dimensions(problem, rows)
+    turned = f" and its axes by {angle:.3g}°" if angle > 0 else ""
     raise rd.fail(
         labels[0][0] if labels else "[[lengths]]",
-        f"the loop through joints {', '.join(joints)} does not close: "
-        f"{'; '.join(dims)} cannot all hold; the closest assembly misses by "
-        f"{gap:.6g} {problem.units} in all",
+        f"the loop{'s' if count > 1 else ''} through joints "
+        f"{', '.join(problem.joint_names[j] for j in joints)} (bodies "
+        f"{', '.join(problem.body_names[b] for b in bodies)}) does not close: {dims} "
+        f"cannot all hold; the closest assembly misses by {gap:.6g} {problem.units}"
+        f"{turned} in all{_held_axes(problem, joints)}",
     )
 
 
-def _row_misses(r, missing, n_lengths, n_axes) -> np.ndarray:
-    """Misses in reference lengths: |length - declared| per length row, the distance
-    per local anchor (its 3 rows together)."""
-    lengths = np.abs(r[:n_lengths]) * missing[:n_lengths]
-    local = r[n_lengths:][: len(missing) - n_lengths - 2 * n_axes].reshape(-1, 3)
-    return np.concatenate([lengths, np.linalg.norm(local, axis=1)])
-
-
-def _joints_of(labels, problem, rows, missing) -> list[str]:
-    names = []
-    for k in np.flatnonzero(missing[: len(rows.lengths)]):
-        names += [problem.joint_names[j] for j in rows.pairs[k]]
+def _dimensions(problem: Problem, missing: np.ndarray) -> str:
+    """What cannot all hold, from the rows that miss: declared lengths as written, the
+    bodies whose part drawings (anchors in their frames) miss, the joints whose axes
+    miss."""
+    rows = problem.rows
     n, count = len(rows.lengths), 3 * len(rows.local_joint)
-    for k in np.flatnonzero(missing[n : n + count].reshape(-1, 3).any(axis=1)):
-        names.append(problem.joint_names[rows.local_joint[k]])
-    return list(dict.fromkeys(names))
+    texts = [problem.row_labels[k][2] for k in missing if k < n]
+    parts = {
+        problem.frame_names[rows.local_frame[(k - n) // 3]]
+        for k in missing
+        if n <= k < n + count
+    }
+    axes = {problem.row_joints[k][0] for k in missing if k >= n + count}
+    if parts:
+        names = ", ".join(b for b in problem.frame_names if b in parts)
+        frames = "its frame" if len(parts) == 1 else "their frames"
+        texts.append(f"the anchors of {names} in {frames}")
+    if axes:
+        names = ", ".join(problem.joint_names[j] for j in sorted(axes))
+        texts.append(f"the axes of {names}")
+    return "; ".join(dict.fromkeys(texts))
+
+
+def _without_motors(rows: Rows) -> Rows:
+    return rows._replace(
+        **{k: getattr(rows, k)[:0] for k in Rows._fields if k.startswith("motor_")}
+    )
+
+
+def _misses(r, missing, rows: Rows) -> tuple[float, float]:
+    """The gap in reference lengths (|length - declared| per missing length row, the
+    distance per local anchor, its 3 rows together) and the axes' miss in degrees
+    (the angle per axis row)."""
+    n, count = len(rows.lengths), 3 * len(rows.local_joint)
+    lengths = np.abs(r[:n]) * missing[:n]
+    local = np.linalg.norm(r[n : n + count].reshape(-1, 3), axis=1)
+    axes = np.abs(r[n + count : n + count + len(rows.axis_p)])
+    angle = np.degrees(np.arcsin(np.minimum(axes, 1.0)))
+    return float(np.sum(lengths) + np.sum(local)), float(np.sum(angle))
+
+
+def _loop(problem: Problem, missed: list[int]) -> tuple[list[int], list[int], int]:
+    """The loop(s) of the body graph through the ``missed`` joints: joints and bodies
+    in order around it (fundamental cycles from the ground, the one covering the most
+    first; missed joints on none last), and how many loops."""
+    cycles = _cycles(problem.pairs, problem.ground)
+    chosen, left = [], set(missed)
+    while left:
+        best = max(
+            cycles, key=lambda c: (len(left & set(c[0])), -len(c[0])), default=None
+        )
+        if best is None or not left & set(best[0]):
+            break
+        chosen.append(best)
+        left -= set(best[0])
+    joints = list(dict.fromkeys([j for c in chosen for j in c[0]] + sorted(left)))
+    bodies = [b for c in chosen for b in c[1]] + [
+        b for j in sorted(left) for b in problem.pairs[j]
+    ]
+    return joints, list(dict.fromkeys(bodies)), len(chosen)
+
+
+def _cycles(pairs, ground: int) -> list[tuple[list[int], list[int]]]:
+    """Fundamental cycles of the body graph (joints as edges) from a breadth-first tree
+    at the ground: per joint off the tree, the joints and bodies around its cycle."""
+    parent = {ground: (-1, -1)}  # body: (its parent body, the joint to it)
+    order = [ground]
+    for body in order:
+        for j, pair in enumerate(pairs):
+            other = pair[1] if pair[0] == body else pair[0] if pair[1] == body else -1
+            if other >= 0 and other not in parent:
+                parent[other] = (body, j)
+                order.append(other)
+    tree = {j for _, j in parent.values()}
+    cycles = []
+    for j, (u, v) in enumerate(pairs):
+        if j in tree or u not in parent or v not in parent:
+            continue
+        up_u, up_v = _to_root(parent, u), _to_root(parent, v)
+        top = next(b for b in up_u if b in up_v)
+        down = up_u[: up_u.index(top) + 1][::-1]  # top ... u
+        back = up_v[: up_v.index(top)]  # v ... (below top)
+        joints = [parent[b][1] for b in down[1:]] + [j] + [parent[b][1] for b in back]
+        cycles.append((joints, down + back))
+    return cycles
+
+
+def _to_root(parent, body: int) -> list[int]:
+    path = [body]
+    while parent[path[-1]][0] >= 0:
+        path.append(parent[path[-1]][0])
+    return path
+
+
+def _held_axes(problem: Problem, joints: list[int]) -> str:
+    """Which axes of the loop are held as written: on the ground, or on bodies given by
+    world anchors (a body in its own frame carries its axes)."""
+    held, on_ground, world = [], False, []
+    for axis in problem.axes:
+        if axis.joint in joints and axis.held_bodies:
+            held.append(axis.joint)
+            on_ground |= problem.ground in axis.held_bodies
+            world += [b for b in axis.held_bodies if b != problem.ground]
+    if not held:
+        return ""
+    names = ", ".join(
+        problem.joint_names[j] for j in sorted(set(held), key=joints.index)
+    )
+    where = ["the ground"] if on_ground else []
+    if world:
+        bodies = ", ".join(problem.body_names[b] for b in dict.fromkeys(world))
+        where.append(f"{bodies}, given by world anchors")
+    hint = (
+        "; give a body in its own frame for its axes to turn with it" if world else ""
+    )
+    return (
+        f"; the axes of {names} are held as written (on {' and on '.join(where)}{hint})"
+    )
 
 
 def _check_declared(rd: Reader, problem: Problem) -> None:
@@ -884,6 +1135,7 @@ def _written(data: dict, problem: Problem, x: np.ndarray) -> dict:
     for k, joint in enumerate(out["joints"]):
         _set_anchor(joint, anchors[k])
     rotations = _frame_rotations(problem, poses)
+    _set_axes(out, problem, rotations)
     for f, b in enumerate(problem.frame_bodies):
         body = out["bodies"][b]
         for key in BODY_KEYS:
@@ -902,17 +1154,37 @@ def _assembled_anchors(problem: Problem, x: np.ndarray) -> np.ndarray:
 
 def _set_anchor(joint: dict, anchor: np.ndarray) -> None:
     """``anchor`` after ``bodies`` (where the loader's files keep it)."""
-    value = [float(v) for v in anchor]
-    if "anchor" in joint:
-        joint["anchor"] = value
+    _set_after(joint, "anchor", [float(v) for v in anchor], "bodies")
+
+
+def _set_after(joint: dict, key: str, value, after: str) -> None:
+    """``joint[key] = value``, a new key placed right after ``after``."""
+    if key in joint:
+        joint[key] = value
         return
     items = list(joint.items())
     joint.clear()
-    for key, v in items:
-        joint[key] = v
-        if key == "bodies":
-            joint["anchor"] = value
-    joint.setdefault("anchor", value)
+    for k, v in items:
+        joint[k] = v
+        if k == after:
+            joint[key] = value
+    joint.setdefault(key, value)
+
+
+def _set_axes(out: dict, problem: Problem, rotations: np.ndarray) -> None:
+    """World axes at the assembled pose. An axis held by one of its carriers stays as
+    written; one that only bodies in their own frames carry turns with the first."""
+    for axis in problem.axes:
+        joint = out["joints"][axis.joint]
+        if axis.held_bodies:
+            continue
+        f, drawn = axis.carriers[0]
+        local = problem.rows.rotation0[f].T @ drawn
+        turned = rotations[f] @ local
+        after = "axis" if axis.key == "axis2" and "axis" in joint else "anchor"
+        _set_after(
+            joint, axis.key, [float(v) for v in turned / np.linalg.norm(turned)], after
+        )
 
 
 def _frame_rotations(problem: Problem, poses: np.ndarray) -> np.ndarray:
