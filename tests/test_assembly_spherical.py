@@ -202,3 +202,48 @@ def test_spherical_loop_that_cannot_close_names_its_loop_and_gap():
     link = 2 * RADIUS * math.sin(math.radians(arcs[0] / 2))
     assert gap >= chord - 4 * link > 8.0
     assert message.endswith("the axes of A, E are held as written (on the ground)")
+
+
+def world_drawing() -> str:
+    """The same five-bar with every body given by world anchors: axes in [[joints]],
+    the tip drawn 4° off about B (anchor and axis), the links' chords B–C and C–D
+    declared."""
+    n = rest_axes()
+    off = turn(n["B"], 4.0) @ n["C"]
+    axes = dict(n, C=off)
+    text = '[mechanism]\nname = "w"\nground = "ground"\nunits = "mm"\n'
+    text += "assemble = true\n"
+    for body in ("ground", "link1", "link2", "link3", "link4"):
+        text += f'[[bodies]]\nname = "{body}"\n'
+    pairs = {"A": ("ground", "link1"), "B": ("link1", "link2")}
+    pairs |= {"C": ("link2", "link3"), "D": ("link3", "link4")}
+    pairs |= {"E": ("ground", "link4")}
+    for name, (b1, b2) in pairs.items():
+        text += f'[[joints]]\nname = "{name}"\ntype = "revolute"\n'
+        text += f'bodies = ["{b1}", "{b2}"]\n'
+        text += f"anchor = {vec(CENTRE + RADIUS * axes[name])}\n"
+        text += f"axis = {vec(axes[name])}\n"
+    chord = 2 * RADIUS * math.sin(math.radians(ARCS[1] / 2))
+    for pair in (("B", "C"), ("C", "D")):
+        text += f'[[lengths]]\njoints = ["{pair[0]}", "{pair[1]}"]\n'
+        text += f"length = {chord!r}\n"
+    text += '[[motors]]\nname = "m1"\njoint = "A"\n'
+    text += '[[motors]]\nname = "m2"\njoint = "E"\n'
+    return text
+
+
+def test_spatial_loop_of_world_bodies_names_the_axes_it_holds():
+    """Given by world anchors, the links hold their axes as written: the loop closes
+    only by turning them off those axes, which would write a file whose axes miss the
+    centre (it was refused later, as "mobility 0 at the rest pose but 2 motor(s)").
+    The message names the loop, the turned bodies and the held axes."""
+    data = parse_toml(world_drawing(), "world.toml")
+    with pytest.raises(linkopt.MechanismFileError) as err:
+        assemble(data, "world.toml")
+    message = str(err.value)
+    assert message.startswith("world.toml: bodies[1]: the loop through joints A, B, C")
+    assert "(bodies ground, link1, link2, link3, link4) closes only by turning" in (
+        message
+    )
+    assert "held as written on bodies given by world anchors" in message
+    assert message.endswith("for the axes to turn with them")

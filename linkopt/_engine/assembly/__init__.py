@@ -29,7 +29,9 @@ What is solved (choices the issue leaves open, made here):
   turned. A body given by world anchors is held together only by the declared lengths
   (fine for a planar loop, where every anchor stays in its plane); give the bodies of a
   spatial mechanism in their own frames, and a slider too (its rail anchor on the
-  ground is held, so a slider in its own frame stays where that anchor is written).
+  ground is held, so a slider in its own frame stays where that anchor is written). An
+  assembly that turns a body given by world anchors off the axes it holds is refused
+  (:func:`.refusal.check_held_axes`).
 * Each motor is held at its drawn value: a rotary motor keeps the angle about its axis
   (as its first body carries it) between the anchor of its second body farthest from
   the axis and that of its first body (a fixed world direction when the first body is
@@ -74,9 +76,9 @@ from dataclasses import dataclass
 
 from ..fields import Reader
 from .problem import BODY_KEYS, Problem, frame_bodies, read_problem
-from .refusal import CHECK_TOL, check_declared, refuse
+from .refusal import CHECK_TOL, check_declared, check_held_axes, refuse
 from .solve import CLOSE_TOL, solve, start
-from .write import Move, Report, report, strip, written
+from .write import Move, Report, assembled_anchors, report, strip, written
 
 __all__ = [
     "BODY_KEYS",
@@ -150,6 +152,7 @@ def assemble(data: dict, source: str, motors=None) -> Assembled:
     x, residual, iterations = solve(problem, x0, problem.rows)
     if residual > CLOSE_TOL:
         refuse(Reader(source), problem, x0, x)
+    check_held_axes(Reader(source), problem, assembled_anchors(problem, x))
     return Assembled(
         written(data, problem, x), report(problem, x, residual, iterations)
     )

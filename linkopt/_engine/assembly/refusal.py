@@ -9,7 +9,11 @@ import numpy as np
 from ..fields import Reader
 from .problem import Problem, Rows
 from .solve import CLOSE_TOL, residual_np, solve, without_motors
+from .write import fit
 
+#: An axis held as written on a body given by world anchors may turn this far (rad)
+#: with the body's best-fit rotation before the assembly is refused.
+HELD_AXIS_TOL = 1e-7
 #: Declared lengths of a file that is not assembled hold to this (reference lengths).
 CHECK_TOL = 1e-9
 
@@ -163,6 +167,56 @@ def _held_axes(problem: Problem, joints: list[int]) -> str:
     return (
         f"; the axes of {names} are held as written (on {' and on '.join(where)}{hint})"
     )
+
+
+def check_held_axes(rd: Reader, problem: Problem, anchors: np.ndarray) -> None:
+    """A body given by world anchors holds its axes as written; refuse an assembly
+    that turns it off them (its anchors' best-fit rotation, ``anchors (J, 3)`` file
+    units, moves a held axis by more than :data:`HELD_AXIS_TOL`): the file it would
+    write has axes that no longer belong to their bodies. A planar loop turns its
+    bodies about their (common) axis and passes."""
+    turned = list(_turned_off(problem, anchors))
+    if not turned:
+        return
+    joints = sorted({j for _, held, _ in turned for j in held})
+    loop, bodies, _ = _loop(problem, joints)
+    names = [problem.body_names[b] for b, _, _ in turned]
+    angles = ", ".join(
+        f"{n} by {np.degrees(a):.3g}°" for n, (_, _, a) in zip(names, turned)
+    )
+    them = "it" if len(names) == 1 else "them"
+    raise rd.fail(
+        f"bodies[{turned[0][0]}]",
+        f"the loop through joints {_names(problem.joint_names, loop)} (bodies "
+        f"{_names(problem.body_names, bodies)}) closes only by turning {angles} off "
+        f"the axes of {_names(problem.joint_names, joints)}, held as written on "
+        f"bodies given by world anchors: give {', '.join(names)} in "
+        f"{'its own frame' if len(names) == 1 else 'their own frames'} (frame, "
+        f"anchors) for the axes to turn with {them}",
+    )
+
+
+def _turned_off(problem: Problem, anchors: np.ndarray):
+    """Per body given by world anchors that holds axes: its held axes' joints and the
+    largest angle its best-fit rotation turns them by, where above the tolerance."""
+    for body in dict.fromkeys(
+        b for axis in problem.axes for b in axis.held_bodies if b != problem.ground
+    ):
+        on = [j for j, pair in enumerate(problem.pairs) if body in pair]
+        rot, _, _ = fit(problem.drawn[on], anchors[on])
+        held = [
+            (axis.joint, v)
+            for axis in problem.axes
+            for b, (_, v) in zip(axis.bodies, axis.carriers)
+            if b == body
+        ]
+        angles = [np.arccos(np.clip((rot @ v) @ v, -1.0, 1.0)) for _, v in held]
+        if max(angles) > HELD_AXIS_TOL:
+            yield body, sorted({j for j, _ in held}), max(angles)
+
+
+def _names(names, indices) -> str:
+    return ", ".join(names[k] for k in indices)
 
 
 def check_declared(rd: Reader, problem: Problem) -> None:

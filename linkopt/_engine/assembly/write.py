@@ -53,7 +53,7 @@ def written(data: dict, problem: Problem, x: np.ndarray) -> dict:
     """The assembled definition: world anchors at full precision, frames resolved."""
     out = strip(data)
     count = len(problem.joint_names)
-    anchors = _assembled_anchors(problem, x)
+    anchors = assembled_anchors(problem, x)
     poses = x[3 * count :].reshape(-1, 6)
     for k, joint in enumerate(out["joints"]):
         _set_anchor(joint, anchors[k])
@@ -68,7 +68,7 @@ def written(data: dict, problem: Problem, x: np.ndarray) -> dict:
     return out
 
 
-def _assembled_anchors(problem: Problem, x: np.ndarray) -> np.ndarray:
+def assembled_anchors(problem: Problem, x: np.ndarray) -> np.ndarray:
     """World anchors in file units; held ones exactly as drawn."""
     count = len(problem.joint_names)
     anchors = x[: 3 * count].reshape(count, 3) * problem.scale
@@ -138,7 +138,7 @@ def _carry_points(out, problem, anchors, poses, rotations) -> None:
             new = poses[f, :3] * scale + rotations[f] @ old
         else:
             on = [j for j in range(len(anchors)) if b in _bodies_of(out, j, names)]
-            rot, before, after = _fit(problem.anchors0[on] * scale, anchors[on])
+            rot, before, after = fit(problem.anchors0[on] * scale, anchors[on])
             new = after + rot @ (old - before)
         point["position"] = [float(v) for v in new]
 
@@ -147,7 +147,7 @@ def _bodies_of(out, j, names) -> tuple[int, ...]:
     return tuple(names.index(b) for b in out["joints"][j]["bodies"])
 
 
-def _fit(before: np.ndarray, after: np.ndarray):
+def fit(before: np.ndarray, after: np.ndarray):
     """Rigid motion taking ``before (n, 3)`` nearest to ``after``: rotation and the two
     centroids (Kabsch; the smallest aligning rotation for collinear anchors)."""
     c0, c1 = before.mean(axis=0), after.mean(axis=0)
@@ -178,7 +178,7 @@ def _aligning(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def report(problem: Problem, x: np.ndarray, residual: float, iterations: int) -> Report:
-    after, before = _assembled_anchors(problem, x), problem.drawn
+    after, before = assembled_anchors(problem, x), problem.drawn
     moves = tuple(
         Move(
             name,
