@@ -15,6 +15,7 @@ import linkopt
 from linkopt._cli.main import main
 from linkopt._engine.assembly import assemble
 from linkopt._engine.fields import parse_toml
+from linkopt._engine.writer import dumps
 
 CENTRE = np.array([10.0, -5.0, 20.0])
 RADIUS = 50.0
@@ -247,3 +248,71 @@ def test_spatial_loop_of_world_bodies_names_the_axes_it_holds():
     )
     assert "held as written on bodies given by world anchors" in message
     assert message.endswith("for the axes to turn with them")
+
+
+HOOKE = """
+[mechanism]
+name = "hooke"
+ground = "ground"
+assemble = true
+[[bodies]]
+name = "ground"
+[[bodies]]
+name = "yoke1"
+frame = [0.0, 0.0, 0.0]
+anchors = {{ A = [-50.0, 0.0, 0.0], U = [0.0, 0.0, 0.0] }}
+axes = {{ U = [0.0, 0.0, 1.0] }}
+[[bodies]]
+name = "yoke2"
+frame = [0.0, 0.0, 0.0]
+orientation = {orientation}
+anchors = {{ U = [0.0, 0.0, 0.0], B = {b} }}
+axes = {{ U = {cross} }}
+[[joints]]
+name = "A"
+type = "revolute"
+bodies = ["ground", "yoke1"]
+anchor = [-50.0, 0.0, 0.0]
+axis = [1.0, 0.0, 0.0]
+[[joints]]
+name = "U"
+type = "universal"
+bodies = ["yoke1", "yoke2"]
+[[joints]]
+name = "B"
+type = "revolute"
+bodies = ["yoke2", "ground"]
+anchor = {b}
+axis = {shaft}
+[[motors]]
+name = "m"
+joint = "A"
+[[outputs]]
+name = "out"
+joint = "B"
+min = -0.1
+max = 0.1
+"""
+
+
+def test_hooke_joint_cross_assembles_perpendicular():
+    """A Hooke joint between shafts 30° apart, the output yoke drawn turned 5° about
+    its shaft so that the cross's arms are not perpendicular: the yokes turn about
+    their shafts until ``axis`` ⟂ ``axis2`` (a universal joint's one row), each arm
+    stays perpendicular to its shaft, and the written file loads."""
+    shaft = np.array([math.cos(math.radians(30)), math.sin(math.radians(30)), 0.0])
+    cross = np.cross([0.0, 0.0, 1.0], shaft)
+    x, y, z, w = Rotation.from_rotvec(math.radians(5) * shaft).as_quat()
+    text = HOOKE.format(
+        orientation=vec([w, x, y, z]),
+        b=vec(50 * shaft),
+        cross=vec(cross),
+        shaft=vec(shaft),
+    )
+    result = assemble(parse_toml(text, "hooke.toml"), "hooke.toml")
+    joint = result.data["joints"][1]
+    first, second = np.array(joint["axis"]), np.array(joint["axis2"])
+    assert abs(first @ second) < 1e-12
+    assert abs(first[0]) < 1e-12 and abs(second @ shaft) < 1e-12
+    np.testing.assert_allclose(np.array(joint["anchor"]), 0.0, atol=1e-12)
+    assert linkopt.loads(dumps(result.data), "hooke_assembled.toml").num_motors == 1
