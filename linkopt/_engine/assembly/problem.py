@@ -70,6 +70,7 @@ class Problem:
 
 
 def frame_bodies(data: dict) -> list[int]:
+    """The indices of the bodies given in their own frame (any of :data:`BODY_KEYS`)."""
     bodies = data.get("bodies")
     if not isinstance(bodies, list):
         return []
