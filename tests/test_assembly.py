@@ -386,10 +386,11 @@ def test_coupler_longer_than_the_other_links_is_refused_with_its_gap():
         loads(text, "long.toml")
     message = str(err.value)
     assert (
-        "long.toml: lengths[0]: the loop through joints a, b, c, d does not close"
-        in message
+        "long.toml: lengths[0]: the loop through joints a, b, c, d (bodies ground, "
+        "crank, coupler, rocker) does not close" in message
     )
     assert "a–b = 15; b–c = 100; c–d = 35 cannot all hold" in message
+    assert "the axes of a, b, c, d are held as written" in message
     # pulled straight, the chain a-b-c-d misses by 100 - (15 + 35 + 40) mm
     assert gap_of(message) == pytest.approx(10.0, rel=1e-6)
 
@@ -404,7 +405,10 @@ def test_triangle_violating_the_inequality_is_refused_with_its_gap():
     with pytest.raises(linkopt.MechanismFileError) as err:
         assemble(data, "triangle.toml")
     message = str(err.value)
-    assert "joints a, b, c does not close: a–b = 3; b–c = 4 cannot all hold" in message
+    assert (
+        "joints a, b, c (bodies ground, crank, coupler) does not close: a–b = 3; "
+        "b–c = 4 cannot all hold" in message
+    )
     assert gap_of(message) == pytest.approx(3.0, rel=1e-6)
 
 
@@ -488,6 +492,35 @@ def with_body(text: str, body: str, *lines: str) -> str:
             "joints[2].anchor: missing required field",
         ),
         (
+            lambda t: with_body(
+                t, "coupler", FRAME, COUPLER, "axes = { a = [0, 0, 1] }"
+            ),
+            "bodies[2].axes: joint 'a' does not touch body 'coupler'",
+        ),
+        (
+            lambda t: with_body(
+                t, "coupler", FRAME, COUPLER, "axes = { b = [0, 0, 0] }"
+            ),
+            "bodies[2].axes.b: zero-length axis",
+        ),
+        (
+            lambda t: with_body(t, "coupler", FRAME, COUPLER, "axes = [0, 0, 1]"),
+            "bodies[2].axes: expected a table of joint name = [x, y, z]",
+        ),
+        (
+            lambda t: with_body(
+                t.replace(
+                    'type = "revolute"\nbodies = ["coupler", "rocker"]',
+                    'type = "spherical"\nbodies = ["coupler", "rocker"]',
+                ),
+                "coupler",
+                FRAME,
+                COUPLER,
+                "axes = { c = [0, 0, 1] }",
+            ),
+            "bodies[2].axes: joint 'c' is 'spherical': it has no axis",
+        ),
+        (
             lambda t: t.replace("assemble = true\n", ""),
             "lengths[0]: the anchors are 15.2643375225 mm apart, declared 15: fix "
             "the anchors, or set [mechanism].assemble = true",
@@ -510,6 +543,30 @@ def test_joint_placed_by_two_frames_and_an_anchor_is_refused():
         match=r"joints\[1\]\.anchor: joint 'b' is placed by the frames of both",
     ):
         loads(text, "twice.toml")
+
+
+def test_axis_given_by_both_frames_and_in_joints_is_refused():
+    """An axis both bodies carry in their ``axes`` is given twice when ``[[joints]]``
+    also has it; with one carrier's ``axes`` only, the other needs ``[[joints]]``."""
+    crank = "anchors = { a = [0.0, 0.0, 0.0], b = [8.0, 13.0, 0.0] }"
+    text = with_body(four_bar(), "crank", "frame = [0.0, 0.0, 0.0]", crank)
+    text = with_body(text, "coupler", "frame = [8.0, 13.0, 0.0]", COUPLER)
+    both = with_body(text, "crank", "axes = { b = [0.0, 0.0, 1.0] }")
+    both = with_body(both, "coupler", "axes = { b = [0.0, 0.0, 1.0] }")
+    both = both.replace("anchor = [8.0, 13.0, 0.0]\n", "")
+    with pytest.raises(
+        linkopt.MechanismFileError,
+        match=r"joints\[1\]\.axis: the axis of joint 'b' is given in the axes of the "
+        "body frames that carry it; give it once",
+    ):
+        loads(both, "twice.toml")
+    one = with_body(text, "coupler", "axes = { b = [0.0, 0.0, 1.0] }")
+    one = one.replace("anchor = [8.0, 13.0, 0.0]\naxis = [0.0, 0.0, 1.0]\n", "")
+    with pytest.raises(
+        linkopt.MechanismFileError,
+        match=r"joints\[1\]\.axis: missing: a body that carries the axis of 'b'",
+    ):
+        loads(one, "once.toml")
 
 
 def test_hand_solved_file_may_state_its_lengths(five_bar):

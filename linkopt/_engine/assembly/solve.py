@@ -1,0 +1,246 @@
+"""Solving an assembly problem: the residual of its rows and the nearest assembly to the
+drawing (minimum-norm Levenberg–Marquardt, then projection onto the nearest point of
+the constraint manifold, then a polish; the package docstring gives the choices).
+
+The Levenberg–Marquardt loop has :mod:`linkopt._engine.lm`'s shape (:func:`lm_init`,
+:func:`lm_step`, :func:`lm_terminate` in a ``lax.while_loop``) but not its step. That
+one solves the normal equations ``(JᵀJ + λI) δ = -Jᵀr`` by Cholesky with Nielsen's
+damping, for the square or tall FK/BK systems. An assembly is underdetermined (every
+anchor of a body given by world anchors, six unknowns per frame, more than the rows),
+so its step is the minimum-norm one through ``J Jᵀ`` in weighted variables, which the
+projection after it needs; ``JᵀJ`` there is singular up to λ. Sharing lm.py's step
+would change either the FK/BK solves or these results.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import numpy as np
+
+from ..._config import jit
+from .problem import Problem, Rows
+
+#: Frame variables (position and rotation vector) weigh this in the movement norm,
+#: against 1 for anchors: a frame moves freely but not for nothing (a body with two
+#: anchors still has a definite rotation about their line).
+FRAME_WEIGHT = 1e-2
+#: max |residual| (reference lengths, rad) below which the loops are closed.
+CLOSE_TOL = 1e-10
+#: Iteration caps: minimum-norm LM, projection onto the nearest assembly.
+LM_ITERATIONS = 400
+PROJECTION_ITERATIONS = 100
+
+
+def start(problem: Problem) -> np.ndarray:
+    """Drawn anchors, then the drawn frames (position, zero rotation vector)."""
+    frames = np.concatenate(
+        [problem.frames0, np.zeros_like(problem.frames0)], axis=1
+    ).ravel()
+    return np.concatenate([problem.anchors0.ravel(), frames])
+
+
+def weights(problem: Problem) -> np.ndarray:
+    """Per variable, the square root of its inverse weight in the movement norm; zero
+    for held anchors."""
+    anchors = np.repeat(np.where(problem.held, 0.0, 1.0), 3)
+    frames = np.full(6 * len(problem.frame_names), FRAME_WEIGHT**-0.5)
+    return np.concatenate([anchors, frames])
+
+
+def solve(problem: Problem, x0: np.ndarray, rows: Rows):
+    """Assemble from ``x0``: (x, max |residual|, iterations)."""
+    lm, project, _ = _programs()
+    sizes = (len(problem.joint_names), len(problem.frame_names))
+    s = weights(problem)
+    x, first = lm(sizes, rows, x0, s)
+    residual = float(np.max(np.abs(residual_np(sizes, rows, x)), initial=0.0))
+    if residual <= CLOSE_TOL and len(x):
+        y, steps = project(sizes, rows, x, x0, s)
+        y, polish = lm(sizes, rows, y, s)
+        after = float(np.max(np.abs(residual_np(sizes, rows, y)), initial=0.0))
+        if after <= CLOSE_TOL and _moved(y, x0, s) <= _moved(x, x0, s) + 1e-12:
+            return np.asarray(y), after, int(first) + int(steps) + int(polish)
+    return np.asarray(x), residual, int(first)
+
+
+def _moved(x, x0, s) -> float:
+    return float(
+        np.sum(np.where(s > 0, (np.asarray(x) - x0) / np.where(s > 0, s, 1), 0) ** 2)
+    )
+
+
+def residual_np(sizes, rows, x) -> np.ndarray:
+    return np.asarray(_programs()[2](sizes, rows, x))
+
+
+def without_motors(rows: Rows) -> Rows:
+    return rows._replace(
+        **{k: getattr(rows, k)[:0] for k in Rows._fields if k.startswith("motor_")}
+    )
+
+
+def rotation(omega):
+    """Rotation matrices of rotation vectors ``(F, 3)`` (Rodrigues, finite at 0)."""
+    import jax.numpy as jnp
+
+    theta = jnp.sqrt(jnp.sum(omega**2, axis=-1) + 1e-300)[:, None, None]
+    k = jnp.zeros(omega.shape[:-1] + (3, 3))
+    k = k.at[:, 0, 1].set(-omega[:, 2]).at[:, 0, 2].set(omega[:, 1])
+    k = k.at[:, 1, 0].set(omega[:, 2]).at[:, 1, 2].set(-omega[:, 0])
+    k = k.at[:, 2, 0].set(-omega[:, 1]).at[:, 2, 1].set(omega[:, 0])
+    a = jnp.sin(theta) / theta
+    b = (1.0 - jnp.cos(theta)) / theta**2
+    b = jnp.where(theta < 1e-8, 0.5, b)
+    return jnp.eye(3) + a * k + b * (k @ k)
+
+
+def _residual(sizes: tuple[int, int], rows: Rows, x):
+    """Length rows, local-anchor rows (3 each), axis rows, motor rows; homogenised
+    (rad for axes and rotary motors)."""
+    import jax.numpy as jnp
+
+    joints, frames = sizes
+    a = x[: 3 * joints].reshape(joints, 3)
+    pose = x[3 * joints :].reshape(frames, 6)
+    d = a[rows.pairs[:, 0]] - a[rows.pairs[:, 1]]
+    lengths = jnp.sqrt(jnp.sum(d * d, axis=-1) + 1e-300) - rows.lengths
+    turn = rotation(pose[:, 3:])
+    rot = jnp.einsum("fij,fjk->fik", turn, rows.rotation0)
+    image = pose[rows.local_frame, :3] + jnp.einsum(
+        "rij,rj->ri", rot[rows.local_frame], rows.local_at
+    )
+    local = (a[rows.local_joint] - image).ravel()
+    carry = jnp.concatenate([jnp.eye(3)[None], turn])  # index: frame + 1
+    p = jnp.einsum("aij,aj->ai", carry[rows.axis_p + 1], rows.axis_vp)
+    q = jnp.einsum("aij,aj->ai", carry[rows.axis_q + 1], rows.axis_vq)
+    axes = jnp.sum(p * q, axis=-1)
+    motors = _motor_residual(rows, a, carry[rows.motor_frame + 1])
+    return jnp.concatenate([lengths, local, axes, motors])
+
+
+def _motor_residual(rows: Rows, a, carry):
+    """Held motors, about their axes as their first bodies carry them (``carry``
+    ``(M, 3, 3)``: each first body's turn from the drawing)."""
+    import jax.numpy as jnp
+
+    def turned(v):
+        return jnp.einsum("mij,mj->mi", carry, v)
+
+    axis, e, f = turned(rows.motor_axis), turned(rows.motor_e), turned(rows.motor_f)
+    pivot = a[rows.motor_joint]
+    has_base = rows.motor_base >= 0
+    base = a[jnp.maximum(rows.motor_base, 0)]
+    v = a[rows.motor_moved] - pivot
+    w = base - pivot
+
+    def angle(u):
+        return jnp.arctan2(jnp.sum(u * f, axis=-1), jnp.sum(u * e, axis=-1))
+
+    turn = angle(v) - jnp.where(has_base, angle(w), 0.0) - rows.motor_target
+    rotary = jnp.arctan2(jnp.sin(turn), jnp.cos(turn))
+    ref = jnp.where(has_base[:, None], base, pivot)
+    linear = jnp.sum((a[rows.motor_moved] - ref) * axis, -1)
+    return jnp.where(rows.motor_linear, linear - rows.motor_target, rotary)
+
+
+class MinNormState(NamedTuple):
+    """The minimum-norm Levenberg–Marquardt loop's state: unknowns ``(n,)``, damping
+    μ, iterations taken, and whether it is done (converged or stalled)."""
+
+    x: object
+    damping: object
+    iteration: object
+    done: object
+
+
+def lm_init(x) -> MinNormState:
+    """Start at ``x`` with μ = 1e-6 (done at once when there is nothing to solve)."""
+    import jax.numpy as jnp
+
+    return MinNormState(x, jnp.asarray(1e-6), jnp.asarray(0), jnp.asarray(x.size == 0))
+
+
+def lm_step(fn, state: MinNormState, s) -> MinNormState:
+    """One step ``dx = -S Jₛᵀ (Jₛ Jₛᵀ + μ I)⁻¹ r`` (``Jₛ = J S``, ``S = diag(s)``),
+    taken only if it lowers ``|r|²`` (then μ /= 3, down to 1e-15; else μ *= 4). Done
+    when max |r| < 1e-15, or when a step fails with μ > 1e12 or below round-off."""
+    import jax.numpy as jnp
+
+    x, mu = state.x, state.damping
+    r, jac = _scaled_jacobian(fn, x, s)
+    dx = -s * _min_norm(jac, r, mu)
+    r_new = fn(x + dx)
+    better = jnp.sum(r_new**2) < jnp.sum(r**2)
+    small = jnp.max(jnp.abs(dx)) < 1e-16 * (1.0 + jnp.max(jnp.abs(x)))
+    done = (jnp.max(jnp.abs(jnp.where(better, r_new, r))) < 1e-15) | (
+        ~better & ((mu > 1e12) | small)
+    )
+    mu = jnp.where(better, jnp.maximum(mu / 3.0, 1e-15), mu * 4.0)
+    return MinNormState(jnp.where(better, x + dx, x), mu, state.iteration + 1, done)
+
+
+def lm_terminate(state: MinNormState):
+    return state.done | (state.iteration >= LM_ITERATIONS)
+
+
+def _scaled_jacobian(fn, x, s):
+    """``(r(x), J(x) S)``."""
+    import jax
+
+    return fn(x), jax.jacfwd(fn)(x) * s[None, :]
+
+
+def _min_norm(jac, rhs, damping):
+    """``Jᵀ (J Jᵀ + μ I)⁻¹ rhs``: the least-norm (damped) ``d`` of ``J d = rhs``."""
+    import jax.numpy as jnp
+
+    from .. import dense
+
+    gram = jac @ jac.T
+    eye = jnp.eye(gram.shape[0])
+    return jac.T @ dense.solve(gram + damping * eye, rhs)
+
+
+@functools.cache
+def _programs():
+    """The jitted solver stages (built on first use: parsing alone needs no JAX)."""
+    import jax
+    import jax.numpy as jnp
+
+    @functools.partial(jit, static_argnums=0)
+    def lm(sizes, rows, x, s):
+        """Levenberg–Marquardt with least-norm steps (:func:`lm_step`)."""
+
+        def fn(y):
+            return _residual(sizes, rows, y)
+
+        state = jax.lax.while_loop(
+            lambda st: ~lm_terminate(st), lambda st: lm_step(fn, st, s), lm_init(x)
+        )
+        return state.x, state.iteration
+
+    @functools.partial(jit, static_argnums=0)
+    def project(sizes, rows, x, x0, s):
+        """Gauss–Newton projection onto the assembly nearest the drawing."""
+
+        def body(state):
+            x, it, _ = state
+            r, jac = _scaled_jacobian(lambda y: _residual(sizes, rows, y), x, s)
+            delta = jnp.where(s > 0, (x - x0) / jnp.where(s > 0, s, 1.0), 0.0)
+            dy = -delta + _min_norm(jac, jac @ delta - r, 1e-14)
+            dx = s * dy
+            small = jnp.max(jnp.abs(dx)) < 1e-15
+            return x + dx, it + 1, small
+
+        def cond(state):
+            return (~state[2]) & (state[1] < PROJECTION_ITERATIONS)
+
+        x, it, _ = jax.lax.while_loop(
+            cond, body, (x, jnp.asarray(0), jnp.asarray(False))
+        )
+        return x, it
+
+    residual = jit(_residual, static_argnums=0)
+    return lm, project, residual
