@@ -196,7 +196,7 @@ def test_the_defaults_shown_are_the_engines():
     engine's own values (imported here)."""
     from linkopt import DHSynthesisSettings, OptimizerSettings, TraceSettings
     from linkopt._arms.dh import synthesis
-    from linkopt._design import animation, maps
+    from linkopt._design import maps, motion
 
     parser = build_parser()
     optimizer = OptimizerSettings()
@@ -224,8 +224,8 @@ def test_the_defaults_shown_are_the_engines():
     assert cmd.get_default("best_of") == trace.best_of
     for command in ("plot", "verify"):
         assert _command(parser, command).get_default("max_cells") == maps.MAX_CELLS
-    assert constant("_design.animation", "DEFAULT_FRAMES") == animation.DEFAULT_FRAMES
-    assert constant("_design.animation", "MAX_FRAMES") == animation.MAX_FRAMES
+    assert constant("_design.motion", "DEFAULT_FRAMES") == motion.DEFAULT_FRAMES
+    assert constant("_design.motion", "MAX_FRAMES") == motion.MAX_FRAMES
     assert constant("_arms.dh.synthesis", "LIMITS") == synthesis.LIMITS
 
 

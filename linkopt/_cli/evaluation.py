@@ -249,7 +249,7 @@ def _label(label: str | None, design: str | None) -> str:
 
 def _plot_spaces(mech, design, resolution: int, max_cells: int, path: Path) -> None:
     """Evaluate the design and draw its motor- and end-effector-space maps."""
-    from .._design.plots import plot_spaces
+    from .._design.space_plots import plot_spaces
 
     print(f"evaluating {mech.name} ...", file=sys.stderr)
     ev = evaluate(mech, design)

@@ -183,13 +183,13 @@ def _initial_outputs(
 ) -> dict:
     """The initial design's verification (returned) and space plot (written);
     ``rows``: the optimiser's chunk size (:func:`.evaluation.evaluate_in_batch`)."""
-    from . import plots
+    from . import space_plots
 
     with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._config
         _announce(progress, "verifying the initial design")
         check = _verification(mech, None, verify_resolution)
         if _has_space_plots(mech):
-            plots.plot_spaces(
+            space_plots.plot_spaces(
                 mech,
                 evaluate_in_batch(mech, None, rows),
                 out / "spaces_initial.png",
@@ -231,7 +231,7 @@ def _optimized_outputs(
     (the file's mechanism, the same linkage without the rounds' targets, which the
     figure does not use): the targets are part of the fingerprint that keys every
     compiled program, so it shares the initial design's plot's programs."""
-    from . import plots
+    from . import plots, space_plots
 
     file_mech = file_mech or mech
     with one_blas_thread():
@@ -241,7 +241,7 @@ def _optimized_outputs(
             checked = _verification(mech, design, verify_resolution)
         final = evaluate_in_batch(mech, design, rows)
         if _has_space_plots(mech):
-            plots.plot_spaces(
+            space_plots.plot_spaces(
                 file_mech,
                 final,
                 out / "spaces_optimized.png",
