@@ -219,3 +219,17 @@ def test_optimize_lifts_the_coupler_out_of_collision(tmp_path):
     assert run.result_feasible and after.passed
     assert after.min_clearance >= mech.collision.clearance
     assert run.rounds and run.rounds[-1]["passed"]
+    _check_history_columns(mech, tmp_path / "run" / "history.csv")
+
+
+def _check_history_columns(mech, path: Path) -> None:
+    """``history.csv`` of a file with ``[collision]``: ``collision`` is the running
+    best's ``f_design - reach - singularity``, and it is zero exactly when that
+    design's least sample clearance is clear of the band (the barrier's zero set)."""
+    rows = np.genfromtxt(path, delimiter=",", names=True)
+    assert rows.dtype.names[-2:] == ("collision", "min_clearance")
+    parts = rows["best_f_design"] - rows["reach"] - rows["singularity"]
+    np.testing.assert_allclose(rows["collision"], parts, rtol=1e-9, atol=1e-15)
+    clear = rows["min_clearance"] >= mech.collision.clearance
+    np.testing.assert_array_equal(rows["collision"] <= 1e-15, clear)
+    assert clear[-1]

@@ -21,7 +21,8 @@ Before a run stops it verifies its design, and goes on with added IK targets whe
 verification fails (:mod:`linkopt._design.rounds`); the checkpoint holds the rounds, so
 a resumed run evaluates the same targets.
 
-Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.csv``,
+Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.csv``
+(with ``[collision]`` enabled, also the collision columns: :mod:`.collision`),
 ``verification.json`` (``linkopt verify`` on the initial and optimised designs),
 ``summary.json``, and the figures ``spaces_initial.png``, ``spaces_optimized.png``,
 ``convergence.png``, ``mechanism.png`` (initial and optimised overlaid),
@@ -36,6 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import multiprocessing
 import time
 from collections.abc import Callable, Iterator
@@ -52,6 +54,7 @@ from .._engine.writer import write_design
 from .._errors import InputError
 from .._folders import check_path, run_folder, staged, write_atomic
 from .checkpoint import CHECKPOINT, HISTORY_FIELDS, check_match, decode, encode, read
+from .collision import history_fields, summary_entry
 from .evaluation import Evaluation, alpha_minus, capped, evaluate_in_batch, targets
 from .optimizer import OptimizerSettings, SwarmRun, best_design, start, step
 from .rounds import verification_round, wants_round, with_targets
@@ -65,8 +68,9 @@ def save_checkpoint(
     write_atomic(
         out / CHECKPOINT, json.dumps(encode(run, mech, settings), allow_nan=True)
     )
-    lines = [",".join(HISTORY_FIELDS)] + [
-        ",".join(repr(h[f]) for f in HISTORY_FIELDS) for h in run.history
+    fields = history_fields(mech, HISTORY_FIELDS)
+    lines = [",".join(fields)] + [
+        ",".join(repr(h.get(f, math.nan)) for f in fields) for h in run.history
     ]
     write_atomic(out / "history.csv", "\n".join(lines) + "\n")
 
@@ -364,6 +368,7 @@ def _summary(
         "targets": len(targets(mech)),
         "added_targets": [list(t) for t in run.added_targets],
         "capped_samples": dict(zip(("ik", "adversarial"), capped(mech, final))),
+        **summary_entry(mech, final, design, checks),
         "settings": settings.to_dict(),
     }
 
