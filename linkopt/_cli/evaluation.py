@@ -220,7 +220,8 @@ def run_plot(args) -> int:
     out = output_folder(args.out, "--out")  # before any solve: a bad --out is exit 2
     stem = Path(args.file).stem
     if spaces:
-        _plot_spaces(mech, design, resolution, max_cells, out / f"{stem}_{label}.png")
+        path = out / f"{stem}_{label}.png"
+        _plot_spaces(mech, design, resolution, max_cells, path, not args.no_clearance)
     else:
         print(
             f"{args.file}: space plots need 2 or 3 motors and outputs, the file has "
@@ -247,8 +248,11 @@ def _label(label: str | None, design: str | None) -> str:
     return label
 
 
-def _plot_spaces(mech, design, resolution: int, max_cells: int, path: Path) -> None:
-    """Evaluate the design and draw its motor- and end-effector-space maps."""
+def _plot_spaces(
+    mech, design, resolution: int, max_cells: int, path: Path, clearance: bool
+) -> None:
+    """Evaluate the design and draw its motor- and end-effector-space maps (and their
+    clearance, with ``clearance`` and ``[collision]`` enabled)."""
     from .._design.space_plots import plot_spaces
 
     print(f"evaluating {mech.name} ...", file=sys.stderr)
@@ -267,6 +271,7 @@ def _plot_spaces(mech, design, resolution: int, max_cells: int, path: Path) -> N
             design=design,
             max_cells=max_cells,
             progress=map_progress(),
+            clearance=clearance,
         )
     )
 
@@ -450,6 +455,14 @@ def _register_plot(subparsers) -> None:
         "--label", help="file-name label (default 'initial', or 'design' with --design)"
     )
     _add_max_cells(plot)
+    plot.add_argument(
+        "--no-clearance",
+        action="store_true",
+        help=(
+            "with [collision] enabled, leave out the maps of the least clearance "
+            "between links drawn below the f_sing maps"
+        ),
+    )
     plot.set_defaults(run=run_plot)
 
 

@@ -10,6 +10,7 @@ maps themselves are :mod:`linkopt._design.plot_maps`'.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
@@ -17,9 +18,10 @@ from typing import NamedTuple
 import matplotlib
 import numpy as np
 from jaxtyping import Bool, Float
-from matplotlib.colors import LogNorm
+from matplotlib.colors import LogNorm, Normalize
 
 from .. import _figures as figures
+from .._engine.collision import has_collision
 from .._engine.kinematics import check_design
 from .._engine.model import Mechanism
 from .._engine.readout import output_values
@@ -28,22 +30,77 @@ from .maps import MAX_BYTES, MAX_CELLS, Map2D, check_plot_resolution
 from .plot_maps import check_spaces, section_maps, space_maps
 
 MAGENTA = "#ff00ff"
+#: Colours of the clearance maps: red closer than the clearance, white at it, blue
+#: clear (:func:`clearance_layer`).
+CLEARANCE_CMAP = "RdBu"
 
 
-def _panel(ax, grid: Map2D, norm, title: str, labels):
+class _Layer(NamedTuple):
+    """What a row of panels shows: a :class:`~linkopt._design.maps.Map2D` field, its
+    colours and scale, its colour bar's label and its panels' title prefix."""
+
+    field: str  # "f_sing" or "clearance"
+    cmap: str
+    norm: object
+    label: str
+    prefix: str = ""
+
+
+F_SING_LABEL = "f_sing (brighter = closer to a singularity)"
+
+
+def clearance_layer(mech: Mechanism, grids: list[Map2D]) -> _Layer | None:
+    """The clearance maps' layer: :data:`CLEARANCE_CMAP` on a scale symmetric about the
+    file's ``[collision].clearance`` ``c`` (white at ``c``; its half-width the largest
+    distance of a cell's clearance from ``c``); None when no grid has a finite
+    clearance (the file checks no collisions, or no pair, or nothing is reached)."""
+    values = [
+        g.clearance[np.isfinite(g.clearance)] for g in grids if g.clearance is not None
+    ]
+    values = np.concatenate(values) if values else np.zeros(0)
+    if not values.size:
+        return None
+    band = mech.collision.clearance
+    half = max(float(np.max(np.abs(values - band))), 1e-9 * band)
+    unit = mech.raw.get("mechanism", {}).get("units", "")
+    unit = f" ({unit})" if isinstance(unit, str) and unit else ""
+    label = f"least clearance between links{unit}; red: closer than {band:.3g}"
+    norm = Normalize(vmin=band - half, vmax=band + half)
+    return _Layer("clearance", CLEARANCE_CMAP, norm, label, "least clearance: ")
+
+
+def band_contours(ax, grid: Map2D, band: float) -> None:
+    """Contour lines of a clearance map at the clearance ``band`` (dashed) and at
+    contact, clearance 0 (solid), where the map crosses them."""
+    values = grid.clearance
+    finite = values[np.isfinite(values)]
+    levels = [v for v in (0.0, band) if finite.size and finite.min() < v < finite.max()]
+    if levels:
+        ax.contour(
+            grid.axis0,
+            grid.axis1,
+            values.T,
+            levels=levels,
+            colors="k",
+            linewidths=1.2,
+            linestyles=["-" if v == 0.0 else "--" for v in levels],
+        )
+
+
+def _panel(ax, grid: Map2D, layer: _Layer, title: str, labels):
     extent = [grid.axis0[0], grid.axis0[-1], grid.axis1[0], grid.axis1[-1]]
     ax.set_facecolor("black")
-    cmap = matplotlib.colormaps["viridis"].with_extremes(bad="black")
+    cmap = matplotlib.colormaps[layer.cmap].with_extremes(bad="black")
     image = ax.imshow(
-        grid.f_sing.T,
+        getattr(grid, layer.field).T,
         origin="lower",
         extent=extent,
         aspect="auto",
         cmap=cmap,
-        norm=norm,
+        norm=layer.norm,
         interpolation="nearest",
     )
-    ax.set_title(title)
+    ax.set_title(layer.prefix + title)
     ax.set_xlabel(labels[0])
     ax.set_ylabel(labels[1])
     return image
@@ -180,7 +237,7 @@ def _scatter_samples(ax, ik: Float[np.ndarray, "n 2"], adv: Float[np.ndarray, "m
     )
 
 
-def _draw_row(mech: Mechanism, left, right, row: _Row, norm, samples: _Samples):
+def _draw_row(mech: Mechanism, left, right, row: _Row, layer: _Layer, samples):
     """Both panels of a row, the target range in each, and the samples; returns the
     right panel's image (for the colour bar)."""
     motor_labels = [
@@ -189,9 +246,9 @@ def _draw_row(mech: Mechanism, left, right, row: _Row, norm, samples: _Samples):
     ]
     output_labels = [f"output {n}" for n in mech.output_names]
     lo, hi = mech.output_min, mech.output_max
-    _panel(left, row.motors, norm, "motor space" + row.at_motor, motor_labels)
+    _panel(left, row.motors, layer, "motor space" + row.at_motor, motor_labels)
     image = _panel(
-        right, row.outputs, norm, "end-effector space" + row.at_output, output_labels
+        right, row.outputs, layer, "end-effector space" + row.at_output, output_labels
     )
     inside = _inside(mech, row.motors.outputs)
     if 0.0 < inside.max():
@@ -210,7 +267,10 @@ def _draw_row(mech: Mechanism, left, right, row: _Row, norm, samples: _Samples):
         lw=2,
     )
     for ax, grid in ((left, row.motors), (right, row.outputs)):
-        _reported_contours(ax, mech, grid)
+        if layer.field == "clearance":
+            band_contours(ax, grid, mech.collision.clearance)
+        else:
+            _reported_contours(ax, mech, grid)
     _scatter_samples(left, samples.ik_a[row.ik], samples.adv_a[row.adv])
     _scatter_samples(right, samples.ik_b[row.ik], samples.adv_b[row.adv])
     right.legend(loc="upper right", fontsize=8, facecolor="0.85")
@@ -256,10 +316,12 @@ def _reported_contours(ax, mech: Mechanism, grid: Map2D) -> None:
 
 
 def _spaces_title(mech: Mechanism, evaluation: Evaluation) -> str:
+    share = evaluation.f_design - evaluation.reach - evaluation.singularity
+    collision = f", collision {float(share):.3g}" if has_collision(mech) else ""
     return (
         f"{mech.name}: f_design = {float(evaluation.f_design):.3g} "
         f"(reach {float(evaluation.reach):.3g}, "
-        f"singularity {float(evaluation.singularity):.3g})"
+        f"singularity {float(evaluation.singularity):.3g}{collision})"
     )
 
 
@@ -274,10 +336,15 @@ def plot_spaces(
     max_cells: int = MAX_CELLS,
     max_bytes: int = MAX_BYTES,
     progress: Callable[[dict], None] | None = None,
+    clearance: bool = True,
 ) -> Path:
     """Motor space (left) and end-effector space (right), as the paper's Fig. 2/4/6; for
     three motors and outputs, one row per 2-D section (:func:`section_maps`), each
     showing the samples whose third coordinate is nearest to that section.
+
+    With ``clearance`` and ``[collision]`` enabled, each row of ``f_sing`` maps has a
+    row of the same maps below it coloured by each cell's least clearance between the
+    checked links (:func:`clearance_layer`).
 
     The mechanism, ``resolution`` (a whole number ≥ 2, within the limits of
     :func:`linkopt._design.maps.check_plot_resolution`; default by the number of
@@ -291,21 +358,21 @@ def plot_spaces(
     check_design(mech, design)
     samples = _samples(mech, evaluation, design)
     rows = _rows(mech, evaluation, resolution, design, samples, progress)
-    norm = _colour_norm(rows)
+    layers = [_Layer("f_sing", "viridis", _colour_norm(rows), F_SING_LABEL)]
+    extra = clearance_layer(mech, [m for r in rows for m in r[:2]])
+    layers += [extra] if clearance and extra is not None else []
+    count = len(layers)
     fig, axes = figures.subplots(
-        len(rows),
+        len(rows) * count,
         2,
-        figsize=(12, 5.2 * len(rows)),
+        figsize=(12, 5.2 * len(rows) * count),
         constrained_layout=True,
         squeeze=False,
     )
-    for (left, right), row in zip(axes, rows):
-        image = _draw_row(mech, left, right, row, norm, samples)
-    fig.colorbar(
-        image,
-        ax=axes.ravel().tolist(),
-        label="f_sing (brighter = closer to a singularity)",
-    )
+    for k, (row, layer) in enumerate(itertools.product(rows, layers)):
+        image = _draw_row(mech, *axes[k], row, layer, samples)
+        if k < count:
+            fig.colorbar(image, ax=axes[k::count].ravel().tolist(), label=layer.label)
     fig.suptitle(title or _spaces_title(mech, evaluation))
     path = Path(path)
     fig.savefig(path, dpi=100)
