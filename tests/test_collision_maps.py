@@ -122,3 +122,17 @@ def test_the_plot_draws_clearance_maps_below_the_f_sing_maps(
     )
     width, height = Image.open(path).size
     assert (width, height) == (1200, 520 * rows)
+
+
+def test_the_drawing_of_a_collision_file_adds_a_side_view(tmp_path):
+    """A planar mechanism with ``[collision]`` is drawn in its plane and from the side,
+    where a lift out of the plane shows; one without it in its plane only."""
+    from linkopt._design.plots import plot_mechanism
+
+    lifted = linkopt.load(ROOT / "mechanisms" / "four_bar_collision.toml")
+    designs = {"initial": None, "lifted": np.array([-5.0])}
+    path = plot_mechanism(lifted, tmp_path / "lifted.png", designs=designs)
+    assert Image.open(path).size == (1300, 650)
+    plain = linkopt.load(ROOT / "mechanisms" / "four_bar.toml")
+    path = plot_mechanism(plain, tmp_path / "plain.png")
+    assert Image.open(path).size == (650, 650)

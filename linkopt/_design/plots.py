@@ -11,9 +11,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from matplotlib.patches import Polygon
 
 from .. import _figures as figures
-from .._engine.geometry import rest_state
+from .._engine.collision import capsule_ends, has_collision
+from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.model import Mechanism
 from .._engine.readout import joint_positions, point_positions
 
@@ -28,8 +30,9 @@ SPATIAL = 1e-6
 def _planes(mech: Mechanism) -> list[tuple[int, int]]:
     """The views of :func:`plot_mechanism`: for joint anchors and points in one plane
     at rest (up to :data:`SPATIAL`) the two world axes with the largest spread of them
-    (a top view of a planar mechanism), else the three orthographic views xy, xz,
-    yz."""
+    (a top view of a planar mechanism), and with ``[collision]`` enabled also a side
+    view, the first of them and the third axis (where layers and lifts show); else the
+    three orthographic views xy, xz, yz."""
     rest = rest_state(mech)
     anchors = np.concatenate(
         [
@@ -40,8 +43,30 @@ def _planes(mech: Mechanism) -> list[tuple[int, int]]:
     spread = np.linalg.svd(anchors - anchors.mean(axis=0), compute_uv=False)
     if spread[0] > 0 and spread[-1] > SPATIAL * spread[0]:
         return [(0, 1), (0, 2), (1, 2)]
-    first, second = np.argsort(np.ptp(anchors, axis=0))[::-1][:2]
-    return [tuple(sorted((int(first), int(second))))]
+    first, second, third = (int(k) for k in np.argsort(np.ptp(anchors, axis=0))[::-1])
+    top = tuple(sorted((first, second)))
+    return [top, tuple(sorted((first, third)))] if has_collision(mech) else [top]
+
+
+def _stadium(p, q, radius: float, count: int = 17) -> np.ndarray:
+    """Outline ``(2 count, 2)`` of a 2-D capsule: the segment ``p q`` widened by
+    ``radius``, half circles at its ends (a circle for a zero-length segment)."""
+    d = q - p
+    angle = np.arctan2(d[1], d[0]) if np.any(d) else 0.0
+    a = angle + np.linspace(-np.pi / 2, np.pi / 2, count)
+    ring = radius * np.stack([np.cos(a), np.sin(a)], axis=1)
+    return np.vstack([q + ring, p - ring])
+
+
+def _capsules(ax, mech: Mechanism, design, colour: str, plane) -> None:
+    """The link solids of a file with ``[collision]`` enabled, at rest: each capsule
+    (:mod:`linkopt._engine.collision`, the solids checked and exported) projected on
+    the view, translucent, at its true radius."""
+    geom = geometry(mech, design_vector(mech, design))
+    ends = np.asarray(capsule_ends(mech, geom, rest_state(mech))) * mech.length_scale
+    for (p, q), radius in zip(ends[:, :, list(plane)], mech.collision.segment_radii):
+        outline = _stadium(p, q, float(radius))
+        ax.add_patch(Polygon(outline, facecolor=colour, edgecolor=colour, alpha=0.3))
 
 
 def _target_box(ax, mech: Mechanism, plane: tuple[int, int]) -> None:
@@ -130,7 +155,9 @@ def plot_mechanism(
     """The mechanism at rest (joint circles, motor squares, ground triangles, point
     stars); several designs are overlaid, the first in grey. A planar mechanism is
     drawn in its plane, a spatial one (anchors not in one plane) in three orthographic
-    views (:func:`_planes`)."""
+    views (:func:`_planes`). With ``[collision]`` enabled the link solids are drawn
+    too, and a planar mechanism gets a side view as well, where their layers
+    show."""
     designs = designs or {"initial": None}
     planes = _planes(mech)
     fig, axes = figures.subplots(
@@ -144,6 +171,8 @@ def plot_mechanism(
     for ax, plane in zip(axes[0], planes):
         for (label, design), colour in zip(designs.items(), colours):
             _draw(ax, mech, design, colour, label, 1.0, plane)
+            if has_collision(mech):
+                _capsules(ax, mech, design, colour, plane)
         _target_box(ax, mech, plane)
         ax.set_aspect("equal")
         ax.set_xlabel("xyz"[plane[0]])
