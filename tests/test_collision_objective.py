@@ -2,7 +2,7 @@
 partial gradient, verification rounds and ``optimize``.
 
 * with ``[collision]`` enabled, ``f_design - reach - singularity`` is ``weight`` times
-  the collision term that ``evaluate`` reports (the mean over the IK and adversarial
+  the collision term that ``evaluate`` reports (the mean over the IK and collision
   sample states), proportional to the weight; switched off, ``f_design`` is
   ``reach + singularity`` and the samples are the same;
 * the partial gradient of the collision four-bar (design parameters lifting the
@@ -76,8 +76,8 @@ def _load(extra: str = "", replace: tuple[str, str] | None = None, name="c.toml"
 
 def _term(mech, ev) -> float:
     """The collision term ``evaluate`` reports: the barrier's mean over the IK and
-    adversarial sample states."""
-    states = np.concatenate([np.asarray(ev.ik_states), np.asarray(ev.adv_states)])
+    collision sample states."""
+    states = np.concatenate([np.asarray(ev.ik_states), np.asarray(ev.col_states)])
     return float(np.mean(clearance(mech, states).value))
 
 

@@ -79,21 +79,22 @@ def evaluation_payload(mech, ev, design=None) -> dict:
         "rest_pose": rest_conditioning(mech).as_json(),
         "capped_samples": dict(zip(("ik", "adversarial"), capped(mech, ev))),
         "samples": samples,
-        **_evaluated_collision(mech, ev, design, ik_out, adv_out),
+        **_evaluated_collision(mech, ev, design),
     }
 
 
-def _evaluated_collision(mech, ev, design, ik_out, adv_out) -> dict:
+def _evaluated_collision(mech, ev, design) -> dict:
     """``evaluate --json``'s ``collision`` entry, only for a file that checks them:
-    the collision term (the mean over the IK and adversarial sample states of the
+    the collision term (the mean over the IK and collision sample states of the
     barrier, :mod:`linkopt._engine.collision`), its share of ``f_design`` (``weight``
     times it), and the least clearance with its pair and pose."""
-    from .._engine.collision import clearance, has_collision, pair_names
+    from .._design.collision import sample_clearance
+    from .._engine.collision import has_collision, pair_names
+    from .._engine.readout import output_values
 
     if not has_collision(mech):
         return {}
-    states = np.concatenate([np.asarray(ev.ik_states), np.asarray(ev.adv_states)])
-    result = clearance(mech, states, design=design)
+    result = sample_clearance(mech, ev, design)
     term = float(np.mean(result.value))
     entry = {
         "term": term,
@@ -104,12 +105,13 @@ def _evaluated_collision(mech, ev, design, ik_out, adv_out) -> dict:
         "pair": None,
         "pose": None,
     }
-    if len(states) and result.worst[0] >= 0:
+    if len(result.minimum) and result.worst[0] >= 0:
         k = int(np.argmin(result.minimum))
         count = len(ev.ik_states)
-        kind, t = ("ik", k) if k < count else ("adversarial", k - count)
-        motors = (ev.ik_motors if kind == "ik" else ev.adv_motors)[t]
-        outputs = (ik_out if kind == "ik" else adv_out)[t]
+        kind, t = ("ik", k) if k < count else ("collision", k - count)
+        motors = (ev.ik_motors if kind == "ik" else ev.col_motors)[t]
+        state = (ev.ik_states if kind == "ik" else ev.col_states)[t]
+        outputs = np.asarray(output_values(mech, state, design=design))
         entry["pair"] = list(pair_names(mech, result.worst[k]))
         entry["pose"] = {
             "sample": kind,

@@ -6,13 +6,14 @@ file, :func:`linkopt._engine.collision.has_collision`), so a run of any other fi
 writes exactly the columns and keys it wrote before. ``collision`` is the collision
 part of ``f_design`` (``weight`` times the term, :mod:`linkopt._design.evaluation`:
 ``f_design - reach - singularity``), ``min_clearance`` the least clearance (file
-units) over the design's IK and adversarial sample states, the poses ``f_design``
+units) over the design's IK and collision sample states, the poses ``f_design``
 sees; the verification's dense grid may find a smaller one between them
 (``verification.json``).
 """
 
 from __future__ import annotations
 
+import jax
 import numpy as np
 
 from .._engine.collision import Clearance, clearance, has_collision, pair_names
@@ -24,9 +25,10 @@ COLLISION_COLUMNS = ("collision", "min_clearance")
 
 
 def sample_clearance(mech: Mechanism, ev: Evaluation, design=None) -> Clearance:
-    """:class:`~linkopt.Clearance` of one design's IK then adversarial sample states
-    (``2T`` rows; ``design`` in file units, None: the file's)."""
-    states = np.concatenate([np.asarray(ev.ik_states), np.asarray(ev.adv_states)])
+    """:class:`~linkopt.Clearance` of one design's IK then collision sample states
+    (``2T`` rows, the states of its collision term, :mod:`linkopt._design.evaluation`;
+    ``design`` in file units, None: the file's)."""
+    states = np.concatenate([np.asarray(ev.ik_states), np.asarray(ev.col_states)])
     return clearance(mech, states, design=design)
 
 
@@ -37,7 +39,7 @@ def collision_share(ev: Evaluation) -> float:
 
 def _one(ev: Evaluation, k: int) -> Evaluation:
     """Design ``k`` of a batch's evaluation."""
-    return Evaluation(*(np.asarray(field)[k] for field in ev))
+    return jax.tree_util.tree_map(lambda field: np.asarray(field)[k], ev)
 
 
 def history_columns(mech: Mechanism, ev: Evaluation, designs, k: int) -> dict:
