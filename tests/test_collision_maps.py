@@ -132,7 +132,7 @@ def test_the_drawing_of_a_collision_file_adds_a_side_view(tmp_path):
     lifted = linkopt.load(ROOT / "mechanisms" / "four_bar_collision.toml")
     designs = {"initial": None, "lifted": np.array([-5.0])}
     path = plot_mechanism(lifted, tmp_path / "lifted.png", designs=designs)
-    assert Image.open(path).size == (1300, 650)
+    assert Image.open(path).size == (750, 900)  # the side view below the top view
     plain = linkopt.load(ROOT / "mechanisms" / "four_bar.toml")
     path = plot_mechanism(plain, tmp_path / "plain.png")
     assert Image.open(path).size == (650, 650)

@@ -146,6 +146,24 @@ def _draw(ax, mech: Mechanism, design, colour: str, label: str, alpha: float, pl
     )
 
 
+def _views(planes: list) -> tuple:
+    """The figure and its axes (flat) for the views: side by side, or a planar
+    mechanism's top view above its side view (:func:`_planes`), which is short."""
+    if len(planes) == 2:
+        fig, axes = figures.subplots(
+            2, 1, figsize=(7.5, 9.0), height_ratios=[3, 1], constrained_layout=True
+        )
+        return fig, list(axes)
+    fig, axes = figures.subplots(
+        1,
+        len(planes),
+        figsize=(6.5 * len(planes), 6.5),
+        constrained_layout=True,
+        squeeze=False,
+    )
+    return fig, list(axes[0])
+
+
 def plot_mechanism(
     mech: Mechanism,
     path: str | Path,
@@ -160,15 +178,9 @@ def plot_mechanism(
     show."""
     designs = designs or {"initial": None}
     planes = _planes(mech)
-    fig, axes = figures.subplots(
-        1,
-        len(planes),
-        figsize=(6.5 * len(planes), 6.5),
-        constrained_layout=True,
-        squeeze=False,
-    )
+    fig, axes = _views(planes)
     colours = ["0.55", "tab:blue", "tab:orange", "tab:green"]
-    for ax, plane in zip(axes[0], planes):
+    for ax, plane in zip(axes, planes):
         for (label, design), colour in zip(designs.items(), colours):
             _draw(ax, mech, design, colour, label, 1.0, plane)
             if has_collision(mech):
@@ -179,7 +191,7 @@ def plot_mechanism(
         ax.set_ylabel("xyz"[plane[1]])
         view = "" if len(planes) == 1 else f" ({'xyz'[plane[0]]}{'xyz'[plane[1]]} view)"
         ax.set_title(f"{mech.name} at rest{view}")
-    axes[0, 0].legend(loc="best", fontsize=8)
+    axes[0].legend(loc="best", fontsize=8)
     path = Path(path)
     fig.savefig(path, dpi=100)
     return path
