@@ -112,7 +112,10 @@ def main() -> None:
     reference = results["local"][1]
     identical = {}
     for name, (_, ev) in results.items():
-        same = all(np.array_equal(a, b, equal_nan=True) for a, b in zip(ev, reference))
+        same = all(
+            a is b is None or np.array_equal(a, b, equal_nan=True)
+            for a, b in zip(ev, reference)
+        )
         identical[name] = same
         print(f"{name:11s} bit-identical to local: {same}")
     local = statistics.median(results["local"][0])

@@ -77,7 +77,7 @@ def timed(label: str):
 def bench_plot(mech, out: Path) -> None:
     from linkopt._design.evaluation import evaluate
     from linkopt._design.maps import plot_cost, plot_resolution
-    from linkopt._design.plots import plot_spaces
+    from linkopt._design.space_plots import plot_spaces
 
     with timed("evaluate (for the plot)"):
         ev = evaluate(mech)
@@ -90,11 +90,11 @@ def bench_plot(mech, out: Path) -> None:
 
 def bench_old_grids(mech, resolution: int = 60) -> None:
     """The fine 3-D grid of each space that the old sections were cut from (the
-    windows of :func:`linkopt._design.plots.section_maps`)."""
+    windows of :func:`linkopt._design.plot_maps.section_maps`)."""
     import linkopt
     from linkopt._design import maps
     from linkopt._design.evaluation import evaluate
-    from linkopt._design.plots import plot_windows
+    from linkopt._design.plot_maps import plot_windows
 
     ev = evaluate(mech)
     rest = linkopt.rest_state(mech)

@@ -55,9 +55,9 @@ _EXPORTS = {
     "optimize": ("_design.run", "optimize"),
     "write_outputs": ("_design.run", "write_outputs"),
     "animate": ("_design.animation", "animate"),
-    "motion": ("_design.animation", "motion"),
-    "Motion": ("_design.animation", "Motion"),
-    "PathNotReached": ("_design.animation", "PathNotReached"),
+    "motion": ("_design.motion", "motion"),
+    "Motion": ("_design.motion", "Motion"),
+    "PathNotReached": ("_design.motion", "PathNotReached"),
     "f_sing": ("_engine.singularity", "f_sing"),
     "singular_values": ("_engine.singularity", "singular_values"),
     "Verification": ("_design.verify", "Verification"),
@@ -161,8 +161,9 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     )
     from ._arms.trace.verify import PlanarArm, TraceVerification
     from ._arms.trace.verify import verify as verify_trace
-    from ._design.animation import Motion, PathNotReached, animate, motion
+    from ._design.animation import animate
     from ._design.evaluation import Evaluation, evaluate
+    from ._design.motion import Motion, PathNotReached, motion
     from ._design.partial import partial_gradient
     from ._design.run import optimize, write_outputs
     from ._design.settings import OptimizerSettings

@@ -11,15 +11,14 @@ from PIL import Image
 
 import linkopt
 from linkopt._cli.main import main
-from linkopt._design.animation import (
+from linkopt._design.animation import plane_basis, write_run_motions
+from linkopt._design.motion import (
     MAX_FRAMES,
     PULL_IN,
     default_path,
-    plane_basis,
     resample_loop,
     tour,
     traced_points,
-    write_run_motions,
 )
 
 FRAMES = 8

@@ -195,7 +195,7 @@ def test_the_defaults_shown_are_the_engines():
     """The parser's defaults equal the settings classes' own (imported here)."""
     from linkopt import DHSynthesisSettings, OptimizerSettings, TraceSettings
     from linkopt._arms.dh import synthesis
-    from linkopt._design import animation, maps
+    from linkopt._design import maps, motion
 
     parser = build_parser()
     optimizer = OptimizerSettings()
@@ -223,8 +223,8 @@ def test_the_defaults_shown_are_the_engines():
     assert cmd.get_default("best_of") == trace.best_of
     for command in ("plot", "verify"):
         assert _command(parser, command).get_default("max_cells") == maps.MAX_CELLS
-    assert animate.DEFAULT_FRAMES is animation.DEFAULT_FRAMES
-    assert animate.MAX_FRAMES is animation.MAX_FRAMES
+    assert animate.DEFAULT_FRAMES is motion.DEFAULT_FRAMES
+    assert animate.MAX_FRAMES is motion.MAX_FRAMES
     assert manipulability.LIMITS is synthesis.LIMITS
 
 

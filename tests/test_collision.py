@@ -403,7 +403,7 @@ def test_evaluate_reports_the_collision_term_pair_and_pose():
     assert entry["term"] > 0.0
     assert entry["pair"] == ["ground", "coupler"]
     assert entry["min_clearance"] < 0.0  # the coupler crosses the ground link
-    assert entry["pose"]["sample"] in ("ik", "adversarial")
+    assert entry["pose"]["sample"] in ("ik", "collision")
     assert set(entry["pose"]["motors"]) == {"crank"}
 
 

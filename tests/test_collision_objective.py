@@ -2,7 +2,7 @@
 partial gradient, verification rounds and ``optimize``.
 
 * with ``[collision]`` enabled, ``f_design - reach - singularity`` is ``weight`` times
-  the collision term that ``evaluate`` reports (the mean over the IK and adversarial
+  the collision term that ``evaluate`` reports (the mean over the IK and collision
   sample states), proportional to the weight; switched off, ``f_design`` is
   ``reach + singularity`` and the samples are the same;
 * the partial gradient of the collision four-bar (design parameters lifting the
@@ -76,8 +76,8 @@ def _load(extra: str = "", replace: tuple[str, str] | None = None, name="c.toml"
 
 def _term(mech, ev) -> float:
     """The collision term ``evaluate`` reports: the barrier's mean over the IK and
-    adversarial sample states."""
-    states = np.concatenate([np.asarray(ev.ik_states), np.asarray(ev.adv_states)])
+    collision sample states."""
+    states = np.concatenate([np.asarray(ev.ik_states), np.asarray(ev.col_states)])
     return float(np.mean(clearance(mech, states).value))
 
 
@@ -219,3 +219,17 @@ def test_optimize_lifts_the_coupler_out_of_collision(tmp_path):
     assert run.result_feasible and after.passed
     assert after.min_clearance >= mech.collision.clearance
     assert run.rounds and run.rounds[-1]["passed"]
+    _check_history_columns(mech, tmp_path / "run" / "history.csv")
+
+
+def _check_history_columns(mech, path: Path) -> None:
+    """``history.csv`` of a file with ``[collision]``: ``collision`` is the running
+    best's ``f_design - reach - singularity``, and it is zero exactly when that
+    design's least sample clearance is clear of the band (the barrier's zero set)."""
+    rows = np.genfromtxt(path, delimiter=",", names=True)
+    assert rows.dtype.names[-2:] == ("collision", "min_clearance")
+    parts = rows["best_f_design"] - rows["reach"] - rows["singularity"]
+    np.testing.assert_allclose(rows["collision"], parts, rtol=1e-9, atol=1e-15)
+    clear = rows["min_clearance"] >= mech.collision.clearance
+    np.testing.assert_array_equal(rows["collision"] <= 1e-15, clear)
+    assert clear[-1]

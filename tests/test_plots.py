@@ -38,7 +38,8 @@ def test_three_output_sections_match_direct_solves(tmp_path):
     section's map agrees with a direct backward solve and f_sing at a probed cell."""
     from conftest import ROOT
 
-    from linkopt._design.plots import plot_spaces, section_maps
+    from linkopt._design.plot_maps import section_maps
+    from linkopt._design.space_plots import plot_spaces
 
     arm = linkopt.load(ROOT / "tests/data/arm_3r.toml")
     ev = linkopt.evaluate(arm)
@@ -73,7 +74,7 @@ def test_maps_read_reported_outputs_over_their_cells(five_bar, tmp_path):
     from conftest import MECHANISMS
 
     from linkopt._design.evaluation import evaluate
-    from linkopt._design.plots import plot_spaces
+    from linkopt._design.space_plots import plot_spaces
 
     text = (MECHANISMS / "five_bar.toml").read_text()
     extra = (

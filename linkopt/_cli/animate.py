@@ -1,5 +1,6 @@
 """``linkopt animate FILE --out motion.gif [--design …] [--frames N] [--path CSV]``:
-a GIF of the mechanism moving along a path (:mod:`linkopt._design.animation`).
+a GIF of the mechanism moving along a path (:mod:`linkopt._design.animation`, frames by
+:mod:`linkopt._design.motion`).
 
 ``--path`` is a CSV file whose header names the motors (the rows are solved by forward
 kinematics) or the outputs (backward kinematics), one row per frame; without it the
@@ -78,7 +79,7 @@ def _out(text: str) -> Path:
 
 def _note_short_frames(mech, item, frames: int, design) -> None:
     """A note on the frames of the default loop that the design does not reach."""
-    from .._design.animation import default_path, unreached_message
+    from .._design.motion import default_path, unreached_message
 
     pulled = int(np.sum(np.any(item.path != default_path(mech, frames, design), 1)))
     if pulled:
@@ -99,9 +100,9 @@ def run_animate(args) -> int:
     if args.path is not None and args.frames is not None:
         raise InputError("--frames: not with --path (each row of the CSV is a frame)")
     mech = load(args.file)
-    from .._design.animation import (
+    from .._design.animation import draw
+    from .._design.motion import (
         check_frames,
-        draw,
         motion,
         unreached_message,
     )

@@ -79,21 +79,22 @@ def evaluation_payload(mech, ev, design=None) -> dict:
         "rest_pose": rest_conditioning(mech).as_json(),
         "capped_samples": dict(zip(("ik", "adversarial"), capped(mech, ev))),
         "samples": samples,
-        **_evaluated_collision(mech, ev, design, ik_out, adv_out),
+        **_evaluated_collision(mech, ev, design),
     }
 
 
-def _evaluated_collision(mech, ev, design, ik_out, adv_out) -> dict:
+def _evaluated_collision(mech, ev, design) -> dict:
     """``evaluate --json``'s ``collision`` entry, only for a file that checks them:
-    the collision term (the mean over the IK and adversarial sample states of the
+    the collision term (the mean over the IK and collision sample states of the
     barrier, :mod:`linkopt._engine.collision`), its share of ``f_design`` (``weight``
     times it), and the least clearance with its pair and pose."""
-    from .._engine.collision import clearance, has_collision, pair_names
+    from .._design.collision import sample_clearance
+    from .._engine.collision import has_collision, pair_names
+    from .._engine.readout import output_values
 
     if not has_collision(mech):
         return {}
-    states = np.concatenate([np.asarray(ev.ik_states), np.asarray(ev.adv_states)])
-    result = clearance(mech, states, design=design)
+    result = sample_clearance(mech, ev, design)
     term = float(np.mean(result.value))
     entry = {
         "term": term,
@@ -104,12 +105,13 @@ def _evaluated_collision(mech, ev, design, ik_out, adv_out) -> dict:
         "pair": None,
         "pose": None,
     }
-    if len(states) and result.worst[0] >= 0:
+    if len(result.minimum) and result.worst[0] >= 0:
         k = int(np.argmin(result.minimum))
         count = len(ev.ik_states)
-        kind, t = ("ik", k) if k < count else ("adversarial", k - count)
-        motors = (ev.ik_motors if kind == "ik" else ev.adv_motors)[t]
-        outputs = (ik_out if kind == "ik" else adv_out)[t]
+        kind, t = ("ik", k) if k < count else ("collision", k - count)
+        motors = (ev.ik_motors if kind == "ik" else ev.col_motors)[t]
+        state = (ev.ik_states if kind == "ik" else ev.col_states)[t]
+        outputs = np.asarray(output_values(mech, state, design=design))
         entry["pair"] = list(pair_names(mech, result.worst[k]))
         entry["pose"] = {
             "sample": kind,
@@ -220,7 +222,8 @@ def run_plot(args) -> int:
     out = output_folder(args.out, "--out")  # before any solve: a bad --out is exit 2
     stem = Path(args.file).stem
     if spaces:
-        _plot_spaces(mech, design, resolution, max_cells, out / f"{stem}_{label}.png")
+        path = out / f"{stem}_{label}.png"
+        _plot_spaces(mech, design, resolution, max_cells, path, not args.no_clearance)
     else:
         print(
             f"{args.file}: space plots need 2 or 3 motors and outputs, the file has "
@@ -247,9 +250,12 @@ def _label(label: str | None, design: str | None) -> str:
     return label
 
 
-def _plot_spaces(mech, design, resolution: int, max_cells: int, path: Path) -> None:
-    """Evaluate the design and draw its motor- and end-effector-space maps."""
-    from .._design.plots import plot_spaces
+def _plot_spaces(
+    mech, design, resolution: int, max_cells: int, path: Path, clearance: bool
+) -> None:
+    """Evaluate the design and draw its motor- and end-effector-space maps (and their
+    clearance, with ``clearance`` and ``[collision]`` enabled)."""
+    from .._design.space_plots import plot_spaces
 
     print(f"evaluating {mech.name} ...", file=sys.stderr)
     ev = evaluate(mech, design)
@@ -267,6 +273,7 @@ def _plot_spaces(mech, design, resolution: int, max_cells: int, path: Path) -> N
             design=design,
             max_cells=max_cells,
             progress=map_progress(),
+            clearance=clearance,
         )
     )
 
@@ -449,6 +456,14 @@ def _register_plot(subparsers) -> None:
         "--label", help="file-name label (default 'initial', or 'design' with --design)"
     )
     _add_max_cells(plot)
+    plot.add_argument(
+        "--no-clearance",
+        action="store_true",
+        help=(
+            "with [collision] enabled, leave out the maps of the least clearance "
+            "between links drawn below the f_sing maps"
+        ),
+    )
     plot.set_defaults(run=run_plot)
 
 

@@ -6,5 +6,7 @@ JAX), ``metrics`` (the culled and attractive singularity metrics, the barrier),
 (f_design, eq. 6), ``partial`` (the partial gradient), ``swarm`` and ``optimizer``
 (the hybrid particle swarm), ``workers`` (processes sharing the particles), ``run``
 (run folders, checkpoints, outputs), ``verify`` (the dense check of a result), ``maps``
-and ``plots`` (motor- and end-effector-space figures).
+(continuation grids), ``plot_maps`` and ``space_plots`` (motor- and end-effector-space
+figures), ``plots`` (the mechanism and convergence figures), ``motion`` and
+``animation`` (frames along a path and their GIF).
 """

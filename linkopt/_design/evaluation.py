@@ -9,14 +9,18 @@ length) is reported separately; the optimiser minimises their sum.
 
 A file with ``[collision]`` enabled adds a third part (issue 30): ``weight`` times the
 collision term (:func:`linkopt._engine.collision.collision_value`) averaged over the
-IK and the adversarial sample states, i.e. ``weight · ½ (c(s_IK^t) + c(s_adv^t))`` in
-each target's summand. Both kinds of sample: the IK samples are the poses the design
-must reach (a collision there is one the box demands), the adversarial samples the
-extreme poses around them; it is the term ``linkopt evaluate`` reports. It is
-``f_design - reach - singularity`` (no field of its own, so every consumer of
-:class:`Evaluation` stays as it was). Whether it is there is decided in Python from
-the file, so a file without it traces the program and computes every number exactly
-as before.
+IK and the collision sample states, i.e. ``weight · ½ (c(s_IK^t) + c(s_col^t))`` in
+each target's summand. The IK samples are the poses the design must reach (a
+collision there is one the box demands); the collision samples are adversarial
+samples of clearance: each lane is run a second time, its IK minimisation followed by
+a search for the pose of least clearance near the IK sample
+(:func:`linkopt._design.sampling.clearance_objective`: the soft minimum of the
+capsule pairs' clearances with eq. 5's range barrier and motion penalty), in the same
+queue, as ``D·T`` more lanes. It is the term ``linkopt evaluate`` reports, and
+``f_design - reach - singularity``; the collision samples are
+:attr:`Evaluation.col_motors` and :attr:`Evaluation.col_states`. Whether any of it is
+there is decided in Python from the file, so a file without it traces the program
+and computes every number exactly as before (the two fields are None).
 
 Targets: a grid of ``samples_per_dimension`` values per output spanning each range,
 keeping the points on the box's boundary and, with ``interior = true``, the interior
@@ -24,8 +28,9 @@ ones too (3 per dimension, 2 outputs: 9 targets; 4 per dimension: 16; 3 per dime
 3 outputs: 27, as the paper's Table I), then any ``[evaluation].targets`` the file
 adds (an optimisation's verification rounds add them: :mod:`linkopt._design.run`). IK
 starts from the rest pose for every target.
-A batch of ``D`` designs is ``D·T`` independent lanes, each an IK minimisation followed
-by an adversarial one from its result, run through
+A batch of ``D`` designs is ``D·T`` independent lanes (``2·D·T`` with the collision
+samples), each an IK minimisation followed by an adversarial one from its result, run
+through
 :func:`linkopt._design.sampling.minimise_queue` with ``QUEUE_WIDTH`` slots.
 
 ``QUEUE_WIDTH`` = 12 was chosen by timing the evaluation at several widths
@@ -70,6 +75,7 @@ from .metrics import culled, thresholds
 from .sampling import (
     Sample,
     adversarial_objective,
+    clearance_objective,
     either,
     ik_objective,
     minimise_queue,
@@ -99,6 +105,10 @@ class Evaluation(NamedTuple):
     adv_culled: Float[Array, " T"]
     ik_iterations: Int[Array, " T"]
     adv_iterations: Int[Array, " T"]
+    #: With ``[collision]`` enabled (else None): the collision samples, each the pose
+    #: of least clearance found from its target's IK sample (module docstring).
+    col_motors: Float[Array, "T M"] | None = None
+    col_states: Float[Array, "T S"] | None = None
 
     @property
     def total(self):
@@ -256,6 +266,22 @@ def _lanes(mech: Mechanism, designs: Float[Array, "D n_p"], goals: Float[Array, 
     return lane_geoms, jnp.tile(goals, (count, 1))
 
 
+def _hunting(lanes):
+    """The lanes twice over, with a third leaf that marks the second copy: the lanes
+    whose second phase searches for the least clearance (module docstring)."""
+    twice = jax.tree_util.tree_map(lambda a: jnp.concatenate([a, a]), lanes)
+    count = lanes[1].shape[0]
+    return (*twice, jnp.arange(2 * count) >= count)
+
+
+def _halves(samples: Sample, count: int) -> tuple[Sample, Sample]:
+    """The first ``count`` lanes' samples and the others'."""
+    return (
+        jax.tree_util.tree_map(lambda a: a[:count], samples),
+        jax.tree_util.tree_map(lambda a: a[count:], samples),
+    )
+
+
 def _evaluation(
     mech: Mechanism,
     designs: Float[Array, "D n_p"],
@@ -263,8 +289,10 @@ def _evaluation(
     lanes,
     ik_samples: Sample,
     adv_samples: Sample,
+    col_samples: Sample | None = None,
 ) -> Evaluation:
-    """The ``D`` designs' evaluations from their lanes' IK and adversarial samples."""
+    """The ``D`` designs' evaluations from their lanes' IK, adversarial and (with
+    ``[collision]`` enabled) collision samples."""
     lane_geoms, lane_goals = lanes
     count = designs.shape[0]
     per_design = lane_goals.shape[0] // count
@@ -279,10 +307,15 @@ def _evaluation(
     adv_sing = adv_samples.f_sing
     adv_culled = per(culled(adv_sing, th))
     summands = reach + adv_culled
-    if has_collision(mech):  # static: without it, the program is as it was
+    collision = {}
+    if col_samples is not None:  # static: without it, the program is as it was
         summands = summands + per(
-            sample_collision(mech, lane_geoms, ik_samples.state, adv_samples.state)
+            sample_collision(mech, lane_geoms, ik_samples.state, col_samples.state)
         )
+        collision = {
+            "col_motors": per(col_samples.motors),
+            "col_states": per(col_samples.state),
+        }
     return Evaluation(
         f_design=jnp.mean(summands, axis=1),
         reach=jnp.mean(reach, axis=1),
@@ -298,16 +331,23 @@ def _evaluation(
         adv_culled=adv_culled,
         ik_iterations=per(ik_samples.iterations),
         adv_iterations=per(adv_samples.iterations),
+        **collision,
     )
 
 
-def sample_collision(mech: Mechanism, geoms, ik_states, adv_states):
+def sample_collision(mech: Mechanism, geoms, ik_states, col_states):
     """Each lane's share of the collision part of ``f_design`` (module docstring):
-    ``weight · ½ (c(s_IK) + c(s_adv))``, for lanes ``geoms`` (leading axis) with those
+    ``weight · ½ (c(s_IK) + c(s_col))``, for lanes ``geoms`` (leading axis) with those
     sample states."""
-    value = jax.vmap(lambda g, s: collision_value(mech, g, s))
-    both = value(geoms, ik_states) + value(geoms, adv_states)
+    both = _collision_values(mech, geoms, ik_states) + _collision_values(
+        mech, geoms, col_states
+    )
     return (0.5 * mech.collision.weight) * both
+
+
+def _collision_values(mech: Mechanism, geoms, states):
+    """The collision term of each lane's state."""
+    return jax.vmap(lambda g, s: collision_value(mech, g, s))(geoms, states)
 
 
 def _evaluate_batch(
@@ -321,29 +361,55 @@ def _evaluate_batch(
     high = jnp.asarray(mech.output_max / mech.output_scale)
     lanes = _lanes(mech, designs, goals)
     count = designs.shape[0] * goals.shape[0]
+    hunt = has_collision(mech)  # static: the collision samples' lanes (docstring)
+    queued = _hunting(lanes) if hunt else lanes
+    width = 2 * count if hunt else count
     rest = rest_state(mech)
-    rest = jnp.broadcast_to(rest, (count,) + rest.shape)
-    zero = jnp.zeros((count, mech.num_motors))
+    rest = jnp.broadcast_to(rest, (width,) + rest.shape)
+    zero = jnp.zeros((width, mech.num_motors))
     settings = mech.evaluation
 
     def problem(lane, adversarial, anchor):
-        geom, goal = lane
+        geom, goal, *hunting = lane
         ik = ik_objective(mech, geom, goal, th)
-        return geom, either(
-            ik, adversarial_objective(mech, geom, anchor, low, high, th), adversarial
-        )
+        adv = adversarial_objective(mech, geom, anchor, low, high, th)
+        if hunting:  # static
+            closest = clearance_objective(mech, geom, anchor, low, high)
+            adv = either(adv, closest, hunting[0])
+        return geom, either(ik, adv, adversarial)
 
     iterations = (settings.ik_iterations, settings.adversarial_iterations)
     ik_samples, adv_samples = minimise_queue(
-        mech, problem, lanes, zero, rest, iterations, width=QUEUE_WIDTH
+        mech, problem, queued, zero, rest, iterations, width=QUEUE_WIDTH
     )
-    adv_samples = _not_below_start(mech, lanes, low, high, ik_samples, adv_samples)
-    return _evaluation(mech, designs, th, lanes, ik_samples, adv_samples)
+    col_samples = None
+    if hunt:
+        ik_samples, _ = _halves(ik_samples, count)  # the other half: the same IK
+        adv_samples, col_samples = _halves(adv_samples, count)
+        col_samples = _not_below_start(
+            mech,
+            lanes,
+            (low, high),
+            (ik_samples, col_samples),
+            _collision_values(mech, lanes[0], ik_samples.state),
+            _collision_values(mech, lanes[0], col_samples.state),
+        )
+    adv_samples = _not_below_start(
+        mech,
+        lanes,
+        (low, high),
+        (ik_samples, adv_samples),
+        ik_samples.f_sing,
+        adv_samples.f_sing,
+    )
+    return _evaluation(mech, designs, th, lanes, ik_samples, adv_samples, col_samples)
 
 
-def _not_below_start(mech, lanes, low, high, start: Sample, end: Sample) -> Sample:
-    """Each adversarial sample, or its start (the lane's IK sample) where that start
-    has the larger ``f_sing`` and its outputs lie in the target range.
+def _not_below_start(mech, lanes, box, samples, start_score, end_score) -> Sample:
+    """Each adversarial sample (``samples``: ``(start, end)``), or its start (the
+    lane's IK sample) where that start has the larger score (``f_sing``; the
+    collision term for a collision sample) and its outputs lie in the target range
+    ``box`` ``(low, high)``.
 
     The adversarial minimisation (eq. 5) lowers ``f_sing^a`` plus the range barrier
     and the motion penalty, so from an IK sample on the box's boundary, where the
@@ -353,13 +419,14 @@ def _not_below_start(mech, lanes, low, high, start: Sample, end: Sample) -> Samp
     configuration in the range with that larger ``f_sing``, so the sample of
     ``f_design`` is never below it.
     """
+    (low, high), (start, end) = box, samples
     lane_geoms, _ = lanes
     outputs = jax.vmap(lambda g, s: homogenised_output_values(mech, g, s))(
         lane_geoms, start.state
     )
     slack = RANGE_SLACK  # a target on the boundary is reached to the LM tolerance
     inside = jnp.all((outputs >= low - slack) & (outputs <= high + slack), axis=1)
-    keep = inside & (start.f_sing > end.f_sing)
+    keep = inside & (start_score > end_score)
 
     def pick(a, b):
         mask = keep.reshape(keep.shape + (1,) * (a.ndim - 1))

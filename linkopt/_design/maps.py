@@ -17,8 +17,10 @@ would compile four to five per map, each taking seconds
 Three motors and outputs are drawn as 2-D sections, each solved in its own plane from
 seeds on a coarse 3-D grid (:func:`sections`), not as one fine 3-D
 grid; the plots' default resolution depends on the number of outputs
-(:data:`PLOT_RESOLUTION`). A ``progress`` callback gets each wave's count of visited
-cells (library code never prints; the CLI does).
+(:data:`PLOT_RESOLUTION`). With ``[collision]`` enabled each map also holds its
+cells' least clearance between the checked links (:func:`least_clearance`). A
+``progress`` callback gets each wave's count of visited cells (library code never
+prints; the CLI does).
 
 Budget: a grid's cost grows as its side to the power of its dimension, so callers check
 it before anything is allocated (:func:`grid_cost`, :func:`check_budget`;
@@ -36,6 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._engine.collision import clearance, has_collision
 from .._engine.constraints import constraint_rows
 from .._engine.kinematics import solve_bk, solve_fk
 from .._engine.model import Mechanism
@@ -172,10 +175,10 @@ def check_plot_resolution(
     max_bytes: int = MAX_BYTES,
     raise_with: str = "max_cells",
 ) -> int:
-    """The plots' maps (:func:`linkopt._design.plots.plot_spaces`) at ``resolution``
-    cells per axis (``None``: :func:`plot_resolution`'s default): :class:`InputError`
-    before any work when it is not a whole number ≥ 2 or a grid is over budget
-    (:func:`check_budget`, :func:`plot_cost`)."""
+    """The plots' maps (:func:`linkopt._design.space_plots.plot_spaces`) at
+    ``resolution`` cells per axis (``None``: :func:`plot_resolution`'s default):
+    :class:`InputError` before any work when it is not a whole number ≥ 2 or a grid is
+    over budget (:func:`check_budget`, :func:`plot_cost`)."""
     resolution = check_count(plot_resolution(mech, resolution), where, 2)
     check_budget(
         plot_cost(mech, resolution),
@@ -200,6 +203,9 @@ class Map2D(NamedTuple):
     reported: np.ndarray | None = (
         None  # (N, N, E) reported outputs; None: the file has none
     )
+    #: (N, N) least clearance between checked links (file units,
+    #: :func:`least_clearance`); None: the file checks no collisions
+    clearance: np.ndarray | None = None
 
 
 def _neighbours(cell: tuple[int, ...], shape: tuple[int, ...]):
@@ -285,7 +291,20 @@ def finish_map(mech, axes, states, feasible, design) -> Map2D:
         outputs * nan[..., None],
         feasible,
         reported,
+        least_clearance(mech, states, feasible, design),
     )
+
+
+def least_clearance(mech: Mechanism, states, feasible, design) -> np.ndarray | None:
+    """Per cell, the least clearance between the checked links in its state (file
+    units, :func:`linkopt._engine.collision.clearance`; NaN where infeasible, ``inf``
+    with no pair checked); None without ``[collision]`` enabled. A read-out of the
+    map's solved states, no solve; only the feasible cells are read."""
+    if not has_collision(mech):
+        return None
+    least = np.full(feasible.shape, np.nan)
+    least[feasible] = clearance(mech, states[feasible], design=design).minimum
+    return least
 
 
 def merged_values(low: float, high: float, steps: int, extra) -> np.ndarray:

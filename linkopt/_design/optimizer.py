@@ -43,12 +43,14 @@ the run for up to ``iterations`` more iterations, at most ``verify_rounds`` time
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from jaxtyping import Bool, Float
 
 from .._engine.model import Mechanism
+from .collision import history_columns
 from .evaluation import Evaluation, alpha_minus
 from .settings import OptimizerSettings
 from .swarm import BoundaryHandler, Star, compute_pbest, compute_position, create_swarm
@@ -218,14 +220,18 @@ def _iteration_best(costs: np.ndarray) -> int:
     return int(np.argmin(np.where(np.isnan(costs), np.inf, costs)))
 
 
-def _running_best(run: SwarmRun, ev: Evaluation, costs: np.ndarray) -> dict:
+def _running_best(
+    run: SwarmRun, ev: Evaluation, costs: np.ndarray, extra: dict | None = None
+) -> dict:
     """``best_total`` and its parts for the history: the lowest total evaluated so far
     in this round of the run, so that the column never rises within a round.
 
     A verification round adds IK targets, which changes every cost (:func:`reopen`
     forgets the bests for the same reason), so the running best restarts with the
     round: the record's ``round`` says which round it belongs to. Before this,
-    ``best_total`` was the iteration's best particle and could rise."""
+    ``best_total`` was the iteration's best particle and could rise. ``extra``: more
+    columns of the iteration's best particle, kept with the running best as its parts
+    are (the collision columns, :func:`linkopt._design.collision.history_columns`)."""
     best = _iteration_best(costs)
     current = {
         "best_total": float(costs[best]),
@@ -233,23 +239,27 @@ def _running_best(run: SwarmRun, ev: Evaluation, costs: np.ndarray) -> dict:
         "regularizer": float(ev.regularizer[best]),
         "reach": float(ev.reach[best]),
         "singularity": float(ev.singularity[best]),
+        **(extra or {}),
     }
     previous = run.history[-1] if run.history else None
     if previous is None or previous.get("round", 0) != len(run.rounds):
         return current
     if not previous["best_total"] <= current["best_total"]:  # NaN-safe: NaN loses
         return current
-    return {k: previous[k] for k in ("best_total", *RUNNING_PARTS)}
+    return {k: previous.get(k, math.nan) for k in current}
 
 
-def record_iteration(run: SwarmRun, ev: Evaluation, costs: np.ndarray) -> SwarmRun:
+def record_iteration(
+    run: SwarmRun, ev: Evaluation, costs: np.ndarray, extra: dict | None = None
+) -> SwarmRun:
     """``run`` with the iteration's history row appended (the run loop adds
-    ``wall_time``): the running best (:func:`_running_best`) and, as
-    ``iteration_total`` and ``iteration_f_design``, this iteration's best particle."""
+    ``wall_time``): the running best (:func:`_running_best`, with the ``extra``
+    columns of this iteration's best particle) and, as ``iteration_total`` and
+    ``iteration_f_design``, this iteration's best particle."""
     best = _iteration_best(costs)
     record = {
         "iteration": run.iteration,
-        **_running_best(run, ev, costs),
+        **_running_best(run, ev, costs, extra),
         "iteration_total": float(costs[best]),
         "iteration_f_design": float(ev.f_design[best]),
         "round": len(run.rounds),
@@ -325,7 +335,9 @@ def step(
     swarm = _swarm(run, settings, settings.inertia(run.iteration))
     run = _update_bests(run, swarm, costs)
     feasible = np.asarray(ev.f_design) <= settings.tolerance
-    run = record_iteration(_update_result(run, feasible, costs, settings), ev, costs)
+    extra = history_columns(mech, ev, run.position, _iteration_best(costs))
+    run = _update_result(run, feasible, costs, settings)
+    run = record_iteration(run, ev, costs, extra)
     if _converged(run, settings):
         return dataclasses.replace(run, finished=True, iteration=run.iteration + 1)
     return _move(mech, run, swarm, ev, settings, workers)

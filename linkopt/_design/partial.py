@@ -16,14 +16,17 @@ through the LM while-loops of :func:`frozen_objective` under ``vmap`` compiled f
 too slowly. :func:`frozen_objective` (which re-solves) stays as the reference for the
 tests.
 
-With ``[collision]`` enabled, each IK and each adversarial sample term also carries
-its half of the weighted collision term (:mod:`linkopt._design.evaluation`), so its
-design gradient comes through the same adjoint, with the same frozen motors: the
-term moves with the design both through the capsules' anchors (``∂g/∂p``) and through
-the sample's state (``μ``). Without it, the terms are as they were.
+With ``[collision]`` enabled, each IK sample term also carries its half of the
+weighted collision term (:mod:`linkopt._design.evaluation`), and each collision sample
+(its motors frozen too) adds the other half, so the term's design gradient comes
+through the same adjoint: it moves with the design both through the capsules'
+anchors (``∂g/∂p``) and through the sample's state (``μ``). Without it, the terms are
+as they were.
 """
 
 from __future__ import annotations
+
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -40,15 +43,17 @@ from .evaluation import Evaluation, regularizer, targets
 from .metrics import culled, thresholds
 
 
+def _collision_term(mech: Mechanism, state, geom):
+    """A sample's half of the weighted collision term (module docstring)."""
+    return 0.5 * mech.collision.weight * collision_value(mech, geom, state)
+
+
 def _with_collision(mech: Mechanism, term):
     """``term`` plus the sample's half of the weighted collision term, when the file
     checks collisions (module docstring); ``term`` itself otherwise."""
     if not has_collision(mech):
         return term
-    half = 0.5 * mech.collision.weight
-    return lambda state, geom: (
-        term(state, geom) + half * collision_value(mech, geom, state)
-    )
+    return lambda state, geom: term(state, geom) + _collision_term(mech, state, geom)
 
 
 def _reach_term(mech: Mechanism, goal):
@@ -60,9 +65,7 @@ def _reach_term(mech: Mechanism, goal):
 
 
 def _singular_term(mech: Mechanism, th):
-    return _with_collision(
-        mech, lambda state, geom: culled(f_sing_value(mech, geom, state), th)
-    )
+    return lambda state, geom: culled(f_sing_value(mech, geom, state), th)
 
 
 def frozen_objective(
@@ -89,6 +92,10 @@ def frozen_objective(
     f_sing = jax.vmap(lambda a, s: _singular_term(mech, th)(solved(a, s), geom))(
         evaluation.adv_motors, evaluation.adv_states
     )
+    if has_collision(mech):
+        f_sing = f_sing + jax.vmap(
+            lambda a, s: _collision_term(mech, solved(a, s), geom)
+        )(evaluation.col_motors, evaluation.col_states)
     return jnp.mean(f_reach + f_sing) + regularizer(mech, design)
 
 
@@ -126,6 +133,10 @@ def frozen_lagrangian(
     )
     f_reach = reach(goals, evaluation.ik_motors, evaluation.ik_states)
     f_sing = sing(evaluation.adv_motors, evaluation.adv_states)
+    if has_collision(mech):  # static
+        term = functools.partial(_collision_term, mech)
+        closest = jax.vmap(lambda a, s: _adjoint_term(mech, term, design, a, s))
+        f_sing = f_sing + closest(evaluation.col_motors, evaluation.col_states)
     return jnp.mean(f_reach + f_sing) + regularizer(mech, design)
 
 
@@ -141,7 +152,9 @@ def partial_gradient(mech: Mechanism, designs, evaluation: Evaluation, alpha: fl
     """Partial gradients ``(n_p,)`` or ``(N, n_p)`` for designs evaluated as
     ``evaluation`` (file units: per unit of each design parameter)."""
     designs = jnp.asarray(designs, dtype=jnp.float64)
-    evaluation = Evaluation(*(jnp.asarray(v, dtype=jnp.float64) for v in evaluation))
+    evaluation = jax.tree_util.tree_map(
+        lambda v: jnp.asarray(v, dtype=jnp.float64), evaluation
+    )
     alpha = jnp.asarray(alpha, dtype=jnp.float64)
     return programs.call(
         "partial_gradient",

@@ -21,7 +21,8 @@ Before a run stops it verifies its design, and goes on with added IK targets whe
 verification fails (:mod:`linkopt._design.rounds`); the checkpoint holds the rounds, so
 a resumed run evaluates the same targets.
 
-Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.csv``,
+Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.csv``
+(with ``[collision]`` enabled, also the collision columns: :mod:`.collision`),
 ``verification.json`` (``linkopt verify`` on the initial and optimised designs),
 ``summary.json``, and the figures ``spaces_initial.png``, ``spaces_optimized.png``,
 ``convergence.png``, ``mechanism.png`` (initial and optimised overlaid),
@@ -36,6 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import multiprocessing
 import time
 from collections.abc import Callable, Iterator
@@ -52,6 +54,7 @@ from .._errors import InputError
 from .._files.writer import write_design
 from .._folders import check_path, run_folder, staged, write_atomic
 from .checkpoint import CHECKPOINT, HISTORY_FIELDS, check_match, decode, encode, read
+from .collision import history_fields, summary_entry
 from .evaluation import Evaluation, alpha_minus, capped, evaluate_in_batch, targets
 from .optimizer import OptimizerSettings, SwarmRun, best_design, start, step
 from .rounds import verification_round, wants_round, with_targets
@@ -65,8 +68,9 @@ def save_checkpoint(
     write_atomic(
         out / CHECKPOINT, json.dumps(encode(run, mech, settings), allow_nan=True)
     )
-    lines = [",".join(HISTORY_FIELDS)] + [
-        ",".join(repr(h[f]) for f in HISTORY_FIELDS) for h in run.history
+    fields = history_fields(mech, HISTORY_FIELDS)
+    lines = [",".join(fields)] + [
+        ",".join(repr(h.get(f, math.nan)) for f in fields) for h in run.history
     ]
     write_atomic(out / "history.csv", "\n".join(lines) + "\n")
 
@@ -183,13 +187,13 @@ def _initial_outputs(
 ) -> dict:
     """The initial design's verification (returned) and space plot (written);
     ``rows``: the optimiser's chunk size (:func:`.evaluation.evaluate_in_batch`)."""
-    from . import plots
+    from . import space_plots
 
     with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._config
         _announce(progress, "verifying the initial design")
         check = _verification(mech, None, verify_resolution)
         if _has_space_plots(mech):
-            plots.plot_spaces(
+            space_plots.plot_spaces(
                 mech,
                 evaluate_in_batch(mech, None, rows),
                 out / "spaces_initial.png",
@@ -231,7 +235,7 @@ def _optimized_outputs(
     (the file's mechanism, the same linkage without the rounds' targets, which the
     figure does not use): the targets are part of the fingerprint that keys every
     compiled program, so it shares the initial design's plot's programs."""
-    from . import plots
+    from . import plots, space_plots
 
     file_mech = file_mech or mech
     with one_blas_thread():
@@ -241,7 +245,7 @@ def _optimized_outputs(
             checked = _verification(mech, design, verify_resolution)
         final = evaluate_in_batch(mech, design, rows)
         if _has_space_plots(mech):
-            plots.plot_spaces(
+            space_plots.plot_spaces(
                 file_mech,
                 final,
                 out / "spaces_optimized.png",
@@ -364,6 +368,7 @@ def _summary(
         "targets": len(targets(mech)),
         "added_targets": [list(t) for t in run.added_targets],
         "capped_samples": dict(zip(("ik", "adversarial"), capped(mech, final))),
+        **summary_entry(mech, final, design, checks),
         "settings": settings.to_dict(),
     }
 

@@ -53,6 +53,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from .._engine import dense
+from .._engine.collision import capsule_gaps
 from .._engine.constraints import (
     fk_residual,
     homogenised_output_values,
@@ -456,6 +457,36 @@ def adversarial_objective(
         offset = motors - anchor_motors
         value = term + w_range * wall + 0.5 * w_motion * offset @ offset
         gradient = (slope * d_f_sing + w_range * d_wall) @ ds_da + w_motion * offset
+        return value, gradient, jnp.zeros((motors.shape[0],) * 2)
+
+    return objective
+
+
+def clearance_objective(
+    mech: Mechanism, geom: Geometry, anchor_motors, low, high
+) -> Objective:
+    """The collision samples' search (issue 30, :mod:`linkopt._design.evaluation`):
+    eq. 5 with the soft minimum of the checked capsule pairs' clearances ``g_i`` in
+    place of ``f_sing^a``, ``-c log Σ exp(-g_i / c)`` with ``c`` the clearance band,
+    plus ``w₁ ½|a - a_IK|² + w₂ R₂(s)``. Its minimum is a pose near the IK sample, in
+    the target range, where the links come closest; unlike the barrier of the
+    collision term it has a gradient at any distance, so the search also finds the
+    closest pose of a design that is clear. Homogenised lengths."""
+    w_motion, w_range = mech.evaluation.motion_weight, mech.evaluation.range_weight
+    band = mech.collision.clearance / mech.length_scale
+
+    def closest(state):
+        gaps = capsule_gaps(mech, geom, state)
+        return -band * jax.scipy.special.logsumexp(-gaps / band)
+
+    def objective(motors, state, ds_da, f_sing, d_f_sing):
+        gap, d_gap = jax.value_and_grad(closest)(state)
+        wall, d_wall = jax.value_and_grad(
+            lambda s: barrier(homogenised_output_values(mech, geom, s), low, high)
+        )(state)
+        offset = motors - anchor_motors
+        value = gap + w_range * wall + 0.5 * w_motion * offset @ offset
+        gradient = (d_gap + w_range * d_wall) @ ds_da + w_motion * offset
         return value, gradient, jnp.zeros((motors.shape[0],) * 2)
 
     return objective

@@ -72,7 +72,7 @@ def _evaluate_chunk_here(mech: Mechanism, designs: np.ndarray) -> Evaluation:
 
 
 def concatenate(parts: list[Evaluation]) -> Evaluation:
-    return Evaluation(*(np.concatenate(fields) for fields in zip(*parts)))
+    return jax.tree_util.tree_map(lambda *fields: np.concatenate(fields), *parts)
 
 
 class Workers:
@@ -176,7 +176,7 @@ class Workers:
             and early[2] == alpha
             and np.array_equal(early[0], designs)
             and all(
-                np.array_equal(a, b, equal_nan=True)
+                a is b is None or np.array_equal(a, b, equal_nan=True)
                 for a, b in zip(early[1], evaluation)
             )
         ):
