@@ -4,9 +4,13 @@ drawing, and the dense check of its target range."""
 import json
 
 import matplotlib.image as mpimg
+import numpy as np
 from conftest import MECHANISMS
 
+import linkopt
+from linkopt._cli.evaluation import evaluation_payload
 from linkopt._cli.main import main
+from linkopt._engine.readout import output_values
 
 
 def test_plot_command_writes_pngs(tmp_path, capsys):
@@ -84,3 +88,23 @@ def test_verify_passes_on_a_box_away_from_singularities(tmp_path, capsys):
         result["coverage"] == 1.0
         and result["max_f_sing"] < result["threshold_alpha_minus"]
     )
+
+
+def test_evaluate_reports_outputs_of_the_design_it_evaluated(five_bar_evaluation):
+    """Regression: ``evaluate --design`` read the samples' outputs off their states
+    with the file's design; where the design moves the output point (here the tip
+    joint, which the point ``ee`` sits on) they came out where the file's point
+    would be."""
+    extra = '[[parameters]]\nname = "tip_y"\njoint = "tip"\ncoordinate = "y"\n'
+    text = (
+        (MECHANISMS / "five_bar.toml").read_text() + extra + "min = 60.0\nmax = 80.0\n"
+    )
+    mech = linkopt.loads(text)
+    design = np.append(mech.design.p0[:3], 75.0)
+    payload = evaluation_payload(mech, five_bar_evaluation, design)
+    states = five_bar_evaluation.ik_states
+    moved = np.asarray(output_values(mech, states, design=design))
+    still = np.asarray(output_values(mech, states))
+    assert np.abs(moved - still).max() > 1.0  # the design moves the point
+    reported = [list(s["ik"]["reached"].values()) for s in payload["samples"]]
+    np.testing.assert_allclose(reported, moved, rtol=0, atol=1e-9)

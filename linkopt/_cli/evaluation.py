@@ -64,8 +64,8 @@ def evaluation_payload(mech, ev, design=None) -> dict:
     from .._design.evaluation import alpha_minus, capped, rest_conditioning, targets
     from .._engine.readout import output_values
 
-    ik_out = np.asarray(output_values(mech, ev.ik_states))
-    adv_out = np.asarray(output_values(mech, ev.adv_states))
+    ik_out = np.asarray(output_values(mech, ev.ik_states, design=design))
+    adv_out = np.asarray(output_values(mech, ev.adv_states, design=design))
     samples = [
         _sample(mech, ev, t, goal, ik_out, adv_out)
         for t, goal in enumerate(targets(mech))
