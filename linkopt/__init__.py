@@ -104,6 +104,8 @@ def __getattr__(name: str):
         module, attribute = _EXPORTS[name]
     except KeyError:
         raise AttributeError(f"module 'linkopt' has no attribute {name!r}") from None
+    if module != "_errors":  # every name that computes configures JAX first
+        importlib.import_module("._config", __name__)
     value = getattr(importlib.import_module(f".{module}", __name__), attribute)
     globals()[name] = value
     return value

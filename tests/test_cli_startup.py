@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import MECHANISMS
 
 from linkopt._cli import animate, evaluation, manipulability
 from linkopt._cli.main import build_parser
@@ -180,6 +181,26 @@ def test_unreadable_and_malformed_files_answer_without_jax(tmp_path):
     for (argv, status, _, err), words in zip(_without_jax(argvs), expected):
         assert status == 2 and err.startswith(words), (argv, err)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["broken.toml"]
+
+
+def test_a_file_with_a_bad_field_answers_without_jax(tmp_path):
+    """The fields are read and checked before anything computes: a user's first
+    mistake in a file comes back without waiting for JAX (``bench_cli_startup``)."""
+    text = (MECHANISMS / "four_bar.toml").read_text()
+    cases = {
+        "joints[0].type": text.replace('type = "revolute"', 'type = "hinge"', 1),
+        "joints[0].bodies": text.replace('bodies = ["ground"', 'bodies = ["gnd"', 1),
+        "[evaluation].samples_per_dimension": text
+        + "\n[evaluation]\nsamples_per_dimension = 0\n",
+    }
+    argvs = []
+    for k, body in enumerate(cases.values()):
+        path = tmp_path / f"bad{k}.toml"
+        path.write_text(body)
+        argvs.append(["check", str(path)])
+    results = _without_jax(argvs)
+    for (argv, status, _, err), field in zip(results, cases):
+        assert status == 2 and f"{argv[1]}: {field}" in err, (argv, err)
 
 
 def _command(parser: argparse.ArgumentParser, *path: str) -> argparse.ArgumentParser:

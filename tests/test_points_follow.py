@@ -15,8 +15,9 @@ from hypothesis import strategies as st
 
 import linkopt
 from linkopt._engine.assembly import assemble
-from linkopt._engine.attachment import LINE, PLANE, POINT, SPACE, attach, follow
+from linkopt._engine.attachment import LINE, PLANE, POINT, SPACE, attach
 from linkopt._engine.fields import parse_toml
+from linkopt._engine.following import follow
 from linkopt._engine.geometry import geometry
 from linkopt._files.writer import write_design
 

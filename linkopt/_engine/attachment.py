@@ -28,9 +28,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Float
 
 #: A point this close to an anchor of its body (in reference lengths) follows it.
 COINCIDENT = 1e-9
@@ -113,55 +112,3 @@ def _one(anchors, joints, position, joint, scale):
     for k in range(min(rank, 2)):
         spans[k, joints] = centred @ basis[k] / sv[k] ** 2
     return weights, position - centre - inside, spans, rank
-
-
-def follow(
-    attachment: Attachment,
-    positions0: Float[np.ndarray, "P 3"],
-    anchors0: Float[np.ndarray, "J 3"],
-    anchors: Float[Array, "J 3"],
-) -> Float[Array, "P 3"]:
-    """Rest positions of the points for the design whose anchors are ``anchors``
-    (file units), traceable in ``anchors``; ``positions0`` and ``anchors0`` are those
-    of the initial design. Written as the initial positions plus what the design
-    changes, so the initial design gives ``positions0`` (to rounding in the turned
-    offsets, about 1e-16 of their length)."""
-    moved = jnp.asarray(attachment.weights) @ (anchors - jnp.asarray(anchors0))
-    points = jnp.asarray(positions0) + moved
-    for hull, turn in ((LINE, _line), (PLANE, _plane)):
-        index = np.flatnonzero(attachment.hulls == hull)
-        if len(index):
-            spans, offsets = attachment.spans[index], attachment.offsets[index]
-            change = turn(spans, offsets, anchors0, anchors) - turn(
-                spans, offsets, anchors0, jnp.asarray(anchors0)
-            )
-            points = points.at[index].add(change)
-    return points
-
-
-def _directions(spans: np.ndarray, anchors) -> Float[Array, "N 2 3"]:
-    return jnp.einsum("nkj,jc->nkc", jnp.asarray(spans), anchors)
-
-
-def _unit(v: Float[Array, "N 3"]) -> Float[Array, "N 3"]:
-    return v / jnp.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def _line(spans, offsets, anchors0, anchors):
-    """The offsets turned by the smallest rotation taking the line's direction at the
-    initial design to its direction at this one (Rodrigues)."""
-    u = _unit(_directions(spans, jnp.asarray(anchors0))[:, 0])
-    v = _unit(_directions(spans, anchors)[:, 0])
-    d = jnp.asarray(offsets)
-    k, c = jnp.cross(u, v), jnp.sum(u * v, axis=-1, keepdims=True)
-    kd = jnp.sum(k * d, axis=-1, keepdims=True)
-    return c * d + jnp.cross(k, d) + k * kd / (1.0 + c)
-
-
-def _plane(spans, offsets, anchors0, anchors):
-    """The offsets (along the plane's normal) along the normal at this design."""
-    e0 = _directions(spans, jnp.asarray(anchors0))
-    e = _directions(spans, anchors)
-    n0 = _unit(jnp.cross(e0[:, 0], e0[:, 1]))
-    n = _unit(jnp.cross(e[:, 0], e[:, 1]))
-    return jnp.sum(jnp.asarray(offsets) * n0, axis=-1, keepdims=True) * n

@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .attachment import follow
+from .following import follow
 from .model import Mechanism
 
 

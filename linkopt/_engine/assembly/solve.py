@@ -15,11 +15,11 @@ would change either the FK/BK solves or these results.
 from __future__ import annotations
 
 import functools
+import importlib
 from typing import NamedTuple
 
 import numpy as np
 
-from ..._config import jit
 from .problem import Problem, Rows
 
 #: Frame variables (position and rotation vector) weigh this in the movement norm,
@@ -205,9 +205,14 @@ def _min_norm(jac, rhs, damping):
 
 @functools.cache
 def _programs():
-    """The jitted solver stages (built on first use: parsing alone needs no JAX)."""
-    import jax
-    import jax.numpy as jnp
+    """The jitted solver stages, built on first use: a file that declares no assembly
+    is read without JAX (:mod:`linkopt._imports`). :mod:`linkopt._config` comes
+    first, so JAX starts in float64; every other JAX use in this package runs after
+    this, inside these programs or on their results."""
+    from ..._config import jit
+
+    jax = importlib.import_module("jax")  # after linkopt._config: float64 on
+    jnp = jax.numpy
 
     @functools.partial(jit, static_argnums=0)
     def lm(sizes, rows, x, s):
