@@ -63,7 +63,7 @@ from .._engine.geometry import Geometry
 from .._engine.jacobian import state_jacobian
 from .._engine.kinematics import solve_single
 from .._engine.model import Mechanism
-from .._engine.singularity import f_sing_value
+from .._engine.singularity import sigmas_of, stacked_jacobians
 from .metrics import Thresholds, attractive, barrier, culled
 
 ARMIJO = 1e-4
@@ -120,8 +120,15 @@ Objective = Callable[..., tuple]
 def evaluate_point(
     objective: Objective, mech: Mechanism, geom: Geometry, motors, state
 ):
-    ds_da = state_motor_jacobian(mech, geom, motors, state)
-    f_sing, d_f_sing = jax.value_and_grad(lambda s: f_sing_value(mech, geom, s))(state)
+    """The objective at a solved point, with ``ds/da`` and ``f_sing``. The forward
+    Jacobian is built once, for σ_min and for ``ds/da`` (eq. 2): ``f_sing``'s
+    gradient comes from the stacked Jacobians' pullback."""
+    jac, pullback = jax.vjp(lambda s: stacked_jacobians(mech, geom, s), state)
+    f_sing, d_jac = jax.value_and_grad(lambda j: jnp.sum(1.0 / sigmas_of(j)))(jac)
+    (d_f_sing,) = pullback(d_jac)
+    jac_s = jac[0]
+    jac_a = jax.jacfwd(lambda a: fk_residual(mech, geom, a, state))(motors)
+    ds_da = -dense.solve_spd(jac_s.T @ jac_s, jac_s.T @ jac_a)
     value, gradient, model = objective(motors, state, ds_da, f_sing, d_f_sing)
     return value, gradient, model, ds_da, f_sing
 

@@ -88,13 +88,17 @@ def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
     return jnp.einsum("bnk,bk->bn", x, ritz[:, :, 0])
 
 
-def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, 2]:
-    """``(σ_min^FK, σ_min^BK)`` at one state, differentiable in ``state`` and
-    ``geom``."""
-    jac = stacked_jacobians(mech, geom, state)
+def sigmas_of(jac: Float[Array, "2 m n"]) -> Float[Array, 2]:
+    """``(σ_min^FK, σ_min^BK)`` of the stacked Jacobians, differentiable in them."""
     v = smallest_right_vectors(jax.lax.stop_gradient(jac))
     image = jnp.einsum("bij,bj->bi", jac, v)
     return jnp.sqrt(jnp.sum(image**2, axis=1) + 1e-300)
+
+
+def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, 2]:
+    """``(σ_min^FK, σ_min^BK)`` at one state, differentiable in ``state`` and
+    ``geom``."""
+    return sigmas_of(stacked_jacobians(mech, geom, state))
 
 
 @partial(jit, static_argnums=0)
