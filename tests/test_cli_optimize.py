@@ -63,3 +63,35 @@ def test_a_run_that_ends_unverified_exits_one_and_says_so(
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("linkopt: error: the optimised design does not pass")
     assert str(out / "verification.json") in err[-1]
+
+
+def test_the_figures_line_names_only_the_figures_written(tmp_path, monkeypatch, capsys):
+    """A mechanism without space maps (more than three motors) gets no
+    ``spaces_optimized.png``; the run's last lines must not name it."""
+    import linkopt._design.run as run
+
+    out = tmp_path / "run"
+
+    def outputs(*args, **kwargs):
+        out.mkdir(parents=True, exist_ok=True)
+        for name in ("convergence.png", "mechanism.png"):
+            (out / name).write_bytes(b"")
+        return {
+            "iterations": 1,
+            "f_design": 0.0,
+            "regularizer": 0.0,
+            "verified": True,
+            "initial_verified": True,
+            "verification_rounds": [],
+            "capped_samples": {"ik": 0, "adversarial": 0},
+            "design": {},
+            "optimized_file": str(out / "optimized.toml"),
+        }
+
+    monkeypatch.setattr(run, "optimize", lambda *args, **kwargs: None)
+    monkeypatch.setattr(run, "write_outputs", outputs)
+    assert main(["optimize", str(MECHANISMS / "five_bar.toml"), "--out", str(out)]) == 0
+    line = next(
+        x for x in capsys.readouterr().err.splitlines() if x.startswith("figures:")
+    )
+    assert line == f"figures: {out / 'convergence.png'}, {out / 'mechanism.png'}"

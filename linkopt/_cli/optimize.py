@@ -186,11 +186,9 @@ def run_optimize(args) -> int:
         )
     print(json.dumps({k: summary[k] for k in _SUMMARY_KEYS}, indent=2))
     out = Path(args.out)
-    print(
-        f"figures: {out / 'spaces_optimized.png'}, {out / 'convergence.png'}, "
-        f"{out / 'mechanism.png'}",
-        file=sys.stderr,
-    )
+    names = ("spaces_optimized.png", "convergence.png", "mechanism.png")
+    figures = [str(out / name) for name in names if (out / name).is_file()]
+    print(f"figures: {', '.join(figures)}", file=sys.stderr)
     if not summary["verified"]:
         print(
             f"linkopt: error: the optimised design does not pass verification (see "
