@@ -4,6 +4,7 @@
 line on stderr. Cases that would do real work are kept tiny or invalid, and the
 limits on grids and CSV files are checked before anything is allocated."""
 
+import json
 import math
 
 import numpy as np
@@ -190,6 +191,50 @@ def test_bad_flags_are_one_line_exit_2(argv, message, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["fk", FIVE, "--motors", "--"],
+        ["bk", FIVE, "--outputs=--"],
+        ["evaluate", FIVE, "--design", "--"],
+        ["plot", FIVE, "--out=--"],
+        ["export", FIVE, "--format", "mjcf", "--out=--"],
+    ],
+    ids=["motors", "outputs", "design", "plot-out", "export-out"],
+)
+def test_an_option_whose_value_is_a_double_dash_is_a_usage_error(argv, capsys):
+    """argparse strips a lone ``--`` value and handed the command an empty list (exit
+    3, ``TypeError`` in ``Path``)."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert ": expected one argument" in err and len(err.splitlines()) == 1, err
+    assert "linkopt " + argv[0] + ": error: argument --" in err
+
+
+def test_fk_out_of_continuation_steps_says_so_not_a_singularity(capsys):
+    """The four-bar's crank turns freely, but a solve walks at most 400 steps of 0.2
+    rad: ``--motors 1000`` stopped at 80 rad, blamed on "no assembly past it on this
+    branch, or a singularity"."""
+    assert main(["fk", str(MECHANISMS / "four_bar.toml"), "--motors", "1000"]) == 1
+    err = capsys.readouterr().err
+    assert "at most 400 continuation steps of 0.2, so it moves at most 80" in err
+    assert "singularity" not in err and len(err.splitlines()) == 1, err
+
+
+@pytest.mark.parametrize("name", ["../../evil", "a/b", "a\\b"])
+def test_an_stl_export_never_writes_outside_its_folder(name, tmp_path, capsys):
+    """Each body is written to ``<out>/<body>.stl``: a body named ``../../evil``
+    wrote ``evil.stl`` two folders above ``--out``."""
+    text = (MECHANISMS / "four_bar.toml").read_text()
+    path = tmp_path / "m.toml"
+    path.write_text(text.replace('"crank"', json.dumps(name)))  # a TOML string
+    out = tmp_path / "a" / "b" / "stl"
+    assert main(["export", str(path), "--format", "stl", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: bodies[1].name: " in err and len(err.splitlines()) == 1, err
+    assert not list(tmp_path.rglob("*.stl"))
 
 
 def test_a_huge_verify_grid_is_refused_with_its_estimate(capsys):

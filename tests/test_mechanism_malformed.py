@@ -567,20 +567,37 @@ MALFORMED = {
         "outputs[0].min",
         "expected coordinates of magnitude at most 7.4e+07 file units",
     ),
+    "output_max_1e300": (
+        five_bar(put(("outputs", 1, "max"), 1e300)),
+        "outputs[1].max",
+        "expected coordinates of magnitude at most 7.4e+07 file units",
+    ),
     "output_min_above_max": (
         five_bar(put(("outputs", 0, "min"), 50.0)),
         "outputs[0].min",
         "target range needs min < max, got min=50.0 and max=40.0",
     ),
+    # the end of the range that is out of bounds is the one named (it was always min)
     "angle_range_1e5": (
         neck(put(("outputs", 0, "max"), 1e5)),
-        "outputs[0].min",
+        "outputs[0].max",
         "expected angles of magnitude at most 1000 rad, got 100000",
     ),
+    # the bound that is out of range is the one named (it was always min)
     "parameter_bound_1e300": (
         five_bar(put(("parameters", 0, "max"), 1e300)),
-        "parameters[0].min",
+        "parameters[0].max",
         "expected coordinates of magnitude at most 7.4e+07 file units",
+    ),
+    "parameter_rest_above_max": (
+        five_bar(put(("parameters", 0, "max"), 15.0)),
+        "parameters[0].max",
+        "the rest value 20 of base_right.x lies outside [5, 15]",
+    ),
+    "parameter_rest_below_min": (
+        five_bar(put(("parameters", 0, "min"), 25.0)),
+        "parameters[0].min",
+        "the rest value 20 of base_right.x lies outside [25, 45]",
     ),
     "parameter_min_above_max": (
         five_bar(put(("parameters", 0, "min"), 90.0)),

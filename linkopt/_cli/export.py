@@ -12,7 +12,7 @@ import json
 import time
 from pathlib import Path
 
-from .._errors import InputError
+from .._errors import InputError, MechanismFileError
 from .._folders import output_folder
 from .values import design_arg, load
 
@@ -36,6 +36,21 @@ def _check_out(fmt: str, out: str) -> Path:
     return path
 
 
+def _check_stl_names(mech) -> None:
+    """Each body's name is a file name in the stl folder (``<body>.stl``): one without
+    a path separator or NUL (``../../x`` wrote ``x.stl`` two folders above ``--out``;
+    ``a/b`` failed on the missing folder ``a``)."""
+    for k, name in enumerate(mech.body_names):
+        if any(c in name for c in "/\\\0"):
+            raise MechanismFileError(
+                mech.source,
+                f"bodies[{k}].name",
+                f"{name!r} cannot name a file of the stl export (one <body>.stl per "
+                "body in --out): expected no '/', '\\' or NUL; "
+                "rename the body, or export mjcf or glb",
+            )
+
+
 def _check(args, mech):
     from .._export.meshes import check_thickness
     from .._export.tree import metres_per_unit
@@ -48,6 +63,8 @@ def _check(args, mech):
         check_open_chain(mech)
     else:
         check_thickness(mech, args.thickness)
+    if args.format == "stl":
+        _check_stl_names(mech)
 
 
 def _export(args, mech, design, out: Path) -> dict:

@@ -57,6 +57,14 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str):
         raise _UsageError(self.prog, " ".join(message.split()))
 
+    def _get_values(self, action, arg_strings):
+        """As argparse's, but an option whose one value is ``--`` (``--out=--``, or
+        ``--motors --`` joined by :func:`_join_value_options`) is refused: argparse
+        strips the ``--`` and would hand the command an empty list for a value."""
+        if action.option_strings and action.nargs is None and arg_strings == ["--"]:
+            self.error(f"argument {action.option_strings[0]}: expected one argument")
+        return super()._get_values(action, arg_strings)
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``linkopt`` argument parser, with every command."""

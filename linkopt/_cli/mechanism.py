@@ -166,9 +166,24 @@ def run_solve(args, kind: str) -> int:
     else:
         _print_records(records, kind, is_path)
     if not converged.all():
-        _report_failure(kind, is_path, records)
+        spans = _spans(mech, kind, np.atleast_2d(values), design, scale)
+        _report_failure(kind, is_path, records, spans)
         return 1
     return 0
+
+
+def _spans(mech, kind: str, rows: np.ndarray, design, scale) -> np.ndarray:
+    """How far each row lies from where its continuation starts (the rest pose's
+    values, then the previous row), homogenised: the largest ``|Δ| / scale``."""
+    from .._engine.geometry import rest_state
+    from .._engine.readout import output_values
+
+    if kind == "fk":
+        rest = np.zeros(rows.shape[1])
+    else:
+        rest = np.asarray(output_values(mech, rest_state(mech), design=design))
+    starts = np.vstack([rest[None], rows[:-1]])
+    return np.max(np.abs(rows - starts) / np.asarray(scale), axis=1)
 
 
 def _miss(mech, kind: str, reached: np.ndarray, asked: np.ndarray) -> float:
@@ -210,8 +225,14 @@ def _print_records(records: list[dict], kind: str, is_path: bool) -> None:
                 print(f"  {n:<16} ({p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g})")
 
 
-def _report_failure(kind: str, is_path: bool, records: list[dict]) -> None:
-    """One line: where the continuation stopped on the rest pose's branch."""
+def _report_failure(
+    kind: str, is_path: bool, records: list[dict], spans: np.ndarray
+) -> None:
+    """One line: where the continuation stopped on the rest pose's branch, and why
+    when it ran out of steps (``spans``: each row's distance from its start, as
+    :func:`_spans`)."""
+    from .._engine.kinematics import MAX_STEP, MAX_STEPS
+
     first = next(k for k, rec in enumerate(records) if not rec["converged"])
     record = records[first]
     where = f" at row {first + 1}" if is_path else ""
@@ -219,12 +240,20 @@ def _report_failure(kind: str, is_path: bool, records: list[dict]) -> None:
     values = record["motors"] if kind == "fk" else record["outputs"]
     what = "motors" if kind == "fk" else "outputs"
     reached = ", ".join(f"{n}={v:.6g}" for n, v in values.items())
+    reach = MAX_STEPS * MAX_STEP
+    why = "no assembly past it on this branch, or a singularity"
+    if record["progress"] * spans[first] >= reach * (1 - 1e-9):  # out of steps
+        why = (
+            f"a solve takes at most {MAX_STEPS} continuation steps of {MAX_STEP:g}, "
+            f"so it moves at most {reach:g} rad or reference lengths from "
+            f"{origin}: give intermediate rows in a CSV path"
+        )
     print(
         f"linkopt: error: {kind.upper()} solve failed{where}: the rest pose's assembly "
         f"branch stops at {reached}, {100 * record['progress']:.0f} % of the way from "
-        f"{origin} (no assembly past it on this branch, or a singularity); the "
-        f"{what} printed miss those asked by up to {record['miss']:.3g}, and the "
-        f"state printed closes its loops to {record['closure']:.1e}",
+        f"{origin} ({why}); the {what} printed miss those asked by up to "
+        f"{record['miss']:.3g}, and the state printed closes its loops to "
+        f"{record['closure']:.1e}",
         file=sys.stderr,
     )
 

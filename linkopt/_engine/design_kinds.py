@@ -100,7 +100,7 @@ def _coordinate(ctx: Context, item: dict, where: str) -> Parameter:
     value = float(ctx.joints[joint]["axis" if part == AXIS else "anchor"][c])
     label = f"{field_name(ctx.name(joint))}.{item['coordinate']}"
     low, high = _bounds(rd, item, where, value, label)
-    _check_bound_magnitude(ctx, f"{where}.min", (low, high), part)
+    _check_bound_magnitude(ctx, where, (low, high), part)
     moves = [Move(g, part, np.eye(3)[c]) for g in group]
     moves += _ties(ctx, item, where, part, {(g, c) for g in group})
     moves += _coordinate_images(ctx, item, where, group, moves)
@@ -549,7 +549,7 @@ def _bounds(
         )
     if not low <= value <= high:
         raise rd.fail(
-            f"{where}.min",
+            f"{where}.{'min' if value < low else 'max'}",
             f"the rest value {value:g} of {label} lies outside [{low:g}, {high:g}]",
         )
     return low, high
@@ -571,7 +571,8 @@ def _check_bound_magnitude(
     ctx: Context, where: str, bounds: tuple[float, float], part: int
 ) -> None:
     """Anchor-parameter bounds are positions; axis-component ones at most
-    :data:`MAX_AXIS_BOUND`."""
+    :data:`MAX_AXIS_BOUND`. The larger bound in magnitude is the one named."""
+    where = f"{where}.{'min' if abs(bounds[0]) >= abs(bounds[1]) else 'max'}"
     if part == ANCHOR:
         ctx.check_position(where, bounds)
     elif max(abs(b) for b in bounds) > MAX_AXIS_BOUND:

@@ -163,7 +163,8 @@ def _output_range(
             f"{where}.min",
             f"target range needs min < max, got min={low} and max={high}",
         )
-    check_value(rd, f"{where}.min", [low, high], kind, scale)
+    for key, value in (("min", low), ("max", high)):
+        check_value(rd, f"{where}.{key}", [value], kind, scale)
     return {"min": low, "max": high}
 
 
