@@ -241,12 +241,26 @@ def test_resume_follows_the_mechanism_contents_not_its_path(five_bar, tmp_path):
             prepare(tmp_path / "run", other, one, resume=True)
 
 
+@pytest.mark.parametrize("cold", [False, True])
 def test_particles_split_over_two_worker_processes_give_the_same_numbers(
-    five_bar, swarm_evaluation
+    five_bar, swarm_evaluation, monkeypatch, cold
 ):
     """Eight particles in two chunks of four: the batch shape this process has compiled,
     so the workers load their kernels from the persistent cache instead of compiling
-    them."""
+    them. ``cold``: taken for a first run (no evaluation traced on this machine), where
+    the worker compiles the partial gradient before its chunk; same numbers."""
+    from linkopt._design import workers as workers_module
+
+    asked = []
+    if cold:
+        monkeypatch.setattr(workers_module.programs, "stored", lambda *a: False)
+        ahead = Workers._compile_ahead
+
+        def spy(self, chunks):
+            ahead(self, chunks)
+            asked.append(self._compiling)
+
+        monkeypatch.setattr(Workers, "_compile_ahead", spy)
     run, ev = swarm_evaluation
     alpha = alpha_minus(five_bar)
     d = five_bar.design
@@ -271,6 +285,9 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(
             continue
         np.testing.assert_allclose(part, whole, rtol=1e-12, atol=1e-14, err_msg=name)
     np.testing.assert_allclose(gradients, expected_gradients, rtol=1e-10, atol=1e-14)
+    if cold:  # asked once, and the worker's compilation ran without an error
+        (compiling,) = asked
+        assert compiling is not None and compiling.exception() is None
 
 
 def test_blas_limit_reaches_the_openblas_that_jax_loads_later():

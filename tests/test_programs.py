@@ -68,6 +68,24 @@ def test_a_trace_is_written_then_read_back_without_tracing(
     assert len(list(cache.glob("toy-*.jaxexport"))) == 2
 
 
+def test_a_program_known_on_disk_its_shapes_and_compiling_ahead(five_bar, cache):
+    """``stored`` tells a traced program from one never traced (another shape is
+    another program); ``output_shapes`` and ``compile_ahead`` trace it without running
+    it, and the call after them gives the program's numbers."""
+    x, y = jnp.linspace(0.0, 1.0, 5), jnp.asarray(2.0)
+    assert not programs.stored("toy", five_bar, x, y)
+    shapes = programs.output_shapes("toy", five_bar, _program(five_bar), x, y)
+    assert (shapes.shape, shapes.dtype) == ((5,), jnp.float64)
+    assert programs.stored("toy", five_bar, x, y)
+    assert not programs.stored("toy", five_bar, jnp.zeros(3), y)
+    programs.compile_ahead("toy", five_bar, _program(five_bar), jnp.zeros(3), y)
+    assert programs.stored("toy", five_bar, jnp.zeros(3), y)
+    expected = np.sin(np.linspace(0.0, 1.0, 5)) * five_bar.length_scale + 2.0
+    np.testing.assert_allclose(
+        programs.call("toy", five_bar, _program(five_bar), x, y), expected, rtol=1e-15
+    )
+
+
 def test_a_corrupt_entry_is_traced_again(five_bar, cache, monkeypatch):
     x, y = jnp.ones(4), jnp.asarray(0.5)
     programs.call("toy", five_bar, _program(five_bar), x, y)

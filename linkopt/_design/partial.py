@@ -39,7 +39,7 @@ from .._engine.jacobian import state_jacobian
 from .._engine.kinematics import solve_single
 from .._engine.model import Mechanism
 from .._engine.singularity import f_sing_value
-from .evaluation import Evaluation, regularizer, targets
+from .evaluation import Evaluation, evaluate_homogenised, regularizer, targets
 from .metrics import culled, thresholds
 
 
@@ -163,4 +163,32 @@ def partial_gradient(mech: Mechanism, designs, evaluation: Evaluation, alpha: fl
         designs,
         evaluation,
         alpha,
+    )
+
+
+def _chunk_arguments(mech: Mechanism, rows: int) -> tuple:
+    """Zeros shaped as :func:`partial_gradient`'s arguments for a chunk of ``rows``
+    designs (the evaluation's shapes read off its program, which is not run)."""
+    designs = jnp.zeros((rows, mech.design.size), dtype=jnp.float64)
+    alpha = jnp.asarray(0.0, dtype=jnp.float64)
+    shapes = programs.output_shapes(
+        "evaluate", mech, evaluate_homogenised, designs, alpha
+    )
+    evaluation = jax.tree_util.tree_map(
+        lambda s: jnp.zeros(s.shape, dtype=jnp.float64), shapes
+    )
+    return designs, evaluation, alpha
+
+
+def gradient_stored(mech: Mechanism, rows: int) -> bool:
+    """Whether the partial gradient of a chunk of ``rows`` designs has been traced
+    (and compiled) on this machine before (:func:`linkopt._engine.programs.stored`)."""
+    return programs.stored("partial_gradient", mech, *_chunk_arguments(mech, rows))
+
+
+def compile_gradient(mech: Mechanism, rows: int) -> None:
+    """Compile the partial gradient of a chunk of ``rows`` designs into the persistent
+    cache without running it (:func:`linkopt._engine.programs.compile_ahead`)."""
+    programs.compile_ahead(
+        "partial_gradient", mech, gradients_homogenised, *_chunk_arguments(mech, rows)
     )

@@ -30,7 +30,8 @@ Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.
 ``motion_initial.gif`` / ``motion_optimized.gif`` (:mod:`linkopt._design.animation`,
 mechanisms with 1-3 motors). The initial
 design's verification and space plot do not depend on the run, so with ``workers`` > 1 a
-spawned process makes them while this one makes the optimised design's.
+spawned process makes them while this one makes the optimised design's and the motion
+GIFs.
 """
 
 from __future__ import annotations
@@ -291,12 +292,14 @@ def _design_outputs(
     resolution: int | None,
     verify_resolution: int | None,
     workers: int,
+    motions: Callable[[], None],
     progress: Callable[[dict], None] | None = None,
 ) -> tuple[dict, Evaluation]:
     """Both designs' verifications (``{"initial": ..., "optimized": ...}``), the
     optimised design's evaluation (with the targets of ``current``: the file's and the
     run's rounds'), and the figures; with ``workers`` > 1 the initial design's in a
-    spawned process (module docstring)."""
+    spawned process (module docstring). ``motions()`` writes the motion GIFs, after the
+    optimised design's outputs and before waiting for the spawned process's."""
     side = (
         ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
         if workers > 1
@@ -318,6 +321,7 @@ def _design_outputs(
             progress,
             mech,
         )
+        motions()  # while the spawned process is still at the initial design
         checks = {
             "initial": _side_result(initial, args, progress),
             "optimized": checked,
@@ -414,6 +418,8 @@ def write_outputs(
         from .._export.mjcf import export_mjcf  # the design for MuJoCo (issue 18)
 
         export_mjcf(current, stage / "optimized.xml", design)
+        from .animation import write_run_motions  # motion_*.gif (issue 18)
+
         checks, final = _design_outputs(
             mech,
             current,
@@ -423,12 +429,10 @@ def write_outputs(
             resolution,
             verify_resolution,
             workers,
+            lambda: write_run_motions(mech, current, stage, design),
             progress,
         )
         (stage / "verification.json").write_text(json.dumps(checks, indent=2))
-        from .animation import write_run_motions  # motion_*.gif (issue 18)
-
-        write_run_motions(mech, current, stage, design)
         summary = _summary(current, run, settings, design, final, checks)
         (stage / "summary.json").write_text(json.dumps(summary, indent=2))
     summary["optimized_file"] = str(out / "optimized.toml")

@@ -22,6 +22,13 @@ after the caller), it differentiates that chunk while it waits, so most of the l
 falls in time it would have spent idle. ``benchmarks/bench_optimizer.py`` measures the
 optimiser with one and two processes (``--workers 1,2``).
 
+On a first run (the evaluation of a chunk never traced on this machine), the calling
+process and a worker would each compile the same evaluation side by side and the
+caller would then compile the partial gradient alone. Instead the first worker
+compiles the partial gradient before its first chunk, while the caller compiles the
+evaluation; each then loads the other's executable from the persistent cache. The
+numbers do not change; ``benchmarks/bench_optimizer.py`` times the first (cold) run.
+
 A worker that dies (killed, out of memory, or a crash in XLA) breaks the pool: a new
 pool recomputes the chunks that had no result, up to ``RETRIES`` times, and then the
 calling process computes them itself, so a lost worker costs time but never hangs or
@@ -42,9 +49,10 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import one_blas_thread
+from .._engine import programs
 from .._engine.model import Mechanism
 from .evaluation import Evaluation, alpha_minus, evaluate
-from .partial import partial_gradient
+from .partial import compile_gradient, partial_gradient
 
 RETRIES = 2  # new pools tried after a worker dies, before this process takes over
 _MECHANISM: Mechanism | None = None  # set in each worker process by _initialise
@@ -61,6 +69,11 @@ def _initialise(mech: Mechanism) -> None:
     global _MECHANISM
     _MECHANISM = mech
     one_blas_thread()  # for the worker's lifetime (module docstring)
+
+
+def _compile_gradients(sizes: tuple[int, ...]) -> None:
+    for rows in sizes:
+        compile_gradient(_MECHANISM, rows)
 
 
 def _evaluate_chunk(designs: np.ndarray) -> Evaluation:
@@ -90,6 +103,9 @@ class Workers:
         # (designs, evaluation, alpha, gradient) of a first chunk
         self._early: tuple | None = None
         self.restarts = 0  # worker pools replaced after a worker died
+        # a worker's compilation of the partial gradients on a cold start
+        self._compiling: Future | None = None
+        self._cold_checked = False
         if count > 1:
             self._pool = self._start_pool()
 
@@ -112,6 +128,35 @@ class Workers:
             self.restarts += 1
             self._pool = self._start_pool()
             return [self._pool.submit(_evaluate_chunk, chunk) for chunk in chunks]
+
+    def _compile_ahead(self, chunks: list[np.ndarray]) -> None:
+        """On a cold start (the evaluation of a chunk never traced on this machine),
+        the first worker compiles the partial gradients of the chunks before its first
+        chunk, while this process compiles the evaluation: the two largest programs
+        compile side by side on two cores instead of the evaluation twice (module
+        docstring). Asked once, at the first batch."""
+        if self._pool is None or self._cold_checked:
+            return
+        self._cold_checked = True
+        shape = (np.zeros(chunks[0].shape), np.float64(0.0))
+        if programs.stored("evaluate", self.mech, *shape):
+            return
+        sizes = tuple(dict.fromkeys(len(chunk) for chunk in chunks))
+        try:
+            self._compiling = self._pool.submit(_compile_gradients, sizes)
+        except BrokenProcessPool:  # _submit replaces the pool
+            pass
+
+    def _await_compiled(self) -> None:
+        """Wait for :meth:`_compile_ahead`'s compilation, whose executables this
+        process then loads from the persistent cache; if it failed (a worker died),
+        this process compiles them itself."""
+        compiling, self._compiling = self._compiling, None
+        if compiling is not None:
+            try:
+                compiling.result()
+            except Exception:
+                pass
 
     def _collect(self, futures: list[Future], chunks: list[np.ndarray]) -> list:
         """The workers' results in chunk order. A worker that died (killed, or its
@@ -148,6 +193,8 @@ class Workers:
         arrays."""
         designs = np.asarray(designs, dtype=float)
         chunks = [designs[c] for c in self._chunks(len(designs))]
+        if len(chunks) > 1:
+            self._compile_ahead(chunks)
         pending = (
             self._submit(chunks[1:])
             if self._pool is not None and len(chunks) > 1
@@ -181,6 +228,7 @@ class Workers:
             )
         ):
             return early[3]
+        self._await_compiled()
         return np.asarray(partial_gradient(self.mech, designs, evaluation, alpha))
 
     def partial_gradient(

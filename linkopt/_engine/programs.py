@@ -209,6 +209,31 @@ def _program(name: str, mech: Mechanism, fn: Callable, values, args) -> Callable
     return PROGRAMS[memo]
 
 
+def stored(name: str, mech: Mechanism, *args) -> bool:
+    """Whether the trace of ``call(name, mech, fn, *args)`` is on disk, i.e.
+    some process has traced (and so, almost always, compiled) that program before."""
+    signature = (_numbers(mech)[1], _signature(args))
+    key = _key(name, mech, signature)
+    return (_directory() / f"{name}-{key[:32]}.jaxexport").exists()
+
+
+def output_shapes(name: str, mech: Mechanism, fn: Callable, *args):
+    """The shapes and dtypes (:class:`jax.ShapeDtypeStruct`) of
+    ``call(name, mech, fn, *args)``'s result, without running it."""
+    values = _numbers(mech)[0]
+    return jax.eval_shape(_program(name, mech, fn, values, args), values, *args)
+
+
+def compile_ahead(name: str, mech: Mechanism, fn: Callable, *args) -> None:
+    """Compile ``call(name, mech, fn, *args)``'s program for arguments of
+    the shapes of ``args`` without running it. The executable goes to the persistent
+    compilation cache, where another process that calls the program finds it (an
+    optimiser's worker compiles a program that the calling process needs next:
+    :mod:`linkopt._design.workers`)."""
+    values = _numbers(mech)[0]
+    _program(name, mech, fn, values, args).lower(values, *args).compile()
+
+
 def call(name: str, mech: Mechanism, fn: Callable, *args):
     """``jit(fn)(mech, *args)``, with the trace read from (or written to) the disk
     cache and shared by every mechanism of the same structure.
