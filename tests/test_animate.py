@@ -122,6 +122,32 @@ def test_motor_rows_draw_the_closed_form_tip(tmp_path, five_bar):
     )
 
 
+def test_gif_frames_keep_the_rendered_colours(tmp_path, five_bar, monkeypatch):
+    """The frames written (quantised to palettes) are the rendered frames to within a
+    few colour levels: a palette that lost the colour bar's or the links' colours
+    would fail."""
+    from linkopt._design import animation
+
+    rendered = []
+    render = animation._render
+    monkeypatch.setattr(
+        animation, "_render", lambda *a: rendered.extend(render(*a)) or rendered
+    )
+    out = tmp_path / "motion.gif"
+    linkopt.animate(five_bar, out, motors=circle([0.1, -0.1], 0.25))
+    errors = []
+    with Image.open(out) as gif:
+        for k, frame in enumerate(rendered):
+            gif.seek(k)
+            written = np.asarray(gif.convert("RGB"), dtype=int)
+            errors.append(np.abs(written - np.asarray(frame, dtype=int)))
+    errors = np.stack(errors)
+    assert errors.mean() < 2.0 and np.percentile(errors, 99.9) <= 16, (
+        errors.mean(),
+        np.percentile(errors, 99.9),
+    )
+
+
 def test_output_rows_reach_the_rows_with_the_closed_form_motors(tmp_path, five_bar):
     outputs = circle([0.0, 55.0], 12.0)
     item = linkopt.animate(five_bar, tmp_path / "motion.gif", outputs=outputs)
