@@ -180,12 +180,6 @@ def _chunk_arguments(mech: Mechanism, rows: int) -> tuple:
     return designs, evaluation, alpha
 
 
-def gradient_stored(mech: Mechanism, rows: int) -> bool:
-    """Whether the partial gradient of a chunk of ``rows`` designs has been traced
-    (and compiled) on this machine before (:func:`linkopt._engine.programs.stored`)."""
-    return programs.stored("partial_gradient", mech, *_chunk_arguments(mech, rows))
-
-
 def compile_gradient(mech: Mechanism, rows: int) -> None:
     """Compile the partial gradient of a chunk of ``rows`` designs into the persistent
     cache without running it (:func:`linkopt._engine.programs.compile_ahead`)."""
