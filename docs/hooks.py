@@ -7,7 +7,8 @@
   ``benchmarks/results/*.json``, and for each benchmark script without a results file,
   the command that makes one;
 * reference/api.md must name every public name of ``linkopt`` (``linkopt.__all__``) in
-  a ``::: linkopt.NAME`` block, and nothing else: the build fails otherwise;
+  a ``::: linkopt.NAME`` block, and nothing else, and have a ``::: linkopt.MODULE``
+  block for every public namespace (``linkopt.arms.dh``): the build fails otherwise;
 * the images under ``figures/`` join the site, so pages link ``figures/NAME.png`` as
   the README does;
 * the reStructuredText roles of the docstrings (``:func:`x```) are shown as plain code.
@@ -209,16 +210,31 @@ def performance_results() -> str:
 # --- API reference ------------------------------------------------------------------
 
 
+def public_modules() -> set[str]:
+    """linkopt's public namespaces, as ``arms.dh``: its modules and packages with no
+    part of their name starting with ``_`` (read off the files, importing nothing)."""
+    root = ROOT / "linkopt"
+    modules = set()
+    for path in root.rglob("*.py"):
+        parts = path.relative_to(root).with_suffix("").parts
+        parts = parts[:-1] if parts[-1] == "__init__" else parts
+        if parts and not any(part.startswith("_") for part in parts):
+            modules.add(".".join(parts))
+    return modules
+
+
 def check_api(markdown: str) -> None:
     """Every public name of linkopt is documented once on the API page, and only
-    those."""
+    those; every public namespace has its block."""
     import linkopt
 
-    listed = re.findall(r"^::: linkopt\.(\w+)\s*$", markdown, re.M)
+    blocks = re.findall(r"^::: linkopt\.([\w.]+)\s*$", markdown, re.M)
+    modules = public_modules()
+    listed = [name for name in blocks if name not in modules]
     public = set(linkopt.__all__)
     missing = sorted(public - set(listed))
     unknown = sorted(set(listed) - public)
-    twice = sorted({name for name in listed if listed.count(name) > 1})
+    twice = sorted({name for name in blocks if blocks.count(name) > 1})
     problems = []
     if missing:
         problems.append(f"public names missing: {', '.join(missing)}")
@@ -226,6 +242,10 @@ def check_api(markdown: str) -> None:
         problems.append(f"not public names of linkopt: {', '.join(unknown)}")
     if twice:
         problems.append(f"listed twice: {', '.join(twice)}")
+    if modules - set(blocks):
+        problems.append(
+            f"namespaces missing: {', '.join(sorted(modules - set(blocks)))}"
+        )
     if problems:
         raise PluginError("reference/api.md: " + "; ".join(problems))
 

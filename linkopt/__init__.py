@@ -8,6 +8,11 @@ linkopt computes in float64 and keeps compiled programs in a bounded on-disk cac
 (:mod:`linkopt._config`). Importing :mod:`linkopt` does not import JAX; JAX is set up
 for linkopt when the first linkopt module that uses it is imported (on first use of a
 public name), or at once when JAX is already imported.
+
+The names of the serial-arm families and of the export formats are also grouped, under
+shorter names, in the namespaces :mod:`linkopt.arms.codesign`, :mod:`linkopt.arms.dh`,
+:mod:`linkopt.arms.trace` and :mod:`linkopt.export` (``linkopt.arms.dh.synthesize`` is
+``linkopt.synthesize_dh``); the top-level names remain.
 """
 
 import importlib
@@ -99,7 +104,13 @@ _EXPORTS = {
 }
 
 
+#: The public namespaces, imported on first use (:mod:`linkopt._imports`).
+_NAMESPACES = ("arms", "export")
+
+
 def __getattr__(name: str):
+    if name in _NAMESPACES:
+        return importlib.import_module(f".{name}", __name__)
     try:
         module, attribute = _EXPORTS[name]
     except KeyError:
@@ -112,7 +123,7 @@ def __getattr__(name: str):
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+    return sorted(set(globals()) | set(_EXPORTS) | set(_NAMESPACES))
 
 
 if TYPE_CHECKING:  # the eager imports, for type checkers and editors

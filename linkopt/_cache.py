@@ -9,12 +9,16 @@ Two kinds live under :func:`cache_directory` (``$LINKOPT_CACHE_DIR``, else
 * **traces**: the traced programs of :mod:`linkopt._engine.programs`, files
   ``traces/<name>-<key>.jaxexport``.
 
-Every entry is written to a temporary file in its folder and renamed into place, so a
-process never reads another's half-written entry, and each read sets the entry's
-modification time, which is its last use. After a write, the oldest entries are
-removed until the folder holds at most its share of ``$LINKOPT_CACHE_SIZE_MB``
-megabytes (default :data:`DEFAULT_MB`): :data:`SHARES`. A reader that finds its entry
-gone compiles or traces again; nothing else depends on an entry being there.
+Every entry is written through :func:`linkopt._folders.write_atomic`, without its fsync
+(an entry lost in a power cut is computed again): into a temporary file in its folder,
+named so that no pattern of :data:`PATTERNS` matches it
+(``.linkopt-tmp-…-NAME.partial``: never counted, evicted or read as an entry), then
+renamed into place, so a process never reads another's half-written entry. Each read
+sets the entry's modification time, which is its last use. After a write, the oldest
+entries are removed until the folder holds at most its share of
+``$LINKOPT_CACHE_SIZE_MB`` megabytes (default :data:`DEFAULT_MB`): :data:`SHARES`. A
+reader that finds its entry gone compiles or traces again; nothing else depends on an
+entry being there.
 
 JAX's own file cache (``jax._src.lru_cache.LRUCache``) writes entries in place and
 evicts only when ``jax_compilation_cache_max_size`` is set, which also takes a lock
@@ -79,15 +83,6 @@ def folder(kind: str) -> Path:
     return (cache_directory() / FOLDERS[kind]).resolve()
 
 
-def write_atomic(path: Path, blob: bytes) -> None:
-    """``blob`` into ``path`` through a temporary file in the same folder, renamed
-    into place (readers see the old file, no file, or the whole new one;
-    :func:`linkopt._folders.write_atomic`, without its fsync: an entry lost in a power
-    cut is computed again)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    folders.write_atomic(path, blob, durable=False)
-
-
 def read_used(path: Path) -> bytes | None:
     """The bytes of ``path``, its modification time set to now (its last use); None
     when it is missing."""
@@ -112,9 +107,7 @@ class Entry:
 def entries(kind: str) -> list[Entry]:
     """``kind``'s entries, least recently used first."""
     found = []
-    for path in folder(kind).glob(PATTERNS[kind]):
-        if path.name.startswith(folders.TEMP_PREFIX):
-            continue  # being written (or left by a killed writer: clear() removes it)
+    for path in folder(kind).glob(PATTERNS[kind]):  # no temporary file matches
         try:
             stat = path.stat()
         except FileNotFoundError:
@@ -145,7 +138,8 @@ def store(kind: str, path: Path, blob: bytes) -> None:
     an invalid ``$LINKOPT_CACHE_SIZE_MB`` the entry is written, nothing is trimmed, and
     a warning says why (``linkopt cache info`` names the error)."""
     try:
-        write_atomic(path, blob)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        folders.write_atomic(path, blob, durable=False)
     except OSError:
         return
     try:

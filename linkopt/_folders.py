@@ -20,8 +20,11 @@ checks its folder with :func:`output_folder`.
   is still the one at the path, else it retries: two processes can never each hold a
   different file. Without ``fcntl`` (not POSIX) no lock is taken.
 - :func:`write_atomic` writes a hidden temporary file of a unique name (``O_EXCL``) in
-  the target's folder, fsyncs it and renames it over the target, so readers see the old
-  or the new file, never a part, and two writers never share a temporary file.
+  the target's folder, fsyncs it (unless told not to) and renames it over the target,
+  so readers see the old or the new file, never a part, and two writers never share a
+  temporary file. Every temporary name starts with :data:`TEMP_PREFIX` and ends with
+  :data:`TEMP_SUFFIX`, so no pattern that matches a target's name by its end (the
+  caches' ``*-cache`` and ``*.jaxexport``, a ``*.csv``) matches a file being written.
 - :func:`staged` gives a command a fresh hidden folder (``tempfile.mkdtemp``) inside the
   output folder for the results that belong together. Only when the command's block
   succeeds are they moved in (``os.replace``, each atomic), the *marker* (the summary a
@@ -54,6 +57,7 @@ except ImportError:  # pragma: no cover - not POSIX
 LOCK = ".linkopt.lock"
 STAGING_PREFIX = ".linkopt-staging-"
 TEMP_PREFIX = ".linkopt-tmp-"
+TEMP_SUFFIX = ".partial"
 
 #: realpath of a folder locked by this process -> [lock file descriptor, depth]
 _held: dict[str, list[int]] = {}
@@ -109,10 +113,11 @@ def output_folder(path: str | Path, where: str = "--out") -> Path:
 
 
 def _temporary(folder: Path, name: str) -> Path:
-    """A new empty file in ``folder``, hidden, of a unique name ending in ``name`` (so
-    its suffix is kept), with the permissions ``open`` gives."""
+    """A new empty file in ``folder``, hidden, of a unique name that holds ``name``
+    (for whoever finds one left by a killed writer) between :data:`TEMP_PREFIX` and
+    :data:`TEMP_SUFFIX`, with the permissions ``open`` gives."""
     for _ in range(100):
-        path = folder / f"{TEMP_PREFIX}{secrets.token_hex(6)}-{name}"
+        path = folder / f"{TEMP_PREFIX}{secrets.token_hex(6)}-{name}{TEMP_SUFFIX}"
         try:
             os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
         except FileExistsError:
@@ -122,9 +127,9 @@ def _temporary(folder: Path, name: str) -> Path:
 
 
 def write_atomic(path: str | Path, data: str | bytes, *, durable: bool = True) -> None:
-    """Replace ``path`` by a file holding ``data`` (text as UTF-8; module docstring).
-    ``durable=False`` skips the fsync, for files that may be lost in a power cut
-    without harm (cache entries, which are computed again)."""
+    """Replace ``path`` by a file holding ``data`` (text as UTF-8; module docstring);
+    its folder must exist. ``durable=False`` skips the fsync, for files that may be
+    lost in a power cut without harm (cache entries, which are computed again)."""
     path = Path(path)
     tmp = _temporary(path.parent, path.name)
     blob = data.encode("utf-8") if isinstance(data, str) else data

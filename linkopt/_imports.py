@@ -8,12 +8,18 @@ compilation cache) before the first linkopt module outside :data:`JAX_FREE` and 
 command line; every module that computes with JAX is such a module.
 ``tests/test_cli_startup.py`` checks that the listed modules import no JAX and that a
 module that does finds float64 on.
+
+The public namespaces (:mod:`linkopt.arms.codesign`, :mod:`linkopt.arms.dh`,
+:mod:`linkopt.arms.trace`, :mod:`linkopt.export`) are JAX-free too: each gets its
+``__getattr__`` and ``__dir__`` from :func:`namespace`, and a name's first use imports
+it as :mod:`linkopt`'s top-level name, which configures JAX first.
 """
 
 from __future__ import annotations
 
 import importlib
 import sys
+from collections.abc import Callable, Iterable, Mapping
 
 PACKAGE = __name__.rpartition(".")[0]
 #: The modules that never import JAX: what the command line checks before any
@@ -27,6 +33,11 @@ JAX_FREE = frozenset(
         "_errors",
         "_folders",
         "_imports",
+        "arms",
+        "arms.codesign",
+        "arms.dh",
+        "arms.trace",
+        "export",
         "_arms",
         "_arms.checks",
         "_arms.dh",
@@ -87,3 +98,28 @@ def configure_before_jax() -> None:
         sys.meta_path.insert(0, ConfigFirst())
     if "jax" in sys.modules:
         importlib.import_module(f"{PACKAGE}._config")
+
+
+def namespace(
+    module: str, names: Mapping[str, str], submodules: Iterable[str] = ()
+) -> tuple[Callable[[str], object], Callable[[], list[str]]]:
+    """The ``__getattr__`` and ``__dir__`` (PEP 562) of the public namespace
+    ``module``: its name ``name`` is the top-level name ``names[name]`` of
+    :mod:`linkopt`, the same object, looked up on first use (so it configures JAX as
+    the top-level name does); each of ``submodules`` is imported on first use."""
+    submodules = tuple(submodules)
+
+    def __getattr__(name: str):
+        if name in submodules:
+            value = importlib.import_module(f"{module}.{name}")
+        elif name in names:
+            value = getattr(importlib.import_module(PACKAGE), names[name])
+        else:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        setattr(sys.modules[module], name, value)
+        return value
+
+    def __dir__() -> list[str]:
+        return sorted(set(vars(sys.modules[module])) | set(names) | set(submodules))
+
+    return __getattr__, __dir__

@@ -6,10 +6,12 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
 from linkopt import _cache
+from linkopt import _folders as folders
 from linkopt._cli.main import main
 
 
@@ -43,10 +45,32 @@ def test_the_least_recently_used_entries_go_first(cache, monkeypatch):
 
 def test_a_reader_never_sees_a_half_written_entry(cache):
     path = cache / "traces" / "p-key.jaxexport"
-    _cache.write_atomic(path, b"a" * 1000)
+    _cache.store("traces", path, b"a" * 1000)
     before = path.stat().st_ino
-    _cache.write_atomic(path, b"b" * 2000)
+    _cache.store("traces", path, b"b" * 2000)
     assert path.read_bytes() == b"b" * 2000 and path.stat().st_ino != before
+
+
+@pytest.mark.parametrize("kind", ["executables", "traces"])
+def test_an_entry_being_written_is_no_entry(cache, monkeypatch, kind):
+    """While an entry is written, its temporary file is matched by no pattern of the
+    cache, so it is neither counted nor evicted."""
+    name = "k-cache" if kind == "executables" else "p-key.jaxexport"
+    path = _cache.folder(kind) / name
+    seen = []
+
+    def replace(src, dst):
+        matched = list(path.parent.glob(_cache.PATTERNS[kind]))
+        seen.append((Path(src).name, matched, _cache.entries(kind)))
+        return os_replace(src, dst)
+
+    os_replace = os.replace
+    monkeypatch.setattr(folders.os, "replace", replace)
+    _cache.store(kind, path, b"x" * 100)
+    ((temporary, matched, found),) = seen
+    assert temporary.startswith(folders.TEMP_PREFIX) and matched == found == []
+    assert temporary.endswith(folders.TEMP_SUFFIX) and name in temporary
+    assert [e.path.name for e in _cache.entries(kind)] == [name]
 
 
 def test_a_bad_size_limit_is_named(cache, monkeypatch, capsys):
@@ -62,7 +86,7 @@ def test_cache_info_and_clear(cache, capsys):
     fill(cache, ["a-cache", "b-cache"], 1000)
     fill(cache / "traces", ["p-key.jaxexport"], 500)
     # a killed writer's temporary file: not an entry, and removed by clear
-    (cache / "traces" / ".linkopt-tmp-0a1b-q-key.jaxexport").write_bytes(b"killed")
+    (cache / "traces" / ".linkopt-tmp-0a1b-q-key.jaxexport.partial").write_bytes(b"x")
     assert main(["cache", "info", "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["kinds"]["executables"]["entries"] == 2

@@ -25,6 +25,8 @@ ALLOWED = {
     "_arms": {"_engine", "_files", "_arms", "root"},
     "_cli": {"_engine", "_files", "_export", "_design", "_arms", "_cli", "root"},
     "root": {"root", "_engine", "_files", "_export", "_design", "_arms", "_cli"},
+    # the public namespaces (``linkopt.arms.*``; ``linkopt.export`` is a root module)
+    "arms": {"_arms", "arms", "root"},
 }
 
 

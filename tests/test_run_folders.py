@@ -122,6 +122,16 @@ def test_atomic_writes_use_unique_temporary_names(tmp_path):
     assert path.stat().st_mode & 0o777 == 0o666 & ~umask
 
 
+@pytest.mark.parametrize("durable", [True, False])
+def test_an_atomic_write_syncs_only_when_durable(tmp_path, monkeypatch, durable):
+    """A checkpoint survives a power cut (fsync before the rename); a cache entry,
+    computed again when lost, skips the fsync."""
+    synced = []
+    monkeypatch.setattr(os, "fsync", synced.append)
+    write_atomic(tmp_path / "a.csv", b"1,2\n", durable=durable)
+    assert len(synced) == int(durable) and (tmp_path / "a.csv").read_bytes() == b"1,2\n"
+
+
 def test_staged_results_appear_together_or_not_at_all(tmp_path):
     (tmp_path / "summary.json").write_text("old")
     (tmp_path / "design.toml").write_text("old")
