@@ -295,7 +295,7 @@ def _render(fig, scene: _Scene, update, frames: int) -> list:
     return images
 
 
-def _quantised(images: list) -> list:
+def quantised(images: list) -> list:
     """Each frame in palette mode by Pillow's fast octree quantiser (256 colours, no
     dithering). Pillow would otherwise quantise each RGB frame by median cut while
     saving, most of the time of writing a GIF; the octree is several times faster and
@@ -336,7 +336,7 @@ def draw(
         len(item.states),
     )
     path = Path(path)
-    images = _quantised(images)
+    images = quantised(images)
     images[0].save(
         path,
         format="GIF",
