@@ -71,6 +71,8 @@ JAX_FREE = frozenset(
         "_files.points",
         "_files.settings",
         "_files.topology",
+        "_kernels",
+        "_kernels._dense",
     )
 )
 

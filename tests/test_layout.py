@@ -18,7 +18,9 @@ PACKAGE = ROOT / "linkopt"
 ROOT_MODULES = {"__init__", "__main__", "_errors", "_config"}
 # folder -> the folders (and root modules) it may import from
 ALLOWED = {
-    "_engine": {"_engine", "root"},
+    # the compiled kernels (linkopt._kernels): below everything, importing nothing
+    "_kernels": {"_kernels"},
+    "_engine": {"_kernels", "_engine", "root"},
     "_files": {"_engine", "_files", "root"},
     "_export": {"_engine", "_files", "_export", "root"},
     "_design": {"_engine", "_files", "_export", "_design", "root"},
@@ -28,6 +30,9 @@ ALLOWED = {
     # the public namespaces (``linkopt.arms.*``; ``linkopt.export`` is a root module)
     "arms": {"_arms", "arms", "root"},
 }
+# a diagnostic (``linkopt cache info``) may ask the kernels whether they are there
+ALLOWED["_cli"].add("_kernels")
+ALLOWED["root"].add("_kernels")
 
 
 def _folder(module: tuple[str, ...]) -> str:

@@ -1,0 +1,152 @@
+"""Compiled kernels: XLA FFI handlers for batched dense linear algebra on the CPU.
+
+``linkopt._kernels._dense`` is built from ``dense.cc`` when linkopt is installed
+(``setup.py``), when a C++17 compiler is there; without one linkopt installs without it
+and computes with its plain-JAX code. :func:`handlers` gives the handlers as capsules
+for ``jax.ffi.register_ffi_target(name, capsule, platform="cpu")``, or None when they
+cannot be used (:data:`reason` says why); ``LINKOPT_KERNELS=0`` turns them off.
+:func:`digest` keys compiled programs by the handlers they may call.
+
+The handlers (float64, row-major, every leading dimension a batch dimension; matrix
+order ``n`` at most ``_dense.max_n()``, 512, else an error):
+
+* ``cholesky``: ``a (..., n, n)`` -> the lower Cholesky factor (reads the lower
+  triangle; NaN from the first non-positive pivot on);
+* ``tri_solve``: ``L (..., n, n)``, ``b (..., n, k)``, attribute ``mode`` (int32):
+  0 solves ``L x = b``, 1 ``Lᵀ x = b``, 2 ``L Lᵀ x = b``;
+* ``lower_inverse``: ``L (..., n, n)`` -> ``L⁻¹``.
+
+JAX-free: importing this module imports neither JAX nor the extension.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import os
+from pathlib import Path
+from types import ModuleType
+
+#: The ABI version of the handlers this code expects (``kVersion`` in ``dense.cc``); an
+#: extension of another version (a stale build) is not used.
+VERSION = 1
+#: The environment variable that turns the kernels off when set to ``0``.
+ENVIRONMENT = "LINKOPT_KERNELS"
+#: The handlers' names, the keys of :func:`handlers`.
+NAMES = ("cholesky", "tri_solve", "lower_inverse")
+SOURCE = Path(__file__).with_name("dense.cc")
+
+#: Why the latest :func:`handlers` returned None; None after it returned the handlers.
+reason: str | None = "handlers() not called yet"
+
+_module: ModuleType | None = None
+_load_error: str | None = None
+_loaded = False
+
+
+def disabled() -> bool:
+    """Whether ``$LINKOPT_KERNELS`` turns the kernels off (``0``, ``false``, ``no``,
+    ``off``)."""
+    return os.environ.get(ENVIRONMENT, "").strip().lower() in (
+        "0",
+        "false",
+        "no",
+        "off",
+    )
+
+
+def _load() -> ModuleType | None:
+    """The extension module, imported once per process; None if it cannot be used."""
+    global _module, _load_error, _loaded
+    if not _loaded:
+        _loaded = True
+        try:
+            module = importlib.import_module(f"{__name__}._dense")
+            version = module.version()
+        except ModuleNotFoundError:
+            _load_error = (
+                "linkopt was installed without its compiled kernels (no C++ compiler "
+                "or no XLA FFI headers when it was built)"
+            )
+        except Exception as exc:
+            _load_error = f"{__name__}._dense failed to load: {exc!r}"
+        else:
+            if version == VERSION:
+                _module = module
+            else:
+                _load_error = (
+                    f"{__name__}._dense has handler version {version}, this linkopt "
+                    f"expects {VERSION} (a stale build: reinstall linkopt)"
+                )
+    return _module
+
+
+def handlers() -> dict[str, object] | None:
+    """``{"cholesky", "tri_solve", "lower_inverse"}`` -> each handler's PyCapsule, or
+    None (never an exception) when the extension is missing, fails to load, is of
+    another :data:`VERSION` or ``$LINKOPT_KERNELS`` is ``0``; :data:`reason` then says
+    which."""
+    global reason
+    if disabled():
+        reason = f"turned off by {ENVIRONMENT}={os.environ[ENVIRONMENT]}"
+        return None
+    module = _load()
+    if module is None:
+        reason = _load_error
+        return None
+    try:
+        capsules = dict(module.capsules())
+    except Exception as exc:
+        reason = f"{__name__}._dense.capsules() failed: {exc!r}"
+        return None
+    reason = None
+    return capsules
+
+
+def source_sha256() -> str | None:
+    """SHA-256 of the ``dense.cc`` the extension was built from (None without it)."""
+    module = _load()
+    return None if module is None else module.source_sha256() or None
+
+
+def stale() -> bool:
+    """Whether the extension was built from another ``dense.cc`` than the one beside
+    this file (an editable install whose source changed since it was built)."""
+    built = source_sha256()
+    if built is None or not SOURCE.exists():
+        return False
+    return hashlib.sha256(SOURCE.read_bytes()).hexdigest() != built
+
+
+def digest() -> str:
+    """Hex digest of what a compiled program that may call the handlers depends on:
+    whether they are used (availability and ``$LINKOPT_KERNELS``) and, when they are,
+    the ``dense.cc`` text they were built from, their version and the XLA FFI API
+    version of their headers."""
+    parts = [f"linkopt-kernels {VERSION}"]
+    if handlers() is None:
+        parts.append("unavailable")
+    else:
+        module = _load()
+        built = module.source_sha256() or (
+            hashlib.sha256(SOURCE.read_bytes()).hexdigest() if SOURCE.exists() else ""
+        )
+        parts += ["available", str(module.version()), built]
+        parts.append(".".join(map(str, module.ffi_api_version())))
+    return hashlib.sha256("|".join(parts).encode()).hexdigest()
+
+
+def info() -> dict[str, object]:
+    """What a diagnostic prints: availability, :data:`reason`, versions, staleness."""
+    available = handlers() is not None
+    module = _load()
+    return {
+        "available": available,
+        "reason": reason,
+        "version": VERSION,
+        "extension_version": None if module is None else module.version(),
+        "max_n": None if module is None else module.max_n(),
+        "ffi_api_version": None if module is None else module.ffi_api_version(),
+        "stale": stale(),
+        "digest": digest(),
+    }
