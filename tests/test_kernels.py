@@ -1,0 +1,221 @@
+"""The compiled kernels (linkopt._kernels): the extension's capsules, LINKOPT_KERNELS=0,
+a missing or broken extension, and the XLA FFI handlers called directly through
+jax.ffi.ffi_call against numpy (values, batches, vmap, a failing pivot, refused
+operands)."""
+
+import importlib.util
+import subprocess
+import sys
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import linkopt  # noqa: F401  (float64)
+import linkopt._kernels as kernels
+from linkopt._engine import dense
+
+EXTENSION = "linkopt._kernels._dense"
+BUILT = importlib.util.find_spec(EXTENSION) is not None
+needs_extension = pytest.mark.skipif(
+    not BUILT,
+    reason=f"{EXTENSION} is not built (linkopt installed without a C++ compiler?)",
+)
+SIZES = [1, 7, 35, 98]
+#: leading (batch) dimensions of the operands
+BATCHES = [(), (3,), (2, 2)]
+#: names under which this file registers the handlers (not linkopt's own names)
+PREFIX = "linkopt_test_kernels_"
+_registered = False
+
+
+@pytest.fixture(autouse=True)
+def _kernels_on(monkeypatch):
+    monkeypatch.delenv(kernels.ENVIRONMENT, raising=False)
+
+
+@pytest.fixture
+def ffi():
+    """The handlers registered with XLA (once per process), the extension being
+    built."""
+    global _registered
+    if not BUILT:
+        pytest.skip(f"{EXTENSION} is not built (linkopt installed without a compiler?)")
+    capsules = kernels.handlers()
+    assert capsules is not None, kernels.reason
+    if not _registered:
+        for name, capsule in capsules.items():
+            jax.ffi.register_ffi_target(PREFIX + name, capsule, platform="cpu")
+        _registered = True
+    return Handlers()
+
+
+class Handlers:
+    """``jax.ffi.ffi_call`` of each handler, with the result shape given (default: the
+    operand's or the right-hand side's)."""
+
+    @staticmethod
+    def _call(name, shape, *args, **attrs):
+        result = jax.ShapeDtypeStruct(shape, jnp.float64)
+        call = jax.ffi.ffi_call(PREFIX + name, result, vmap_method="broadcast_all")
+        return np.asarray(call(*args, **attrs))
+
+    def cholesky(self, a, shape=None):
+        return self._call("cholesky", shape or np.shape(a), a)
+
+    def tri_solve(self, lower, b, mode, shape=None):
+        return self._call("tri_solve", shape or np.shape(b), lower, b, mode=mode)
+
+    def lower_inverse(self, lower, shape=None):
+        return self._call("lower_inverse", shape or np.shape(lower), lower)
+
+
+def spd(batch, n, seed=0):
+    """SPD matrices (batch + (n, n)) of condition number at most about 5, with noise
+    in the strict upper triangle (only the lower one may be read)."""
+    rng = np.random.default_rng(seed)
+    m = rng.standard_normal(batch + (n, n))
+    a = m @ np.swapaxes(m, -1, -2) / n + np.eye(n)
+    return a, a + np.triu(rng.standard_normal(a.shape), 1)
+
+
+@needs_extension
+def test_handlers_are_the_extensions_capsules():
+    capsules = kernels.handlers()
+    assert capsules is not None, kernels.reason
+    assert set(capsules) == set(kernels.NAMES)
+    assert all(type(c).__name__ == "PyCapsule" for c in capsules.values())
+    assert kernels.reason is None
+    info = kernels.info()
+    assert info["available"] and info["extension_version"] == kernels.VERSION
+    assert info["max_n"] == 512
+    assert not info["stale"], "the extension was built from another dense.cc"
+
+
+def test_linkopt_kernels_0_turns_them_off(monkeypatch):
+    on = kernels.digest()
+    monkeypatch.setenv(kernels.ENVIRONMENT, "0")
+    assert kernels.handlers() is None
+    assert kernels.ENVIRONMENT in kernels.reason
+    off = kernels.digest()
+    assert len(off) == 64 and off == kernels.digest()
+    assert (off != on) == BUILT
+
+
+@pytest.mark.parametrize(
+    "block, why",
+    [
+        ("sys.modules[name] = None", "installed without its compiled kernels"),
+        ("sys.meta_path.insert(0, Broken())", "failed to load: ImportError('boom')"),
+    ],
+)
+def test_a_missing_or_broken_extension_gives_none(block, why):
+    """In a fresh process (the extension loads once per process), without JAX."""
+    code = (
+        "import sys\n"
+        f"name = {EXTENSION!r}\n"
+        "class Broken:\n"
+        "    @staticmethod\n"
+        "    def find_spec(fullname, path=None, target=None):\n"
+        "        if fullname == name:\n"
+        "            raise ImportError('boom')\n"
+        f"{block}\n"
+        "import linkopt._kernels as k\n"
+        "assert k.handlers() is None and k.info()['available'] is False\n"
+        "assert 'jax' not in sys.modules\n"
+        "print(k.reason)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    )
+    assert why in out.stdout
+
+
+@pytest.mark.parametrize("batch", BATCHES, ids=str)
+@pytest.mark.parametrize("n", SIZES)
+def test_handlers_match_numpy(ffi, n, batch):
+    a, noisy = spd(batch, n, seed=n)
+    lower = ffi.cholesky(noisy)
+    np.testing.assert_allclose(lower, np.linalg.cholesky(a), rtol=1e-12, atol=1e-12)
+    assert np.all(np.triu(lower, 1) == 0)
+    noisy_lower = lower + np.triu(np.ones_like(lower), 1)  # the upper one is not read
+    rng = np.random.default_rng(1)
+    for k in (1, 4):  # one right-hand side (its own loop) and several
+        b = rng.standard_normal(batch + (n, k))
+        expected = [
+            np.linalg.solve(lower, b),
+            np.linalg.solve(np.swapaxes(lower, -1, -2), b),
+            np.linalg.solve(a, b),
+        ]
+        for mode, x in enumerate(expected):
+            got = ffi.tri_solve(noisy_lower, b, mode=np.int32(mode))
+            np.testing.assert_allclose(got, x, rtol=1e-12, atol=1e-12)
+    inverse = ffi.lower_inverse(noisy_lower)
+    np.testing.assert_allclose(inverse, np.linalg.inv(lower), rtol=1e-12, atol=1e-12)
+    assert np.all(np.triu(inverse, 1) == 0)
+
+
+def test_handlers_under_vmap_and_jit(ffi):
+    """vmap_method="broadcast_all": vmapped calls become one call on the batch."""
+    a, noisy = spd((2, 5), 7)
+    b = np.random.default_rng(2).standard_normal((2, 5, 7, 3))
+
+    def cho_solve(a, b):
+        def call(name, result, *args, **attrs):
+            result = jax.ShapeDtypeStruct(result.shape, result.dtype)
+            fn = jax.ffi.ffi_call(PREFIX + name, result, vmap_method="broadcast_all")
+            return fn(*args, **attrs)
+
+        lower = call("cholesky", a, a)
+        return call("tri_solve", b, lower, b, mode=np.int32(2))
+
+    x = jax.jit(jax.vmap(jax.vmap(cho_solve)))(noisy, b)
+    np.testing.assert_allclose(x, np.linalg.solve(a, b), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("pivot", [2, 0, 6])
+@pytest.mark.parametrize("bad", [-1.0, np.nan])
+def test_a_failing_pivot_gives_nan_from_there_on(ffi, pivot, bad):
+    """As dense.cholesky: the columns before the pivot are the factor's, every entry
+    of the lower triangle from the pivot's column on is NaN."""
+    a, _ = spd((), 7, seed=3)
+    full = np.linalg.cholesky(a)
+    a[pivot, pivot] = full[pivot, :pivot] @ full[pivot, :pivot] + bad  # pivot**2 = bad
+    lower = ffi.cholesky(a)
+    nan = np.tril(np.ones((7, 7), bool)) & (np.arange(7) >= pivot)[None, :]
+    assert np.array_equal(np.isnan(lower), nan)
+    np.testing.assert_allclose(lower[:, :pivot], full[:, :pivot], rtol=1e-12)
+    assert np.all(np.triu(lower, 1) == 0)
+    assert np.array_equal(np.isnan(jax.jit(dense.cholesky)(a)), nan)
+
+
+def test_refused_operands_give_errors_not_crashes(ffi):
+    n = 513  # one more than the kernels' limit
+    big = np.eye(n)
+    for call in (
+        lambda: ffi.cholesky(big),
+        lambda: ffi.lower_inverse(big),
+        lambda: ffi.tri_solve(big, np.ones((n, 1)), mode=np.int32(0)),
+    ):
+        with pytest.raises(Exception, match="exceeds the kernels' limit of 512"):
+            call()
+    a, _ = spd((), 4)
+    b = np.ones((4, 1))
+    with pytest.raises(Exception, match="mode must be 0"):
+        ffi.tri_solve(a, b, mode=np.int32(3))
+    with pytest.raises(Exception, match="expected b of shape"):
+        ffi.tri_solve(a, np.ones((5, 1)), mode=np.int32(0))
+    with pytest.raises(Exception, match="batch dimensions"):
+        ffi.tri_solve(np.stack([a, a]), np.ones((3, 4, 1)), mode=np.int32(0))
+    with pytest.raises(Exception, match="result shape differs"):
+        ffi.cholesky(a, shape=(4, 5))  # would be written past its end
+    with pytest.raises(Exception, match="result rank differs"):
+        ffi.lower_inverse(a, shape=(16,))
+    with pytest.raises(Exception, match=r"\(\.\.\., n, n\)"):
+        ffi.cholesky(np.ones((4, 5)), shape=(4, 5))
+    # float32: the handlers take float64 only
+    with pytest.raises(Exception, match="expected F64"):
+        jax.ffi.ffi_call(
+            PREFIX + "cholesky", jax.ShapeDtypeStruct((4, 4), jnp.float32)
+        )(a.astype(np.float32))
