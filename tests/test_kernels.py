@@ -18,10 +18,8 @@ from linkopt._engine import dense
 
 EXTENSION = "linkopt._kernels._dense"
 BUILT = importlib.util.find_spec(EXTENSION) is not None
-needs_extension = pytest.mark.skipif(
-    not BUILT,
-    reason=f"{EXTENSION} is not built (linkopt installed without a C++ compiler?)",
-)
+WHY_SKIPPED = f"{EXTENSION} is not built (linkopt installed without a C++ compiler?)"
+needs_extension = pytest.mark.skipif(not BUILT, reason=WHY_SKIPPED)
 SIZES = [1, 7, 35, 98]
 #: leading (batch) dimensions of the operands
 BATCHES = [(), (3,), (2, 2)]
@@ -41,7 +39,7 @@ def ffi():
     built."""
     global _registered
     if not BUILT:
-        pytest.skip(f"{EXTENSION} is not built (linkopt installed without a compiler?)")
+        pytest.skip(WHY_SKIPPED)
     capsules = kernels.handlers()
     assert capsules is not None, kernels.reason
     if not _registered:
