@@ -23,6 +23,22 @@ Behaviour outside the happy path (chosen to match what the LAPACK routines give 
 * :func:`symmetric_eigh` runs a fixed number of cyclic Jacobi sweeps (no convergence
   test, so it vmaps without a ragged loop); on NaN input it returns NaN.
 
+Compiled kernels. Where linkopt's compiled extension is built (:mod:`linkopt._kernels`,
+made by ``pip install`` with the machine's C++ compiler) and the program runs on CPU in
+float64, :func:`cholesky`, :func:`solve_lower`, :func:`solve_lower_transpose`,
+:func:`cho_solve` and :func:`lower_inverse` call its XLA FFI handlers instead: the same
+left-looking algorithms as plain loops over one matrix at a time, several times faster
+than XLA:CPU's loops over the batch, and a custom call is a single instruction where the
+loops were hundreds, so the programs that use them also compile faster
+(``benchmarks/bench_kinematics.py`` and ``benchmarks/bench_compile.py`` compare both
+with ``LINKOPT_KERNELS=0``). The handlers run on the calling thread (no thread pool, so
+nothing can deadlock) and agree with the plain-JAX code to round-off
+(``tests/test_kernels.py``); one difference: an exactly zero first pivot gives NaN
+there, 0 here. Their derivatives, where a caller differentiates through them, are the
+plain-JAX code's (``jax.custom_jvp``). Without the extension, with
+``LINKOPT_KERNELS=0``, on another platform or in another precision, the plain-JAX code
+below runs.
+
 Derivatives: :func:`solve_spd` and :func:`solve` are ``lax.custom_linear_solve``s, so
 their JVP and transpose are further solves with the same factor (the matrix's
 derivative enters only through ``A x``); the factorisations themselves are never
@@ -36,6 +52,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
+
+from .. import _kernels
 
 #: Cyclic Jacobi sweeps of :func:`symmetric_eigh`. Convergence is quadratic once the
 #: off-diagonal part is below the eigenvalue gaps; for 6 × 6 matrices 6 sweeps reach
@@ -68,7 +86,7 @@ def _pad_rows(b: Float[Array, "n k"], size: int) -> Float[Array, "N k"]:
     return b if b.shape[0] == size else jnp.pad(b, ((0, size - b.shape[0]), (0, 0)))
 
 
-def cholesky(a: Float[Array, "n n"]) -> Float[Array, "n n"]:
+def _plain_cholesky(a: Float[Array, "n n"]) -> Float[Array, "n n"]:
     """Lower Cholesky factor ``L`` of ``a = L Lᵀ`` (left-looking, one column per
     ``fori_loop`` step; reads the lower triangle only; NaN from the first non-positive
     pivot on).
@@ -90,7 +108,7 @@ def cholesky(a: Float[Array, "n n"]) -> Float[Array, "n n"]:
     return jax.lax.fori_loop(0, n, column, jnp.zeros_like(a))
 
 
-def solve_lower(
+def _plain_solve_lower(
     lower: Float[Array, "n n"], b: Float[Array, "n ..."], *, unit_diagonal=False
 ) -> Float[Array, "n ..."]:
     """``x`` with ``L x = b`` for lower-triangular ``L`` (forward substitution by
@@ -137,7 +155,7 @@ def solve_upper(
     return x[:, 0] if vector else x
 
 
-def solve_lower_transpose(
+def _plain_solve_lower_transpose(
     lower: Float[Array, "n n"], b: Float[Array, "n ..."]
 ) -> Float[Array, "n ..."]:
     """``x`` with ``Lᵀ x = b`` (back substitution by panels of :data:`PANEL` rows,
@@ -164,15 +182,134 @@ def solve_lower_transpose(
     return x[:, 0] if vector else x
 
 
+def _plain_cho_solve(lower: Float[Array, "n n"], b: Float[Array, "n ..."]):
+    return _plain_solve_lower_transpose(lower, _plain_solve_lower(lower, b))
+
+
+def _plain_lower_inverse(lower: Float[Array, "n n"]) -> Float[Array, "n n"]:
+    """``L⁻¹`` of a lower-triangular matrix (forward substitution on the identity)."""
+    return _plain_solve_lower(lower, jnp.eye(lower.shape[-1], dtype=lower.dtype))
+
+
+# ---------------------------------------------------------------------------------
+# The compiled kernels (module docstring) and the public entry points.
+
+
+def _register() -> dict[str, str] | None:
+    """Register the compiled handlers with XLA once per process (before any program
+    that calls them is deserialised or loaded); their target names, or None."""
+    handlers = _kernels.handlers()
+    if handlers is None:
+        return None
+    targets = {}
+    for key, capsule in handlers.items():
+        name = f"linkopt_{key}_v{_kernels.VERSION}"
+        jax.ffi.register_ffi_target(name, capsule, platform="cpu")
+        targets[key] = name
+    return targets
+
+
+#: FFI target names of the compiled kernels, or None where they are not available.
+TARGETS: dict[str, str] | None = _register()
+#: ``jax.export`` safety checks to turn off for programs that call the kernels.
+EXPORT_CHECKS = tuple(
+    jax.export.DisabledSafetyCheck.custom_call(target)
+    for target in (TARGETS or {}).values()
+)
+
+
+def _use_kernel(*arrays) -> bool:
+    """Whether the kernels serve these arrays (module docstring)."""
+    return (
+        TARGETS is not None
+        and all(a.dtype == jnp.float64 for a in arrays)
+        and jax.default_backend() == "cpu"
+    )
+
+
+def _call(key: str, result, *args, aliases=None, **attributes):
+    return jax.ffi.ffi_call(
+        TARGETS[key],
+        jax.ShapeDtypeStruct(result.shape, result.dtype),
+        vmap_method="broadcast_all",
+        input_output_aliases=aliases,
+    )(*args, **attributes)
+
+
+def _with_plain_derivative(kernel, plain):
+    """``kernel`` whose derivative is ``plain``'s (the same function in plain JAX)."""
+    fn = jax.custom_jvp(kernel)
+    fn.defjvp(lambda primals, tangents: jax.jvp(plain, primals, tangents))
+    return fn
+
+
+def _kernel_cholesky(a):
+    return _call("cholesky", a, a)
+
+
+def _tri_solve(mode: int, plain):
+    """A triangular solve of the kernel (``mode`` 0: ``L x = b``, 1: ``Lᵀ x = b``, 2:
+    ``L Lᵀ x = b``) for ``b`` a vector or an ``(n, k)`` matrix."""
+
+    def kernel(lower, b):
+        rhs, vector = _as_matrix(b)
+        x = _call("tri_solve", rhs, lower, rhs, aliases={1: 0}, mode=np.int32(mode))
+        return x[:, 0] if vector else x
+
+    return _with_plain_derivative(kernel, plain)
+
+
+_KERNELS = {
+    "cholesky": _with_plain_derivative(_kernel_cholesky, _plain_cholesky),
+    "solve_lower": _tri_solve(0, _plain_solve_lower),
+    "solve_lower_transpose": _tri_solve(1, _plain_solve_lower_transpose),
+    "cho_solve": _tri_solve(2, _plain_cho_solve),
+    "lower_inverse": _with_plain_derivative(
+        lambda lower: _call("lower_inverse", lower, lower), _plain_lower_inverse
+    ),
+}
+
+
+def cholesky(a: Float[Array, "n n"]) -> Float[Array, "n n"]:
+    """Lower Cholesky factor ``L`` of ``a = L Lᵀ`` (reads the lower triangle only; NaN
+    from the first non-positive pivot on; module docstring)."""
+    if _use_kernel(a):
+        return _KERNELS["cholesky"](a)
+    return _plain_cholesky(a)
+
+
+def solve_lower(
+    lower: Float[Array, "n n"], b: Float[Array, "n ..."], *, unit_diagonal=False
+) -> Float[Array, "n ..."]:
+    """``x`` with ``L x = b`` for lower-triangular ``L`` (``b`` a vector or an
+    ``(n, k)`` matrix; only the lower triangle of ``L`` is read)."""
+    if not unit_diagonal and _use_kernel(lower, b):
+        return _KERNELS["solve_lower"](lower, b)
+    return _plain_solve_lower(lower, b, unit_diagonal=unit_diagonal)
+
+
+def solve_lower_transpose(
+    lower: Float[Array, "n n"], b: Float[Array, "n ..."]
+) -> Float[Array, "n ..."]:
+    """``x`` with ``Lᵀ x = b`` (only the lower triangle of ``L`` is read)."""
+    if _use_kernel(lower, b):
+        return _KERNELS["solve_lower_transpose"](lower, b)
+    return _plain_solve_lower_transpose(lower, b)
+
+
 def cho_solve(lower: Float[Array, "n n"], b: Float[Array, "n ..."]):
     """``x`` with ``L Lᵀ x = b`` from the factor of :func:`cholesky` (not
     differentiable in ``lower``; use :func:`solve_spd` for that)."""
-    return solve_lower_transpose(lower, solve_lower(lower, b))
+    if _use_kernel(lower, b):
+        return _KERNELS["cho_solve"](lower, b)
+    return _plain_cho_solve(lower, b)
 
 
 def lower_inverse(lower: Float[Array, "n n"]) -> Float[Array, "n n"]:
-    """``L⁻¹`` of a lower-triangular matrix (forward substitution on the identity)."""
-    return solve_lower(lower, jnp.eye(lower.shape[-1], dtype=lower.dtype))
+    """``L⁻¹`` of a lower-triangular matrix."""
+    if _use_kernel(lower):
+        return _KERNELS["lower_inverse"](lower)
+    return _plain_lower_inverse(lower)
 
 
 def solve_spd(a: Float[Array, "n n"], b: Float[Array, "n ..."]):

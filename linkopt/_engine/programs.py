@@ -38,8 +38,10 @@ import jax.numpy as jnp
 import numpy as np
 from jax import export
 
+from .. import _kernels
 from .._cache import read_used, store
 from .._config import cache_directory, jit
+from . import dense
 from .lifting import lift, numbers, structure_key
 from .model import Mechanism
 
@@ -86,6 +88,14 @@ def source_digest(package: Path) -> str:
 
 
 @cache
+def kernels_digest() -> str:
+    """What the compiled kernels contribute to a program (:mod:`.dense`): their
+    sources and version when this process uses them, else ``"plain"`` (a trace made
+    with them calls their targets, which a process without them cannot run)."""
+    return _kernels.digest() if dense.TARGETS is not None else "plain"
+
+
+@cache
 def _package_digest(package: Path) -> str:
     """:func:`source_digest`, once per process: its modules are loaded already."""
     return source_digest(package)
@@ -114,7 +124,8 @@ def _key(name: str, mech: Mechanism, signature: tuple) -> str:
     (value_tree, value_leaves), (tree, leaves) = signature
     leaves = value_leaves + leaves
     sink = hashlib.sha256(
-        f"{name}|{_package_digest(PACKAGE)}|{structure_key(mech)}".encode()
+        f"{name}|{_package_digest(PACKAGE)}|{kernels_digest()}|"
+        f"{structure_key(mech)}".encode()
     )
     sink.update(f"{value_tree}|{tree}".encode())
     for shape, dtype in leaves:
@@ -197,7 +208,9 @@ def _program(name: str, mech: Mechanism, fn: Callable, values, args) -> Callable
     if exported is None:
         specs = jax.tree_util.tree_map(_spec, (values, *args))
         try:
-            exported = export.export(jax.jit(lifted))(*specs)
+            exported = export.export(
+                jax.jit(lifted), disabled_checks=dense.EXPORT_CHECKS
+            )(*specs)
         except TRACE_ERRORS:
             raise  # the function itself cannot be traced: no fallback would run it
         except Exception as err:  # not exportable: plain jit, traced in every process
