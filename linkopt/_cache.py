@@ -223,8 +223,22 @@ def install() -> bool:
 
 
 def _installed() -> bool:
+    """Whether JAX's executables go to this module's cache: installed in this process,
+    or installable (a process that configures JAX installs it; ``linkopt cache info``
+    does not configure JAX)."""
     try:
         from jax._src import compilation_cache
     except ImportError:
         return False
-    return getattr(compilation_cache.get_file_cache, "linkopt", False)
+    hook = getattr(compilation_cache, "get_file_cache", None)
+    return getattr(hook, "linkopt", False) or (
+        callable(hook) and _executables_class_ok()
+    )
+
+
+def _executables_class_ok() -> bool:
+    try:
+        _executables_class()
+    except (ImportError, AttributeError):
+        return False
+    return True

@@ -99,6 +99,21 @@ def test_cache_info_and_clear(cache, capsys):
     assert not [p for p in cache.rglob("*") if p.is_file()]
 
 
+def test_cache_info_says_whether_the_kernels_are_in_use(cache, capsys, monkeypatch):
+    """The text form names the compiled kernels' state and, on a JAX whose cache
+    linkopt bounds, does not claim that it is unbounded."""
+    from linkopt import _kernels
+
+    assert main(["cache", "info"]) == 0
+    out = capsys.readouterr().out
+    expected = "in use" if _kernels.handlers() is not None else "not in use: "
+    assert f"compiled kernels: {expected}" in out
+    assert "not bounded" not in out
+    monkeypatch.setenv("LINKOPT_KERNELS", "0")
+    assert main(["cache", "info"]) == 0
+    assert "not in use: turned off by LINKOPT_KERNELS=0" in capsys.readouterr().out
+
+
 def test_jax_writes_its_executables_through_the_bounded_cache(tmp_path):
     """In a fresh process: JAX's file cache is linkopt's, a compiled program lands in
     it as one whole entry, and a second process reads it back."""

@@ -1,5 +1,6 @@
 """``linkopt cache info | clear``: the on-disk caches of compiled executables and
-traced programs (:mod:`linkopt._cache`)."""
+traced programs (:mod:`linkopt._cache`), and whether the compiled kernels are in use
+(:mod:`linkopt._kernels`)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,11 @@ def _megabytes(count: int) -> str:
 
 
 def run_info(args) -> int:
+    from .. import _kernels
+
     payload = _cache.info()
+    _kernels.handlers()  # sets _kernels.reason
+    payload["kernels"] = _kernels.info()
     if args.json:
         print(json.dumps(payload, indent=2))
         return 0
@@ -23,6 +28,20 @@ def run_info(args) -> int:
             f"  {kind:<12} {row['entries']:>6} entries  {_megabytes(row['bytes']):>10}"
             f"  of at most {_megabytes(row['limit_bytes'])}  ({row['folder']})"
         )
+    kernels = payload["kernels"]
+    print(
+        "compiled kernels: "
+        + (
+            f"in use (version {kernels['version']})"
+            if kernels["available"]
+            else f"not in use: {kernels['reason']}"
+        )
+        + (
+            "; rebuild them (pip install) after editing dense.cc"
+            if kernels["stale"]
+            else ""
+        )
+    )
     if not payload["bounded_executables"]:
         print(
             "  executables are kept by JAX's own cache here, which is not bounded "

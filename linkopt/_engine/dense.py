@@ -199,7 +199,7 @@ def _register() -> dict[str, str] | None:
     """Register the compiled handlers with XLA once per process (before any program
     that calls them is deserialised or loaded); their target names, or None."""
     handlers = _kernels.handlers()
-    if handlers is None:
+    if handlers is None or not hasattr(jax, "ffi"):  # jax.ffi: jax 0.4.38 and later
         return None
     targets = {}
     for key, capsule in handlers.items():
