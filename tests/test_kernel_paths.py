@@ -137,3 +137,14 @@ def test_programs_that_call_the_kernels_export_and_run_again(tmp_path):
     a = 2.0 * np.eye(4) + 0.5
     np.testing.assert_allclose(again.call(a), np.linalg.cholesky(a), atol=1e-14)
     assert linkopt  # float64 on
+
+
+def test_a_matrix_larger_than_the_kernels_take_runs_the_plain_code():
+    """An order above the kernels' limit (a mechanism of more than 73 bodies) is not
+    refused: the plain-JAX code factors it."""
+    n = dense.KERNEL_MAX_N + 1
+    a = np.eye(n) * 4.0 + 0.01
+    lower = np.asarray(jax.jit(dense.cholesky)(jnp.asarray(a)))
+    np.testing.assert_allclose(lower @ lower.T, a, atol=1e-12)
+    x = np.asarray(jax.jit(dense.cho_solve)(lower, jnp.ones(n)))
+    np.testing.assert_allclose(a @ x, np.ones(n), atol=1e-10)
