@@ -52,6 +52,31 @@ def test_blocks_equal_one_call_and_see_only_full_blocks(count):
     assert isinstance(out["sum"], jax.Array) and out["sum"].shape == (count, 3)
 
 
+def test_blocks_on_threads_equal_blocks_one_after_another(five_bar, monkeypatch):
+    """A batch of several blocks runs them on threads (blocks.THREADS); the numbers
+    are those of one block after another, and the first block runs before the
+    others start (a program new to the process compiles once)."""
+    from linkopt._engine import blocks
+
+    motors = 0.3 * (2 * np.random.default_rng(3).random((3 * BLOCK + 7, 2)) - 1)
+    monkeypatch.setattr(blocks, "THREADS", 1)
+    serial = solve_fk(five_bar, motors)
+    monkeypatch.setattr(blocks, "THREADS", 2)
+    threaded = solve_fk(five_bar, motors)
+    for a, b in zip(serial, threaded):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    order = []
+
+    def fn(x):
+        order.append(float(x[0, 0]))
+        return {"x": x}
+
+    rows = np.arange(4.0 * BLOCK)[:, None]
+    out = in_blocks(fn, (rows,))
+    np.testing.assert_array_equal(np.asarray(out["x"]), rows)
+    assert order[0] == 0.0 and sorted(order) == [0.0, 64.0, 128.0, 192.0]
+
+
 def test_one_row_runs_the_single_row_program():
     rows = np.arange(6.0).reshape(2, 3)
     seen = []

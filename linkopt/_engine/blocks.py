@@ -12,6 +12,12 @@ compiling. :func:`in_blocks` calls the function on consecutive blocks of exactly
 results are dropped): whatever the batch size, one program. The cost is the padding (at
 most ``BLOCK - 1`` rows a call) and one dispatch per block (about 0.1 ms).
 
+Blocks are independent, so a batch of several blocks runs them on up to
+:data:`THREADS` threads of the calling process (XLA runs each program without holding
+Python's lock, so the threads keep that many cores busy): a user's large batch of
+solves uses every core of one process, with the same numbers as one block after
+another.
+
 Only concrete arrays are blocked: under ``jax.jit``, ``vmap`` or ``grad`` (a tracer
 among the arguments) the function is called once on the whole batch, so solves stay
 differentiable.
@@ -19,7 +25,9 @@ differentiable.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 import jax
 import numpy as np
@@ -27,6 +35,17 @@ import numpy as np
 #: Rows per block. 64 is two of the solver's 32-lane chunks (``kinematics.CHUNK``): a
 #: 2-D map's wave (at most about twice its side) takes one or two blocks.
 BLOCK = 64
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+#: Most threads that run one batch's blocks at once: the cores this process may use.
+THREADS = _cores()
 #: The shortest padded continuation path (:func:`path_rows`).
 PATH_BLOCK = 16
 
@@ -61,10 +80,19 @@ def in_blocks(
         )
     total = -(-count // width) * width
     padded = [_padded(r, total) for r in rows]
-    parts = [
-        fn(*(r[start : start + width] for r in padded))
-        for start in range(0, total, width)
-    ]
+    starts = range(0, total, width)
+    threads = min(THREADS, len(starts))
+    if threads == 1:  # dispatched one after another, joined once all are queued
+        parts = [fn(*(r[start : start + width] for r in padded)) for start in starts]
+    else:
+
+        def block(start: int):
+            out = fn(*(r[start : start + width] for r in padded))
+            return jax.tree_util.tree_map(np.asarray, out)  # waits, lock released
+
+        first = block(starts[0])  # alone: a program new to this process compiles once
+        with ThreadPoolExecutor(threads) as pool:
+            parts = [first, *pool.map(block, starts[1:])]
     return jax.tree_util.tree_map(lambda *leaves: _joined(leaves, count), *parts)
 
 

@@ -27,6 +27,7 @@ guarantee stable) runs through plain ``jax.jit``, with a warning once per proces
 from __future__ import annotations
 
 import hashlib
+import threading
 import warnings
 import weakref
 from collections.abc import Callable
@@ -72,6 +73,8 @@ TRACE_ERRORS = (
 )
 #: Each mechanism's numbers on the device, with their signature (:func:`_numbers`).
 NUMBERS: weakref.WeakKeyDictionary[Mechanism, tuple] = weakref.WeakKeyDictionary()
+#: Held while a program is looked up or made (:func:`_program`).
+_LOCK = threading.RLock()
 #: Names of the programs that could not be exported or serialised in this process.
 UNEXPORTED: set[str] = set()
 
@@ -191,6 +194,14 @@ def _numbers(mech: Mechanism) -> tuple[dict, tuple]:
 
 
 def _program(name: str, mech: Mechanism, fn: Callable, values, args) -> Callable:
+    """The jitted program, from :data:`PROGRAMS`, the disk or a new trace; one
+    thread at a time (:mod:`.blocks` calls programs from several), so that no program
+    is loaded twice."""
+    with _LOCK:
+        return _program_locked(name, mech, fn, values, args)
+
+
+def _program_locked(name: str, mech: Mechanism, fn: Callable, values, args):
     signature = (_numbers(mech)[1], _signature(args))
     memo = (name, structure_key(mech), signature)
     if memo in PROGRAMS:
@@ -254,5 +265,7 @@ def call(name: str, mech: Mechanism, fn: Callable, *args):
     ``fn(mech, *args)`` must be a pure function of the mechanism and array arguments
     that depends on nothing but them and the linkopt sources; inside it the
     mechanism's numbers are traced (:mod:`.lifting`). ``name`` names the program."""
-    values = _numbers(mech)[0]
-    return _program(name, mech, fn, values, args)(values, *args)
+    with _LOCK:
+        values = _numbers(mech)[0]
+        program = _program_locked(name, mech, fn, values, args)
+    return program(values, *args)
