@@ -29,15 +29,15 @@ float64, :func:`cholesky`, :func:`solve_lower`, :func:`solve_lower_transpose`,
 :func:`cho_solve` and :func:`lower_inverse` call its XLA FFI handlers instead: the same
 left-looking algorithms as plain loops over one matrix at a time, several times faster
 than XLA:CPU's loops over the batch, and a custom call is a single instruction where the
-loops were hundreds, so the programs that use them also compile faster
-(``benchmarks/bench_kinematics.py`` and ``benchmarks/bench_compile.py`` compare both
-with ``LINKOPT_KERNELS=0``). The handlers run on the calling thread (no thread pool, so
-nothing can deadlock) and agree with the plain-JAX code to round-off
-(``tests/test_kernels.py``); one difference: an exactly zero first pivot gives NaN
-there, 0 here. Their derivatives, where a caller differentiates through them, are the
-plain-JAX code's (``jax.custom_jvp``). Without the extension, with
-``LINKOPT_KERNELS=0``, on another platform or in another precision, the plain-JAX code
-below runs.
+loops were hundreds, so the programs that use them also compile faster (run
+``benchmarks/bench_kinematics.py`` or ``benchmarks/bench_compile.py`` with and without
+``LINKOPT_KERNELS=0`` to compare). The handlers run on the calling thread (no thread
+pool, so nothing can deadlock) and agree with the plain-JAX code to round-off
+(``tests/test_kernels.py``, ``tests/test_kernel_paths.py``); one difference: an
+exactly zero first pivot gives NaN there, 0 here. Their derivatives, where a caller
+differentiates through them, are the plain-JAX code's (``jax.custom_jvp``). Without
+the extension, with ``LINKOPT_KERNELS=0``, on another platform, in another precision or
+for an order above the kernels' limit, the plain-JAX code below runs.
 
 Derivatives: :func:`solve_spd` and :func:`solve` are ``lax.custom_linear_solve``s, so
 their JVP and transpose are further solves with the same factor (the matrix's
