@@ -155,7 +155,7 @@ def info() -> dict:
     through this module (:func:`install`)."""
     return {
         "directory": str(cache_directory()),
-        "bounded_executables": _installed(),
+        "bounded_executables": _bounded(),
         "kinds": {
             kind: {
                 "folder": str(folder(kind)),
@@ -202,17 +202,27 @@ def _executables_class():
     return Executables
 
 
-def install() -> bool:
-    """Make JAX's persistent compilation cache this module's bounded one (before JAX
-    first uses its cache); whether this JAX allowed it."""
+def _hook():
+    """JAX's ``compilation_cache`` module and this module's executables class, or None
+    where this JAX has no ``get_file_cache`` to replace."""
     try:
         from jax._src import compilation_cache
 
-        Executables = _executables_class()
+        executables = _executables_class()
     except (ImportError, AttributeError):
-        return False
+        return None
     if not callable(getattr(compilation_cache, "get_file_cache", None)):
+        return None
+    return compilation_cache, executables
+
+
+def install() -> bool:
+    """Make JAX's persistent compilation cache this module's bounded one (before JAX
+    first uses its cache); whether this JAX allowed it."""
+    hook = _hook()
+    if hook is None:
         return False
+    compilation_cache, Executables = hook
 
     def get_file_cache(path: str):
         return Executables(path), path
@@ -222,23 +232,8 @@ def install() -> bool:
     return True
 
 
-def _installed() -> bool:
-    """Whether JAX's executables go to this module's cache: installed in this process,
-    or installable (a process that configures JAX installs it; ``linkopt cache info``
-    does not configure JAX)."""
-    try:
-        from jax._src import compilation_cache
-    except ImportError:
-        return False
-    hook = getattr(compilation_cache, "get_file_cache", None)
-    return getattr(hook, "linkopt", False) or (
-        callable(hook) and _executables_class_ok()
-    )
-
-
-def _executables_class_ok() -> bool:
-    try:
-        _executables_class()
-    except (ImportError, AttributeError):
-        return False
-    return True
+def _bounded() -> bool:
+    """Whether JAX's executables go to this module's cache: :func:`install` replaces
+    JAX's hook in every process that configures JAX (``linkopt cache info`` does not
+    configure JAX, so it asks whether the hook is there to replace)."""
+    return _hook() is not None

@@ -253,7 +253,7 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(
 
     asked = []
     if cold:
-        monkeypatch.setattr(workers_module.programs, "stored", lambda *a: False)
+        monkeypatch.setattr(workers_module, "batch_traced_before", lambda *a: False)
         ahead = Workers._compile_ahead
 
         def spy(self, chunks):

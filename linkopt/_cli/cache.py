@@ -17,7 +17,6 @@ def run_info(args) -> int:
     from .. import _kernels
 
     payload = _cache.info()
-    _kernels.handlers()  # sets _kernels.reason
     payload["kernels"] = _kernels.info()
     if args.json:
         print(json.dumps(payload, indent=2))

@@ -476,6 +476,20 @@ def evaluate(mech: Mechanism, design=None) -> Evaluation:
     return programs.call("evaluate", mech, evaluate_homogenised, designs, alpha)
 
 
+def batch_arguments(mech: Mechanism, rows: int) -> tuple:
+    """Zeros shaped as the arguments :func:`evaluate` gives the evaluation program for
+    a batch of ``rows`` designs (the designs, α₋)."""
+    designs = jnp.zeros((rows, mech.design.size), dtype=jnp.float64)
+    return designs, jnp.asarray(0.0, dtype=jnp.float64)
+
+
+def batch_traced_before(mech: Mechanism, rows: int) -> bool:
+    """Whether the evaluation of a batch of ``rows`` designs has been traced (and so,
+    almost always, compiled) on this machine
+    (:func:`linkopt._engine.programs.stored`)."""
+    return programs.stored("evaluate", mech, *batch_arguments(mech, rows))
+
+
 def evaluate_in_batch(mech: Mechanism, design, rows: int) -> Evaluation:
     """:func:`evaluate` of one design ``(n_p,)`` (None: the file's), computed as the
     first of ``rows`` copies of it: with ``rows`` the optimiser's chunk size, the

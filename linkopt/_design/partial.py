@@ -39,7 +39,13 @@ from .._engine.jacobian import state_jacobian
 from .._engine.kinematics import solve_single
 from .._engine.model import Mechanism
 from .._engine.singularity import f_sing_value
-from .evaluation import Evaluation, evaluate_homogenised, regularizer, targets
+from .evaluation import (
+    Evaluation,
+    batch_arguments,
+    evaluate_homogenised,
+    regularizer,
+    targets,
+)
 from .metrics import culled, thresholds
 
 
@@ -169,8 +175,7 @@ def partial_gradient(mech: Mechanism, designs, evaluation: Evaluation, alpha: fl
 def _chunk_arguments(mech: Mechanism, rows: int) -> tuple:
     """Zeros shaped as :func:`partial_gradient`'s arguments for a chunk of ``rows``
     designs (the evaluation's shapes read off its program, which is not run)."""
-    designs = jnp.zeros((rows, mech.design.size), dtype=jnp.float64)
-    alpha = jnp.asarray(0.0, dtype=jnp.float64)
+    designs, alpha = batch_arguments(mech, rows)
     shapes = programs.output_shapes(
         "evaluate", mech, evaluate_homogenised, designs, alpha
     )

@@ -49,9 +49,8 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import one_blas_thread
-from .._engine import programs
 from .._engine.model import Mechanism
-from .evaluation import Evaluation, alpha_minus, evaluate
+from .evaluation import Evaluation, alpha_minus, batch_traced_before, evaluate
 from .partial import compile_gradient, partial_gradient
 
 RETRIES = 2  # new pools tried after a worker dies, before this process takes over
@@ -138,8 +137,7 @@ class Workers:
         if self._pool is None or self._cold_checked:
             return
         self._cold_checked = True
-        shape = (np.zeros(chunks[0].shape), np.float64(0.0))
-        if programs.stored("evaluate", self.mech, *shape):
+        if batch_traced_before(self.mech, len(chunks[0])):
             return
         sizes = tuple(dict.fromkeys(len(chunk) for chunk in chunks))
         try:

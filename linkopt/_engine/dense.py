@@ -212,7 +212,7 @@ def _register() -> dict[str, str] | None:
 #: FFI target names of the compiled kernels, or None where they are not available.
 TARGETS: dict[str, str] | None = _register()
 #: The largest matrix order the kernels take (larger ones run the plain-JAX code).
-KERNEL_MAX_N: int = _kernels.info()["max_n"] if TARGETS is not None else 0
+KERNEL_MAX_N: int = _kernels.max_n() if TARGETS is not None else 0
 #: ``jax.export`` safety checks to turn off for programs that call the kernels.
 EXPORT_CHECKS = tuple(
     jax.export.DisabledSafetyCheck.custom_call(target)

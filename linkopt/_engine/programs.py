@@ -140,6 +140,11 @@ def _directory() -> Path:
     return cache_directory() / "traces"
 
 
+def _trace_path(name: str, mech: Mechanism, signature: tuple) -> Path:
+    """Where the trace of program ``name`` for ``mech`` and ``signature`` is kept."""
+    return _directory() / f"{name}-{_key(name, mech, signature)[:32]}.jaxexport"
+
+
 def _load(path: Path):
     blob = read_used(path)
     if blob is None:
@@ -209,8 +214,7 @@ def _program_locked(name: str, mech: Mechanism, fn: Callable, values, args):
         return PROGRAMS[memo]
     while len(PROGRAMS) >= LIVE_PROGRAMS:  # the least recently used goes
         del PROGRAMS[next(iter(PROGRAMS))]
-    key = _key(name, mech, signature)
-    path = _directory() / f"{name}-{key[:32]}.jaxexport"
+    path = _trace_path(name, mech, signature)
     exported = _load(path)
 
     def lifted(values, *args):
@@ -236,9 +240,7 @@ def _program_locked(name: str, mech: Mechanism, fn: Callable, values, args):
 def stored(name: str, mech: Mechanism, *args) -> bool:
     """Whether the trace of ``call(name, mech, fn, *args)`` is on disk, i.e.
     some process has traced (and so, almost always, compiled) that program before."""
-    signature = (_numbers(mech)[1], _signature(args))
-    key = _key(name, mech, signature)
-    return (_directory() / f"{name}-{key[:32]}.jaxexport").exists()
+    return _trace_path(name, mech, (_numbers(mech)[1], _signature(args))).exists()
 
 
 def output_shapes(name: str, mech: Mechanism, fn: Callable, *args):

@@ -136,6 +136,12 @@ def digest() -> str:
     return hashlib.sha256("|".join(parts).encode()).hexdigest()
 
 
+def max_n() -> int | None:
+    """The largest matrix order the handlers take (None without the extension)."""
+    module = _load()
+    return None if module is None else module.max_n()
+
+
 def info() -> dict[str, object]:
     """What a diagnostic prints: availability, :data:`reason`, versions, staleness."""
     available = handlers() is not None
@@ -145,7 +151,7 @@ def info() -> dict[str, object]:
         "reason": reason,
         "version": VERSION,
         "extension_version": None if module is None else module.version(),
-        "max_n": None if module is None else module.max_n(),
+        "max_n": max_n(),
         "ffi_api_version": None if module is None else module.ffi_api_version(),
         "stale": stale(),
         "digest": digest(),
