@@ -49,8 +49,10 @@ class BuildExt(build_ext):
         if self.compiler.compiler_type == "msvc":
             ext.extra_compile_args = ["/std:c++17", "/O2", "/EHsc"]
             return super().build_extension(ext)
-        # -g0: no debug information (Python's own flags add -g)
-        base = ["-std=c++17", "-O3", "-g0", "-fvisibility=hidden"]
+        # -g0: no debug information (Python's own flags add -g); -ffp-contract=off: no
+        # fused multiply-adds, so the handlers round as the plain-JAX code's steps do
+        # and the two-matrix paths as the one-matrix ones (dense.cc)
+        base = ["-std=c++17", "-O3", "-g0", "-fvisibility=hidden", "-ffp-contract=off"]
         machine = platform.machine().lower()
         arch = X86_64_FLAGS if machine in ("x86_64", "amd64") else []
         ext.extra_compile_args = base + arch

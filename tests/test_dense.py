@@ -54,6 +54,29 @@ def test_cholesky_and_triangular_solves_match_lapack(n):
     np.testing.assert_allclose(inverse @ lower, np.eye(n), atol=1e-13)
 
 
+@pytest.mark.parametrize("n", [*SIZES, 98])
+def test_damped_solve_is_the_cho_solve_of_the_damped_matrix(n):
+    """The same numbers as :func:`dense.cho_solve` of the :func:`dense.cholesky` of
+    ``a + d I``, vmapped (the Levenberg–Marquardt step); alone too, with the kernels;
+    98 is above the fused kernel's order limit."""
+    rng = np.random.default_rng(n)
+    a = jnp.asarray(np.stack([spd(n, n), spd(n, n + 1), spd(n, n + 2)]))
+    d = jnp.asarray([0.0, 1e-12, 3.5])
+    b = jnp.asarray(rng.standard_normal((3, n)))
+
+    def separate(a, d, b):
+        return dense.cho_solve(dense.cholesky(a + d * jnp.eye(n)), b)
+
+    x = jax.jit(jax.vmap(dense.damped_solve))(a, d, b)
+    np.testing.assert_array_equal(x, jax.jit(jax.vmap(separate))(a, d, b))
+    single = jax.jit(dense.damped_solve)(a[1], d[1], b[1])
+    if dense.TARGETS is not None:  # the kernels: bitwise; XLA's loops vmapped: not
+        np.testing.assert_array_equal(x[1], single)
+    np.testing.assert_allclose(x[1], single, rtol=1e-12, atol=1e-15)
+    exact = np.linalg.solve(a + d[:, None, None] * np.eye(n), b[..., None])[..., 0]
+    np.testing.assert_allclose(x, exact, rtol=1e-10, atol=1e-13)
+
+
 @pytest.mark.parametrize("n", SIZES)
 def test_lu_solve_and_det_match_lapack(n):
     a = general(n, n)

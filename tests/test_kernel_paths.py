@@ -43,6 +43,7 @@ out = {
     "solve_lower": jax.vmap(dense.solve_lower)(lower, b),
     "solve_lower_transpose": jax.vmap(dense.solve_lower_transpose)(lower, v),
     "lower_inverse": jax.vmap(dense.lower_inverse)(lower),
+    "damped_solve": jax.vmap(dense.damped_solve)(a, jnp.linspace(0.0, 1.0, 6), v),
     "solve_spd_grad": jax.grad(lambda x: jnp.sum(dense.solve_spd(a[0] * x, v[0]) ** 2))(
         1.3
     ),
@@ -90,6 +91,7 @@ def test_each_process_took_the_path_asked(both):
         "solve_lower",
         "solve_lower_transpose",
         "lower_inverse",
+        "damped_solve",
         "solve_spd_grad",
         "cholesky_jvp",
     ],

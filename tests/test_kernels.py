@@ -21,6 +21,8 @@ BUILT = importlib.util.find_spec(EXTENSION) is not None
 WHY_SKIPPED = f"{EXTENSION} is not built (linkopt installed without a C++ compiler?)"
 needs_extension = pytest.mark.skipif(not BUILT, reason=WHY_SKIPPED)
 SIZES = [1, 7, 35, 98]
+#: the largest order of the damped solve (and of the two-matrix paths, dense.cc)
+DAMPED_MAX_N = 89
 #: leading (batch) dimensions of the operands
 BATCHES = [(), (3,), (2, 2)]
 #: names under which this file registers the handlers (not linkopt's own names)
@@ -68,6 +70,9 @@ class Handlers:
     def lower_inverse(self, lower, shape=None):
         return self._call("lower_inverse", shape or np.shape(lower), lower)
 
+    def damped_solve(self, a, d, b, shape=None):
+        return self._call("damped_solve", shape or np.shape(b), a, d, b)
+
 
 def spd(batch, n, seed=0):
     """SPD matrices (batch + (n, n)) of condition number at most about 5, with noise
@@ -88,6 +93,7 @@ def test_handlers_are_the_extensions_capsules():
     info = kernels.info()
     assert info["available"] and info["extension_version"] == kernels.VERSION
     assert info["max_n"] == 512
+    assert info["damped_max_n"] == DAMPED_MAX_N
     assert not info["stale"], "the extension was built from another dense.cc"
 
 
@@ -154,6 +160,54 @@ def test_handlers_match_numpy(ffi, n, batch):
     assert np.all(np.triu(inverse, 1) == 0)
 
 
+@pytest.mark.parametrize("batch", [*BATCHES, (5,)], ids=str)
+@pytest.mark.parametrize("n", [1, 2, 7, 35, 63, DAMPED_MAX_N])
+def test_damped_solve_is_the_cholesky_and_solve_of_the_damped_matrix(ffi, n, batch):
+    """Bitwise: the factor and solve of a + d I by the other handlers (two matrices of
+    a batch at a time or one, in the same operations); and against numpy."""
+    a, noisy = spd(batch, n, seed=n)
+    rng = np.random.default_rng(n)
+    d = rng.uniform(0.0, 2.0, batch)
+    b = rng.standard_normal(batch + (n,))
+    x = ffi.damped_solve(noisy, d, b)
+    damped = noisy + d[..., None, None] * np.eye(n)
+    lower = ffi.cholesky(damped)
+    expected = ffi.tri_solve(lower, b[..., None], mode=np.int32(2))[..., 0]
+    np.testing.assert_array_equal(x, expected)
+    exact = np.linalg.solve(a + d[..., None, None] * np.eye(n), b[..., None])
+    np.testing.assert_allclose(x, exact[..., 0], rtol=1e-11, atol=1e-12)
+
+
+@pytest.mark.parametrize("n", [7, 35, 64, DAMPED_MAX_N, 98])
+def test_a_batch_factors_as_its_matrices_one_at_a_time(ffi, n):
+    """The two-matrix path of the Cholesky handler (batches) gives the bits of the
+    one-matrix path (a single matrix), an odd batch's last matrix included."""
+    _, noisy = spd((5,), n, seed=n)
+    batched = ffi.cholesky(noisy)
+    for i in range(5):
+        np.testing.assert_array_equal(batched[i], ffi.cholesky(noisy[i]))
+
+
+@pytest.mark.parametrize("failing", [0, 1, 2])
+def test_a_failing_matrix_in_a_batch_leaves_the_others_alone(ffi, failing):
+    """NaN from the failing pivot on in that matrix only, for the Cholesky and the
+    damped solve (its whole x NaN), whichever lane of a pair it is in."""
+    a, _ = spd((3,), 7, seed=4)
+    full = np.linalg.cholesky(a)
+    a[failing, 3, 3] = full[failing, 3, :3] @ full[failing, 3, :3] - 1.0
+    lower = ffi.cholesky(a)
+    nan = np.tril(np.ones((7, 7), bool)) & (np.arange(7) >= 3)[None, :]
+    for i in range(3):
+        assert np.array_equal(np.isnan(lower[i]), nan if i == failing else 0 * nan)
+        np.testing.assert_array_equal(lower[i], ffi.cholesky(a[i]))
+    x = ffi.damped_solve(a, np.zeros(3), np.ones((3, 7)))
+    assert np.all(np.isnan(x[failing]))
+    others = [i for i in range(3) if i != failing]
+    np.testing.assert_allclose(
+        x[others], np.linalg.solve(a[others], np.ones((2, 7, 1)))[..., 0], rtol=1e-11
+    )
+
+
 def test_handlers_under_vmap_and_jit(ffi):
     """vmap_method="broadcast_all": vmapped calls become one call on the batch."""
     a, noisy = spd((2, 5), 7)
@@ -206,6 +260,17 @@ def test_refused_operands_give_errors_not_crashes(ffi):
         ffi.tri_solve(a, np.ones((5, 1)), mode=np.int32(0))
     with pytest.raises(Exception, match="batch dimensions"):
         ffi.tri_solve(np.stack([a, a]), np.ones((3, 4, 1)), mode=np.int32(0))
+    n = DAMPED_MAX_N + 1
+    with pytest.raises(Exception, match=f"damped solve's limit of {DAMPED_MAX_N}"):
+        ffi.damped_solve(np.eye(n), 1.0, np.ones(n))
+    with pytest.raises(Exception, match="expected a"):
+        ffi.damped_solve(a, 1.0, np.ones((4, 1)))
+    with pytest.raises(Exception, match="expected a"):
+        ffi.damped_solve(np.stack([a, a]), 1.0, np.ones((2, 4)))
+    with pytest.raises(Exception, match="batch dimensions"):
+        ffi.damped_solve(np.stack([a, a]), np.ones(3), np.ones((2, 4)))
+    with pytest.raises(Exception, match="result shape differs"):
+        ffi.damped_solve(a, 1.0, np.ones(4), shape=(5,))
     with pytest.raises(Exception, match="result shape differs"):
         ffi.cholesky(a, shape=(4, 5))  # would be written past its end
     with pytest.raises(Exception, match="result rank differs"):

@@ -26,7 +26,8 @@ Behaviour outside the happy path (chosen to match what the LAPACK routines give 
 Compiled kernels. Where linkopt's compiled extension is built (:mod:`linkopt._kernels`,
 made by ``pip install`` with the machine's C++ compiler) and the program runs on CPU in
 float64, :func:`cholesky`, :func:`solve_lower`, :func:`solve_lower_transpose`,
-:func:`cho_solve` and :func:`lower_inverse` call its XLA FFI handlers instead: the same
+:func:`cho_solve`, :func:`damped_solve` and :func:`lower_inverse` call its XLA FFI
+handlers instead: the same
 left-looking algorithms as plain loops over one matrix at a time, several times faster
 than XLA:CPU's loops over the batch, and a custom call is a single instruction where the
 loops were hundreds, so the programs that use them also compile faster (run
@@ -213,6 +214,9 @@ def _register() -> dict[str, str] | None:
 TARGETS: dict[str, str] | None = _register()
 #: The largest matrix order the kernels take (larger ones run the plain-JAX code).
 KERNEL_MAX_N: int = _kernels.max_n() if TARGETS is not None else 0
+#: The largest order the fused kernel of :func:`damped_solve` takes (larger ones call
+#: the Cholesky and solve kernels in turn).
+DAMPED_MAX_N: int = _kernels.damped_max_n() if TARGETS is not None else 0
 #: ``jax.export`` safety checks to turn off for programs that call the kernels.
 EXPORT_CHECKS = tuple(
     jax.export.DisabledSafetyCheck.custom_call(target)
@@ -262,8 +266,20 @@ def _tri_solve(mode: int, plain):
     return _with_plain_derivative(kernel, plain)
 
 
+def _plain_damped_solve(a, damping, b):
+    return _plain_cho_solve(_plain_cholesky(_damped(a, damping)), b)
+
+
+def _damped(a, damping):
+    return a + damping * jnp.eye(a.shape[-1], dtype=a.dtype)
+
+
 _KERNELS = {
     "cholesky": _with_plain_derivative(_kernel_cholesky, _plain_cholesky),
+    "damped_solve": _with_plain_derivative(
+        lambda a, damping, b: _call("damped_solve", b, a, damping, b),
+        _plain_damped_solve,
+    ),
     "solve_lower": _tri_solve(0, _plain_solve_lower),
     "solve_lower_transpose": _tri_solve(1, _plain_solve_lower_transpose),
     "cho_solve": _tri_solve(2, _plain_cho_solve),
@@ -306,6 +322,21 @@ def cho_solve(lower: Float[Array, "n n"], b: Float[Array, "n ..."]):
     if _use_kernel(lower, b):
         return _KERNELS["cho_solve"](lower, b)
     return _plain_cho_solve(lower, b)
+
+
+def damped_solve(
+    a: Float[Array, "n n"], damping: Float[Array, ""], b: Float[Array, " n"]
+) -> Float[Array, " n"]:
+    """``x`` with ``(a + damping I) x = b``: :func:`cho_solve` of the
+    :func:`cholesky` of ``a + damping I`` (its lower triangle read; NaN where it is
+    not positive definite), in one kernel call where the kernels serve it (the same
+    numbers: a Levenberg–Marquardt step is this one call, not an addition and two
+    kernels). Its derivative is the plain-JAX code's, through the factorisation loop
+    (:func:`solve_spd` differentiates more cheaply)."""
+    damping = jnp.asarray(damping, dtype=a.dtype)
+    if b.ndim == 1 and a.shape[-1] <= DAMPED_MAX_N and _use_kernel(a, damping, b):
+        return _KERNELS["damped_solve"](a, damping, b)
+    return cho_solve(cholesky(_damped(a, damping)), b)
 
 
 def lower_inverse(lower: Float[Array, "n n"]) -> Float[Array, "n n"]:

@@ -160,8 +160,7 @@ def predict(mech: Mechanism, kind: str, geom: Geometry, values, state):
     tangent ``ds/dv Δv`` of the implicit function theorem (least squares where rows
     are redundant), built from the LM solver's own normal equations."""
     _, hessian, gradient = jacobian.normal_equations(mech, geom, kind, values, state)
-    system = hessian + 1e-12 * jnp.eye(hessian.shape[0])
-    return state - dense.solve_spd(system, gradient)
+    return state - dense.damped_solve(hessian, 1e-12, gradient)
 
 
 class _Walk(NamedTuple):

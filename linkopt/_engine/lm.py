@@ -97,8 +97,7 @@ def step(
         state.residual,
         state.damping,
     )
-    system = hessian + lam * jnp.eye(hessian.shape[0])
-    delta = -dense.cho_solve(dense.cholesky(system), gradient)
+    delta = -dense.damped_solve(hessian, lam, gradient)  # (JᵀJ + λI)⁻¹ Jᵀr
     new_residual, new_hessian, new_gradient = _linearise(fn, state.x + delta, linearise)
     actual = r @ r - new_residual @ new_residual
     predicted = -(2.0 * delta @ gradient + delta @ hessian @ delta)

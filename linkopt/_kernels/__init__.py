@@ -14,7 +14,10 @@ order ``n`` at most ``_dense.max_n()``, 512, else an error):
   triangle; NaN from the first non-positive pivot on);
 * ``tri_solve``: ``L (..., n, n)``, ``b (..., n, k)``, attribute ``mode`` (int32):
   0 solves ``L x = b``, 1 ``Lᵀ x = b``, 2 ``L Lᵀ x = b``;
-* ``lower_inverse``: ``L (..., n, n)`` -> ``L⁻¹``.
+* ``lower_inverse``: ``L (..., n, n)`` -> ``L⁻¹``;
+* ``damped_solve``: ``a (..., n, n)``, ``d (...)``, ``b (..., n)`` -> ``(a + d I)⁻¹ b``
+  (``cholesky`` of ``a + d I`` and ``tri_solve`` mode 2 in one call, the same numbers;
+  order at most ``_dense.damped_max_n()``, 89).
 
 JAX-free: importing this module imports neither JAX nor the extension.
 """
@@ -29,11 +32,11 @@ from types import ModuleType
 
 #: The ABI version of the handlers this code expects (``kVersion`` in ``dense.cc``); an
 #: extension of another version (a stale build) is not used.
-VERSION = 1
+VERSION = 2
 #: The environment variable that turns the kernels off when set to ``0``.
 ENVIRONMENT = "LINKOPT_KERNELS"
 #: The handlers' names, the keys of :func:`handlers`.
-NAMES = ("cholesky", "tri_solve", "lower_inverse")
+NAMES = ("cholesky", "tri_solve", "lower_inverse", "damped_solve")
 SOURCE = Path(__file__).with_name("dense.cc")
 
 #: Why the latest :func:`handlers` returned None; None after it returned the handlers.
@@ -82,10 +85,9 @@ def _load() -> ModuleType | None:
 
 
 def handlers() -> dict[str, object] | None:
-    """``{"cholesky", "tri_solve", "lower_inverse"}`` -> each handler's PyCapsule, or
-    None (never an exception) when the extension is missing, fails to load, is of
-    another :data:`VERSION` or ``$LINKOPT_KERNELS`` is ``0``; :data:`reason` then says
-    which."""
+    """:data:`NAMES` -> each handler's PyCapsule, or None (never an exception) when
+    the extension is missing, fails to load, is of another :data:`VERSION` or
+    ``$LINKOPT_KERNELS`` is ``0``; :data:`reason` then says which."""
     global reason
     if disabled():
         reason = f"turned off by {ENVIRONMENT}={os.environ[ENVIRONMENT]}"
@@ -142,6 +144,12 @@ def max_n() -> int | None:
     return None if module is None else module.max_n()
 
 
+def damped_max_n() -> int | None:
+    """The largest matrix order ``damped_solve`` takes (None without the extension)."""
+    module = _load()
+    return None if module is None else module.damped_max_n()
+
+
 def info() -> dict[str, object]:
     """What a diagnostic prints: availability, :data:`reason`, versions, staleness."""
     available = handlers() is not None
@@ -152,6 +160,7 @@ def info() -> dict[str, object]:
         "version": VERSION,
         "extension_version": None if module is None else module.version(),
         "max_n": max_n(),
+        "damped_max_n": damped_max_n(),
         "ffi_api_version": None if module is None else module.ffi_api_version(),
         "stale": stale(),
         "digest": digest(),

@@ -8,10 +8,13 @@
 //   LkTriSolve      L (..., n, n), b (..., n, k), attribute `mode` (int32):
 //                   0: L x = b, 1: Lᵀ x = b, 2: L Lᵀ x = b          -> x (..., n, k)
 //   LkLowerInverse  L (..., n, n)            -> L⁻¹ (lower triangle of L read)
-// Every handler refuses n > kMaxN, mismatched shapes and an unknown mode with an
-// ffi::Error; none allocates. Single-threaded, plain loops written as axpys so
-// -O3 vectorises them without -ffast-math (no reassociated reductions, except the
-// explicit 4-accumulator dot).
+//   LkDampedSolve   a (..., n, n), d (...), b (..., n) -> (a + d I)⁻¹ b: LkCholesky of
+//                   a + d I and LkTriSolve mode 2 in one call (n <= kPairMaxN)
+// Every handler refuses n > kMaxN (LkDampedSolve n > kPairMaxN), mismatched shapes and
+// an unknown mode with an ffi::Error; none allocates (scratch is on the stack).
+// Single-threaded, plain loops written as axpys so -O3 vectorises them without
+// -ffast-math (no reassociated reductions, except the explicit 4-accumulator dot);
+// LkCholesky and LkDampedSolve work on two matrices of a batch at a time (chol_pair).
 //
 // kVersion is the ABI of these handlers (names, operands, attributes, semantics):
 // increment it with any such change; linkopt/_kernels/__init__.py refuses an extension
@@ -31,7 +34,7 @@ namespace ffi = xla::ffi;
 
 namespace {
 
-constexpr long kVersion = 1;
+constexpr long kVersion = 2;
 constexpr int64_t kMaxN = 512;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -40,12 +43,19 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // triangle gets a[i, k+1..i] -= L[i,k] * L[k+1..i, k], with L[:, k] copied to the
 // contiguous buffer col (n entries). NaN in L[i, c] for all c >= the first
 // non-positive (or NaN) pivot, i >= c.
+void chol_in_place(double* __restrict l, int64_t n, double* __restrict col);
+
 void chol_one(const double* a, double* __restrict l, int64_t n, double* __restrict col) {
-  for (int64_t i = 0; i < n; ++i) {
-    if (a != l)
+  if (a != l)
+    for (int64_t i = 0; i < n; ++i)
       for (int64_t j = 0; j <= i; ++j) l[i * n + j] = a[i * n + j];
+  chol_in_place(l, n, col);
+}
+
+// chol_one with a = l: the lower triangle of l holds a.
+void chol_in_place(double* __restrict l, int64_t n, double* __restrict col) {
+  for (int64_t i = 0; i < n; ++i)
     for (int64_t j = i + 1; j < n; ++j) l[i * n + j] = 0.0;
-  }
   for (int64_t k = 0; k < n; ++k) {
     double d = l[k * n + k];
     if (!(d > 0.0)) {  // non-positive or NaN pivot: NaN from column k on
@@ -142,6 +152,178 @@ void lower_inverse_one(const double* __restrict l, double* __restrict x, int64_t
   }
 }
 
+// ---- two matrices at a time ----------------------------------------------------------
+//
+// A batch is factored two matrices at a time, side by side: element (i, j) of both is
+// one two-lane vector (`Pair`: GCC/Clang vector extensions, an SSE2 register on
+// x86-64), in a packed lower triangle (row i from tri(i) on). Every operation of
+// chol_pair, forward_pair and backward_t_pair is the one chol_one, forward and
+// backward_t apply to each matrix, in the same order (no reassociation, no FMA:
+// setup.py builds with -ffp-contract=off), so results are bitwise the same; the
+// compiler vectorises across the two matrices instead of along short, unaligned rows.
+// A lane whose factor fails (a non-positive or NaN pivot) is recomputed by the
+// one-matrix code, which writes its NaN pattern. Scratch is a stack buffer of kScratch
+// doubles, so these paths take n <= kPairMaxN; larger orders run the one-matrix code.
+
+#if defined(__GNUC__) || defined(__clang__)
+#define LK_PAIRS 1
+#endif
+
+// Doubles of the stack scratch buffer (64 KiB): a packed pair (n (n + 1)), its
+// right-hand side (2 n) or one full n x n matrix.
+constexpr int64_t kScratch = 8192;
+// The largest order of the pair paths and the damped solve: n (n + 1) + 2 n <= kScratch.
+constexpr int64_t kPairMaxN = 89;
+static_assert(kPairMaxN * (kPairMaxN + 1) + 2 * kPairMaxN <= kScratch, "kScratch");
+static_assert(kPairMaxN * kPairMaxN <= kScratch, "kScratch");
+
+constexpr int64_t tri(int64_t i) { return i * (i + 1) / 2; }
+
+#ifdef LK_PAIRS
+typedef double Pair __attribute__((vector_size(16)));
+
+inline Pair pair_sqrt(Pair v) { return Pair{std::sqrt(v[0]), std::sqrt(v[1])}; }
+
+// Bit w set where lane w of the pivot v is not positive (or is NaN).
+inline unsigned failed(Pair v) {
+  return (!(v[0] > 0.0) ? 1u : 0u) | (!(v[1] > 0.0) ? 2u : 0u);
+}
+
+// p <- the lower triangles of a0 and a1 (n x n, row-major), side by side, with
+// (d0, d1) added to the diagonal when Damped.
+template <bool Damped>
+void pack_pair(const double* a0, const double* a1, int64_t n, Pair* __restrict p,
+               double d0, double d1) {
+  for (int64_t i = 0; i < n; ++i) {
+    const double* r0 = a0 + i * n;
+    const double* r1 = a1 + i * n;
+    Pair* __restrict row = p + tri(i);
+    for (int64_t j = 0; j <= i; ++j) row[j] = Pair{r0[j], r1[j]};
+    if (Damped) row[i] = Pair{r0[i] + d0, r1[i] + d1};
+  }
+}
+
+// l (n x n, row-major) <- lane w of the packed factor p, zero above the diagonal.
+void unpack_lane(const Pair* p, int64_t n, int w, double* __restrict l) {
+  for (int64_t i = 0; i < n; ++i) {
+    const Pair* row = p + tri(i);
+    double* __restrict out = l + i * n;
+    for (int64_t j = 0; j <= i; ++j) out[j] = row[j][w];
+    for (int64_t j = i + 1; j < n; ++j) out[j] = 0.0;
+  }
+}
+
+// In place: the lower Cholesky factors of the packed pair p (chol_one's operations
+// per lane: element (i, j) is a[i, j] - L[i, 0] L[j, 0] - ... - L[i, j-1] L[j, j-1],
+// subtracted in that order, then divided by L[j, j], or its square root on the
+// diagonal). Left-looking, two columns j, j + 1 at a time and four rows at a time: eight
+// independent sums. Returns the lanes with a failing pivot (bit w for lane w); their
+// values are then meaningless.
+unsigned chol_pair(Pair* __restrict p, int64_t n) {
+  unsigned bad = 0;
+  int64_t j = 0;
+  for (; j + 2 <= n; j += 2) {
+    Pair* __restrict rj = p + tri(j);
+    Pair* __restrict rk = p + tri(j + 1);
+    Pair sjj = rj[j], skj = rk[j], skk = rk[j + 1];
+    for (int64_t k = 0; k < j; ++k) {
+      sjj -= rj[k] * rj[k];
+      skj -= rk[k] * rj[k];
+      skk -= rk[k] * rk[k];
+    }
+    bad |= failed(sjj);
+    const Pair dj = pair_sqrt(sjj);
+    rj[j] = dj;
+    const Pair lkj = skj / dj;
+    rk[j] = lkj;
+    skk -= lkj * lkj;
+    bad |= failed(skk);
+    const Pair dk = pair_sqrt(skk);
+    rk[j + 1] = dk;
+    int64_t i = j + 2;
+    for (; i + 4 <= n; i += 4) {
+      Pair* __restrict r0 = p + tri(i);
+      Pair* __restrict r1 = p + tri(i + 1);
+      Pair* __restrict r2 = p + tri(i + 2);
+      Pair* __restrict r3 = p + tri(i + 3);
+      Pair a0 = r0[j], a1 = r1[j], a2 = r2[j], a3 = r3[j];
+      Pair b0 = r0[j + 1], b1 = r1[j + 1], b2 = r2[j + 1], b3 = r3[j + 1];
+      for (int64_t k = 0; k < j; ++k) {
+        const Pair x = rj[k], y = rk[k];
+        const Pair q0 = r0[k], q1 = r1[k], q2 = r2[k], q3 = r3[k];
+        a0 -= q0 * x;
+        a1 -= q1 * x;
+        a2 -= q2 * x;
+        a3 -= q3 * x;
+        b0 -= q0 * y;
+        b1 -= q1 * y;
+        b2 -= q2 * y;
+        b3 -= q3 * y;
+      }
+      a0 /= dj;
+      a1 /= dj;
+      a2 /= dj;
+      a3 /= dj;
+      r0[j] = a0;
+      r1[j] = a1;
+      r2[j] = a2;
+      r3[j] = a3;
+      r0[j + 1] = (b0 - a0 * lkj) / dk;
+      r1[j + 1] = (b1 - a1 * lkj) / dk;
+      r2[j + 1] = (b2 - a2 * lkj) / dk;
+      r3[j + 1] = (b3 - a3 * lkj) / dk;
+    }
+    for (; i < n; ++i) {
+      Pair* __restrict r0 = p + tri(i);
+      Pair a0 = r0[j], b0 = r0[j + 1];
+      for (int64_t k = 0; k < j; ++k) {
+        a0 -= r0[k] * rj[k];
+        b0 -= r0[k] * rk[k];
+      }
+      a0 /= dj;
+      r0[j] = a0;
+      r0[j + 1] = (b0 - a0 * lkj) / dk;
+    }
+  }
+  if (j < n) {  // n odd: the last diagonal element
+    Pair* __restrict rj = p + tri(j);
+    Pair s = rj[j];
+    for (int64_t k = 0; k < j; ++k) s -= rj[k] * rj[k];
+    bad |= failed(s);
+    rj[j] = pair_sqrt(s);
+  }
+  return bad;
+}
+
+// In place: x <- L^{-1} x for the packed pair L (forward's operations for k = 1,
+// including dot's four sums).
+void forward_pair(const Pair* __restrict p, Pair* __restrict x, int64_t n) {
+  for (int64_t i = 0; i < n; ++i) {
+    const Pair* __restrict li = p + tri(i);
+    Pair s0 = {0.0, 0.0}, s1 = s0, s2 = s0, s3 = s0;
+    int64_t j = 0;
+    for (; j + 4 <= i; j += 4) {
+      s0 += li[j] * x[j];
+      s1 += li[j + 1] * x[j + 1];
+      s2 += li[j + 2] * x[j + 2];
+      s3 += li[j + 3] * x[j + 3];
+    }
+    for (; j < i; ++j) s0 += li[j] * x[j];
+    x[i] = (x[i] - ((s0 + s1) + (s2 + s3))) / li[i];
+  }
+}
+
+// In place: x <- L^{-T} x for the packed pair L (backward_t's operations for k = 1).
+void backward_t_pair(const Pair* __restrict p, Pair* __restrict x, int64_t n) {
+  for (int64_t i = n - 1; i >= 0; --i) {
+    const Pair* __restrict li = p + tri(i);
+    const Pair xi = x[i] / li[i];
+    x[i] = xi;
+    for (int64_t j = 0; j < i; ++j) x[j] -= li[j] * xi;
+  }
+}
+#endif  // LK_PAIRS
+
 // n and the batch size of a (..., n, n) operand, n <= kMaxN.
 ffi::Error square_dims(const ffi::Buffer<ffi::F64>& a, int64_t* n, int64_t* batch) {
   auto dims = a.dimensions();
@@ -176,7 +358,24 @@ ffi::Error CholeskyImpl(ffi::Buffer<ffi::F64> a, ffi::ResultBuffer<ffi::F64> out
   double col[kMaxN];
   const double* src = a.typed_data();
   double* dst = out->typed_data();
-  for (int64_t b = 0; b < batch; ++b) chol_one(src + b * n * n, dst + b * n * n, n, col);
+  const int64_t nn = n * n;
+  int64_t b = 0;
+#ifdef LK_PAIRS
+  if (n <= kPairMaxN) {
+    alignas(64) Pair p[kScratch / 2];
+    for (; b + 2 <= batch; b += 2) {
+      pack_pair<false>(src + b * nn, src + (b + 1) * nn, n, p, 0.0, 0.0);
+      const unsigned bad = chol_pair(p, n);
+      for (int w = 0; w < 2; ++w) {
+        if (bad >> w & 1u)
+          chol_one(src + (b + w) * nn, dst + (b + w) * nn, n, col);
+        else
+          unpack_lane(p, n, w, dst + (b + w) * nn);
+      }
+    }
+  }
+#endif
+  for (; b < batch; ++b) chol_one(src + b * nn, dst + b * nn, n, col);
   return ffi::Error::Success();
 }
 
@@ -223,6 +422,74 @@ ffi::Error LowerInverseImpl(ffi::Buffer<ffi::F64> l, ffi::ResultBuffer<ffi::F64>
   return ffi::Error::Success();
 }
 
+// x = (a + d I)^{-1} b for each matrix of the batch: chol_one of a + d I, then forward
+// and backward_t, with the same operations as LkCholesky of a + d I followed by
+// LkTriSolve mode 2 (bitwise the same x); n <= kPairMaxN.
+ffi::Error DampedSolveImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> d,
+                           ffi::Buffer<ffi::F64> b, ffi::ResultBuffer<ffi::F64> out) {
+  int64_t n, batch;
+  if (auto e = square_dims(a, &n, &batch); e.failure()) return e;
+  if (n > kPairMaxN)
+    return ffi::Error::InvalidArgument("matrix order n = " + std::to_string(n) +
+                                       " exceeds the damped solve's limit of " +
+                                       std::to_string(kPairMaxN));
+  auto ad = a.dimensions();
+  auto dd = d.dimensions();
+  auto bd = b.dimensions();
+  const size_t r = ad.size();
+  if (dd.size() + 2 != r || bd.size() + 1 != r || bd[r - 2] != n)
+    return ffi::Error::InvalidArgument("expected a (..., n, n), d (...) and b (..., n) "
+                                       "with the same batch dimensions");
+  for (size_t i = 0; i + 2 < r; ++i)
+    if (dd[i] != ad[i] || bd[i] != ad[i])
+      return ffi::Error::InvalidArgument("batch dimensions of a, d and b differ");
+  if (auto e = same_dims(b.dimensions(), out->dimensions()); e.failure()) return e;
+  const double* ap = a.typed_data();
+  const double* dp = d.typed_data();
+  const double* bp = b.typed_data();
+  double* xp = out->typed_data();
+  const int64_t nn = n * n;
+  alignas(64) double scratch[kScratch];
+  double col[kPairMaxN];
+  // one matrix: a + d I factored in scratch by chol_one, then the two solves
+  auto one = [&](int64_t i) {
+    const double* ai = ap + i * nn;
+    for (int64_t row = 0; row < n; ++row) {
+      for (int64_t c = 0; c < row; ++c) scratch[row * n + c] = ai[row * n + c];
+      scratch[row * n + row] = ai[row * n + row] + dp[i];
+    }
+    chol_in_place(scratch, n, col);
+    double* xi = xp + i * n;
+    if (xi != bp + i * n) std::memcpy(xi, bp + i * n, sizeof(double) * n);
+    forward(scratch, xi, n, 1);
+    backward_t(scratch, xi, n, 1);
+  };
+  int64_t i = 0;
+#ifdef LK_PAIRS
+  Pair* p = reinterpret_cast<Pair*>(scratch);
+  Pair* x = p + tri(n);
+  for (; i + 2 <= batch; i += 2) {
+    pack_pair<true>(ap + i * nn, ap + (i + 1) * nn, n, p, dp[i], dp[i + 1]);
+    const double* b0 = bp + i * n;
+    const double* b1 = b0 + n;
+    for (int64_t k = 0; k < n; ++k) x[k] = Pair{b0[k], b1[k]};
+    const unsigned bad = chol_pair(p, n);
+    forward_pair(p, x, n);
+    backward_t_pair(p, x, n);
+    double* x0 = xp + i * n;
+    double* x1 = x0 + n;
+    for (int64_t k = 0; k < n; ++k) {
+      x0[k] = x[k][0];
+      x1[k] = x[k][1];
+    }
+    for (int w = 0; w < 2; ++w)  // after the good lane's x: one() reuses scratch
+      if (bad >> w & 1u) one(i + w);
+  }
+#endif
+  for (; i < batch; ++i) one(i);
+  return ffi::Error::Success();
+}
+
 }  // namespace
 
 XLA_FFI_DEFINE_HANDLER_SYMBOL(LkCholesky, CholeskyImpl,
@@ -239,6 +506,13 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(LkTriSolve, TriSolveImpl,
 
 XLA_FFI_DEFINE_HANDLER_SYMBOL(LkLowerInverse, LowerInverseImpl,
                               ffi::Ffi::Bind()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>());
+
+XLA_FFI_DEFINE_HANDLER_SYMBOL(LkDampedSolve, DampedSolveImpl,
+                              ffi::Ffi::Bind()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
                                   .Arg<ffi::Buffer<ffi::F64>>()
                                   .Ret<ffi::Buffer<ffi::F64>>());
 
@@ -264,7 +538,8 @@ PyObject* capsules(PyObject*, PyObject*) {
   if (dict == nullptr) return nullptr;
   if (!add_capsule(dict, "cholesky", LkCholesky) ||
       !add_capsule(dict, "tri_solve", LkTriSolve) ||
-      !add_capsule(dict, "lower_inverse", LkLowerInverse)) {
+      !add_capsule(dict, "lower_inverse", LkLowerInverse) ||
+      !add_capsule(dict, "damped_solve", LkDampedSolve)) {
     Py_DECREF(dict);
     return nullptr;
   }
@@ -274,6 +549,8 @@ PyObject* capsules(PyObject*, PyObject*) {
 PyObject* version(PyObject*, PyObject*) { return PyLong_FromLong(kVersion); }
 
 PyObject* max_n(PyObject*, PyObject*) { return PyLong_FromLongLong(kMaxN); }
+
+PyObject* damped_max_n(PyObject*, PyObject*) { return PyLong_FromLongLong(kPairMaxN); }
 
 PyObject* ffi_api_version(PyObject*, PyObject*) {
   return Py_BuildValue("(ii)", XLA_FFI_API_MAJOR, XLA_FFI_API_MINOR);
@@ -285,10 +562,12 @@ PyObject* source_sha256(PyObject*, PyObject*) {
 
 PyMethodDef methods[] = {
     {"capsules", capsules, METH_NOARGS,
-     "{'cholesky', 'tri_solve', 'lower_inverse'} -> a PyCapsule of each XLA FFI "
-     "handler, for jax.ffi.register_ffi_target(name, capsule, platform='cpu')."},
+     "{'cholesky', 'tri_solve', 'lower_inverse', 'damped_solve'} -> a PyCapsule of each "
+     "XLA FFI handler, for jax.ffi.register_ffi_target(name, capsule, platform='cpu')."},
     {"version", version, METH_NOARGS, "The ABI version of the handlers (an int)."},
     {"max_n", max_n, METH_NOARGS, "The largest matrix order n the handlers accept."},
+    {"damped_max_n", damped_max_n, METH_NOARGS,
+     "The largest matrix order n damped_solve accepts (the others: max_n())."},
     {"ffi_api_version", ffi_api_version, METH_NOARGS,
      "(major, minor) of the XLA FFI headers the handlers were built with."},
     {"source_sha256", source_sha256, METH_NOARGS,
