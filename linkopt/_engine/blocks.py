@@ -87,13 +87,23 @@ def in_blocks(
     else:
 
         def block(start: int):
-            out = fn(*(r[start : start + width] for r in padded))
-            return jax.tree_util.tree_map(np.asarray, out)  # waits, lock released
+            return _fetched(fn(*(r[start : start + width] for r in padded)))
 
-        first = block(starts[0])  # alone: a program new to this process compiles once
+        # the first block dispatched alone: a program new to this process compiles
+        # once, before any other thread calls it; it then runs while the others are
+        # dispatched (a thread waits for it), so at most ``threads`` blocks run at once
+        first = fn(*(r[:width] for r in padded))
         with ThreadPoolExecutor(threads) as pool:
-            parts = [first, *pool.map(block, starts[1:])]
+            waited = pool.submit(_fetched, first)
+            rest = list(pool.map(block, starts[1:]))
+            parts = [waited.result(), *rest]
     return jax.tree_util.tree_map(lambda *leaves: _joined(leaves, count), *parts)
+
+
+def _fetched(tree):
+    """Every array of ``tree`` as numpy: waits for a dispatched program (Python's lock
+    released)."""
+    return jax.tree_util.tree_map(np.asarray, tree)
 
 
 def _joined(leaves, count: int) -> jax.Array:
