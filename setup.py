@@ -51,7 +51,8 @@ class BuildExt(build_ext):
             return super().build_extension(ext)
         # -g0: no debug information (Python's own flags add -g); -ffp-contract=off: no
         # fused multiply-adds, so the handlers round as the plain-JAX code's steps do
-        # and the two-matrix paths as the one-matrix ones (dense.cc)
+        # and the paths that factor several matrices at once as the one-matrix path
+        # (dense.cc; its AVX2 functions are chosen at run time, X86_64_FLAGS stays)
         base = ["-std=c++17", "-O3", "-g0", "-fvisibility=hidden", "-ffp-contract=off"]
         machine = platform.machine().lower()
         arch = X86_64_FLAGS if machine in ("x86_64", "amd64") else []

@@ -160,11 +160,11 @@ def test_handlers_match_numpy(ffi, n, batch):
     assert np.all(np.triu(inverse, 1) == 0)
 
 
-@pytest.mark.parametrize("batch", [*BATCHES, (5,)], ids=str)
+@pytest.mark.parametrize("batch", [*BATCHES, (5,), (7,)], ids=str)
 @pytest.mark.parametrize("n", [1, 2, 7, 35, 63, DAMPED_MAX_N])
 def test_damped_solve_is_the_cholesky_and_solve_of_the_damped_matrix(ffi, n, batch):
-    """Bitwise: the factor and solve of a + d I by the other handlers (two matrices of
-    a batch at a time or one, in the same operations); and against numpy."""
+    """Bitwise: the factor and solve of a + d I by the other handlers (four, two or
+    one matrices of a batch at a time, in the same operations); and against numpy."""
     a, noisy = spd(batch, n, seed=n)
     rng = np.random.default_rng(n)
     d = rng.uniform(0.0, 2.0, batch)
@@ -178,33 +178,36 @@ def test_damped_solve_is_the_cholesky_and_solve_of_the_damped_matrix(ffi, n, bat
     np.testing.assert_allclose(x, exact[..., 0], rtol=1e-11, atol=1e-12)
 
 
+@pytest.mark.parametrize("count", [2, 3, 5, 7])
 @pytest.mark.parametrize("n", [7, 35, 64, DAMPED_MAX_N, 98])
-def test_a_batch_factors_as_its_matrices_one_at_a_time(ffi, n):
-    """The two-matrix path of the Cholesky handler (batches) gives the bits of the
-    one-matrix path (a single matrix), an odd batch's last matrix included."""
-    _, noisy = spd((5,), n, seed=n)
+def test_a_batch_factors_as_its_matrices_one_at_a_time(ffi, n, count):
+    """The group paths of the Cholesky handler (batches: four matrices at a time
+    where the CPU has AVX2, then two, then one) give the bits of the one-matrix path
+    (a single matrix)."""
+    _, noisy = spd((count,), n, seed=n)
     batched = ffi.cholesky(noisy)
-    for i in range(5):
+    for i in range(count):
         np.testing.assert_array_equal(batched[i], ffi.cholesky(noisy[i]))
 
 
-@pytest.mark.parametrize("failing", [0, 1, 2])
+@pytest.mark.parametrize("failing", [0, 1, 3, 4, 5, 6])
 def test_a_failing_matrix_in_a_batch_leaves_the_others_alone(ffi, failing):
     """NaN from the failing pivot on in that matrix only, for the Cholesky and the
-    damped solve (its whole x NaN), whichever lane of a pair it is in."""
-    a, _ = spd((3,), 7, seed=4)
+    damped solve (its whole x NaN), whichever group and lane it is in (a batch of 7:
+    four, two and one)."""
+    a, _ = spd((7,), 7, seed=4)
     full = np.linalg.cholesky(a)
     a[failing, 3, 3] = full[failing, 3, :3] @ full[failing, 3, :3] - 1.0
     lower = ffi.cholesky(a)
     nan = np.tril(np.ones((7, 7), bool)) & (np.arange(7) >= 3)[None, :]
-    for i in range(3):
+    for i in range(7):
         assert np.array_equal(np.isnan(lower[i]), nan if i == failing else 0 * nan)
         np.testing.assert_array_equal(lower[i], ffi.cholesky(a[i]))
-    x = ffi.damped_solve(a, np.zeros(3), np.ones((3, 7)))
+    x = ffi.damped_solve(a, np.zeros(7), np.ones((7, 7)))
     assert np.all(np.isnan(x[failing]))
-    others = [i for i in range(3) if i != failing]
+    others = [i for i in range(7) if i != failing]
     np.testing.assert_allclose(
-        x[others], np.linalg.solve(a[others], np.ones((2, 7, 1)))[..., 0], rtol=1e-11
+        x[others], np.linalg.solve(a[others], np.ones((6, 7, 1)))[..., 0], rtol=1e-11
     )
 
 

@@ -27,10 +27,11 @@ Compiled kernels. Where linkopt's compiled extension is built (:mod:`linkopt._ke
 made by ``pip install`` with the machine's C++ compiler) and the program runs on CPU in
 float64, :func:`cholesky`, :func:`solve_lower`, :func:`solve_lower_transpose`,
 :func:`cho_solve`, :func:`damped_solve` and :func:`lower_inverse` call its XLA FFI
-handlers instead: the same
-left-looking algorithms as plain loops over one matrix at a time, several times faster
-than XLA:CPU's loops over the batch, and a custom call is a single instruction where the
-loops were hundreds, so the programs that use them also compile faster (run
+handlers instead: the same algorithms as plain loops over one matrix at a time (the
+Cholesky factor and :func:`damped_solve` over two or four of a batch side by side, in
+the same operations), several times faster than XLA:CPU's loops over the batch, and a
+custom call is a single instruction where the loops were hundreds, so the programs
+that use them also compile faster (run
 ``benchmarks/bench_kinematics.py`` or ``benchmarks/bench_compile.py`` with and without
 ``LINKOPT_KERNELS=0`` to compare). The handlers run on the calling thread (no thread
 pool, so nothing can deadlock) and agree with the plain-JAX code to round-off

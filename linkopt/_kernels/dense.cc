@@ -9,12 +9,13 @@
 //                   0: L x = b, 1: Lᵀ x = b, 2: L Lᵀ x = b          -> x (..., n, k)
 //   LkLowerInverse  L (..., n, n)            -> L⁻¹ (lower triangle of L read)
 //   LkDampedSolve   a (..., n, n), d (...), b (..., n) -> (a + d I)⁻¹ b: LkCholesky of
-//                   a + d I and LkTriSolve mode 2 in one call (n <= kPairMaxN)
-// Every handler refuses n > kMaxN (LkDampedSolve n > kPairMaxN), mismatched shapes and
+//                   a + d I and LkTriSolve mode 2 in one call (n <= kLanesMaxN)
+// Every handler refuses n > kMaxN (LkDampedSolve n > kLanesMaxN), mismatched shapes and
 // an unknown mode with an ffi::Error; none allocates (scratch is on the stack).
 // Single-threaded, plain loops written as axpys so -O3 vectorises them without
 // -ffast-math (no reassociated reductions, except the explicit 4-accumulator dot);
-// LkCholesky and LkDampedSolve work on two matrices of a batch at a time (chol_pair).
+// LkCholesky and LkDampedSolve work on two or four matrices of a batch at a time
+// (chol_lanes).
 //
 // kVersion is the ABI of these handlers (names, operands, attributes, semantics):
 // increment it with any such change; linkopt/_kernels/__init__.py refuses an extension
@@ -152,105 +153,129 @@ void lower_inverse_one(const double* __restrict l, double* __restrict x, int64_t
   }
 }
 
-// ---- two matrices at a time ----------------------------------------------------------
+// ---- several matrices at a time ------------------------------------------------------
 //
-// A batch is factored two matrices at a time, side by side: element (i, j) of both is
-// one two-lane vector (`Pair`: GCC/Clang vector extensions, an SSE2 register on
-// x86-64), in a packed lower triangle (row i from tri(i) on). Every operation of
-// chol_pair, forward_pair and backward_t_pair is the one chol_one, forward and
-// backward_t apply to each matrix, in the same order (no reassociation, no FMA:
-// setup.py builds with -ffp-contract=off), so results are bitwise the same; the
-// compiler vectorises across the two matrices instead of along short, unaligned rows.
+// A batch is factored a group of matrices at a time, side by side: element (i, j) of the
+// group is one vector of L lanes (GCC/Clang vector extensions), in a packed lower
+// triangle (row i from tri(i) on). L = 2 (an SSE2 register on x86-64) everywhere; L = 4
+// (AVX2) in functions compiled for it and called only where the CPU has it
+// (__builtin_cpu_supports), so the module still runs on any x86-64-v2 CPU. Every
+// operation of chol_lanes, forward_lanes and backward_t_lanes is the one chol_one,
+// forward and backward_t apply to each matrix, in the same order (no reassociation, no
+// FMA: setup.py builds with -ffp-contract=off), so results are bitwise the same for any
+// L; the compiler vectorises across the group instead of along short, unaligned rows.
 // A lane whose factor fails (a non-positive or NaN pivot) is recomputed by the
 // one-matrix code, which writes its NaN pattern. Scratch is a stack buffer of kScratch
-// doubles, so these paths take n <= kPairMaxN; larger orders run the one-matrix code.
-
-#if defined(__GNUC__) || defined(__clang__)
-#define LK_PAIRS 1
-#endif
-
-// Doubles of the stack scratch buffer (64 KiB): a packed pair (n (n + 1)), its
-// right-hand side (2 n) or one full n x n matrix.
-constexpr int64_t kScratch = 8192;
-// The largest order of the pair paths and the damped solve: n (n + 1) + 2 n <= kScratch.
-constexpr int64_t kPairMaxN = 89;
-static_assert(kPairMaxN * (kPairMaxN + 1) + 2 * kPairMaxN <= kScratch, "kScratch");
-static_assert(kPairMaxN * kPairMaxN <= kScratch, "kScratch");
+// doubles, so these paths take n <= kLanesMaxN; larger orders run the one-matrix code.
 
 constexpr int64_t tri(int64_t i) { return i * (i + 1) / 2; }
 
-#ifdef LK_PAIRS
-typedef double Pair __attribute__((vector_size(16)));
+// Doubles of the stack scratch buffer (128 KiB): a packed group of four and its
+// right-hand sides, or one full n x n matrix.
+constexpr int64_t kScratch = 16384;
+// The largest order of the group paths and of the damped solve.
+constexpr int64_t kLanesMaxN = 89;
+static_assert(4 * tri(kLanesMaxN) + 4 * kLanesMaxN <= kScratch, "kScratch");
+static_assert(kLanesMaxN * kLanesMaxN <= kScratch, "kScratch");
 
-inline Pair pair_sqrt(Pair v) { return Pair{std::sqrt(v[0]), std::sqrt(v[1])}; }
+#if defined(__GNUC__) || defined(__clang__)
+#define LK_LANES 1
+#define LK_INLINE inline __attribute__((always_inline))
+#if defined(__x86_64__)
+#define LK_AVX2 1
+#endif
+#endif
 
-// Bit w set where lane w of the pivot v is not positive (or is NaN).
-inline unsigned failed(Pair v) {
-  return (!(v[0] > 0.0) ? 1u : 0u) | (!(v[1] > 0.0) ? 2u : 0u);
+#ifdef LK_LANES
+typedef double V2 __attribute__((vector_size(16)));
+#ifdef LK_AVX2
+typedef double V4 __attribute__((vector_size(32)));
+#endif
+
+template <class V>
+constexpr int lanes() {
+  return sizeof(V) / sizeof(double);
 }
 
-// p <- the lower triangles of a0 and a1 (n x n, row-major), side by side, with
-// (d0, d1) added to the diagonal when Damped.
-template <bool Damped>
-void pack_pair(const double* a0, const double* a1, int64_t n, Pair* __restrict p,
-               double d0, double d1) {
+// Bit w set where lane w of the pivot v is not positive (or is NaN).
+template <class V>
+LK_INLINE unsigned failed(const V& v) {
+  unsigned bad = 0;
+  for (int w = 0; w < lanes<V>(); ++w)
+    if (!(v[w] > 0.0)) bad |= 1u << w;
+  return bad;
+}
+
+template <class V>
+LK_INLINE void sqrt_lanes(const V& v, V& root) {
+  for (int w = 0; w < lanes<V>(); ++w) root[w] = std::sqrt(v[w]);
+}
+
+// p <- the lower triangles of the lanes<V>() consecutive n x n matrices from a on,
+// side by side, with d[w] added to the diagonal of matrix w when Damped.
+template <bool Damped, class V>
+LK_INLINE void pack(const double* a, int64_t n, V* __restrict p, const double* d) {
+  const int64_t nn = n * n;
   for (int64_t i = 0; i < n; ++i) {
-    const double* r0 = a0 + i * n;
-    const double* r1 = a1 + i * n;
-    Pair* __restrict row = p + tri(i);
-    for (int64_t j = 0; j <= i; ++j) row[j] = Pair{r0[j], r1[j]};
-    if (Damped) row[i] = Pair{r0[i] + d0, r1[i] + d1};
+    V* __restrict row = p + tri(i);
+    for (int64_t j = 0; j <= i; ++j)
+      for (int w = 0; w < lanes<V>(); ++w) row[j][w] = a[w * nn + i * n + j];
+    if (Damped)
+      for (int w = 0; w < lanes<V>(); ++w) row[i][w] = a[w * nn + i * n + i] + d[w];
   }
 }
 
 // l (n x n, row-major) <- lane w of the packed factor p, zero above the diagonal.
-void unpack_lane(const Pair* p, int64_t n, int w, double* __restrict l) {
+template <class V>
+LK_INLINE void unpack_lane(const V* p, int64_t n, int w, double* __restrict l) {
   for (int64_t i = 0; i < n; ++i) {
-    const Pair* row = p + tri(i);
+    const V* row = p + tri(i);
     double* __restrict out = l + i * n;
     for (int64_t j = 0; j <= i; ++j) out[j] = row[j][w];
     for (int64_t j = i + 1; j < n; ++j) out[j] = 0.0;
   }
 }
 
-// In place: the lower Cholesky factors of the packed pair p (chol_one's operations
+// In place: the lower Cholesky factors of the packed group p (chol_one's operations
 // per lane: element (i, j) is a[i, j] - L[i, 0] L[j, 0] - ... - L[i, j-1] L[j, j-1],
 // subtracted in that order, then divided by L[j, j], or its square root on the
 // diagonal). Left-looking, two columns j, j + 1 at a time and four rows at a time: eight
 // independent sums. Returns the lanes with a failing pivot (bit w for lane w); their
 // values are then meaningless.
-unsigned chol_pair(Pair* __restrict p, int64_t n) {
+template <class V>
+LK_INLINE unsigned chol_lanes(V* __restrict p, int64_t n) {
   unsigned bad = 0;
   int64_t j = 0;
   for (; j + 2 <= n; j += 2) {
-    Pair* __restrict rj = p + tri(j);
-    Pair* __restrict rk = p + tri(j + 1);
-    Pair sjj = rj[j], skj = rk[j], skk = rk[j + 1];
+    V* __restrict rj = p + tri(j);
+    V* __restrict rk = p + tri(j + 1);
+    V sjj = rj[j], skj = rk[j], skk = rk[j + 1];
     for (int64_t k = 0; k < j; ++k) {
       sjj -= rj[k] * rj[k];
       skj -= rk[k] * rj[k];
       skk -= rk[k] * rk[k];
     }
     bad |= failed(sjj);
-    const Pair dj = pair_sqrt(sjj);
+    V dj, dk;
+    sqrt_lanes(sjj, dj);
     rj[j] = dj;
-    const Pair lkj = skj / dj;
+    const V lkj = skj / dj;
     rk[j] = lkj;
     skk -= lkj * lkj;
     bad |= failed(skk);
-    const Pair dk = pair_sqrt(skk);
+    sqrt_lanes(skk, dk);
     rk[j + 1] = dk;
     int64_t i = j + 2;
     for (; i + 4 <= n; i += 4) {
-      Pair* __restrict r0 = p + tri(i);
-      Pair* __restrict r1 = p + tri(i + 1);
-      Pair* __restrict r2 = p + tri(i + 2);
-      Pair* __restrict r3 = p + tri(i + 3);
-      Pair a0 = r0[j], a1 = r1[j], a2 = r2[j], a3 = r3[j];
-      Pair b0 = r0[j + 1], b1 = r1[j + 1], b2 = r2[j + 1], b3 = r3[j + 1];
+      V* __restrict r0 = p + tri(i);
+      V* __restrict r1 = p + tri(i + 1);
+      V* __restrict r2 = p + tri(i + 2);
+      V* __restrict r3 = p + tri(i + 3);
+      V a0 = r0[j], a1 = r1[j], a2 = r2[j], a3 = r3[j];
+      V b0 = r0[j + 1], b1 = r1[j + 1], b2 = r2[j + 1], b3 = r3[j + 1];
       for (int64_t k = 0; k < j; ++k) {
-        const Pair x = rj[k], y = rk[k];
-        const Pair q0 = r0[k], q1 = r1[k], q2 = r2[k], q3 = r3[k];
+        const V x = rj[k], y = rk[k];
+        const V q0 = r0[k], q1 = r1[k], q2 = r2[k], q3 = r3[k];
         a0 -= q0 * x;
         a1 -= q1 * x;
         a2 -= q2 * x;
@@ -274,8 +299,8 @@ unsigned chol_pair(Pair* __restrict p, int64_t n) {
       r3[j + 1] = (b3 - a3 * lkj) / dk;
     }
     for (; i < n; ++i) {
-      Pair* __restrict r0 = p + tri(i);
-      Pair a0 = r0[j], b0 = r0[j + 1];
+      V* __restrict r0 = p + tri(i);
+      V a0 = r0[j], b0 = r0[j + 1];
       for (int64_t k = 0; k < j; ++k) {
         a0 -= r0[k] * rj[k];
         b0 -= r0[k] * rk[k];
@@ -286,21 +311,22 @@ unsigned chol_pair(Pair* __restrict p, int64_t n) {
     }
   }
   if (j < n) {  // n odd: the last diagonal element
-    Pair* __restrict rj = p + tri(j);
-    Pair s = rj[j];
+    V* __restrict rj = p + tri(j);
+    V s = rj[j];
     for (int64_t k = 0; k < j; ++k) s -= rj[k] * rj[k];
     bad |= failed(s);
-    rj[j] = pair_sqrt(s);
+    sqrt_lanes(s, rj[j]);
   }
   return bad;
 }
 
-// In place: x <- L^{-1} x for the packed pair L (forward's operations for k = 1,
+// In place: x <- L^{-1} x for the packed group L (forward's operations for k = 1,
 // including dot's four sums).
-void forward_pair(const Pair* __restrict p, Pair* __restrict x, int64_t n) {
+template <class V>
+LK_INLINE void forward_lanes(const V* __restrict p, V* __restrict x, int64_t n) {
   for (int64_t i = 0; i < n; ++i) {
-    const Pair* __restrict li = p + tri(i);
-    Pair s0 = {0.0, 0.0}, s1 = s0, s2 = s0, s3 = s0;
+    const V* __restrict li = p + tri(i);
+    V s0 = {}, s1 = {}, s2 = {}, s3 = {};
     int64_t j = 0;
     for (; j + 4 <= i; j += 4) {
       s0 += li[j] * x[j];
@@ -313,16 +339,75 @@ void forward_pair(const Pair* __restrict p, Pair* __restrict x, int64_t n) {
   }
 }
 
-// In place: x <- L^{-T} x for the packed pair L (backward_t's operations for k = 1).
-void backward_t_pair(const Pair* __restrict p, Pair* __restrict x, int64_t n) {
+// In place: x <- L^{-T} x for the packed group L (backward_t's operations for k = 1).
+template <class V>
+LK_INLINE void backward_t_lanes(const V* __restrict p, V* __restrict x, int64_t n) {
   for (int64_t i = n - 1; i >= 0; --i) {
-    const Pair* __restrict li = p + tri(i);
-    const Pair xi = x[i] / li[i];
+    const V* __restrict li = p + tri(i);
+    const V xi = x[i] / li[i];
     x[i] = xi;
     for (int64_t j = 0; j < i; ++j) x[j] -= li[j] * xi;
   }
 }
-#endif  // LK_PAIRS
+
+// The lanes<V>() consecutive matrices from a on: their factors to l (n x n each),
+// except where the factor fails (the returned lanes, not written).
+template <class V>
+LK_INLINE unsigned chol_group(const double* a, double* l, int64_t n, double* scratch) {
+  V* p = reinterpret_cast<V*>(scratch);
+  pack<false>(a, n, p, nullptr);
+  const unsigned bad = chol_lanes(p, n);
+  for (int w = 0; w < lanes<V>(); ++w)
+    if (!(bad >> w & 1u)) unpack_lane(p, n, w, l + w * n * n);
+  return bad;
+}
+
+// x = (a + d I)^{-1} b for the lanes<V>() consecutive matrices from a on (and their d,
+// b, x), except where the factor fails (the returned lanes, x not written).
+template <class V>
+LK_INLINE unsigned damped_group(const double* a, const double* d, const double* b,
+                                double* x, int64_t n, double* scratch) {
+  V* p = reinterpret_cast<V*>(scratch);
+  V* y = p + tri(n);
+  pack<true>(a, n, p, d);
+  for (int64_t k = 0; k < n; ++k)
+    for (int w = 0; w < lanes<V>(); ++w) y[k][w] = b[w * n + k];
+  const unsigned bad = chol_lanes(p, n);
+  forward_lanes(p, y, n);
+  backward_t_lanes(p, y, n);
+  for (int w = 0; w < lanes<V>(); ++w)
+    if (!(bad >> w & 1u))
+      for (int64_t k = 0; k < n; ++k) x[w * n + k] = y[k][w];
+  return bad;
+}
+
+unsigned chol_group2(const double* a, double* l, int64_t n, double* scratch) {
+  return chol_group<V2>(a, l, n, scratch);
+}
+
+unsigned damped_group2(const double* a, const double* d, const double* b, double* x,
+                       int64_t n, double* scratch) {
+  return damped_group<V2>(a, d, b, x, n, scratch);
+}
+
+#ifdef LK_AVX2
+__attribute__((target("avx2"))) unsigned chol_group4(const double* a, double* l,
+                                                     int64_t n, double* scratch) {
+  return chol_group<V4>(a, l, n, scratch);
+}
+
+__attribute__((target("avx2"))) unsigned damped_group4(const double* a, const double* d,
+                                                       const double* b, double* x,
+                                                       int64_t n, double* scratch) {
+  return damped_group<V4>(a, d, b, x, n, scratch);
+}
+
+bool has_avx2() {
+  static const bool yes = __builtin_cpu_supports("avx2");
+  return yes;
+}
+#endif
+#endif  // LK_LANES
 
 // n and the batch size of a (..., n, n) operand, n <= kMaxN.
 ffi::Error square_dims(const ffi::Buffer<ffi::F64>& a, int64_t* n, int64_t* batch) {
@@ -360,19 +445,20 @@ ffi::Error CholeskyImpl(ffi::Buffer<ffi::F64> a, ffi::ResultBuffer<ffi::F64> out
   double* dst = out->typed_data();
   const int64_t nn = n * n;
   int64_t b = 0;
-#ifdef LK_PAIRS
-  if (n <= kPairMaxN) {
-    alignas(64) Pair p[kScratch / 2];
-    for (; b + 2 <= batch; b += 2) {
-      pack_pair<false>(src + b * nn, src + (b + 1) * nn, n, p, 0.0, 0.0);
-      const unsigned bad = chol_pair(p, n);
-      for (int w = 0; w < 2; ++w) {
-        if (bad >> w & 1u)
-          chol_one(src + (b + w) * nn, dst + (b + w) * nn, n, col);
-        else
-          unpack_lane(p, n, w, dst + (b + w) * nn);
-      }
-    }
+#ifdef LK_LANES
+  if (n <= kLanesMaxN) {
+    alignas(64) double scratch[kScratch];
+    // the lanes of a group whose factor failed: chol_one writes their NaN pattern
+    auto redo = [&](unsigned bad, int count) {
+      for (int w = 0; w < count; ++w)
+        if (bad >> w & 1u) chol_one(src + (b + w) * nn, dst + (b + w) * nn, n, col);
+      b += count;
+    };
+#ifdef LK_AVX2
+    if (has_avx2())
+      while (b + 4 <= batch) redo(chol_group4(src + b * nn, dst + b * nn, n, scratch), 4);
+#endif
+    while (b + 2 <= batch) redo(chol_group2(src + b * nn, dst + b * nn, n, scratch), 2);
   }
 #endif
   for (; b < batch; ++b) chol_one(src + b * nn, dst + b * nn, n, col);
@@ -424,15 +510,15 @@ ffi::Error LowerInverseImpl(ffi::Buffer<ffi::F64> l, ffi::ResultBuffer<ffi::F64>
 
 // x = (a + d I)^{-1} b for each matrix of the batch: chol_one of a + d I, then forward
 // and backward_t, with the same operations as LkCholesky of a + d I followed by
-// LkTriSolve mode 2 (bitwise the same x); n <= kPairMaxN.
+// LkTriSolve mode 2 (bitwise the same x); n <= kLanesMaxN.
 ffi::Error DampedSolveImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> d,
                            ffi::Buffer<ffi::F64> b, ffi::ResultBuffer<ffi::F64> out) {
   int64_t n, batch;
   if (auto e = square_dims(a, &n, &batch); e.failure()) return e;
-  if (n > kPairMaxN)
+  if (n > kLanesMaxN)
     return ffi::Error::InvalidArgument("matrix order n = " + std::to_string(n) +
                                        " exceeds the damped solve's limit of " +
-                                       std::to_string(kPairMaxN));
+                                       std::to_string(kLanesMaxN));
   auto ad = a.dimensions();
   auto dd = d.dimensions();
   auto bd = b.dimensions();
@@ -450,7 +536,7 @@ ffi::Error DampedSolveImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> d,
   double* xp = out->typed_data();
   const int64_t nn = n * n;
   alignas(64) double scratch[kScratch];
-  double col[kPairMaxN];
+  double col[kLanesMaxN];
   // one matrix: a + d I factored in scratch by chol_one, then the two solves
   auto one = [&](int64_t i) {
     const double* ai = ap + i * nn;
@@ -465,26 +551,20 @@ ffi::Error DampedSolveImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> d,
     backward_t(scratch, xi, n, 1);
   };
   int64_t i = 0;
-#ifdef LK_PAIRS
-  Pair* p = reinterpret_cast<Pair*>(scratch);
-  Pair* x = p + tri(n);
-  for (; i + 2 <= batch; i += 2) {
-    pack_pair<true>(ap + i * nn, ap + (i + 1) * nn, n, p, dp[i], dp[i + 1]);
-    const double* b0 = bp + i * n;
-    const double* b1 = b0 + n;
-    for (int64_t k = 0; k < n; ++k) x[k] = Pair{b0[k], b1[k]};
-    const unsigned bad = chol_pair(p, n);
-    forward_pair(p, x, n);
-    backward_t_pair(p, x, n);
-    double* x0 = xp + i * n;
-    double* x1 = x0 + n;
-    for (int64_t k = 0; k < n; ++k) {
-      x0[k] = x[k][0];
-      x1[k] = x[k][1];
-    }
-    for (int w = 0; w < 2; ++w)  // after the good lane's x: one() reuses scratch
+#ifdef LK_LANES
+  // after a group's good lanes are written: one() reuses the scratch
+  auto redo = [&](unsigned bad, int count) {
+    for (int w = 0; w < count; ++w)
       if (bad >> w & 1u) one(i + w);
-  }
+    i += count;
+  };
+#ifdef LK_AVX2
+  if (has_avx2())
+    while (i + 4 <= batch)
+      redo(damped_group4(ap + i * nn, dp + i, bp + i * n, xp + i * n, n, scratch), 4);
+#endif
+  while (i + 2 <= batch)
+    redo(damped_group2(ap + i * nn, dp + i, bp + i * n, xp + i * n, n, scratch), 2);
 #endif
   for (; i < batch; ++i) one(i);
   return ffi::Error::Success();
@@ -550,7 +630,7 @@ PyObject* version(PyObject*, PyObject*) { return PyLong_FromLong(kVersion); }
 
 PyObject* max_n(PyObject*, PyObject*) { return PyLong_FromLongLong(kMaxN); }
 
-PyObject* damped_max_n(PyObject*, PyObject*) { return PyLong_FromLongLong(kPairMaxN); }
+PyObject* damped_max_n(PyObject*, PyObject*) { return PyLong_FromLongLong(kLanesMaxN); }
 
 PyObject* ffi_api_version(PyObject*, PyObject*) {
   return Py_BuildValue("(ii)", XLA_FFI_API_MAJOR, XLA_FFI_API_MINOR);
