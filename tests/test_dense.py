@@ -77,6 +77,21 @@ def test_damped_solve_is_the_cho_solve_of_the_damped_matrix(n):
     np.testing.assert_allclose(x, exact, rtol=1e-10, atol=1e-13)
 
 
+def test_damped_solve_differentiates_as_the_separate_calls():
+    """Its derivative (the plain code's, through the factorisation) is that of
+    cho_solve(cholesky(a + d I), b) in all three arguments."""
+    a, b = jnp.asarray(spd(7, 3)), jnp.asarray(np.random.default_rng(3).random(7))
+
+    def separate(a, d, b):
+        return dense.cho_solve(dense.cholesky(a + d * jnp.eye(7)), b)
+
+    for arg in range(3):
+        got = jax.jacfwd(dense.damped_solve, argnums=arg)(a, 0.5, b)
+        np.testing.assert_allclose(
+            got, jax.jacfwd(separate, argnums=arg)(a, 0.5, b), rtol=1e-12, atol=1e-15
+        )
+
+
 @pytest.mark.parametrize("n", SIZES)
 def test_lu_solve_and_det_match_lapack(n):
     a = general(n, n)
