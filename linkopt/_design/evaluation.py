@@ -117,7 +117,8 @@ class Evaluation(NamedTuple):
 
 def targets(mech: Mechanism) -> np.ndarray:
     """IK target points ``b^t`` in file units, shape ``(T, K)``; traceable in the
-    output ranges (:mod:`linkopt._engine.lifting`), numpy for concrete ones.
+    output ranges and the extra targets (:mod:`linkopt._engine.lifting`), numpy for
+    concrete ones.
 
     The grid is ``np.linspace`` per output (``lo + k·step``, the last value ``hi``
     exactly); a point is on the boundary when one of its indices is first or last."""
@@ -136,7 +137,7 @@ def targets(mech: Mechanism) -> np.ndarray:
     )
     on_boundary = np.any((index == 0) | (index == count - 1), axis=1)
     grid = grid if settings.interior else grid[on_boundary]
-    extra = np.asarray(settings.targets, dtype=float).reshape(-1, outputs)
+    extra = xp.asarray(settings.targets, dtype=float).reshape(-1, outputs)
     return xp.concatenate([grid, extra])
 
 

@@ -1,18 +1,22 @@
 """The mechanism as data: one compiled program for every mechanism of one structure.
 
 A :class:`~.model.Mechanism` mixes *structure* (bodies, joint families, which body each
-joint, point, motor and output belongs to, settings that shape loops) with *numbers*
+joint, point, motor and output belongs to, settings that shape arrays) with *numbers*
 (anchors, axes, body origins, points and how they follow their bodies, output ranges,
-the reference length, the design space's map and bounds). The programs of
-:mod:`.programs` take the numbers as arguments, as MuJoCo MJX passes its ``Model``:
+the reference length, the design space's map and bounds, and the settings that are
+numbers: weights, steps, tolerances, iteration caps, α₋, the extra targets' values,
+collision radii and band). The programs of :mod:`.programs` take the numbers as
+arguments, as MuJoCo MJX passes its ``Model``:
 
-* :func:`numbers` reads them off a concrete mechanism (numpy, float64);
+* :func:`numbers` reads them off a concrete mechanism (numpy; float64, iteration caps
+  int64);
 * :func:`lift` puts traced values in their place, so a program built from one
   mechanism computes with the numbers it is called with;
 * :func:`structure_key` digests everything else (the numbers by shape only), so that
   mechanisms with the same structure, e.g. ``mechanisms/delta.toml`` and
-  ``delta_deep_box.toml`` (other output ranges) or a file whose anchors were edited,
-  share one traced and compiled program.
+  ``delta_deep_box.toml`` (other output ranges), a file whose anchors, names or
+  ``[solver]``/``[evaluation]`` numbers were edited, share one traced and compiled
+  program. Names enter the key by their count only.
 
 Safety: a lifted number is a tracer, so code that used it as a numpy constant inside a
 program fails loudly (``TracerArrayConversionError``) instead of baking the first
@@ -45,8 +49,40 @@ FIELDS = (
 )
 DESIGN_FIELDS = ("p0", "lower", "upper", "matrix")
 ATTACHMENT_FIELDS = ("weights", "offsets", "spans")
+#: Settings taken as data (``[solver]``, ``[evaluation]``, ``[collision]``): editing
+#: a weight, a step, an iteration cap, a threshold or an extra target's values reuses
+#: every program. Each is a number or an array inside a program: an iteration cap
+#: bounds a ``while_loop`` (int64), ``targets`` is an ``(E, K)`` array, ``alpha_minus``
+#: is NaN where the file gives none. What shapes a program stays static and keyed:
+#: ``samples_per_dimension`` and ``interior`` (the grid), the number of extra targets,
+#: ``[collision].enable`` and the capsules and pairs.
+SOLVER_FIELDS = ("tolerance", "max_iterations", "initial_damping")
+EVALUATION_FIELDS = (
+    "alpha_factor",
+    "motion_weight",
+    "range_weight",
+    "regularizer_weight",
+    "max_step",
+    "ik_iterations",
+    "adversarial_iterations",
+    "alpha_minus",
+    "targets",
+)
+COLLISION_FIELDS = (
+    "clearance",
+    "weight",
+    "segment_radii",
+    "body_offsets",
+    "body_radii",
+)
+#: Integer settings (iteration caps), lifted as int64.
+INTEGER_FIELDS = frozenset(
+    {"max_iterations", "ik_iterations", "adversarial_iterations"}
+)
 #: Fields that never reach a program: names and where the file came from.
 IGNORED = ("name", "source", "raw")
+#: Name tuples: a program depends on how many names there are, never on the names.
+NAMES = ("body_names", "joint_names", "point_names", "motor_names", "output_names")
 
 _KEYS: weakref.WeakKeyDictionary[Mechanism, str] = weakref.WeakKeyDictionary()
 
@@ -62,7 +98,29 @@ def numbers(mech: Mechanism) -> dict:
         )
     if mech.output_frames is not None:
         out["output_frames"] = np.asarray(mech.output_frames, dtype=np.float64)
+    for table, fields in _settings(mech):
+        for name in fields:
+            out[f"{table}.{name}"] = _setting(mech, table, name)
     return out
+
+
+def _settings(mech: Mechanism) -> tuple[tuple[str, tuple[str, ...]], ...]:
+    """The settings tables of ``mech`` and their fields taken as data."""
+    tables = (("solver", SOLVER_FIELDS), ("evaluation", EVALUATION_FIELDS))
+    if mech.collision is not None:
+        tables += (("collision", COLLISION_FIELDS),)
+    return tables
+
+
+def _setting(mech: Mechanism, table: str, name: str) -> np.ndarray:
+    """One setting as an array (:data:`SOLVER_FIELDS` and the others)."""
+    value = getattr(getattr(mech, table), name)
+    if name == "targets":
+        return np.asarray(value, dtype=np.float64).reshape(-1, mech.num_outputs)
+    if name == "alpha_minus":
+        return np.asarray(np.nan if value is None else value, dtype=np.float64)
+    dtype = np.int64 if name in INTEGER_FIELDS else np.float64
+    return np.asarray(value, dtype=dtype)
 
 
 def lift(mech: Mechanism, values: dict) -> Mechanism:
@@ -78,6 +136,10 @@ def lift(mech: Mechanism, values: dict) -> Mechanism:
     extra = {}
     if mech.output_frames is not None:
         extra["output_frames"] = values["output_frames"]
+    for table, fields in _settings(mech):
+        extra[table] = dataclasses.replace(
+            getattr(mech, table), **{n: values[f"{table}.{n}"] for n in fields}
+        )
     return dataclasses.replace(
         mech,
         **{n: values[n] for n in FIELDS},
@@ -91,7 +153,18 @@ def _skeleton(mech: Mechanism) -> Mechanism:
     """``mech`` with every number replaced by its shape (what a program depends on)."""
     shapes = {k: f"{v.dtype.str}{v.shape}" for k, v in numbers(mech).items()}
     blank = lift(mech, shapes)
-    return dataclasses.replace(blank, **{name: None for name in IGNORED})
+    counts = {name: len(getattr(mech, name)) for name in NAMES}
+    design = dataclasses.replace(blank.design, names=len(mech.design.names))
+    reported = blank.reported
+    if reported is not None:
+        reported = dataclasses.replace(reported, names=len(reported.names))
+    return dataclasses.replace(
+        blank,
+        **{name: None for name in IGNORED},
+        **counts,
+        design=design,
+        reported=reported,
+    )
 
 
 def structure_key(mech: Mechanism) -> str:
