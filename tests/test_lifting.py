@@ -152,3 +152,43 @@ def test_settings_are_data_each_file_computed_with_its_own(five_bar, monkeypatch
         )
     assert int(np.max(theirs.ik_iterations)) <= 3
     assert int(np.max(ours.ik_iterations)) > 3
+
+
+def five_bar_without_elbow_y() -> linkopt.Mechanism:
+    """``five_bar.toml`` with two design parameters instead of three."""
+    text = (MECHANISMS / "five_bar.toml").read_text()
+    table = text[text.index('[[parameters]]\nname = "elbow_y"') :]
+    table = table[: table.index("\n\n") + 2]
+    return linkopt.loads(text.replace(table, ""), "five_bar_2p.toml")
+
+
+def test_a_file_with_fewer_parameters_shares_the_programs(five_bar, monkeypatch):
+    """Designs enter programs padded to their class (3 and 2 parameters: 4), so a
+    file that loses a parameter reuses the evaluation and the partial gradient, and
+    each result is its own: equal to a program made for it alone."""
+    from linkopt._design.evaluation import alpha_minus, evaluate_homogenised
+    from linkopt._design.partial import gradients_homogenised
+
+    fewer = five_bar_without_elbow_y()
+    assert fewer.design.size == 2 and five_bar.design.size == 3
+    assert structure_key(fewer) == structure_key(five_bar)
+    monkeypatch.setattr(programs, "PROGRAMS", {})
+    linkopt.evaluate(five_bar)
+    design = np.asarray(fewer.design.p0) + np.array([3.0, -4.0])
+    theirs = linkopt.evaluate(fewer, design)
+    gradient = linkopt.partial_gradient(fewer, design, theirs, alpha_minus(fewer))
+    assert [name for name, *_ in programs.PROGRAMS].count("evaluate") == 1
+    assert np.shape(gradient) == (2,)
+    alpha = alpha_minus(fewer)
+    baked = jax.jit(lambda d: evaluate_homogenised(fewer, d, alpha))(design)
+    np.testing.assert_allclose(theirs.f_design, baked.f_design, rtol=1e-10)
+    np.testing.assert_allclose(theirs.ik_states, baked.ik_states, atol=1e-10)
+    grad = jax.jit(lambda d, e: gradients_homogenised(fewer, d, e, alpha))
+    np.testing.assert_allclose(gradient, grad(design, baked), rtol=1e-8, atol=1e-12)
+
+
+@pytest.mark.parametrize(("size", "padded"), [(0, 4), (1, 4), (4, 4), (5, 8), (12, 16)])
+def test_design_classes(size, padded):
+    from linkopt._engine.lifting import design_class
+
+    assert design_class(size) == padded

@@ -68,6 +68,7 @@ from .._engine.collision import collision_value, has_collision
 from .._engine.constraints import homogenised_output_values, output_residual
 from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.kinematics import check_design
+from .._engine.lifting import padded_design
 from .._engine.mobility import rest_jacobians
 from .._engine.model import Mechanism, per_length
 from .._errors import MechanismFileError
@@ -472,7 +473,7 @@ def evaluate(mech: Mechanism, design=None) -> Evaluation:
             check_design(mech, row, name=f"design[{k}]")
     else:
         check_design(mech, design)
-    designs = jnp.asarray(design_vector(mech, design), dtype=jnp.float64)
+    designs = padded_design(mech, design_vector(mech, design))
     alpha = jnp.asarray(alpha_minus(mech), dtype=jnp.float64)
     return programs.call("evaluate", mech, evaluate_homogenised, designs, alpha)
 
@@ -480,7 +481,7 @@ def evaluate(mech: Mechanism, design=None) -> Evaluation:
 def batch_arguments(mech: Mechanism, rows: int) -> tuple:
     """Zeros shaped as the arguments :func:`evaluate` gives the evaluation program for
     a batch of ``rows`` designs (the designs, α₋)."""
-    designs = jnp.zeros((rows, mech.design.size), dtype=jnp.float64)
+    designs = padded_design(mech, np.zeros((rows, mech.design.size)))
     return designs, jnp.asarray(0.0, dtype=jnp.float64)
 
 

@@ -10,6 +10,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .following import follow
+from .lifting import padded_design
 from .model import Mechanism
 
 
@@ -52,13 +53,12 @@ def design_vector(mech: Mechanism, design=None) -> Float[Array, " n_p"]:
     return jnp.asarray(design, dtype=jnp.float64)
 
 
-def design_array(mech: Mechanism, design=None):
-    """``design`` unchanged, or the file's design as a numpy array for None: passed to
-    a jitted program, both are then one argument structure, so one trace and one
-    compiled program (a None design is another structure)."""
-    if design is None:
-        return np.asarray(mech.design.p0, dtype=np.float64)
-    return design
+def design_array(mech: Mechanism, design=None) -> np.ndarray:
+    """A concrete ``design`` (None: the file's) as the argument of a program of
+    :mod:`.programs`: numpy, padded to the design class
+    (:func:`.lifting.padded_design`), so None and arrays are one argument structure
+    and every file of one class shares the program."""
+    return padded_design(mech, mech.design.p0 if design is None else design)
 
 
 def geometry(mech: Mechanism, design=None) -> Geometry:

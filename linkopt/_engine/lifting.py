@@ -47,7 +47,9 @@ FIELDS = (
     "output_max",
     "length_scale",
 )
-DESIGN_FIELDS = ("p0", "lower", "upper", "matrix")
+#: The design space's fields taken as data, padded to :func:`design_class` columns
+#: (zeros: a padded parameter moves nothing; ``is_length`` False).
+DESIGN_FIELDS = ("p0", "lower", "upper", "matrix", "is_length")
 ATTACHMENT_FIELDS = ("weights", "offsets", "spans")
 #: Settings taken as data (``[solver]``, ``[evaluation]``, ``[collision]``): editing
 #: a weight, a step, an iteration cap, a threshold or an extra target's values reuses
@@ -91,7 +93,7 @@ def numbers(mech: Mechanism) -> dict:
     """The numbers of ``mech`` that programs take as data (float64 numpy arrays)."""
     out = {name: np.asarray(getattr(mech, name), dtype=np.float64) for name in FIELDS}
     for name in DESIGN_FIELDS:
-        out[f"design.{name}"] = np.asarray(getattr(mech.design, name), np.float64)
+        out[f"design.{name}"] = _padded_design_field(mech, name)
     for name in ATTACHMENT_FIELDS:
         out[f"points.{name}"] = np.asarray(
             getattr(mech.point_attachment, name), np.float64
@@ -102,6 +104,30 @@ def numbers(mech: Mechanism) -> dict:
         for name in fields:
             out[f"{table}.{name}"] = _setting(mech, table, name)
     return out
+
+
+def design_class(size: int) -> int:
+    """The number of design parameters a program is made for: ``size`` rounded up to
+    4, 8, 16, 32, ... Designs enter a program padded with zeros to it
+    (:func:`padded_design`), so a file that gains or loses a parameter within its
+    class reuses every program; the padding costs a few zero columns of the design
+    map."""
+    return max(4, 1 << max(size - 1, 0).bit_length())
+
+
+def padded_design(mech: Mechanism, design) -> np.ndarray:
+    """A concrete design ``(..., n_p)`` (file units) padded with zeros to
+    ``(..., design_class(n_p))``: what a program of :mod:`.programs` takes."""
+    design = np.asarray(design, dtype=np.float64)
+    extra = design_class(mech.design.size) - design.shape[-1]
+    return np.pad(design, [(0, 0)] * (design.ndim - 1) + [(0, extra)])
+
+
+def _padded_design_field(mech: Mechanism, name: str) -> np.ndarray:
+    """A field of the design space with its parameter axis (the last) padded."""
+    value = getattr(mech.design, name)
+    dtype = bool if name == "is_length" else np.float64
+    return padded_design(mech, value).astype(dtype)
 
 
 def _settings(mech: Mechanism) -> tuple[tuple[str, tuple[str, ...]], ...]:
@@ -126,8 +152,11 @@ def _setting(mech: Mechanism, table: str, name: str) -> np.ndarray:
 def lift(mech: Mechanism, values: dict) -> Mechanism:
     """``mech`` with its numbers replaced by ``values`` (as :func:`numbers` gives
     them; tracers inside a program)."""
+    names = mech.design.names
     design = dataclasses.replace(
-        mech.design, **{n: values[f"design.{n}"] for n in DESIGN_FIELDS}
+        mech.design,
+        names=names + ("",) * (design_class(len(names)) - len(names)),
+        **{n: values[f"design.{n}"] for n in DESIGN_FIELDS},
     )
     attachment = dataclasses.replace(
         mech.point_attachment,
@@ -154,7 +183,7 @@ def _skeleton(mech: Mechanism) -> Mechanism:
     shapes = {k: f"{v.dtype.str}{v.shape}" for k, v in numbers(mech).items()}
     blank = lift(mech, shapes)
     counts = {name: len(getattr(mech, name)) for name in NAMES}
-    design = dataclasses.replace(blank.design, names=len(mech.design.names))
+    design = dataclasses.replace(blank.design, names=len(blank.design.names))
     reported = blank.reported
     if reported is not None:
         reported = dataclasses.replace(reported, names=len(reported.names))
