@@ -141,13 +141,16 @@ def _lm(
 ) -> lm.LMResult:
     """LM on ``C(values, s)`` from ``start`` with the file's ``[solver]`` settings."""
     settings = mech.solver
-    return lm.solve(
+    method = lm.NormalEquations(
         lambda s: _RESIDUALS[kind](mech, geom, values, s),
+        lambda s: jacobian.normal_equations(mech, geom, kind, values, s),
+    )
+    return lm.solve(
+        method,
         start,
         tolerance=settings.tolerance,
         max_iterations=max_iterations or settings.max_iterations,
         initial_damping=settings.initial_damping,
-        linearise=lambda s: jacobian.normal_equations(mech, geom, kind, values, s),
     )
 
 
