@@ -25,8 +25,8 @@ the formula is the least-squares tangent. Both forward and reverse mode work thr
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -69,7 +69,9 @@ MAX_STEPS = 400
 MAX_VALUE = 1e6
 
 
-class Solution(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class Solution:
     """A kinematics solve; leading axes follow the batch/path of the inputs."""
 
     state: Float[Array, "... S"]  # homogenised state
@@ -81,8 +83,11 @@ class Solution(NamedTuple):
     progress: Float[Array, ...]
 
 
-jax.export.register_namedtuple_serialization(
-    Solution, serialized_name="linkopt.Solution"
+jax.export.register_pytree_node_serialization(
+    Solution,
+    serialized_name="linkopt.Solution",
+    serialize_auxdata=lambda _: b"",  # no meta fields
+    deserialize_auxdata=lambda _: (),
 )
 
 
@@ -167,7 +172,9 @@ def predict(mech: Mechanism, kind: str, geom: Geometry, values, state):
     return state - dense.solve_spd(system, gradient)
 
 
-class _Walk(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class _Walk:
     """Continuation carry: ``fraction`` of the way done at ``state``, next ``step``."""
 
     fraction: Float[Array, ""]

@@ -11,6 +11,7 @@ projection after it needs (``JᵀJ`` there is singular up to λ).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import importlib
 
@@ -75,9 +76,8 @@ def residual_np(sizes, rows, x) -> np.ndarray:
 
 
 def without_motors(rows: Rows) -> Rows:
-    return rows._replace(
-        **{k: getattr(rows, k)[:0] for k in Rows._fields if k.startswith("motor_")}
-    )
+    motors = [f.name for f in dataclasses.fields(Rows) if f.name.startswith("motor_")]
+    return dataclasses.replace(rows, **{k: getattr(rows, k)[:0] for k in motors})
 
 
 def rotation(omega):
@@ -166,6 +166,7 @@ def _programs():
 
     jax = importlib.import_module("jax")  # after linkopt._config: float64 on
     jnp = jax.numpy
+    jax.tree_util.register_dataclass(Rows)  # a program argument: every field an array
 
     @functools.partial(jit, static_argnums=0)
     def lm(sizes, rows, x, s):
