@@ -279,7 +279,8 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(
     with Workers(five_bar, 2) as workers:
         split = workers.evaluate(designs)
         gradients = workers.partial_gradient(designs, split, alpha)
-    for name, whole, part in zip(ev._fields, expected, split):
+    for name in (f.name for f in dataclasses.fields(ev)):
+        whole, part = getattr(expected, name), getattr(split, name)
         if whole is None:
             assert part is None, name
             continue
@@ -377,6 +378,7 @@ def test_a_killed_worker_is_replaced_and_the_numbers_do_not_change(
         chunks = [run.position[c] for c in workers._chunks(len(run.position))]
     here = [jax.tree_util.tree_map(np.asarray, evaluate(five_bar, c)) for c in chunks]
     expected = jax.tree_util.tree_map(lambda *part: np.concatenate(part), *here)
-    for name, whole, a, b in zip(ev._fields, expected, during, idle):
+    for name in (f.name for f in dataclasses.fields(ev)):
+        whole, a, b = (getattr(e, name) for e in (expected, during, idle))
         np.testing.assert_array_equal(a, whole, err_msg=name)
         np.testing.assert_array_equal(b, whole, err_msg=name)

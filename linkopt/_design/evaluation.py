@@ -55,8 +55,8 @@ the file must then set ``alpha_minus`` (:func:`alpha_minus`).
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 from functools import cache
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -86,7 +86,9 @@ QUEUE_WIDTH = 12  # slots of the sample queue (module docstring)
 RANGE_SLACK = 1e-9
 
 
-class Evaluation(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class Evaluation:
     """One design's evaluation; a batch of designs adds a leading axis. Homogenised.
     With ``[collision]`` enabled, ``f_design`` also holds the weighted collision term
     (module docstring): ``f_design - reach - singularity``."""
@@ -159,7 +161,8 @@ def capped(mech: Mechanism, ev: Evaluation) -> tuple[int, int]:
 NEAR_SINGULAR_SIGMA = 1e-3
 
 
-class RestConditioning(NamedTuple):
+@dataclass(frozen=True)
+class RestConditioning:
     """The initial design's rest pose: homogenised ``σ_min`` of ``∂C_FK/∂s`` and
     ``∂C_BK/∂s`` (eq. 3), and the singular values of the textbook input-output
     Jacobian ``J = ∂b/∂a`` in file units (descending; file units per rad for rotary
@@ -441,8 +444,11 @@ def _not_below_start(mech, lanes, box, samples, start_score, end_score) -> Sampl
     )
 
 
-jax.export.register_namedtuple_serialization(
-    Evaluation, serialized_name="linkopt.Evaluation"
+jax.export.register_pytree_node_serialization(
+    Evaluation,
+    serialized_name="linkopt.Evaluation",
+    serialize_auxdata=lambda _: b"",  # no meta fields
+    deserialize_auxdata=lambda _: (),
 )
 
 
