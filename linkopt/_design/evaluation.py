@@ -63,6 +63,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from .._config import stored_record
 from .._engine import programs
 from .._engine.collision import collision_value, has_collision
 from .._engine.constraints import homogenised_output_values, output_residual
@@ -86,7 +87,7 @@ QUEUE_WIDTH = 12  # slots of the sample queue (module docstring)
 RANGE_SLACK = 1e-9
 
 
-@jax.tree_util.register_dataclass
+@stored_record("linkopt.Evaluation")
 @dataclass(frozen=True)
 class Evaluation:
     """One design's evaluation; a batch of designs adds a leading axis. Homogenised.
@@ -442,14 +443,6 @@ def _not_below_start(mech, lanes, box, samples, start_score, end_score) -> Sampl
         f_sing=pick(start.f_sing, end.f_sing),
         iterations=end.iterations,
     )
-
-
-jax.export.register_pytree_node_serialization(
-    Evaluation,
-    serialized_name="linkopt.Evaluation",
-    serialize_auxdata=lambda _: b"",  # no meta fields
-    deserialize_auxdata=lambda _: (),
-)
 
 
 def evaluate_homogenised(mech: Mechanism, designs, alpha) -> Evaluation:

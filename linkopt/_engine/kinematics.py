@@ -33,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._config import jit, traced
+from .._config import jit, stored_record, traced
 from .._errors import InputError
 from . import dense, jacobian, lm, programs
 from .blocks import first_rows, in_blocks, path_rows
@@ -69,7 +69,7 @@ MAX_STEPS = 400
 MAX_VALUE = 1e6
 
 
-@jax.tree_util.register_dataclass
+@stored_record("linkopt.Solution")
 @dataclass(frozen=True)
 class Solution:
     """A kinematics solve; leading axes follow the batch/path of the inputs."""
@@ -81,14 +81,6 @@ class Solution:
     #: fraction of the way from the start's values to the requested ones that the
     #: continuation reached on the start's branch (1 when converged)
     progress: Float[Array, ...]
-
-
-jax.export.register_pytree_node_serialization(
-    Solution,
-    serialized_name="linkopt.Solution",
-    serialize_auxdata=lambda _: b"",  # no meta fields
-    deserialize_auxdata=lambda _: (),
-)
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1))
