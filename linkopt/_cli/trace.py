@@ -57,14 +57,10 @@ def register(arm_subparsers) -> None:
         help="task file (TOML: primitives, obstacles, base_regions, link diameter)",
     )
     p.add_argument("--out", required=True, help="output directory")
-    defaults = TraceSettings()
     p.add_argument(
-        "--seed",
-        type=int,
-        default=defaults.seed,
-        help=f"seed of the initial guesses (default {defaults.seed})",
+        "--seed", type=int, default=0, help="seed of the initial guesses (default 0)"
     )
-    add_options(p, defaults, OPTIONS)
+    add_options(p, TraceSettings(), OPTIONS)
     p.add_argument(
         "--discretised",
         type=int,
