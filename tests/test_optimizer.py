@@ -266,9 +266,8 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(
     d = five_bar.design
     other = np.clip(run.position[::-1] + 0.02 * (d.upper - d.lower), d.lower, d.upper)
     ev_other = jax.tree_util.tree_map(np.asarray, evaluate(five_bar, other))
-    expected = [  # the collision samples' fields are None: no [collision]
-        None if a is None else np.concatenate((a, b)) for a, b in zip(ev, ev_other)
-    ]
+    # the collision samples' fields are None (no [collision]) and stay None
+    expected = jax.tree_util.tree_map(lambda a, b: np.concatenate((a, b)), ev, ev_other)
     expected_gradients = np.concatenate(
         [
             partial_gradient(five_bar, run.position, ev, alpha),

@@ -362,7 +362,7 @@ def plot_spaces(
     samples = _samples(mech, evaluation, design)
     rows = _rows(mech, evaluation, resolution, design, samples, progress)
     layers = [_Layer("f_sing", "viridis", _colour_norm(rows), F_SING_LABEL)]
-    extra = clearance_layer(mech, [m for r in rows for m in r[:2]])
+    extra = clearance_layer(mech, [m for r in rows for m in (r.motors, r.outputs)])
     layers += [extra] if clearance and extra is not None else []
     count = len(layers)
     fig, axes = figures.subplots(
