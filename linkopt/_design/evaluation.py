@@ -55,14 +55,15 @@ the file must then set ``alpha_minus`` (:func:`alpha_minus`).
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 from functools import cache
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from .._config import stored_record
 from .._engine import programs
 from .._engine.collision import collision_value, has_collision
 from .._engine.constraints import homogenised_output_values, output_residual
@@ -87,7 +88,9 @@ QUEUE_WIDTH = 12  # slots of the sample queue (module docstring)
 RANGE_SLACK = 1e-9
 
 
-class Evaluation(NamedTuple):
+@stored_record("linkopt.Evaluation")
+@dataclass(frozen=True)
+class Evaluation:
     """One design's evaluation; a batch of designs adds a leading axis. Homogenised.
     With ``[collision]`` enabled, ``f_design`` also holds the weighted collision term
     (module docstring): ``f_design - reach - singularity``."""
@@ -161,7 +164,8 @@ def capped(mech: Mechanism, ev: Evaluation) -> tuple[int, int]:
 NEAR_SINGULAR_SIGMA = 1e-3
 
 
-class RestConditioning(NamedTuple):
+@dataclass(frozen=True)
+class RestConditioning:
     """The initial design's rest pose: homogenised ``σ_min`` of ``∂C_FK/∂s`` and
     ``∂C_BK/∂s`` (eq. 3), and the singular values of the textbook input-output
     Jacobian ``J = ∂b/∂a`` in file units (descending; file units per rad for rotary
@@ -441,11 +445,6 @@ def _not_below_start(mech, lanes, box, samples, start_score, end_score) -> Sampl
         f_sing=pick(start.f_sing, end.f_sing),
         iterations=end.iterations,
     )
-
-
-jax.export.register_namedtuple_serialization(
-    Evaluation, serialized_name="linkopt.Evaluation"
-)
 
 
 def evaluate_homogenised(mech: Mechanism, designs, alpha) -> Evaluation:
