@@ -121,7 +121,8 @@ def _adjoint_term(mech: Mechanism, term, design, motors, state):
     d_state, d_geom = jax.grad(term, argnums=(0, 1))(state, fixed)
     jac = state_jacobian(mech, fixed, "fk", state)
     mu = jac @ dense.solve_spd(jac.T @ jac, d_state)  # built from `fixed`: no gradient
-    direct = sum(jnp.vdot(g, x) for g, x in zip(d_geom, geom))
+    leaves = zip(jax.tree.leaves(d_geom), jax.tree.leaves(geom))
+    direct = sum(jnp.vdot(g, x) for g, x in leaves)
     return direct - mu @ fk_residual(mech, geom, motors, state)
 
 

@@ -3,8 +3,9 @@ state."""
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
@@ -14,7 +15,9 @@ from .lifting import padded_design
 from .model import Mechanism
 
 
-class Geometry(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class Geometry:
     """Rest geometry of one design, homogenised (lengths divided by ``length_scale``).
 
     All world-frame, rest pose; body-local quantities follow by subtracting the static

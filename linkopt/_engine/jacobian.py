@@ -35,8 +35,8 @@ call site.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -51,7 +51,8 @@ from .model import JOINT_ROWS, Mechanism
 from .quaternion import rotate
 
 
-class _Rows(NamedTuple):
+@dataclass(frozen=True)
+class _Rows:
     values: Float[Array, "G m"]
     blocks: tuple  # ((bodies: np.ndarray (G,), jac: (G, m, 7)), ...)
 
@@ -145,7 +146,8 @@ def _stack_rows(*rows):
     return values, ji, jj
 
 
-class _Frames(NamedTuple):
+@dataclass(frozen=True)
+class _Frames:
     xi: Array
     qi: Array
     ri: Array
