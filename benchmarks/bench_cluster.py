@@ -30,6 +30,7 @@ machine the spread is large, so compare medians. Writes them to
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
 import time
 from pathlib import Path
@@ -114,7 +115,10 @@ def main() -> None:
     for name, (_, ev) in results.items():
         same = all(
             a is b is None or np.array_equal(a, b, equal_nan=True)
-            for a, b in zip(ev, reference)
+            for a, b in (
+                (getattr(ev, f.name), getattr(reference, f.name))
+                for f in dataclasses.fields(ev)
+            )
         )
         identical[name] = same
         print(f"{name:11s} bit-identical to local: {same}")

@@ -2,7 +2,9 @@
 
 The public API; everything else is internal. States are homogenised (positions divided
 by ``Mechanism.length_scale``); motors, outputs, positions and designs are in file
-units.
+units. Results and settings are frozen dataclasses, read by field name; those that JAX
+traces (``Solution``, ``Evaluation``, ``DHTable``) are registered pytrees (the rule:
+the documentation's Architecture page, Conventions).
 
 linkopt computes in float64 and keeps compiled programs in a bounded on-disk cache
 (:mod:`linkopt._config`). Importing :mod:`linkopt` does not import JAX; JAX is set up

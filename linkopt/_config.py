@@ -125,3 +125,20 @@ def jit(fn=None, **kwargs):
     if fn is None:
         return lambda f: _Program(f, kwargs)
     return _Program(fn, kwargs)
+
+
+def stored_record(name: str):
+    """Class decorator: register a frozen dataclass whose fields are all arrays as a
+    pytree that a stored program (``jax.export``) may return, serialized as ``name``."""
+
+    def register(cls):
+        jax.tree_util.register_dataclass(cls)
+        jax.export.register_pytree_node_serialization(
+            cls,
+            serialized_name=name,
+            serialize_auxdata=lambda _: b"",  # no meta fields
+            deserialize_auxdata=lambda _: (),
+        )
+        return cls
+
+    return register

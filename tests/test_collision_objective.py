@@ -16,6 +16,7 @@ partial gradient, verification rounds and ``optimize``.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from pathlib import Path
 
@@ -179,10 +180,10 @@ def test_a_collision_found_by_verify_becomes_an_ik_target():
     is_target = np.any(np.all(np.isclose(known, cell, rtol=0, atol=1e-12), axis=1))
     assert failing_places(mech, check) == ([] if is_target else [cell.tolist()])
     between = np.array([0.5 * (known[0, 0] + known[1, 0])])
-    moved = check._replace(collision_outputs=between)
+    moved = dataclasses.replace(check, collision_outputs=between)
     assert failing_places(mech, moved) == [between.tolist()]
     # a clear verification adds nothing for collisions
-    clear = check._replace(min_clearance=2.0 * mech.collision.clearance)
+    clear = dataclasses.replace(check, min_clearance=2.0 * mech.collision.clearance)
     assert not collided(mech, clear) and failing_places(mech, clear) == []
 
 

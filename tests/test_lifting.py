@@ -71,10 +71,13 @@ def test_a_second_file_of_the_same_linkage_shares_the_delta_programs():
             m, joint_types=("revolute",) * 4 + ("spherical",)
         ),
         lambda m: dataclasses.replace(
-            m, solver=dataclasses.replace(m.solver, max_iterations=30)
+            m, evaluation=dataclasses.replace(m.evaluation, samples_per_dimension=4)
+        ),
+        lambda m: dataclasses.replace(
+            m, evaluation=dataclasses.replace(m.evaluation, targets=((0.0, 60.0),))
         ),
     ],
-    ids=["another linkage", "another joint family", "another solver setting"],
+    ids=["another linkage", "another joint family", "another grid", "more targets"],
 )
 def test_what_shapes_a_program_is_in_the_key(five_bar, other):
     assert structure_key(other(five_bar)) != structure_key(five_bar)
@@ -83,6 +86,7 @@ def test_what_shapes_a_program_is_in_the_key(five_bar, other):
 def test_numbers_and_names_are_not_in_the_key(five_bar):
     renamed = dataclasses.replace(five_bar, name="other", source="x.toml", raw={})
     assert structure_key(renamed) == structure_key(five_bar)
+    assert structure_key(retuned_five_bar(five_bar)) == structure_key(five_bar)
     moved = lift(five_bar, {k: v + 1.0 for k, v in numbers(five_bar).items()})
     assert structure_key(moved) == structure_key(five_bar)
 
@@ -96,3 +100,95 @@ def test_a_number_used_as_a_constant_fails_loudly(five_bar):
 
     with pytest.raises(jax.errors.TracerArrayConversionError):
         programs.call("baking", five_bar, baking, jnp.ones(2))
+
+
+def retuned_five_bar(five_bar) -> linkopt.Mechanism:
+    """``five_bar`` with other names and other ``[solver]``/``[evaluation]`` numbers:
+    short iteration caps, other weights and step, an α₋, one extra target moved."""
+    renamed = {
+        name: tuple(f"{n}_x" for n in getattr(five_bar, name))
+        for name in ("body_names", "joint_names", "point_names", "motor_names")
+    }
+    solver = dataclasses.replace(five_bar.solver, max_iterations=7, tolerance=1e-9)
+    evaluation = dataclasses.replace(
+        five_bar.evaluation,
+        ik_iterations=3,
+        adversarial_iterations=2,
+        motion_weight=0.5,
+        range_weight=2.0,
+        regularizer_weight=0.1,
+        max_step=0.05,
+        alpha_minus=30.0,
+    )
+    design = dataclasses.replace(
+        five_bar.design, names=tuple(f"{n}_x" for n in five_bar.design.names)
+    )
+    return dataclasses.replace(
+        five_bar,
+        **renamed,
+        solver=solver,
+        evaluation=evaluation,
+        design=design,
+        output_names=("u", "v"),
+    )
+
+
+def test_settings_are_data_each_file_computed_with_its_own(five_bar, monkeypatch):
+    """A file with other settings and names shares the five-bar's evaluation
+    program and is evaluated with its own settings: equal to a program that bakes
+    them in as constants, and unlike the five-bar's own evaluation."""
+    from linkopt._design.evaluation import evaluate_homogenised
+
+    retuned = retuned_five_bar(five_bar)
+    monkeypatch.setattr(programs, "PROGRAMS", {})
+    design = np.asarray(five_bar.design.p0)[None]
+    ours = linkopt.evaluate(five_bar, design)
+    theirs = linkopt.evaluate(retuned, design)
+    assert [name for name, *_ in programs.PROGRAMS].count("evaluate") == 1
+    baked = jax.jit(lambda d: evaluate_homogenised(retuned, d, 30.0))(design)
+    for field in ("f_design", "ik_f_sing", "adv_f_sing", "ik_iterations"):
+        np.testing.assert_allclose(
+            getattr(theirs, field), getattr(baked, field), rtol=1e-10, atol=1e-12
+        )
+    assert int(np.max(theirs.ik_iterations)) <= 3
+    assert int(np.max(ours.ik_iterations)) > 3
+
+
+def five_bar_without_elbow_y() -> linkopt.Mechanism:
+    """``five_bar.toml`` with two design parameters instead of three."""
+    text = (MECHANISMS / "five_bar.toml").read_text()
+    table = text[text.index('[[parameters]]\nname = "elbow_y"') :]
+    table = table[: table.index("\n\n") + 2]
+    return linkopt.loads(text.replace(table, ""), "five_bar_2p.toml")
+
+
+def test_a_file_with_fewer_parameters_shares_the_programs(five_bar, monkeypatch):
+    """Designs enter programs padded to their class (3 and 2 parameters: 4), so a
+    file that loses a parameter reuses the evaluation and the partial gradient, and
+    each result is its own: equal to a program made for it alone."""
+    from linkopt._design.evaluation import alpha_minus, evaluate_homogenised
+    from linkopt._design.partial import gradients_homogenised
+
+    fewer = five_bar_without_elbow_y()
+    assert fewer.design.size == 2 and five_bar.design.size == 3
+    assert structure_key(fewer) == structure_key(five_bar)
+    monkeypatch.setattr(programs, "PROGRAMS", {})
+    linkopt.evaluate(five_bar)
+    design = np.asarray(fewer.design.p0) + np.array([3.0, -4.0])
+    theirs = linkopt.evaluate(fewer, design)
+    gradient = linkopt.partial_gradient(fewer, design, theirs, alpha_minus(fewer))
+    assert [name for name, *_ in programs.PROGRAMS].count("evaluate") == 1
+    assert np.shape(gradient) == (2,)
+    alpha = alpha_minus(fewer)
+    baked = jax.jit(lambda d: evaluate_homogenised(fewer, d, alpha))(design)
+    np.testing.assert_allclose(theirs.f_design, baked.f_design, rtol=1e-10)
+    np.testing.assert_allclose(theirs.ik_states, baked.ik_states, atol=1e-10)
+    grad = jax.jit(lambda d, e: gradients_homogenised(fewer, d, e, alpha))
+    np.testing.assert_allclose(gradient, grad(design, baked), rtol=1e-8, atol=1e-12)
+
+
+@pytest.mark.parametrize(("size", "padded"), [(0, 4), (1, 4), (4, 4), (5, 8), (12, 16)])
+def test_design_classes(size, padded):
+    from linkopt._engine.lifting import design_class
+
+    assert design_class(size) == padded

@@ -266,9 +266,8 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(
     d = five_bar.design
     other = np.clip(run.position[::-1] + 0.02 * (d.upper - d.lower), d.lower, d.upper)
     ev_other = jax.tree_util.tree_map(np.asarray, evaluate(five_bar, other))
-    expected = [  # the collision samples' fields are None: no [collision]
-        None if a is None else np.concatenate((a, b)) for a, b in zip(ev, ev_other)
-    ]
+    # the collision samples' fields are None (no [collision]) and stay None
+    expected = jax.tree_util.tree_map(lambda a, b: np.concatenate((a, b)), ev, ev_other)
     expected_gradients = np.concatenate(
         [
             partial_gradient(five_bar, run.position, ev, alpha),
@@ -279,7 +278,8 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(
     with Workers(five_bar, 2) as workers:
         split = workers.evaluate(designs)
         gradients = workers.partial_gradient(designs, split, alpha)
-    for name, whole, part in zip(ev._fields, expected, split):
+    for name in (f.name for f in dataclasses.fields(ev)):
+        whole, part = getattr(expected, name), getattr(split, name)
         if whole is None:
             assert part is None, name
             continue
@@ -377,6 +377,7 @@ def test_a_killed_worker_is_replaced_and_the_numbers_do_not_change(
         chunks = [run.position[c] for c in workers._chunks(len(run.position))]
     here = [jax.tree_util.tree_map(np.asarray, evaluate(five_bar, c)) for c in chunks]
     expected = jax.tree_util.tree_map(lambda *part: np.concatenate(part), *here)
-    for name, whole, a, b in zip(ev._fields, expected, during, idle):
+    for name in (f.name for f in dataclasses.fields(ev)):
+        whole, a, b = (getattr(e, name) for e in (expected, during, idle))
         np.testing.assert_array_equal(a, whole, err_msg=name)
         np.testing.assert_array_equal(b, whole, err_msg=name)

@@ -2,6 +2,7 @@
 derived from it unless the file sets ``alpha_minus``; the rest pose's textbook
 Jacobian ``∂b/∂a`` against the five-bar's closed form."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -120,7 +121,7 @@ def test_a_nan_sigma_min_is_refused_not_let_through(five_bar, monkeypatch):
     real = mobility.rest_jacobians(five_bar)
 
     def with_sigmas(*sigmas):
-        return lambda mech: real._replace(sigmas=np.array(sigmas))
+        return lambda mech: dataclasses.replace(real, sigmas=np.array(sigmas))
 
     monkeypatch.setattr(mobility, "rest_jacobians", with_sigmas(np.nan, 1.0))
     with pytest.raises(linkopt.MechanismFileError, match="forward singularity"):

@@ -150,6 +150,20 @@ def _progress():
     return report
 
 
+def settings_from_args(args, seed: int) -> OptimizerSettings:
+    """The run's settings from the flags ``optimize`` and ``sweep`` share."""
+    return OptimizerSettings(
+        particles=args.particles,
+        iterations=args.iterations,
+        seed=seed,
+        mode=args.mode,
+        tolerance=args.tolerance,
+        patience=args.patience,
+        improvement=args.improvement,
+        verify_rounds=args.verify_rounds,
+    )
+
+
 def run_optimize(args) -> int:
     check_run_flags(args)
     if args.seed < 0:
@@ -158,16 +172,7 @@ def run_optimize(args) -> int:
     from .._design.run import locked_run_folder, write_outputs
 
     check_mechanism(args, mech)
-    settings = OptimizerSettings(
-        particles=args.particles,
-        iterations=args.iterations,
-        seed=args.seed,
-        mode=args.mode,
-        tolerance=args.tolerance,
-        patience=args.patience,
-        improvement=args.improvement,
-        verify_rounds=args.verify_rounds,
-    )
+    settings = settings_from_args(args, args.seed)
     with locked_run_folder(args.out, args.resume, "--out"):
         run = _optimize(args, mech, settings)
         print(

@@ -24,19 +24,6 @@ from . import optimize as optimize_cli
 from .values import load
 
 
-def _settings(args, seed: int):
-    return OptimizerSettings(
-        particles=args.particles,
-        iterations=args.iterations,
-        seed=seed,
-        mode=args.mode,
-        tolerance=args.tolerance,
-        patience=args.patience,
-        improvement=args.improvement,
-        verify_rounds=args.verify_rounds,
-    )
-
-
 def _seed_line(row: dict, done: int, total: int, began: float) -> str:
     head = f"seed {row['seed']}: "
     if not row.get("computed", True):
@@ -56,7 +43,7 @@ def _local(args, mech, seeds, report) -> list[dict]:
             run_seed(
                 mech,
                 args.out,
-                _settings(args, seed),
+                optimize_cli.settings_from_args(args, seed),
                 workers=args.workers,
                 resolution=args.resolution,
             )
@@ -89,7 +76,7 @@ def _on_cluster(args, mech, seeds, report) -> list[dict]:
                 task,
                 mech,
                 str(args.out),
-                _settings(args, seed),
+                optimize_cli.settings_from_args(args, seed),
                 pure=False,
                 key=f"linkopt-sweep-seed-{seed}-{time.time_ns()}",
             )

@@ -19,8 +19,8 @@ named point when all outputs are angles
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
 
 import matplotlib
 import numpy as np
@@ -128,7 +128,8 @@ def body_rings(mech: Mechanism, rest: Float[np.ndarray, "X 3"]) -> list[np.ndarr
     return rings
 
 
-class _Scene(NamedTuple):
+@dataclass(frozen=True)
+class _Scene:
     """The artists a frame updates (drawn over a background rendered once)."""
 
     links: object  # LineCollection or Line3DCollection

@@ -55,19 +55,21 @@ the file must then set ``alpha_minus`` (:func:`alpha_minus`).
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 from functools import cache
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from .._config import stored_record
 from .._engine import programs
 from .._engine.collision import collision_value, has_collision
 from .._engine.constraints import homogenised_output_values, output_residual
 from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.kinematics import check_design
+from .._engine.lifting import padded_design
 from .._engine.mobility import rest_jacobians
 from .._engine.model import Mechanism, per_length
 from .._errors import MechanismFileError
@@ -86,7 +88,9 @@ QUEUE_WIDTH = 12  # slots of the sample queue (module docstring)
 RANGE_SLACK = 1e-9
 
 
-class Evaluation(NamedTuple):
+@stored_record("linkopt.Evaluation")
+@dataclass(frozen=True)
+class Evaluation:
     """One design's evaluation; a batch of designs adds a leading axis. Homogenised.
     With ``[collision]`` enabled, ``f_design`` also holds the weighted collision term
     (module docstring): ``f_design - reach - singularity``."""
@@ -117,7 +121,8 @@ class Evaluation(NamedTuple):
 
 def targets(mech: Mechanism) -> np.ndarray:
     """IK target points ``b^t`` in file units, shape ``(T, K)``; traceable in the
-    output ranges (:mod:`linkopt._engine.lifting`), numpy for concrete ones.
+    output ranges and the extra targets (:mod:`linkopt._engine.lifting`), numpy for
+    concrete ones.
 
     The grid is ``np.linspace`` per output (``lo + k·step``, the last value ``hi``
     exactly); a point is on the boundary when one of its indices is first or last."""
@@ -136,7 +141,7 @@ def targets(mech: Mechanism) -> np.ndarray:
     )
     on_boundary = np.any((index == 0) | (index == count - 1), axis=1)
     grid = grid if settings.interior else grid[on_boundary]
-    extra = np.asarray(settings.targets, dtype=float).reshape(-1, outputs)
+    extra = xp.asarray(settings.targets, dtype=float).reshape(-1, outputs)
     return xp.concatenate([grid, extra])
 
 
@@ -159,7 +164,8 @@ def capped(mech: Mechanism, ev: Evaluation) -> tuple[int, int]:
 NEAR_SINGULAR_SIGMA = 1e-3
 
 
-class RestConditioning(NamedTuple):
+@dataclass(frozen=True)
+class RestConditioning:
     """The initial design's rest pose: homogenised ``σ_min`` of ``∂C_FK/∂s`` and
     ``∂C_BK/∂s`` (eq. 3), and the singular values of the textbook input-output
     Jacobian ``J = ∂b/∂a`` in file units (descending; file units per rad for rotary
@@ -441,11 +447,6 @@ def _not_below_start(mech, lanes, box, samples, start_score, end_score) -> Sampl
     )
 
 
-jax.export.register_namedtuple_serialization(
-    Evaluation, serialized_name="linkopt.Evaluation"
-)
-
-
 def evaluate_homogenised(mech: Mechanism, designs, alpha) -> Evaluation:
     """The jitted core of :func:`evaluate`: homogenised designs, a given α₋."""
     if designs.ndim == 1:
@@ -471,7 +472,7 @@ def evaluate(mech: Mechanism, design=None) -> Evaluation:
             check_design(mech, row, name=f"design[{k}]")
     else:
         check_design(mech, design)
-    designs = jnp.asarray(design_vector(mech, design), dtype=jnp.float64)
+    designs = padded_design(mech, design_vector(mech, design))
     alpha = jnp.asarray(alpha_minus(mech), dtype=jnp.float64)
     return programs.call("evaluate", mech, evaluate_homogenised, designs, alpha)
 
@@ -479,7 +480,7 @@ def evaluate(mech: Mechanism, design=None) -> Evaluation:
 def batch_arguments(mech: Mechanism, rows: int) -> tuple:
     """Zeros shaped as the arguments :func:`evaluate` gives the evaluation program for
     a batch of ``rows`` designs (the designs, α₋)."""
-    designs = jnp.zeros((rows, mech.design.size), dtype=jnp.float64)
+    designs = padded_design(mech, np.zeros((rows, mech.design.size)))
     return designs, jnp.asarray(0.0, dtype=jnp.float64)
 
 

@@ -33,8 +33,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 from numbers import Integral
-from typing import NamedTuple
 
 import numpy as np
 
@@ -57,7 +57,8 @@ SECONDS_PER_CELL = 5e-3
 CELL_OVERHEAD = 400
 
 
-class GridCost(NamedTuple):
+@dataclass(frozen=True)
+class GridCost:
     """An estimate of one continuation grid, made before it is allocated."""
 
     cells: int
@@ -190,7 +191,8 @@ def check_plot_resolution(
     return resolution
 
 
-class Map2D(NamedTuple):
+@dataclass(frozen=True)
+class Map2D:
     """A solved 2-D grid: ``values[i, j]`` at ``(axis0[i], axis1[j])``; NaN =
     infeasible."""
 

@@ -14,8 +14,9 @@ B).
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass
 
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -25,7 +26,9 @@ BARRIER_HIGH = 5.0  # M
 BARRIER_WIDTH = 0.03  # ε as a fraction of each output's range
 
 
-class Thresholds(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class Thresholds:
     """``α₋ < α_t < α₊`` of App. A."""
 
     lower: Float[Array, ""]

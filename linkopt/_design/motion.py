@@ -35,7 +35,7 @@ reach". A path the caller gives is drawn only when every row is reached
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import numpy as np
 from jaxtyping import Bool, Float
@@ -74,7 +74,8 @@ class PathNotReached(LinkoptError):
         self.row = row
 
 
-class Motion(NamedTuple):
+@dataclass(frozen=True)
+class Motion:
     """A mechanism along a path, one entry per frame (file units; states
     homogenised)."""
 

@@ -37,6 +37,7 @@ from .._engine.constraints import fk_residual, output_residual
 from .._engine.geometry import geometry
 from .._engine.jacobian import state_jacobian
 from .._engine.kinematics import solve_single
+from .._engine.lifting import padded_design
 from .._engine.model import Mechanism
 from .._engine.singularity import f_sing_value
 from .evaluation import (
@@ -120,7 +121,8 @@ def _adjoint_term(mech: Mechanism, term, design, motors, state):
     d_state, d_geom = jax.grad(term, argnums=(0, 1))(state, fixed)
     jac = state_jacobian(mech, fixed, "fk", state)
     mu = jac @ dense.solve_spd(jac.T @ jac, d_state)  # built from `fixed`: no gradient
-    direct = sum(jnp.vdot(g, x) for g, x in zip(d_geom, geom))
+    leaves = zip(jax.tree.leaves(d_geom), jax.tree.leaves(geom))
+    direct = sum(jnp.vdot(g, x) for g, x in leaves)
     return direct - mu @ fk_residual(mech, geom, motors, state)
 
 
@@ -157,19 +159,19 @@ def gradients_homogenised(mech: Mechanism, designs, evaluation: Evaluation, alph
 def partial_gradient(mech: Mechanism, designs, evaluation: Evaluation, alpha: float):
     """Partial gradients ``(n_p,)`` or ``(N, n_p)`` for designs evaluated as
     ``evaluation`` (file units: per unit of each design parameter)."""
-    designs = jnp.asarray(designs, dtype=jnp.float64)
     evaluation = jax.tree_util.tree_map(
         lambda v: jnp.asarray(v, dtype=jnp.float64), evaluation
     )
     alpha = jnp.asarray(alpha, dtype=jnp.float64)
-    return programs.call(
+    gradients = programs.call(
         "partial_gradient",
         mech,
         gradients_homogenised,
-        designs,
+        padded_design(mech, designs),
         evaluation,
         alpha,
     )
+    return gradients[..., : mech.design.size]  # the padding's entries are zero
 
 
 def _chunk_arguments(mech: Mechanism, rows: int) -> tuple:

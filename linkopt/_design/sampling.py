@@ -45,8 +45,9 @@ the program several times slower to compile and to load from the compilation cac
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
@@ -79,7 +80,9 @@ BRANCH_TOL = 0.5
 TRIAL_ITERATIONS = 6
 
 
-class Sample(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class Sample:
     motors: Float[Array, " M"]  # homogenised
     state: Float[Array, " S"]
     value: Float[Array, ""]
@@ -87,7 +90,9 @@ class Sample(NamedTuple):
     iterations: Int[Array, ""]
 
 
-class _Iterate(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class _Iterate:
     motors: Float[Array, " M"]
     state: Float[Array, " S"]
     value: Float[Array, ""]
@@ -152,7 +157,9 @@ def _unevaluated(motors0: Float[Array, " M"], state0: Float[Array, " S"]) -> _It
     )
 
 
-class _Trial(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class _Trial:
     """A trial step and its forward solve (module docstring)."""
 
     delta: Float[Array, " M"]  # the step in motors, zero when fresh
@@ -318,7 +325,9 @@ def _take(tree, index):
     return jax.tree_util.tree_map(lambda a: a[index], tree)
 
 
-class _Queue(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class _Queue:
     """The loop state of :func:`minimise_queue`, one row per slot (``W`` slots)."""
 
     slots: _Iterate  # each slot's iterate
@@ -358,8 +367,12 @@ def _end_phases(queue: _Queue, finished: Bool[Array, " W"], count: int):
         _store(queue.outs[1], jnp.where(second_done, queue.owner, count), queue.slots),
     )
     anchor = jnp.where(first_done[:, None], queue.slots.motors, queue.anchor)
-    queue = queue._replace(
-        anchor=anchor, second=queue.second | first_done, fresh=first_done, outs=outs
+    queue = dataclasses.replace(
+        queue,
+        anchor=anchor,
+        second=queue.second | first_done,
+        fresh=first_done,
+        outs=outs,
     )
     return queue, second_done
 
@@ -422,7 +435,9 @@ def minimise_queue(
             queue.lanes, queue.second, queue.anchor, queue.fresh, queue.slots
         )
         finished = (queue.owner >= 0) & _finished(slots, caps[queue.second.astype(int)])
-        queue, second_done = _end_phases(queue._replace(slots=slots), finished, count)
+        queue, second_done = _end_phases(
+            dataclasses.replace(queue, slots=slots), finished, count
+        )
         free = second_done | (queue.owner < 0)
         return _refill(queue, free, blank, lanes, count)
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
 
 import matplotlib
 import numpy as np
@@ -35,7 +35,8 @@ MAGENTA = "#ff00ff"
 CLEARANCE_CMAP = "RdBu"
 
 
-class _Layer(NamedTuple):
+@dataclass(frozen=True)
+class _Layer:
     """What a row of panels shows: a :class:`~linkopt._design.maps.Map2D` field, its
     colours and scale, its colour bar's label and its panels' title prefix."""
 
@@ -118,7 +119,8 @@ def _nearest(values: np.ndarray, cuts) -> np.ndarray:
     return np.argmin(np.abs(values[:, None] - np.asarray(cuts)[None, :]), axis=1)
 
 
-class _Row(NamedTuple):
+@dataclass(frozen=True)
+class _Row:
     """One row of :func:`plot_spaces`: a motor- and an end-effector-space map, their
     title suffixes, and which IK and adversarial samples the row shows."""
 
@@ -130,7 +132,8 @@ class _Row(NamedTuple):
     adv: Bool[np.ndarray, " T"]
 
 
-class _Samples(NamedTuple):
+@dataclass(frozen=True)
+class _Samples:
     """The samples in motor space (``a``) and end-effector space (``b``), file
     units."""
 
@@ -359,7 +362,7 @@ def plot_spaces(
     samples = _samples(mech, evaluation, design)
     rows = _rows(mech, evaluation, resolution, design, samples, progress)
     layers = [_Layer("f_sing", "viridis", _colour_norm(rows), F_SING_LABEL)]
-    extra = clearance_layer(mech, [m for r in rows for m in r[:2]])
+    extra = clearance_layer(mech, [m for r in rows for m in (r.motors, r.outputs)])
     layers += [extra] if clearance and extra is not None else []
     count = len(layers)
     fig, axes = figures.subplots(

@@ -17,7 +17,7 @@ verification would refuse fails at once.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -40,7 +40,8 @@ from .maps import (
 ENTRY_STEPS = 40
 
 
-class Verification(NamedTuple):
+@dataclass(frozen=True)
+class Verification:
     passed: bool
     coverage: float  # fraction of grid cells reached on the rest branch
     cells: int
@@ -63,7 +64,7 @@ class Verification(NamedTuple):
         fields only when the file checks collisions."""
         return {
             k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple)) else v)
-            for k, v in self._asdict().items()
+            for k, v in vars(self).items()
             if k not in COLLISION_FIELDS or self.min_clearance is not None
         }
 

@@ -40,6 +40,7 @@ workers for their lifetime, in the calling process only while it computes.
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -222,7 +223,10 @@ class Workers:
             and np.array_equal(early[0], designs)
             and all(
                 a is b is None or np.array_equal(a, b, equal_nan=True)
-                for a, b in zip(early[1], evaluation)
+                for a, b in (
+                    (getattr(early[1], f.name), getattr(evaluation, f.name))
+                    for f in dataclasses.fields(evaluation)
+                )
             )
         ):
             return early[3]

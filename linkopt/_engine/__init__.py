@@ -8,5 +8,6 @@ Levenberg–Marquardt (``lm``) solves forward and backward kinematics and their
 sensitivities (``kinematics``); ``singularity`` gives σ_min and f_sing, ``mobility``
 the rank at a state, ``statics`` and ``manipulability`` torques and velocity
 ellipsoids; ``readout`` reads file-unit values off a state, and ``programs`` keeps
-traced programs on disk.
+traced programs on disk. Its records are frozen dataclasses, the traced ones registered
+pytrees (the documentation's Architecture page, Conventions).
 """

@@ -31,8 +31,8 @@ returns file units.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -190,7 +190,8 @@ def _clearances(mech: Mechanism, state, design):
     return fn(state) if state.ndim == 1 else jax.vmap(fn)(state)
 
 
-class Clearance(NamedTuple):
+@dataclass(frozen=True)
+class Clearance:
     """Clearance of ``N`` states (file units): ``minimum`` the least over the checked
     body pairs (``inf`` when none is checked), ``worst`` the index of that pair in
     ``Collision.pairs`` (-1 when none), ``value`` the collision term, ``by_pair``

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 
@@ -57,7 +56,8 @@ class Context:
         return sorted({i for j in joints for i in self.coincident(j)})
 
 
-class Move(NamedTuple):
+@dataclass(frozen=True)
+class Move:
     """Joint ``joint``'s anchor (``part`` ANCHOR) or axis (AXIS) moves by ``vector``
     per unit of the parameter."""
 
@@ -66,7 +66,8 @@ class Move(NamedTuple):
     vector: np.ndarray
 
 
-class Parameter(NamedTuple):
+@dataclass(frozen=True)
+class Parameter:
     value: float
     low: float
     high: float

@@ -3,17 +3,21 @@ state."""
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
 from .following import follow
+from .lifting import padded_design
 from .model import Mechanism
 
 
-class Geometry(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class Geometry:
     """Rest geometry of one design, homogenised (lengths divided by ``length_scale``).
 
     All world-frame, rest pose; body-local quantities follow by subtracting the static
@@ -52,13 +56,12 @@ def design_vector(mech: Mechanism, design=None) -> Float[Array, " n_p"]:
     return jnp.asarray(design, dtype=jnp.float64)
 
 
-def design_array(mech: Mechanism, design=None):
-    """``design`` unchanged, or the file's design as a numpy array for None: passed to
-    a jitted program, both are then one argument structure, so one trace and one
-    compiled program (a None design is another structure)."""
-    if design is None:
-        return np.asarray(mech.design.p0, dtype=np.float64)
-    return design
+def design_array(mech: Mechanism, design=None) -> np.ndarray:
+    """A concrete ``design`` (None: the file's) as the argument of a program of
+    :mod:`.programs`: numpy, padded to the design class
+    (:func:`.lifting.padded_design`), so None and arrays are one argument structure
+    and every file of one class shares the program."""
+    return padded_design(mech, mech.design.p0 if design is None else design)
 
 
 def geometry(mech: Mechanism, design=None) -> Geometry:

@@ -19,9 +19,9 @@ From these come the dense Jacobian (:func:`linearise`, :func:`state_jacobian`,
 :func:`stacked_jacobians`) or, for Levenberg–Marquardt, directly the normal equations
 ``JᵀJ`` and ``Jᵀr`` assembled from ``7 x 7`` body blocks (:func:`normal_equations`),
 never forming the mostly-zero dense ``J``. Everything is plain ``jax.numpy`` without
-gathers or scatters (static indices become slices), so it is jit/vmap friendly and
-differentiable again in the state and the geometry (``f_sing`` needs ``∂J/∂s``,
-``∂J/∂p``).
+scatters (static indices become slices or gathers with constant indices), so it is
+jit/vmap friendly and differentiable again in the state and the geometry (``f_sing``
+needs ``∂J/∂s``, ``∂J/∂p``).
 
 The row order and values are those of :func:`linkopt._engine.constraints.fk_residual` /
 ``bk_residual`` (same formulas, so equal up to rounding), and the Jacobians equal
@@ -35,8 +35,8 @@ call site.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -51,7 +51,8 @@ from .model import JOINT_ROWS, Mechanism
 from .quaternion import rotate
 
 
-class _Rows(NamedTuple):
+@dataclass(frozen=True)
+class _Rows:
     values: Float[Array, "G m"]
     blocks: tuple  # ((bodies: np.ndarray (G,), jac: (G, m, 7)), ...)
 
@@ -61,11 +62,15 @@ class _Rows(NamedTuple):
 
 
 def _take(a, index: np.ndarray):
-    """``a[index]`` along axis 0 for a static index, as slices rather than a gather."""
+    """``a[index]`` along axis 0 for a static index: a slice where the index is a
+    run, else one gather with constant indices. A gather is one operation however
+    many members a group has, where a stack of one slice per member grew the programs
+    with the joints (on the Stewart platform's evaluation, stacks were a tenth of the
+    operations); ``benchmarks/bench_compile.py`` measures the compile times."""
     index = np.asarray(index, dtype=int)
     if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
         return a[int(index[0]) : int(index[0]) + index.size]
-    return jnp.stack([a[int(i)] for i in index])
+    return a[index]
 
 
 def _dot(a, b):
@@ -141,7 +146,8 @@ def _stack_rows(*rows):
     return values, ji, jj
 
 
-class _Frames(NamedTuple):
+@dataclass(frozen=True)
+class _Frames:
     xi: Array
     qi: Array
     ri: Array

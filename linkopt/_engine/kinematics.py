@@ -25,15 +25,15 @@ the formula is the least-squares tangent. Both forward and reverse mode work thr
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._config import jit, traced
+from .._config import jit, stored_record, traced
 from .._errors import InputError
 from . import dense, jacobian, lm, programs
 from .blocks import first_rows, in_blocks, path_rows
@@ -69,7 +69,9 @@ MAX_STEPS = 400
 MAX_VALUE = 1e6
 
 
-class Solution(NamedTuple):
+@stored_record("linkopt.Solution")
+@dataclass(frozen=True)
+class Solution:
     """A kinematics solve; leading axes follow the batch/path of the inputs."""
 
     state: Float[Array, "... S"]  # homogenised state
@@ -79,11 +81,6 @@ class Solution(NamedTuple):
     #: fraction of the way from the start's values to the requested ones that the
     #: continuation reached on the start's branch (1 when converged)
     progress: Float[Array, ...]
-
-
-jax.export.register_namedtuple_serialization(
-    Solution, serialized_name="linkopt.Solution"
-)
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1))
@@ -141,13 +138,16 @@ def _lm(
 ) -> lm.LMResult:
     """LM on ``C(values, s)`` from ``start`` with the file's ``[solver]`` settings."""
     settings = mech.solver
-    return lm.solve(
+    method = lm.NormalEquations(
         lambda s: _RESIDUALS[kind](mech, geom, values, s),
+        lambda s: jacobian.normal_equations(mech, geom, kind, values, s),
+    )
+    return lm.solve(
+        method,
         start,
         tolerance=settings.tolerance,
         max_iterations=max_iterations or settings.max_iterations,
         initial_damping=settings.initial_damping,
-        linearise=lambda s: jacobian.normal_equations(mech, geom, kind, values, s),
     )
 
 
@@ -163,7 +163,9 @@ def predict(mech: Mechanism, kind: str, geom: Geometry, values, state):
     return state - dense.damped_solve(hessian, 1e-12, gradient)
 
 
-class _Walk(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class _Walk:
     """Continuation carry: ``fraction`` of the way done at ``state``, next ``step``."""
 
     fraction: Float[Array, ""]

@@ -1,24 +1,36 @@
-"""Levenberg–Marquardt for small dense nonlinear least squares, ``min_s ½|C(s)|²``.
+"""Levenberg–Marquardt for small dense nonlinear least squares, ``min_x ½|C(x)|²``: the
+package's one LM loop, with two steps.
 
 Hand-written rather than ``optimistix.LevenbergMarquardt`` because the constraint solves
 are tiny (35-70 unknowns) and warm-started: a solve takes 3-4 iterations and the
 per-iteration overhead dominates. optimistix fixes its initial damping at 1, which
 costs several extra iterations from a warm start; ``benchmarks/bench_kinematics.py``
-keeps it as the comparison.
+keeps it as the comparison. Neither step below is one of optimistix's.
 
 Shape follows optimistix: :func:`init`, :func:`step`, :func:`terminate`, run by
-:func:`solve` in a ``lax.while_loop``. The step solves ``(JᵀJ + λI) δ = -Jᵀr`` by
-Cholesky (:mod:`linkopt._engine.dense`, no LAPACK call; ``J`` may be tall with redundant
-rows, e.g. a planar loop written in 3-D); damping follows Nielsen's rule: on acceptance
-``λ *= max(1/3, 1 - (2ρ - 1)³)``, on rejection ``λ *= ν, ν *= 2``. Failure is a value: a
-stall at a non-zero local minimum (damping beyond ``1e12`` or a step below ``1e-15``) or
-the iteration cap ends the loop with ``converged = False``.
+:func:`solve` in a ``lax.while_loop``. What differs between problems is the *method*
+(a frozen dataclass, static to the loop): how it linearises ``C`` at ``x`` and which
+damped step it takes from that linearisation.
+
+* :class:`NormalEquations` (the FK/BK constraint solves, square or tall ``J`` with
+  redundant rows, e.g. a planar loop written in 3-D): ``(JᵀJ + λI) δ = -Jᵀr`` by
+  Cholesky (:mod:`linkopt._engine.dense`, no LAPACK call).
+* :class:`MinimumNorm` (the assembly, :mod:`linkopt._engine.assembly.solve`, more
+  unknowns than rows, ``JᵀJ`` singular up to λ): the least weighted-norm step
+  ``δ = -S Jₛᵀ (Jₛ Jₛᵀ + λI)⁻¹ r`` with ``Jₛ = J S``, ``S = diag(scale)``.
+
+Shared by both: a step is taken iff it lowers ``|C|²`` and its linear model predicted
+a decrease; damping follows Nielsen's rule: on acceptance
+``λ *= max(1/3, 1 - (2ρ - 1)³)``, on rejection ``λ *= ν, ν *= 2``. Failure is a value:
+a stall at a non-zero local minimum (damping beyond ``1e12`` or a step below
+``1e-15``) or the iteration cap ends the loop with ``converged = False``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple
+from dataclasses import dataclass
+from typing import Any, Protocol
 
 import jax
 import jax.numpy as jnp
@@ -38,18 +50,25 @@ MAX_DAMPING = 1e12
 MIN_STEP = 1e-15
 
 
-class LMState(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class LMState:
+    """The loop's carry. ``model`` is what the method's step needs of the linearisation
+    at ``x`` (``(JᵀJ, Jᵀr)`` or ``J S``), kept so that a rejected step costs no new
+    linearisation."""
+
     x: Float[Array, " n"]
     residual: Float[Array, " m"]
-    hessian: Float[Array, "n n"]  # JᵀJ at x (Gauss–Newton)
-    gradient: Float[Array, " n"]  # Jᵀr at x
+    model: Any
     damping: Float[Array, ""]
     growth: Float[Array, ""]
     iteration: Int[Array, ""]
     stalled: Bool[Array, ""]
 
 
-class LMResult(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class LMResult:
     """Outcome of a solve: ``converged`` iff ``max |C| <= tolerance``."""
 
     x: Float[Array, " n"]
@@ -58,28 +77,71 @@ class LMResult(NamedTuple):
     iterations: Int[Array, ""]
 
 
-def _jacfwd_linearisation(fn: Residual, x):
-    jacobian, residual = jax.jacfwd(lambda y: (fn(y), fn(y)), has_aux=True)(x)
-    return residual, jacobian.T @ jacobian, jacobian.T @ residual
+class Method(Protocol):
+    def linearise(self, x) -> tuple[Float[Array, " m"], Any]:
+        """``(C(x), model)``."""
+
+    def direction(self, model, residual, damping) -> tuple[Float[Array, " n"], Any]:
+        """The damped step ``δ`` and the decrease of ``|C|²`` its linear model
+        predicts."""
 
 
-def _linearise(fn: Residual, x, linearise: Linearisation | None = None):
-    """``(C(x), JᵀJ, JᵀC)``: from ``linearise`` if given, else by ``jax.jacfwd`` of
-    ``fn``."""
-    if linearise is not None:
-        return linearise(x)
-    return _jacfwd_linearisation(fn, x)
+@dataclass(frozen=True)
+class NormalEquations:
+    """``δ = -(JᵀJ + λI)⁻¹ Jᵀr`` by Cholesky. ``linearisation`` (optional) gives
+    ``(fn(x), JᵀJ, Jᵀfn(x))`` directly (the constraint solves pass
+    :func:`linkopt._engine.jacobian.normal_equations`); without it ``jax.jacfwd``."""
+
+    fn: Residual
+    linearisation: Linearisation | None = None
+
+    def linearise(self, x):
+        if self.linearisation is not None:
+            residual, hessian, gradient = self.linearisation(x)
+        else:
+            jacobian, residual = jax.jacfwd(
+                lambda y: (self.fn(y), self.fn(y)), has_aux=True
+            )(x)
+            hessian, gradient = jacobian.T @ jacobian, jacobian.T @ residual
+        return residual, (hessian, gradient)
+
+    def direction(self, model, residual, damping):
+        hessian, gradient = model
+        delta = -dense.damped_solve(hessian, damping, gradient)  # (JᵀJ + λI)⁻¹ Jᵀr
+        return delta, -(2.0 * delta @ gradient + delta @ hessian @ delta)
 
 
-def init(
-    fn: Residual, x0, initial_damping: float, linearise: Linearisation | None = None
-) -> LMState:
-    residual, hessian, gradient = _linearise(fn, x0, linearise)
+@dataclass(frozen=True)
+class MinimumNorm:
+    """``δ = -S Jₛᵀ (Jₛ Jₛᵀ + λI)⁻¹ r``, ``Jₛ = J S``: of the damped least-squares
+    steps, the one of least length in the variables ``y = S⁻¹x`` (``scale`` 0 holds a
+    variable). λ enters the solve no lower than ``floor``, so redundant rows
+    (``Jₛ Jₛᵀ`` singular) never meet an exactly singular system."""
+
+    fn: Residual
+    scale: Float[Array, " n"]
+    floor: float = 1e-15
+
+    def linearise(self, x):
+        jacobian, residual = jax.jacfwd(
+            lambda y: (self.fn(y), self.fn(y)), has_aux=True
+        )(x)
+        return residual, jacobian * self.scale[None, :]
+
+    def direction(self, model, residual, damping):
+        gram = model @ model.T
+        eye = jnp.eye(gram.shape[0])
+        u = dense.solve(gram + jnp.maximum(damping, self.floor) * eye, residual)
+        after = residual - gram @ u  # C + J δ, the linear model after the step
+        return -self.scale * (model.T @ u), residual @ residual - after @ after
+
+
+def init(method: Method, x0, initial_damping: float) -> LMState:
+    residual, model = method.linearise(x0)
     return LMState(
         x0,
         residual,
-        hessian,
-        gradient,
+        model,
         jnp.asarray(initial_damping),
         jnp.asarray(2.0),
         jnp.asarray(0),
@@ -87,20 +149,12 @@ def init(
     )
 
 
-def step(
-    fn: Residual, state: LMState, linearise: Linearisation | None = None
-) -> LMState:
-    """One damped Gauss–Newton step with Nielsen's damping update."""
-    hessian, gradient, r, lam = (
-        state.hessian,
-        state.gradient,
-        state.residual,
-        state.damping,
-    )
-    delta = -dense.damped_solve(hessian, lam, gradient)  # (JᵀJ + λI)⁻¹ Jᵀr
-    new_residual, new_hessian, new_gradient = _linearise(fn, state.x + delta, linearise)
+def step(method: Method, state: LMState) -> LMState:
+    """One damped step with Nielsen's damping update."""
+    r, lam = state.residual, state.damping
+    delta, predicted = method.direction(state.model, r, lam)
+    new_residual, new_model = method.linearise(state.x + delta)
     actual = r @ r - new_residual @ new_residual
-    predicted = -(2.0 * delta @ gradient + delta @ hessian @ delta)
     rho = actual / jnp.where(predicted > 0, predicted, 1.0)
     accept = (actual > 0) & (predicted > 0) & jnp.all(jnp.isfinite(new_residual))
     shrink = jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
@@ -108,8 +162,9 @@ def step(
     return LMState(
         x=jnp.where(accept, state.x + delta, state.x),
         residual=jnp.where(accept, new_residual, r),
-        hessian=jnp.where(accept, new_hessian, hessian),
-        gradient=jnp.where(accept, new_gradient, gradient),
+        model=jax.tree.map(
+            lambda new, old: jnp.where(accept, new, old), new_model, state.model
+        ),
         damping=jnp.where(accept, lam * shrink, lam * state.growth),
         growth=jnp.where(accept, 2.0, 2.0 * state.growth),
         iteration=state.iteration + 1,
@@ -123,24 +178,19 @@ def terminate(state: LMState, tolerance: float, max_iterations: int) -> Bool[Arr
 
 
 def solve(
-    fn: Residual,
+    method: Method,
     x0,
     *,
     tolerance: float,
     max_iterations: int,
     initial_damping: float,
-    linearise: Linearisation | None = None,
 ) -> LMResult:
-    """Minimise ``½|fn(x)|²`` from ``x0``; jit- and vmap-friendly, no NaN on failure.
-
-    ``linearise`` (optional) gives ``(fn(x), JᵀJ, Jᵀfn(x))`` directly (the constraint
-    solves pass :func:`linkopt._engine.jacobian.normal_equations`); without it
-    ``jax.jacfwd``.
-    """
-    state = init(fn, x0, initial_damping, linearise)
+    """Minimise ``½|C(x)|²`` from ``x0`` by ``method``'s steps; jit- and vmap-friendly,
+    no NaN on failure."""
+    state = init(method, x0, initial_damping)
     state = jax.lax.while_loop(
         lambda st: ~terminate(st, tolerance, max_iterations),
-        lambda st: step(fn, st, linearise),
+        lambda st: step(method, st),
         state,
     )
     error = jnp.max(jnp.abs(state.residual))

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import jax
 import numpy as np
@@ -21,7 +21,8 @@ SINGULAR_TOL = (
 )
 
 
-class RestJacobians(NamedTuple):
+@dataclass(frozen=True)
+class RestJacobians:
     """What the load-time checks and α₋ read at the rest pose, homogenised. The FK
     and BK Jacobians have one row per motor and per output on top of the passive
     rows, so a file whose motor and output counts differ (refused by

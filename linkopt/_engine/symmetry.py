@@ -8,7 +8,7 @@ same change (:mod:`.design_kinds`).
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import numpy as np
 from jaxtyping import Float
@@ -21,7 +21,8 @@ MIRROR_TOL = 1e-9
 MAX_ORDER = 360
 
 
-class Symmetry(NamedTuple):
+@dataclass(frozen=True)
+class Symmetry:
     """A mirror plane (``direction`` its unit normal), or an ``order``-fold rotation
     about the axis through ``point`` along the unit ``direction``, with ``mirror`` the
     unit normal of a mirror plane containing that axis (a dihedral symmetry) or None.

@@ -15,7 +15,6 @@ the same vectors in both of its bodies' frames and in the world.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 from jaxtyping import Float
@@ -44,7 +43,8 @@ METRES_PER_UNIT: dict[str, float] = {
 _TREE_PREFERENCE = ("fixed", "universal", "prismatic", "cylindrical", "revolute")
 
 
-class Rest(NamedTuple):
+@dataclass(frozen=True)
+class Rest:
     """Rest pose of one design, world frame, file units (unit vectors for axes)."""
 
     anchors: Float[np.ndarray, "J 3"]

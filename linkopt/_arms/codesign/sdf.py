@@ -29,7 +29,6 @@ A mesh obstacle must be a closed (watertight) surface, else its inside is undefi
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import jax.numpy as jnp
 import numpy as np
@@ -68,7 +67,8 @@ class Obstacle:
     orientation: tuple[tuple[float, float, float], ...] | None = None  # (3, 3), rows
 
 
-class DistanceField(NamedTuple):
+@dataclass(frozen=True)
+class DistanceField:
     """Signed distances at voxel centres ``origin + spacing · (i, j, k)``."""
 
     origin: np.ndarray  # (3,)

@@ -45,7 +45,7 @@ def draw(
 def _draw_poses(ax, synthesis: DHSynthesis, count: int) -> list[np.ndarray]:
     """The arm at ``count`` targets spread over the list; returns the frame origins
     drawn."""
-    types, table = synthesis.types, dh.DHTable(*synthesis.table)
+    types, table = synthesis.types, synthesis.table
     pts = synthesis.targets
     picks = np.unique(
         np.linspace(0, len(pts) - 1, min(count, len(pts))).round().astype(int)

@@ -356,7 +356,7 @@ def synthesize_config(
     )
     return DHSynthesis(
         types=types,
-        table=dh.DHTable(*(np.asarray(v) for v in table)),
+        table=jax.tree.map(np.asarray, table),
         q=np.asarray(q),
         targets=targets,
         residual=residual,
@@ -455,7 +455,7 @@ def engine_report(synthesis: DHSynthesis, *, name: str = "DH arm"):
 
     types, table, q = (
         synthesis.types,
-        dh.DHTable(*(jnp.asarray(v) for v in synthesis.table)),
+        jax.tree.map(jnp.asarray, synthesis.table),
         jnp.asarray(synthesis.q),
     )
     q_rest = jnp.asarray(rest_configuration(synthesis))

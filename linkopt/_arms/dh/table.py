@@ -28,8 +28,8 @@ of ``q`` (:func:`engine_state`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -47,7 +47,9 @@ _X = np.array([1.0, 0.0, 0.0])
 _COORDS = "xyz"
 
 
-class DHTable(NamedTuple):
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class DHTable:
     """Constant DH parameters of an N-joint arm; every field has shape ``(N,)``.
 
     ``offset`` is ``d_i`` for a revolute joint and ``θ_i`` (rad) for a prismatic one.

@@ -25,7 +25,7 @@ from .task import TraceTask
 from .verify import PlanarArm, TraceVerification, verify
 
 
-@dataclass
+@dataclass(frozen=True)
 class DiscreteComparison:
     """``points``: the ``n`` targets; ``curve``: dense path points; ``outside``: which
     of them lie outside the design's annulus; ``excursion``: the largest distance

@@ -45,7 +45,7 @@ def result_dict(result: TraceResult) -> dict:
         "source": task.source,
         "success": result.success,
         "seconds": result.seconds,
-        "attempts": result.attempts,
+        "attempts": list(result.attempts),
     }
     if not result.success:
         return out
@@ -75,7 +75,7 @@ def result_dict(result: TraceResult) -> dict:
     ]
     out["verification"] = {
         "passed": v.passed,
-        "failures": v.failures,
+        "failures": list(v.failures),
         "min_clearance": v.min_clearance,
         "min_self_distance": v.min_self_distance,
         "min_reach_margin": v.min_reach_margin,

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
@@ -66,7 +66,7 @@ TRANSITION_SAMPLES = 5
 POLISH_ROUNDS = 4
 
 
-@dataclass
+@dataclass(frozen=True)
 class TraceResult:
     """Outcome of :func:`synthesize`: the verified design (or ``None``), the stage that
     produced it and one record per NLP solved."""
@@ -76,7 +76,7 @@ class TraceResult:
     verification: TraceVerification | None
     swept: str | None
     seconds: float
-    attempts: list[dict] = field(default_factory=list)
+    attempts: tuple[dict, ...] = ()
 
     @property
     def success(self) -> bool:
@@ -197,7 +197,7 @@ def constraint_function(
     return g
 
 
-@dataclass
+@dataclass(frozen=True)
 class Problem:
     g: Callable
     jac: Callable
@@ -410,10 +410,11 @@ def synthesize(
             found = _stage(task, n, kind, settings, rng, attempts, say)
             if found:
                 design, check = min(found, key=lambda dc: dc[0].lengths.sum())
-                return TraceResult(
-                    task, design, check, kind, time.perf_counter() - start, attempts
-                )
-    return TraceResult(task, None, None, None, time.perf_counter() - start, attempts)
+                seconds = time.perf_counter() - start
+                return TraceResult(task, design, check, kind, seconds, tuple(attempts))
+    return TraceResult(
+        task, None, None, None, time.perf_counter() - start, tuple(attempts)
+    )
 
 
 def _stage(task, n, kind, settings, rng, attempts, say) -> list:

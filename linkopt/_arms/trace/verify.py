@@ -21,7 +21,7 @@ A design is reported by synthesis only if :func:`verify` passes.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import partial
 
 import jax
@@ -52,7 +52,7 @@ class PlanarArm:
         return int(len(self.lengths))
 
 
-@dataclass
+@dataclass(frozen=True)
 class Segment:
     """Dense states of one primitive (``kind="primitive"``) or transition."""
 
@@ -62,15 +62,15 @@ class Segment:
     angles: Float[np.ndarray, "N n"]
 
 
-@dataclass
+@dataclass(frozen=True)
 class TraceVerification:
     passed: bool
-    failures: list[str]
+    failures: tuple[str, ...]
     min_clearance: float
     min_self_distance: float
     min_reach_margin: float
     max_joint_step: float
-    segments: list[Segment] = field(default_factory=list)
+    segments: tuple[Segment, ...] = ()
 
 
 def _proximal(design: PlanarArm, j: int) -> float:
@@ -266,10 +266,10 @@ def verify(task: TraceTask, design: PlanarArm) -> TraceVerification:
         stats.append(st)
     return TraceVerification(
         passed=not failures,
-        failures=failures,
+        failures=tuple(failures),
         min_clearance=float(min(s["clear"] for s in stats)),
         min_self_distance=float(min(s["self"] for s in stats)),
         min_reach_margin=float(min(s["reach"] for s in stats)),
         max_joint_step=float(max(s["jstep"] for s in stats)),
-        segments=segments,
+        segments=tuple(segments),
     )

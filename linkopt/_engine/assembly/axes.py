@@ -9,7 +9,7 @@ A motor holds its drawn value about its axis as its first body carries it.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -32,7 +32,8 @@ MOTOR_FIELDS = (
 )
 
 
-class Axis(NamedTuple):
+@dataclass(frozen=True)
+class Axis:
     """One axis of joint ``joint`` (field ``key``) and the bodies that carry it: per
     carrier, its frame index (-1: held as written, on the ground or a body given by
     world anchors) and its world direction as drawn."""

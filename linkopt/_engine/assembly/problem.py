@@ -5,7 +5,6 @@ held motors), homogenised by the reference length; every field it uses checked."
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 from jaxtyping import Float
@@ -16,8 +15,11 @@ from .axes import Axis, axis_key, axis_rows, read_axes, read_motors
 BODY_KEYS = ("frame", "orientation", "anchors", "axes")
 
 
-class Rows(NamedTuple):
-    """The constraint rows of an assembly (homogenised), as arrays (a pytree).
+@dataclass(frozen=True)
+class Rows:
+    """The constraint rows of an assembly (homogenised), as arrays; registered as a
+    pytree (all data fields) when the solver's programs are built, since this module
+    is read without JAX.
 
     ``J`` joints, ``F`` bodies in their own frame, ``N`` lengths, ``R`` local anchors,
     ``A`` axis rows, ``M`` held motors. A vector carried by frame ``f`` turns with the

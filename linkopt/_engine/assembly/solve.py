@@ -2,21 +2,18 @@
 drawing (minimum-norm Levenberg–Marquardt, then projection onto the nearest point of
 the constraint manifold, then a polish; the package docstring gives the choices).
 
-The Levenberg–Marquardt loop has :mod:`linkopt._engine.lm`'s shape (:func:`lm_init`,
-:func:`lm_step`, :func:`lm_terminate` in a ``lax.while_loop``) but not its step. That
-one solves the normal equations ``(JᵀJ + λI) δ = -Jᵀr`` by Cholesky with Nielsen's
-damping, for the square or tall FK/BK systems. An assembly is underdetermined (every
+The Levenberg–Marquardt phases are :mod:`linkopt._engine.lm`'s loop with its
+:class:`~linkopt._engine.lm.MinimumNorm` step: an assembly is underdetermined (every
 anchor of a body given by world anchors, six unknowns per frame, more than the rows),
-so its step is the minimum-norm one through ``J Jᵀ`` in weighted variables, which the
-projection after it needs; ``JᵀJ`` there is singular up to λ. Sharing lm.py's step
-would change either the FK/BK solves or these results.
+so the step is the minimum-norm one through ``J Jᵀ`` in weighted variables, which the
+projection after it needs (``JᵀJ`` there is singular up to λ).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import importlib
-from typing import NamedTuple
 
 import numpy as np
 
@@ -28,6 +25,9 @@ from .problem import Problem, Rows
 FRAME_WEIGHT = 1e-2
 #: max |residual| (reference lengths, rad) below which the loops are closed.
 CLOSE_TOL = 1e-10
+#: Minimum-norm LM: its stopping max |residual|, initial damping and iteration cap.
+LM_TOLERANCE = 1e-15
+LM_DAMPING = 1e-6
 #: Iteration caps: minimum-norm LM, projection onto the nearest assembly.
 LM_ITERATIONS = 400
 PROJECTION_ITERATIONS = 100
@@ -76,9 +76,8 @@ def residual_np(sizes, rows, x) -> np.ndarray:
 
 
 def without_motors(rows: Rows) -> Rows:
-    return rows._replace(
-        **{k: getattr(rows, k)[:0] for k in Rows._fields if k.startswith("motor_")}
-    )
+    motors = [f.name for f in dataclasses.fields(Rows) if f.name.startswith("motor_")]
+    return dataclasses.replace(rows, **{k: getattr(rows, k)[:0] for k in motors})
 
 
 def rotation(omega):
@@ -145,53 +144,6 @@ def _motor_residual(rows: Rows, a, carry):
     return jnp.where(rows.motor_linear, linear - rows.motor_target, rotary)
 
 
-class MinNormState(NamedTuple):
-    """The minimum-norm Levenberg–Marquardt loop's state: unknowns ``(n,)``, damping
-    μ, iterations taken, and whether it is done (converged or stalled)."""
-
-    x: object
-    damping: object
-    iteration: object
-    done: object
-
-
-def lm_init(x) -> MinNormState:
-    """Start at ``x`` with μ = 1e-6 (done at once when there is nothing to solve)."""
-    import jax.numpy as jnp
-
-    return MinNormState(x, jnp.asarray(1e-6), jnp.asarray(0), jnp.asarray(x.size == 0))
-
-
-def lm_step(fn, state: MinNormState, s) -> MinNormState:
-    """One step ``dx = -S Jₛᵀ (Jₛ Jₛᵀ + μ I)⁻¹ r`` (``Jₛ = J S``, ``S = diag(s)``),
-    taken only if it lowers ``|r|²`` (then μ /= 3, down to 1e-15; else μ *= 4). Done
-    when max |r| < 1e-15, or when a step fails with μ > 1e12 or below round-off."""
-    import jax.numpy as jnp
-
-    x, mu = state.x, state.damping
-    r, jac = _scaled_jacobian(fn, x, s)
-    dx = -s * _min_norm(jac, r, mu)
-    r_new = fn(x + dx)
-    better = jnp.sum(r_new**2) < jnp.sum(r**2)
-    small = jnp.max(jnp.abs(dx)) < 1e-16 * (1.0 + jnp.max(jnp.abs(x)))
-    done = (jnp.max(jnp.abs(jnp.where(better, r_new, r))) < 1e-15) | (
-        ~better & ((mu > 1e12) | small)
-    )
-    mu = jnp.where(better, jnp.maximum(mu / 3.0, 1e-15), mu * 4.0)
-    return MinNormState(jnp.where(better, x + dx, x), mu, state.iteration + 1, done)
-
-
-def lm_terminate(state: MinNormState):
-    return state.done | (state.iteration >= LM_ITERATIONS)
-
-
-def _scaled_jacobian(fn, x, s):
-    """``(r(x), J(x) S)``."""
-    import jax
-
-    return fn(x), jax.jacfwd(fn)(x) * s[None, :]
-
-
 def _min_norm(jac, rhs, damping):
     """``Jᵀ (J Jᵀ + μ I)⁻¹ rhs``: the least-norm (damped) ``d`` of ``J d = rhs``."""
     import jax.numpy as jnp
@@ -210,29 +162,35 @@ def _programs():
     first, so JAX starts in float64; every other JAX use in this package runs after
     this, inside these programs or on their results."""
     from ..._config import jit
+    from .. import lm as _lm
 
     jax = importlib.import_module("jax")  # after linkopt._config: float64 on
     jnp = jax.numpy
+    jax.tree_util.register_dataclass(Rows)  # a program argument: every field an array
 
     @functools.partial(jit, static_argnums=0)
     def lm(sizes, rows, x, s):
-        """Levenberg–Marquardt with least-norm steps (:func:`lm_step`)."""
-
-        def fn(y):
-            return _residual(sizes, rows, y)
-
-        state = jax.lax.while_loop(
-            lambda st: ~lm_terminate(st), lambda st: lm_step(fn, st, s), lm_init(x)
+        """Levenberg–Marquardt with least-norm steps (``lm.MinimumNorm``)."""
+        if x.size == 0:  # nothing to solve
+            return x, jnp.asarray(0)
+        method = _lm.MinimumNorm(lambda y: _residual(sizes, rows, y), s)
+        result = _lm.solve(
+            method,
+            x,
+            tolerance=LM_TOLERANCE,
+            max_iterations=LM_ITERATIONS,
+            initial_damping=LM_DAMPING,
         )
-        return state.x, state.iteration
+        return result.x, result.iterations
 
     @functools.partial(jit, static_argnums=0)
     def project(sizes, rows, x, x0, s):
         """Gauss–Newton projection onto the assembly nearest the drawing."""
+        method = _lm.MinimumNorm(lambda y: _residual(sizes, rows, y), s)
 
         def body(state):
             x, it, _ = state
-            r, jac = _scaled_jacobian(lambda y: _residual(sizes, rows, y), x, s)
+            r, jac = method.linearise(x)
             delta = jnp.where(s > 0, (x - x0) / jnp.where(s > 0, s, 1.0), 0.0)
             dy = -delta + _min_norm(jac, jac @ delta - r, 1e-14)
             dx = s * dy
