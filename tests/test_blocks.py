@@ -63,7 +63,7 @@ def test_blocks_on_threads_equal_blocks_one_after_another(five_bar, monkeypatch)
     serial = solve_fk(five_bar, motors)
     monkeypatch.setattr(blocks, "THREADS", 2)
     threaded = solve_fk(five_bar, motors)
-    for a, b in zip(serial, threaded):
+    for a, b in zip(jax.tree.leaves(serial), jax.tree.leaves(threaded)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     order = []
 
