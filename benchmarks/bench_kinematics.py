@@ -40,6 +40,13 @@ MECHANISMS = {
 TARGET_SINGLE_US = 200.0
 #: Batched solves per second.
 TARGET_RATE = {"five-bar": 30_000.0, "jansen": 15_000.0}
+#: A user's sweep (issue 28): ``linkopt.solve_fk`` from the rest pose of 1000 motor
+#: rows uniform within ±``WIDE_SPAN`` rad of rest, and its target in solves per second.
+WIDE = {
+    "five-bar": (ROOT / "mechanisms/five_bar.toml", 30_000.0),
+    "jansen_2dof": (ROOT / "mechanisms/jansen_2dof.toml", 15_000.0),
+}
+WIDE_SPAN = 0.3
 
 
 def _timed(fn, repeats: int) -> float:
@@ -95,6 +102,21 @@ def bench_linkopt(mech, sizes) -> dict:
         result[f"rate_{n}"] = n / seconds
         result[f"converged_{n}"] = converged
     return result
+
+
+def bench_wide(mech, repeats: int = 7) -> tuple[float, float]:
+    """Median solves per second of :data:`WIDE`'s batch, and the fraction converged."""
+    import numpy as np
+
+    import linkopt
+
+    rest = np.asarray(linkopt.motor_values(mech, linkopt.rest_state(mech)))
+    span = WIDE_SPAN * mech.motor_scale
+    rows = rest + np.random.default_rng(0).uniform(-span, span, (1000, rest.size))
+    solve = lambda: linkopt.solve_fk(mech, rows).state  # noqa: E731
+    times = [_timed(solve, 3) for _ in range(repeats)]
+    converged = float(np.mean(np.asarray(linkopt.solve_fk(mech, rows).converged)))
+    return 1000 / float(np.median(times)), converged
 
 
 def bench_optimistix(mech, n: int) -> dict:
@@ -168,6 +190,10 @@ def compile_seconds(path: Path, cache: str) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="skip the 100 000 batch")
+    parser.add_argument(
+        "--wide-only", action="store_true", help="only the sweep from rest (WIDE)"
+    )
+    parser.add_argument("--out", default=str(_results.RESULTS))
     args = parser.parse_args()
     sizes = [1, 1000] if args.quick else [1, 1000, 100_000]
     import jax
@@ -176,6 +202,10 @@ def main() -> None:
 
     print(f"jax {jax.__version__}, devices {jax.devices()}, {os.cpu_count()} CPU cores")
     figures = {"jax": jax.__version__, "solves": [], "batches": [], "baselines": []}
+    figures["wide"] = _wide()
+    if args.wide_only:
+        _results.write(__file__, figures, args.out)
+        return
     for name, path in MECHANISMS.items():
         if not path.exists():
             print(f"\n{name}: {path} missing, skipped")
@@ -191,7 +221,27 @@ def main() -> None:
         optx = _print_baselines(mech, ours, scipy_)
         compiled = {"compile_cold_s": cold, "compile_warm_s": warm}
         _record(figures, name, mech, sizes, compiled, ours, optx, scipy_)
-    _results.write(__file__, figures)
+    _results.write(__file__, figures, args.out)
+
+
+def _wide() -> list[dict]:
+    """:func:`bench_wide` of every :data:`WIDE` mechanism, printed and as rows."""
+    import linkopt
+
+    rows = []
+    print(f"\nsolve_fk from rest, 1000 rows within ±{WIDE_SPAN} rad:")
+    for name, (path, target) in WIDE.items():
+        rate, converged = bench_wide(linkopt.load(path))
+        verdict = "met" if rate >= target else "not met"
+        print(
+            f"  {name:<12} {rate:10.0f} solves/s (target {target:,.0f}, {verdict}),"
+            f" {100 * converged:.1f} % converged"
+        )
+        rows.append(
+            {"mechanism": name, "solves_per_s": rate, "target": target,
+             "converged": converged}
+        )  # fmt: skip
+    return rows
 
 
 def _record(figures: dict, name: str, mech, sizes, compiled, ours, optx, scipy_):
