@@ -90,7 +90,8 @@ _KEYS: weakref.WeakKeyDictionary[Mechanism, str] = weakref.WeakKeyDictionary()
 
 
 def numbers(mech: Mechanism) -> dict:
-    """The numbers of ``mech`` that programs take as data (float64 numpy arrays)."""
+    """The numbers of ``mech`` that programs take as data (numpy arrays: float64,
+    int64 iteration caps, bool ``design.is_length``)."""
     out = {name: np.asarray(getattr(mech, name), dtype=np.float64) for name in FIELDS}
     for name in DESIGN_FIELDS:
         out[f"design.{name}"] = _padded_design_field(mech, name)
@@ -142,7 +143,7 @@ def _setting(mech: Mechanism, table: str, name: str) -> np.ndarray:
     """One setting as an array (:data:`SOLVER_FIELDS` and the others)."""
     value = getattr(getattr(mech, table), name)
     if name == "targets":
-        return np.asarray(value, dtype=np.float64).reshape(-1, mech.num_outputs)
+        return np.asarray(value, dtype=np.float64).reshape(len(value), mech.num_outputs)
     if name == "alpha_minus":
         return np.asarray(np.nan if value is None else value, dtype=np.float64)
     dtype = np.int64 if name in INTEGER_FIELDS else np.float64

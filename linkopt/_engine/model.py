@@ -22,10 +22,14 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .attachment import Attachment
+
+if TYPE_CHECKING:
+    from .symmetry import Symmetry
 
 #: Residual rows per passive joint family.
 JOINT_ROWS: dict[str, int] = {
@@ -261,7 +265,7 @@ class Mechanism:
     length_scale: float
     solver: SolverSettings = field(default_factory=SolverSettings)
     evaluation: EvaluationSettings = field(default_factory=EvaluationSettings)
-    symmetry: tuple | None = None  # design_space.Symmetry (direction, point, ...)
+    symmetry: Symmetry | None = None  # the file's [symmetry], or None
     raw: dict = field(default_factory=dict)  # the parsed file, for writing designs back
     # Orientation outputs: (reference body, body) per output, -1 elsewhere, and the
     # frame (e1, e2) their Tait–Bryan angles are measured in (zero elsewhere). None
