@@ -192,3 +192,17 @@ def test_design_classes(size, padded):
     from linkopt._engine.lifting import design_class
 
     assert design_class(size) == padded
+
+
+def test_padded_designs_inside_a_users_trace(five_bar):
+    """A design that is a tracer (the partial gradient inside ``jax.jit``) is padded
+    by ``jax.numpy`` and gives the concrete call's gradient."""
+    from linkopt._design.evaluation import alpha_minus
+
+    ev = linkopt.evaluate(five_bar)
+    alpha = alpha_minus(five_bar)
+    p0 = np.asarray(five_bar.design.p0)
+    concrete = linkopt.partial_gradient(five_bar, p0, ev, alpha)
+    traced = jax.jit(lambda d: linkopt.partial_gradient(five_bar, d, ev, alpha))(p0)
+    assert traced.shape == (five_bar.design.size,)
+    np.testing.assert_allclose(traced, concrete, rtol=1e-9, atol=1e-12)

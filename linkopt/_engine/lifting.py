@@ -116,12 +116,17 @@ def design_class(size: int) -> int:
     return max(4, 1 << max(size - 1, 0).bit_length())
 
 
-def padded_design(mech: Mechanism, design) -> np.ndarray:
-    """A concrete design ``(..., n_p)`` (file units) padded with zeros to
-    ``(..., design_class(n_p))``: what a program of :mod:`.programs` takes."""
-    design = np.asarray(design, dtype=np.float64)
+def padded_design(mech: Mechanism, design):
+    """A design ``(..., n_p)`` (file units) padded with zeros to
+    ``(..., design_class(n_p))``: what a program of :mod:`.programs` takes. numpy
+    for numbers, ``jax.numpy`` for a JAX array or tracer (a call inside a user's
+    ``jax.jit`` or ``jax.grad``)."""
+    xp = np
+    if type(design).__module__.startswith("jax"):  # jax and jaxlib arrays, tracers
+        import jax.numpy as xp
+    design = xp.asarray(design, dtype=xp.float64)
     extra = design_class(mech.design.size) - design.shape[-1]
-    return np.pad(design, [(0, 0)] * (design.ndim - 1) + [(0, extra)])
+    return xp.pad(design, [(0, 0)] * (design.ndim - 1) + [(0, extra)])
 
 
 def _padded_design_field(mech: Mechanism, name: str) -> np.ndarray:
