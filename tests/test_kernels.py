@@ -73,6 +73,17 @@ class Handlers:
     def damped_solve(self, a, d, b, shape=None):
         return self._call("damped_solve", shape or np.shape(b), a, d, b)
 
+    def smallest_right(self, a, start, shape=None, iterations=6, sweeps=8):
+        return self._call(
+            "smallest_right",
+            shape or np.shape(a)[:-1],
+            a,
+            start,
+            iterations=np.int32(iterations),
+            sweeps=np.int32(sweeps),
+            shift=np.float64(1e-13),
+        )
+
 
 def spd(batch, n, seed=0):
     """SPD matrices (batch + (n, n)) of condition number at most about 5, with noise
@@ -94,6 +105,7 @@ def test_handlers_are_the_extensions_capsules():
     assert info["available"] and info["extension_version"] == kernels.VERSION
     assert info["max_n"] == 512
     assert info["damped_max_n"] == DAMPED_MAX_N
+    assert info["smallest_max_k"] == 32
     assert not info["stale"], "the extension was built from another dense.cc"
 
 
@@ -285,3 +297,96 @@ def test_refused_operands_give_errors_not_crashes(ffi):
         jax.ffi.ffi_call(
             PREFIX + "cholesky", jax.ShapeDtypeStruct((4, 4), jnp.float32)
         )(a.astype(np.float32))
+
+
+def _gram_and_start(batch: int, m: int, n: int, seed: int):
+    """Gram matrices ``JᵀJ`` of random ``(m, n)`` Jacobians, one of them with two
+    smallest singular values 1 % apart, and the start blocks of
+    ``singularity.smallest_right_vectors``."""
+    rng = np.random.default_rng(seed)
+    jac = rng.standard_normal((batch, m, n))
+    if min(m, n) >= 3:
+        u, s, vt = np.linalg.svd(jac[0], full_matrices=False)
+        s[-2:] = [1e-3, 1.01e-3]
+        jac[0] = (u * s) @ vt
+    start = np.random.default_rng(0).standard_normal((n, min(6, n)))
+    start = np.broadcast_to(start, (batch,) + start.shape).copy()
+    return jac, np.einsum("bmi,bmj->bij", jac, jac), start
+
+
+@pytest.mark.parametrize(
+    "batch, m, n", [(1, 4, 1), (3, 3, 2), (5, 7, 5), (7, 40, 35), (2, 100, 91)]
+)
+def test_smallest_right_is_the_plain_code(ffi, batch, m, n):
+    """The kernel's vector equals the plain-JAX steps' up to sign and round-off (to
+    1e-6 here: the first matrix's two smallest eigenvalues of ``JᵀJ`` are 2e-8 apart,
+    so round-off of 1e-15 ‖JᵀJ‖ turns its vector by up to about 1e-7); ‖J v‖ is the
+    plain code's to 1e-12 (σ is stationary in v) and σ_min of the SVD to 1e-6 (six
+    sweeps of inverse iteration leave the random 100 x 91 matrix 5e-8 short)."""
+    from linkopt._engine.singularity import _plain_smallest
+
+    jac, a, start = _gram_and_start(batch, m, n, seed=n)
+    v = ffi.smallest_right(a, start)
+    plain = np.asarray(jax.jit(_plain_smallest)(a, start))
+    sign = np.sign(np.sum(v * plain, axis=1))[:, None]
+    np.testing.assert_allclose(v, sign * plain, atol=1e-6)
+    np.testing.assert_allclose(v[1:], sign[1:] * plain[1:], atol=1e-11)
+    sigma, plain_sigma = (
+        np.linalg.norm(np.einsum("bij,bj->bi", jac, x), axis=1) for x in (v, plain)
+    )
+    np.testing.assert_allclose(sigma, plain_sigma, rtol=1e-12)
+    svd = np.linalg.svd(jac, compute_uv=False)[:, -1]
+    np.testing.assert_allclose(sigma, svd, rtol=1e-6)
+
+
+@pytest.mark.parametrize("count", [2, 3, 5, 7])
+def test_smallest_right_of_a_batch_is_each_alone(ffi, count):
+    """Four, two or one problems side by side give the bits of one at a time."""
+    _, a, start = _gram_and_start(count, 40, 35, seed=count)
+    batched = ffi.smallest_right(a, start)
+    for i in range(count):
+        np.testing.assert_array_equal(batched[i], ffi.smallest_right(a[i], start[i]))
+
+
+def test_smallest_right_of_a_bad_matrix_is_nan_there_only(ffi):
+    _, a, start = _gram_and_start(7, 40, 35, seed=1)
+    a[2, 5, 5] = -1e6  # not positive definite
+    a[4, 0, 0] = np.nan
+    v = ffi.smallest_right(a, start)
+    assert np.all(np.isnan(v[[2, 4]]))
+    assert np.all(np.isfinite(v[[0, 1, 3, 5, 6]]))
+
+
+def test_smallest_right_refuses_bad_operands(ffi):
+    _, a, start = _gram_and_start(2, 40, 35, seed=0)
+    with pytest.raises(Exception, match="must be in 1..min"):
+        ffi.smallest_right(a[:, :5, :5], start[:, :5, :])  # k = 6 > n = 5
+    wide = np.zeros((2, 35, 33))
+    with pytest.raises(Exception, match="must be in 1..min"):
+        ffi.smallest_right(a, wide)
+    with pytest.raises(Exception, match="batch dimensions"):
+        ffi.smallest_right(a, start[:1], shape=(2, 35))
+    with pytest.raises(Exception, match="expected a"):
+        ffi.smallest_right(a, start, shape=(2, 34))
+    with pytest.raises(Exception, match="must be >= 0"):
+        ffi.smallest_right(a, start, iterations=-1)
+
+
+def test_smallest_right_vectors_differentiate_as_the_plain_code():
+    """Where the kernel serves it, singularity.smallest_right_vectors takes the plain
+    steps' derivative (its callers stop the gradient; a user's may not)."""
+    from linkopt._engine import singularity
+
+    jac, _, _ = _gram_and_start(3, 12, 9, seed=2)
+    tangent = np.random.default_rng(3).standard_normal(jac.shape)
+
+    def plain(j):
+        a = jnp.einsum("bmi,bmj->bij", j, j)
+        start = np.random.default_rng(0).standard_normal((9, 6))
+        return singularity._plain_smallest(a, jnp.broadcast_to(start, (3, 9, 6)))
+
+    value, derivative = jax.jvp(singularity.smallest_right_vectors, (jac,), (tangent,))
+    expected, expected_derivative = jax.jvp(plain, (jac,), (tangent,))
+    sign = np.sign(np.sum(value * expected, axis=1))[:, None]
+    np.testing.assert_allclose(value, sign * expected, atol=1e-10)
+    np.testing.assert_allclose(derivative, expected_derivative, atol=1e-8)

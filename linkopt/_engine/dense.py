@@ -27,11 +27,12 @@ Compiled kernels. Where linkopt's compiled extension is built (:mod:`linkopt._ke
 made by ``pip install`` with the machine's C++ compiler) and the program runs on CPU in
 float64, :func:`cholesky`, :func:`solve_lower`, :func:`solve_lower_transpose`,
 :func:`cho_solve`, :func:`damped_solve` and :func:`lower_inverse` call its XLA FFI
-handlers instead: the same algorithms as plain loops over one matrix at a time (the
-Cholesky factor and :func:`damped_solve` over two or four of a batch side by side, in
-the same operations), several times faster than XLA:CPU's loops over the batch, and a
-custom call is a single instruction where the loops were hundreds, so the programs
-that use them also compile faster (run
+handlers instead (and :func:`smallest_right` is σ_min's iteration as one handler,
+:mod:`linkopt._engine.singularity`): the same algorithms as plain loops over one
+matrix at a time (the Cholesky factor and :func:`damped_solve` over two or four of a
+batch side by side, in the same operations), several times faster than XLA:CPU's loops
+over the batch, and a custom call is a single instruction where the loops were
+hundreds, so the programs that use them also compile faster (run
 ``benchmarks/bench_kinematics.py`` or ``benchmarks/bench_compile.py`` with and without
 ``LINKOPT_KERNELS=0`` to compare). The handlers run on the calling thread (no thread
 pool, so nothing can deadlock) and agree with the plain-JAX code to round-off
@@ -218,6 +219,8 @@ KERNEL_MAX_N: int = _kernels.max_n() if TARGETS is not None else 0
 #: The largest order the fused kernel of :func:`damped_solve` takes (larger ones call
 #: the Cholesky and solve kernels in turn).
 DAMPED_MAX_N: int = _kernels.damped_max_n() if TARGETS is not None else 0
+#: The widest start block the kernel of :func:`smallest_right` takes.
+SMALLEST_MAX_K: int = _kernels.smallest_max_k() if TARGETS is not None else 0
 #: ``jax.export`` safety checks to turn off for programs that call the kernels.
 EXPORT_CHECKS = tuple(
     jax.export.DisabledSafetyCheck.custom_call(target)
@@ -338,6 +341,36 @@ def damped_solve(
     if b.ndim == 1 and a.shape[-1] <= DAMPED_MAX_N and _use_kernel(a, damping, b):
         return _KERNELS["damped_solve"](a, damping, b)
     return cho_solve(cholesky(_damped(a, damping)), b)
+
+
+def serves_smallest_right(a: Float[Array, "B n n"], k: int) -> bool:
+    """Whether :func:`smallest_right` runs for these Gram matrices and a start block
+    of ``k`` columns (the kernels are in use and take the sizes)."""
+    return k <= min(SMALLEST_MAX_K, a.shape[-1]) and _use_kernel(a)
+
+
+def smallest_right(
+    a: Float[Array, "B n n"],
+    start: Float[Array, "B n k"],
+    *,
+    iterations: int,
+    sweeps: int,
+    shift: float,
+) -> Float[Array, "B n"]:
+    """The kernel of :func:`linkopt._engine.singularity.smallest_right_vectors` after
+    its Gram matrices ``a`` (where :func:`serves_smallest_right`): the same steps in
+    one call (``dense.cc``, ``LkSmallestRight``). Not differentiable: its caller
+    defines the derivative."""
+    out = jax.ShapeDtypeStruct(a.shape[:-1], a.dtype)
+    return jax.ffi.ffi_call(
+        TARGETS["smallest_right"], out, vmap_method="broadcast_all"
+    )(
+        a,
+        start,
+        iterations=np.int32(iterations),
+        sweeps=np.int32(sweeps),
+        shift=np.float64(shift),
+    )
 
 
 def lower_inverse(lower: Float[Array, "n n"]) -> Float[Array, "n n"]:

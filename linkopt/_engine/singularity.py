@@ -23,7 +23,12 @@ value (``dσ = uᵀ dJ v``, ``u = Jv/σ``).
 
 The Cholesky factor, its inverse and the ``BLOCK × BLOCK`` Ritz eigenproblem (cyclic
 Jacobi) come from :mod:`linkopt._engine.dense`, not LAPACK: jaxlib's batched LAPACK
-kernels can deadlock XLA's thread pool (:mod:`linkopt._config`).
+kernels can deadlock XLA's thread pool (:mod:`linkopt._config`). Where linkopt's
+compiled kernels are in use, every step after the Gram matrix is one kernel call
+(:func:`linkopt._engine.dense.smallest_right`), which applies ``A⁻¹`` by the two
+triangular solves with the factor rather than forming it: the same in exact
+arithmetic, equal to round-off (``tests/test_kernels.py``; σ to 1e-12 relative), and
+its derivative is the plain-JAX steps'.
 """
 
 from __future__ import annotations
@@ -67,18 +72,18 @@ def _orthonormalise(x: Float[Array, "B n k"]) -> Float[Array, "B n k"]:
     return jnp.stack(columns, axis=-1)
 
 
-def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
-    """Right singular vectors of the smallest singular values of a stack of matrices
-    (block inverse iteration on ``JᵀJ`` + Rayleigh–Ritz; module docstring)."""
-    a = jnp.einsum("bmi,bmj->bij", jac, jac)
+#: The Cholesky factor is of ``A + SHIFT·trace(A)·I`` (``A`` may be singular).
+SHIFT = 1e-13
+
+
+def _plain_smallest(a: Float[Array, "B n n"], start: Float[Array, "B n k"]):
+    """:func:`smallest_right_vectors` from the Gram matrices ``a = JᵀJ`` and the start
+    blocks, in plain JAX operations."""
     n = a.shape[-1]
-    shift = 1e-13 * jnp.trace(a, axis1=1, axis2=2)[:, None, None] * jnp.eye(n)
+    shift = SHIFT * jnp.trace(a, axis1=1, axis2=2)[:, None, None] * jnp.eye(n)
     inv_lower = jax.vmap(lambda m: dense.lower_inverse(dense.cholesky(m)))(a + shift)
     inverse = jnp.einsum("bki,bkj->bij", inv_lower, inv_lower)  # A⁻¹ = L⁻ᵀ L⁻¹
-    start = np.random.default_rng(0).standard_normal((n, min(BLOCK, n)))
-    x = _orthonormalise(
-        jnp.broadcast_to(jnp.asarray(start), (a.shape[0],) + start.shape)
-    )
+    x = _orthonormalise(start)
 
     def sweep(_, x):
         return _orthonormalise(jnp.einsum("bij,bjk->bik", inverse, x))
@@ -86,6 +91,40 @@ def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
     x = jax.lax.fori_loop(0, ITERATIONS, sweep, x)
     _, ritz = jax.vmap(dense.symmetric_eigh)(jnp.einsum("bni,bnm,bmj->bij", x, a, x))
     return jnp.einsum("bnk,bk->bn", x, ritz[:, :, 0])
+
+
+@jax.custom_jvp
+def _kernel_smallest(a: Float[Array, "B n n"], start: Float[Array, "B n k"]):
+    """:func:`_plain_smallest` in one call of the compiled kernel, with its
+    derivative."""
+    return dense.smallest_right(
+        a,
+        start,
+        iterations=ITERATIONS,
+        sweeps=dense.JACOBI_SWEEPS,
+        shift=SHIFT,
+    )
+
+
+_kernel_smallest.defjvp(
+    lambda primals, tangents: jax.jvp(_plain_smallest, primals, tangents)
+)
+
+
+def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
+    """Right singular vectors of the smallest singular values of a stack of matrices
+    (block inverse iteration on ``JᵀJ`` + Rayleigh–Ritz; module docstring). After the
+    Gram matrices, one call of the compiled kernel where the kernels are in use
+    (:func:`linkopt._engine.dense.smallest_right`): in XLA the steps were a few
+    hundred small instructions per call (``benchmarks/bench_evaluation.py`` times
+    the evaluation that calls it at every sample step)."""
+    a = jnp.einsum("bmi,bmj->bij", jac, jac)
+    n = a.shape[-1]
+    start = np.random.default_rng(0).standard_normal((n, min(BLOCK, n)))
+    start = jnp.broadcast_to(jnp.asarray(start), (a.shape[0],) + start.shape)
+    if dense.serves_smallest_right(a, start.shape[-1]):
+        return _kernel_smallest(a, start)
+    return _plain_smallest(a, start)
 
 
 def sigmas_of(jac: Float[Array, "2 m n"]) -> Float[Array, 2]:

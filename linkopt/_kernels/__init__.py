@@ -17,7 +17,12 @@ order ``n`` at most ``_dense.max_n()``, 512, else an error):
 * ``lower_inverse``: ``L (..., n, n)`` -> ``L⁻¹``;
 * ``damped_solve``: ``a (..., n, n)``, ``d (...)``, ``b (..., n)`` -> ``(a + d I)⁻¹ b``
   (``cholesky`` of ``a + d I`` and ``tri_solve`` mode 2 in one call, the same numbers;
-  order at most ``_dense.damped_max_n()``, 89).
+  order at most ``_dense.damped_max_n()``, 89);
+* ``smallest_right``: ``a (..., n, n)`` (a Gram matrix ``JᵀJ``), ``start (..., n, k)``,
+  attributes ``iterations``, ``sweeps`` (int32) and ``shift`` (f64) -> the right
+  singular vector of ``J``'s smallest singular value, ``(..., n)``: every step of
+  :func:`linkopt._engine.singularity.smallest_right_vectors` after the Gram matrix
+  (``k`` at most ``_dense.smallest_max_k()``, 32).
 
 JAX-free: importing this module imports neither JAX nor the extension.
 """
@@ -32,11 +37,11 @@ from types import ModuleType
 
 #: The ABI version of the handlers this code expects (``kVersion`` in ``dense.cc``); an
 #: extension of another version (a stale build) is not used.
-VERSION = 2
+VERSION = 3
 #: The environment variable that turns the kernels off when set to ``0``.
 ENVIRONMENT = "LINKOPT_KERNELS"
 #: The handlers' names, the keys of :func:`handlers`.
-NAMES = ("cholesky", "tri_solve", "lower_inverse", "damped_solve")
+NAMES = ("cholesky", "tri_solve", "lower_inverse", "damped_solve", "smallest_right")
 SOURCE = Path(__file__).with_name("dense.cc")
 
 #: Why the latest :func:`handlers` returned None; None after it returned the handlers.
@@ -150,6 +155,13 @@ def damped_max_n() -> int | None:
     return None if module is None else module.damped_max_n()
 
 
+def smallest_max_k() -> int | None:
+    """The widest start block ``smallest_right`` takes (None without the
+    extension)."""
+    module = _load()
+    return None if module is None else module.smallest_max_k()
+
+
 def info() -> dict[str, object]:
     """What a diagnostic prints: availability, :data:`reason`, versions, staleness."""
     available = handlers() is not None
@@ -161,6 +173,7 @@ def info() -> dict[str, object]:
         "extension_version": None if module is None else module.version(),
         "max_n": max_n(),
         "damped_max_n": damped_max_n(),
+        "smallest_max_k": smallest_max_k(),
         "ffi_api_version": None if module is None else module.ffi_api_version(),
         "stale": stale(),
         "digest": digest(),

@@ -10,8 +10,13 @@
 //   LkLowerInverse  L (..., n, n)            -> L⁻¹ (lower triangle of L read)
 //   LkDampedSolve   a (..., n, n), d (...), b (..., n) -> (a + d I)⁻¹ b: LkCholesky of
 //                   a + d I and LkTriSolve mode 2 in one call (n <= kLanesMaxN)
-// Every handler refuses n > kMaxN (LkDampedSolve n > kLanesMaxN), mismatched shapes and
-// an unknown mode with an ffi::Error; none allocates (scratch is on the stack).
+//   LkSmallestRight a (..., n, n) = JᵀJ, start (..., n, k), attributes `iterations`,
+//                   `sweeps` (int32), `shift` (f64) -> the right singular vector of J's
+//                   smallest singular value (..., n) by block inverse iteration and
+//                   Rayleigh–Ritz (smallest_right; k <= kSmallestMaxK)
+// Every handler refuses n > kMaxN (LkDampedSolve n > kLanesMaxN, LkSmallestRight
+// k > kSmallestMaxK), mismatched shapes and an unknown mode with an ffi::Error; none
+// but LkSmallestRight allocates (scratch is on the stack; its own is on the heap).
 // Single-threaded, plain loops written as axpys so -O3 vectorises them without
 // -ffast-math (no reassociated reductions, except the explicit 4-accumulator dot);
 // LkCholesky and LkDampedSolve work on two or four matrices of a batch at a time
@@ -25,6 +30,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <string>
@@ -35,7 +41,7 @@ namespace ffi = xla::ffi;
 
 namespace {
 
-constexpr long kVersion = 2;
+constexpr long kVersion = 3;
 constexpr int64_t kMaxN = 512;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -184,6 +190,8 @@ static_assert(kLanesMaxN * kLanesMaxN <= kScratch, "kScratch");
 #if defined(__x86_64__)
 #define LK_AVX2 1
 #endif
+#else
+#define LK_INLINE inline
 #endif
 
 #ifdef LK_LANES
@@ -570,6 +578,281 @@ ffi::Error DampedSolveImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> d,
   return ffi::Error::Success();
 }
 
+
+// ---- the smallest right singular vector (linkopt._engine.singularity) ---------------
+//
+// smallest_right: the steps of singularity.smallest_right_vectors after the Gram matrix
+// a = JᵀJ, for one matrix (T = double) or lanes<V>() side by side (T = V, the same
+// operations per lane, so bitwise the one-matrix results): the lower Cholesky factor L
+// of a + shift·trace(a)·I; the start block x (n x k) orthonormalised; `iterations`
+// times x <- orthonormalised(A⁻¹ x), A⁻¹ x by the two triangular solves with L (the
+// plain-JAX code multiplies by L⁻ᵀL⁻¹: the same in exact arithmetic); the Ritz matrix
+// r = xᵀ a x; `sweeps` cyclic Jacobi sweeps of r (Golub & Van Loan Alg. 8.4.3, the
+// rotation of symmetric_eigh, applied to rows and columns p and q of the symmetric r);
+// and x times the rotation column of r's smallest diagonal entry (NaN sorted last, the
+// first of equal ones). Orthonormalised is Gram–Schmidt with each projection done
+// twice, v / sqrt(v·v + 1e-300). Sums run in other orders than XLA's, so the result
+// equals the plain-JAX code to round-off. A non-positive pivot gives NaN.
+constexpr int64_t kSmallestMaxK = 32;
+
+template <class T>
+LK_INLINE double* lane_ptr(T* t) {
+  return reinterpret_cast<double*>(t);
+}
+
+template <class T>
+LK_INLINE T lane_sqrt(T v) {
+  double* lanes_of_v = lane_ptr(&v);
+  for (size_t g = 0; g < sizeof(T) / sizeof(double); ++g)
+    lanes_of_v[g] = std::sqrt(lanes_of_v[g]);
+  return v;
+}
+
+// (c, s) of the rotation that zeroes r[p, q] (dense.symmetric_eigh's rotation: the
+// identity where r[p, q] is zero), one lane at a time.
+LK_INLINE void jacobi_rotation(double app, double aqq, double apq, double& c, double& s) {
+  const double safe = apq == 0.0 ? 1.0 : apq;
+  const double theta = (aqq - app) / (2.0 * safe);
+  const double sign = theta > 0.0 ? 1.0 : (theta < 0.0 ? -1.0 : theta);
+  double tan = sign / (std::fabs(theta) + std::sqrt(theta * theta + 1.0));
+  if (apq == 0.0 || theta == 0.0) tan = apq == 0.0 ? 0.0 : 1.0;
+  c = 1.0 / std::sqrt(tan * tan + 1.0);
+  s = tan * c;
+}
+
+// Cyclic Jacobi on the symmetric k x k r (both triangles kept), rotations into v.
+template <class T>
+LK_INLINE void jacobi(T* __restrict r, T* __restrict v, int64_t k, int32_t sweeps) {
+  constexpr int count = sizeof(T) / sizeof(double);
+  for (int64_t i = 0; i < k * k; ++i) v[i] = T{} * 0.0;
+  for (int64_t i = 0; i < k; ++i) v[i * k + i] = T{} * 0.0 + 1.0;
+  for (int32_t sweep = 0; sweep < sweeps; ++sweep)
+    for (int64_t p = 0; p < k; ++p)
+      for (int64_t q = p + 1; q < k; ++q) {
+        T c, s;
+        for (int g = 0; g < count; ++g)
+          jacobi_rotation(lane_ptr(&r[p * k + p])[g], lane_ptr(&r[q * k + q])[g],
+                          lane_ptr(&r[p * k + q])[g], lane_ptr(&c)[g], lane_ptr(&s)[g]);
+        // r <- Gᵀ r G: columns p and q, then rows p and q (r stays symmetric)
+        for (int64_t i = 0; i < k; ++i) {
+          const T rp = r[i * k + p], rq = r[i * k + q];
+          r[i * k + p] = c * rp - s * rq;
+          r[i * k + q] = s * rp + c * rq;
+        }
+        for (int64_t j = 0; j < k; ++j) {
+          const T rp = r[p * k + j], rq = r[q * k + j];
+          r[p * k + j] = c * rp - s * rq;
+          r[q * k + j] = s * rp + c * rq;
+        }
+        for (int64_t i = 0; i < k; ++i) {
+          const T vp = v[i * k + p], vq = v[i * k + q];
+          v[i * k + p] = c * vp - s * vq;
+          v[i * k + q] = s * vp + c * vq;
+        }
+      }
+}
+
+template <class T>
+LK_INLINE void orthonormalise(T* __restrict x, int64_t n, int64_t k) {
+  for (int64_t j = 0; j < k; ++j) {
+    for (int pass = 0; pass < 2; ++pass)
+      for (int64_t q = 0; q < j; ++q) {
+        T d = x[q] * x[j];
+        for (int64_t i = 1; i < n; ++i) d += x[i * k + q] * x[i * k + j];
+        for (int64_t i = 0; i < n; ++i) x[i * k + j] -= d * x[i * k + q];
+      }
+    T norm = x[j] * x[j];
+    for (int64_t i = 1; i < n; ++i) norm += x[i * k + j] * x[i * k + j];
+    norm = lane_sqrt(norm + 1e-300);
+    for (int64_t i = 0; i < n; ++i) x[i * k + j] = x[i * k + j] / norm;
+  }
+}
+
+// x (n x k) <- (L Lᵀ)⁻¹ x for the lower factor L (row-major n x n).
+template <class T>
+LK_INLINE void cho_solve_block(const T* __restrict l, T* __restrict x, int64_t n,
+                               int64_t k) {
+  for (int64_t i = 0; i < n; ++i) {
+    T* xi = x + i * k;
+    for (int64_t p = 0; p < i; ++p) {
+      const T lip = l[i * n + p];
+      const T* xp = x + p * k;
+      for (int64_t j = 0; j < k; ++j) xi[j] -= lip * xp[j];
+    }
+    const T d = l[i * n + i];
+    for (int64_t j = 0; j < k; ++j) xi[j] = xi[j] / d;
+  }
+  for (int64_t i = n - 1; i >= 0; --i) {
+    T* xi = x + i * k;
+    for (int64_t p = i + 1; p < n; ++p) {
+      const T lpi = l[p * n + i];
+      const T* xp = x + p * k;
+      for (int64_t j = 0; j < k; ++j) xi[j] -= lpi * xp[j];
+    }
+    const T d = l[i * n + i];
+    for (int64_t j = 0; j < k; ++j) xi[j] = xi[j] / d;
+  }
+}
+
+// The vectors of the lanes of a (n x n) and x (n x k, the start block, overwritten) to
+// out (lane g at out + g * n); w: scratch of n² + n k + 2 k² T.
+template <class T>
+LK_INLINE void smallest_right(const T* __restrict a, T* __restrict x,
+                              double* __restrict out, int64_t n, int64_t k,
+                              int32_t iterations, int32_t sweeps, double shift,
+                              T* __restrict w) {
+  constexpr int count = sizeof(T) / sizeof(double);
+  T* l = w;
+  T* y = l + n * n;
+  T* r = y + n * k;
+  T* rv = r + k * k;
+  T trace = a[0];
+  for (int64_t i = 1; i < n; ++i) trace += a[i * n + i];
+  const T added = shift * trace;
+  for (int64_t i = 0; i < n; ++i) {
+    for (int64_t j = 0; j < i; ++j) l[i * n + j] = a[i * n + j];
+    l[i * n + i] = a[i * n + i] + added;
+  }
+  for (int64_t j = 0; j < n; ++j) {  // right-looking Cholesky, lower triangle
+    const T d = lane_sqrt(l[j * n + j]);
+    l[j * n + j] = d;
+    for (int64_t i = j + 1; i < n; ++i) l[i * n + j] = l[i * n + j] / d;
+    for (int64_t c = j + 1; c < n; ++c) {
+      const T lc = l[c * n + j];
+      for (int64_t i = c; i < n; ++i) l[i * n + c] -= l[i * n + j] * lc;
+    }
+  }
+  orthonormalise(x, n, k);
+  for (int32_t it = 0; it < iterations; ++it) {
+    cho_solve_block(l, x, n, k);
+    orthonormalise(x, n, k);
+  }
+  for (int64_t i = 0; i < n * k; ++i) y[i] = T{} * 0.0;  // y = a x
+  for (int64_t i = 0; i < n; ++i)
+    for (int64_t p = 0; p < n; ++p) {
+      const T m = a[i * n + p];
+      for (int64_t j = 0; j < k; ++j) y[i * k + j] += m * x[p * k + j];
+    }
+  for (int64_t i = 0; i < k * k; ++i) r[i] = T{} * 0.0;  // r = xᵀ y
+  for (int64_t p = 0; p < n; ++p)
+    for (int64_t i = 0; i < k; ++i) {
+      const T xi = x[p * k + i];
+      for (int64_t j = 0; j < k; ++j) r[i * k + j] += xi * y[p * k + j];
+    }
+  jacobi(r, rv, k, sweeps);
+  for (int g = 0; g < count; ++g) {
+    int64_t best = -1;
+    for (int64_t i = 0; i < k; ++i) {
+      const double value = lane_ptr(&r[i * k + i])[g];
+      if (!std::isnan(value) && (best < 0 || value < lane_ptr(&r[best * k + best])[g]))
+        best = i;
+    }
+    if (best < 0) best = 0;
+    for (int64_t p = 0; p < n; ++p) {
+      double sum = lane_ptr(&x[p * k])[g] * lane_ptr(&rv[best])[g];
+      for (int64_t j = 1; j < k; ++j)
+        sum += lane_ptr(&x[p * k + j])[g] * lane_ptr(&rv[j * k + best])[g];
+      out[g * n + p] = sum;
+    }
+  }
+}
+
+// Doubles of smallest_group's scratch for groups of up to four.
+constexpr int64_t smallest_scratch(int64_t n, int64_t k) {
+  return 4 * (n * n + n * k + n * n + n * k + 2 * k * k);
+}
+
+// The lanes<T>() consecutive problems from a (n x n each) and start (n x k each) on.
+template <class T>
+LK_INLINE void smallest_group(const double* a, const double* start, double* out,
+                              int64_t n, int64_t k, int32_t iterations, int32_t sweeps,
+                              double shift, double* scratch) {
+  constexpr int count = sizeof(T) / sizeof(double);
+  T* pa = reinterpret_cast<T*>(scratch);
+  T* px = pa + n * n;
+  for (int64_t i = 0; i < n * n; ++i)
+    for (int g = 0; g < count; ++g) lane_ptr(&pa[i])[g] = a[g * n * n + i];
+  for (int64_t i = 0; i < n * k; ++i)
+    for (int g = 0; g < count; ++g) lane_ptr(&px[i])[g] = start[g * n * k + i];
+  smallest_right(pa, px, out, n, k, iterations, sweeps, shift, px + n * k);
+}
+
+void smallest_group1(const double* a, const double* start, double* out, int64_t n,
+                     int64_t k, int32_t iterations, int32_t sweeps, double shift,
+                     double* scratch) {
+  smallest_group<double>(a, start, out, n, k, iterations, sweeps, shift, scratch);
+}
+
+#ifdef LK_LANES
+void smallest_group2(const double* a, const double* start, double* out, int64_t n,
+                     int64_t k, int32_t iterations, int32_t sweeps, double shift,
+                     double* scratch) {
+  smallest_group<V2>(a, start, out, n, k, iterations, sweeps, shift, scratch);
+}
+
+#ifdef LK_AVX2
+__attribute__((target("avx2"))) void smallest_group4(const double* a,
+                                                     const double* start, double* out,
+                                                     int64_t n, int64_t k,
+                                                     int32_t iterations, int32_t sweeps,
+                                                     double shift, double* scratch) {
+  smallest_group<V4>(a, start, out, n, k, iterations, sweeps, shift, scratch);
+}
+#endif
+#endif  // LK_LANES
+
+// out = smallest_right of each (a, start) of the batch: a (..., n, n), start
+// (..., n, k) with k <= min(n, kSmallestMaxK), out (..., n).
+ffi::Error SmallestRightImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> start,
+                             ffi::ResultBuffer<ffi::F64> out, int32_t iterations,
+                             int32_t sweeps, double shift) {
+  int64_t n, batch;
+  if (auto e = square_dims(a, &n, &batch); e.failure()) return e;
+  auto ad = a.dimensions();
+  auto sd = start.dimensions();
+  auto od = out->dimensions();
+  const size_t rank = ad.size();
+  if (sd.size() != rank || od.size() + 1 != rank || sd[rank - 2] != n ||
+      od[rank - 2] != n)
+    return ffi::Error::InvalidArgument("expected a (..., n, n), start (..., n, k) and "
+                                       "the result (..., n)");
+  for (size_t i = 0; i + 2 < rank; ++i)
+    if (sd[i] != ad[i] || od[i] != ad[i])
+      return ffi::Error::InvalidArgument("batch dimensions of a, start and the result "
+                                         "differ");
+  const int64_t k = sd[rank - 1];
+  if (k < 1 || k > n || k > kSmallestMaxK)
+    return ffi::Error::InvalidArgument("the start block's width k = " +
+                                       std::to_string(k) + " must be in 1..min(n, " +
+                                       std::to_string(kSmallestMaxK) + ")");
+  if (iterations < 0 || sweeps < 0)
+    return ffi::Error::InvalidArgument("iterations and sweeps must be >= 0");
+  if (n == 0 || batch == 0) return ffi::Error::Success();
+  const double* ap = a.typed_data();
+  const double* sp = start.typed_data();
+  double* op = out->typed_data();
+  const size_t doubles = smallest_scratch(n, k);
+  double* scratch = static_cast<double*>(
+      std::aligned_alloc(64, ((doubles * sizeof(double) + 63) / 64) * 64));
+  if (scratch == nullptr) return ffi::Error::Internal("out of memory");
+  int64_t b = 0;
+#ifdef LK_LANES
+#ifdef LK_AVX2
+  if (has_avx2())
+    for (; b + 4 <= batch; b += 4)
+      smallest_group4(ap + b * n * n, sp + b * n * k, op + b * n, n, k, iterations,
+                      sweeps, shift, scratch);
+#endif
+  for (; b + 2 <= batch; b += 2)
+    smallest_group2(ap + b * n * n, sp + b * n * k, op + b * n, n, k, iterations, sweeps,
+                    shift, scratch);
+#endif
+  for (; b < batch; ++b)
+    smallest_group1(ap + b * n * n, sp + b * n * k, op + b * n, n, k, iterations, sweeps,
+                    shift, scratch);
+  std::free(scratch);
+  return ffi::Error::Success();
+}
 }  // namespace
 
 XLA_FFI_DEFINE_HANDLER_SYMBOL(LkCholesky, CholeskyImpl,
@@ -596,6 +879,15 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(LkDampedSolve, DampedSolveImpl,
                                   .Arg<ffi::Buffer<ffi::F64>>()
                                   .Ret<ffi::Buffer<ffi::F64>>());
 
+XLA_FFI_DEFINE_HANDLER_SYMBOL(LkSmallestRight, SmallestRightImpl,
+                              ffi::Ffi::Bind()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Attr<int32_t>("iterations")
+                                  .Attr<int32_t>("sweeps")
+                                  .Attr<double>("shift"));
+
 // ---- the Python extension module linkopt._kernels._dense ---------------------------
 
 #ifndef LK_SOURCE_SHA256
@@ -619,7 +911,8 @@ PyObject* capsules(PyObject*, PyObject*) {
   if (!add_capsule(dict, "cholesky", LkCholesky) ||
       !add_capsule(dict, "tri_solve", LkTriSolve) ||
       !add_capsule(dict, "lower_inverse", LkLowerInverse) ||
-      !add_capsule(dict, "damped_solve", LkDampedSolve)) {
+      !add_capsule(dict, "damped_solve", LkDampedSolve) ||
+      !add_capsule(dict, "smallest_right", LkSmallestRight)) {
     Py_DECREF(dict);
     return nullptr;
   }
@@ -632,6 +925,8 @@ PyObject* max_n(PyObject*, PyObject*) { return PyLong_FromLongLong(kMaxN); }
 
 PyObject* damped_max_n(PyObject*, PyObject*) { return PyLong_FromLongLong(kLanesMaxN); }
 
+PyObject* smallest_max_k(PyObject*, PyObject*) { return PyLong_FromLongLong(kSmallestMaxK); }
+
 PyObject* ffi_api_version(PyObject*, PyObject*) {
   return Py_BuildValue("(ii)", XLA_FFI_API_MAJOR, XLA_FFI_API_MINOR);
 }
@@ -642,12 +937,15 @@ PyObject* source_sha256(PyObject*, PyObject*) {
 
 PyMethodDef methods[] = {
     {"capsules", capsules, METH_NOARGS,
-     "{'cholesky', 'tri_solve', 'lower_inverse', 'damped_solve'} -> a PyCapsule of each "
+     "{'cholesky', 'tri_solve', 'lower_inverse', 'damped_solve', 'smallest_right'} -> a "
+     "PyCapsule of each "
      "XLA FFI handler, for jax.ffi.register_ffi_target(name, capsule, platform='cpu')."},
     {"version", version, METH_NOARGS, "The ABI version of the handlers (an int)."},
     {"max_n", max_n, METH_NOARGS, "The largest matrix order n the handlers accept."},
     {"damped_max_n", damped_max_n, METH_NOARGS,
      "The largest matrix order n damped_solve accepts (the others: max_n())."},
+    {"smallest_max_k", smallest_max_k, METH_NOARGS,
+     "The widest start block k smallest_right accepts."},
     {"ffi_api_version", ffi_api_version, METH_NOARGS,
      "(major, minor) of the XLA FFI headers the handlers were built with."},
     {"source_sha256", source_sha256, METH_NOARGS,
