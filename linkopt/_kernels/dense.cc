@@ -652,8 +652,9 @@ LK_INLINE void jacobi(T* __restrict r, T* __restrict v, int64_t k, int32_t sweep
       }
 }
 
-template <class T>
-LK_INLINE void orthonormalise(T* __restrict x, int64_t n, int64_t k) {
+template <int K, class T>
+LK_INLINE void orthonormalise(T* __restrict x, int64_t n, int64_t k_) {
+  const int64_t k = K ? K : k_;
   for (int64_t j = 0; j < k; ++j) {
     for (int pass = 0; pass < 2; ++pass)
       for (int64_t q = 0; q < j; ++q) {
@@ -663,47 +664,55 @@ LK_INLINE void orthonormalise(T* __restrict x, int64_t n, int64_t k) {
       }
     T norm = x[j] * x[j];
     for (int64_t i = 1; i < n; ++i) norm += x[i * k + j] * x[i * k + j];
-    norm = lane_sqrt(norm + 1e-300);
-    for (int64_t i = 0; i < n; ++i) x[i * k + j] = x[i * k + j] / norm;
+    const T scale = 1.0 / lane_sqrt(norm + 1e-300);
+    for (int64_t i = 0; i < n; ++i) x[i * k + j] = x[i * k + j] * scale;
   }
 }
 
-// x (n x k) <- (L Lᵀ)⁻¹ x for the lower factor L (row-major n x n).
-template <class T>
-LK_INLINE void cho_solve_block(const T* __restrict l, T* __restrict x, int64_t n,
-                               int64_t k) {
+// x (n x k) <- (L Lᵀ)⁻¹ x for the lower factor L (row-major n x n) and the
+// reciprocals of its diagonal, inv_d (n). K: k known at compile time (0: not), so that
+// a row's k sums stay in registers.
+template <int K, class T>
+LK_INLINE void cho_solve_block(const T* __restrict l, const T* __restrict inv_d,
+                               T* __restrict x, int64_t n, int64_t k) {
+  const int64_t kk = K ? K : k;
+  T acc[K ? K : kSmallestMaxK];
   for (int64_t i = 0; i < n; ++i) {
-    T* xi = x + i * k;
+    T* xi = x + i * kk;
+    for (int64_t j = 0; j < kk; ++j) acc[j] = xi[j];
     for (int64_t p = 0; p < i; ++p) {
       const T lip = l[i * n + p];
-      const T* xp = x + p * k;
-      for (int64_t j = 0; j < k; ++j) xi[j] -= lip * xp[j];
+      const T* xp = x + p * kk;
+      for (int64_t j = 0; j < kk; ++j) acc[j] -= lip * xp[j];
     }
-    const T d = l[i * n + i];
-    for (int64_t j = 0; j < k; ++j) xi[j] = xi[j] / d;
+    const T r = inv_d[i];
+    for (int64_t j = 0; j < kk; ++j) xi[j] = acc[j] * r;
   }
   for (int64_t i = n - 1; i >= 0; --i) {
-    T* xi = x + i * k;
+    T* xi = x + i * kk;
+    for (int64_t j = 0; j < kk; ++j) acc[j] = xi[j];
     for (int64_t p = i + 1; p < n; ++p) {
       const T lpi = l[p * n + i];
-      const T* xp = x + p * k;
-      for (int64_t j = 0; j < k; ++j) xi[j] -= lpi * xp[j];
+      const T* xp = x + p * kk;
+      for (int64_t j = 0; j < kk; ++j) acc[j] -= lpi * xp[j];
     }
-    const T d = l[i * n + i];
-    for (int64_t j = 0; j < k; ++j) xi[j] = xi[j] / d;
+    const T r = inv_d[i];
+    for (int64_t j = 0; j < kk; ++j) xi[j] = acc[j] * r;
   }
 }
 
 // The vectors of the lanes of a (n x n) and x (n x k, the start block, overwritten) to
-// out (lane g at out + g * n); w: scratch of n² + n k + 2 k² T.
-template <class T>
+// out (lane g at out + g * n); w: scratch of n² + n + n k + 2 k² T.
+template <int K, class T>
 LK_INLINE void smallest_right(const T* __restrict a, T* __restrict x,
-                              double* __restrict out, int64_t n, int64_t k,
+                              double* __restrict out, int64_t n, int64_t k_,
                               int32_t iterations, int32_t sweeps, double shift,
                               T* __restrict w) {
   constexpr int count = sizeof(T) / sizeof(double);
+  const int64_t k = K ? K : k_;
   T* l = w;
-  T* y = l + n * n;
+  T* inv_d = l + n * n;
+  T* y = inv_d + n;
   T* r = y + n * k;
   T* rv = r + k * k;
   T trace = a[0];
@@ -716,16 +725,17 @@ LK_INLINE void smallest_right(const T* __restrict a, T* __restrict x,
   for (int64_t j = 0; j < n; ++j) {  // right-looking Cholesky, lower triangle
     const T d = lane_sqrt(l[j * n + j]);
     l[j * n + j] = d;
-    for (int64_t i = j + 1; i < n; ++i) l[i * n + j] = l[i * n + j] / d;
+    inv_d[j] = 1.0 / d;
+    for (int64_t i = j + 1; i < n; ++i) l[i * n + j] = l[i * n + j] * inv_d[j];
     for (int64_t c = j + 1; c < n; ++c) {
       const T lc = l[c * n + j];
       for (int64_t i = c; i < n; ++i) l[i * n + c] -= l[i * n + j] * lc;
     }
   }
-  orthonormalise(x, n, k);
+  orthonormalise<K>(x, n, k);
   for (int32_t it = 0; it < iterations; ++it) {
-    cho_solve_block(l, x, n, k);
-    orthonormalise(x, n, k);
+    cho_solve_block<K>(l, inv_d, x, n, k);
+    orthonormalise<K>(x, n, k);
   }
   for (int64_t i = 0; i < n * k; ++i) y[i] = T{} * 0.0;  // y = a x
   for (int64_t i = 0; i < n; ++i)
@@ -759,7 +769,7 @@ LK_INLINE void smallest_right(const T* __restrict a, T* __restrict x,
 
 // Doubles of smallest_group's scratch for groups of up to four.
 constexpr int64_t smallest_scratch(int64_t n, int64_t k) {
-  return 4 * (n * n + n * k + n * n + n * k + 2 * k * k);
+  return 4 * (n * n + n * k + n * n + n + n * k + 2 * k * k);
 }
 
 // The lanes<T>() consecutive problems from a (n x n each) and start (n x k each) on.
@@ -774,7 +784,10 @@ LK_INLINE void smallest_group(const double* a, const double* start, double* out,
     for (int g = 0; g < count; ++g) lane_ptr(&pa[i])[g] = a[g * n * n + i];
   for (int64_t i = 0; i < n * k; ++i)
     for (int g = 0; g < count; ++g) lane_ptr(&px[i])[g] = start[g * n * k + i];
-  smallest_right(pa, px, out, n, k, iterations, sweeps, shift, px + n * k);
+  if (k == 6)  // singularity.BLOCK
+    smallest_right<6>(pa, px, out, n, k, iterations, sweeps, shift, px + n * k);
+  else
+    smallest_right<0>(pa, px, out, n, k, iterations, sweeps, shift, px + n * k);
 }
 
 void smallest_group1(const double* a, const double* start, double* out, int64_t n,
