@@ -48,6 +48,7 @@ JAX_FREE = frozenset(
         "_arms.trace.settings",
         "_arms.trace.task",
         "_design",
+        "_design.ahead",
         "_design.settings",
         "_engine",
         "_engine.assembly",

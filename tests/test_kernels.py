@@ -323,11 +323,11 @@ def test_smallest_right_is_the_plain_code(ffi, batch, m, n):
     so round-off of 1e-15 ‖JᵀJ‖ turns its vector by up to about 1e-7); ‖J v‖ is the
     plain code's to 1e-12 (σ is stationary in v) and σ_min of the SVD to 1e-6 (six
     sweeps of inverse iteration leave the random 100 x 91 matrix 5e-8 short)."""
-    from linkopt._engine.singularity import _plain_smallest
+    from linkopt._engine.singularity import plain_smallest
 
     jac, a, start = _gram_and_start(batch, m, n, seed=n)
     v = ffi.smallest_right(a, start)
-    plain = np.asarray(jax.jit(_plain_smallest)(a, start))
+    plain = np.asarray(jax.jit(plain_smallest)(a, start))
     sign = np.sign(np.sum(v * plain, axis=1))[:, None]
     np.testing.assert_allclose(v, sign * plain, atol=1e-6)
     np.testing.assert_allclose(v[1:], sign[1:] * plain[1:], atol=1e-11)
@@ -383,7 +383,7 @@ def test_smallest_right_vectors_differentiate_as_the_plain_code():
     def plain(j):
         a = jnp.einsum("bmi,bmj->bij", j, j)
         start = np.random.default_rng(0).standard_normal((9, 6))
-        return singularity._plain_smallest(a, jnp.broadcast_to(start, (3, 9, 6)))
+        return singularity.plain_smallest(a, jnp.broadcast_to(start, (3, 9, 6)))
 
     value, derivative = jax.jvp(singularity.smallest_right_vectors, (jac,), (tangent,))
     expected, expected_derivative = jax.jvp(plain, (jac,), (tangent,))

@@ -248,16 +248,19 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(
     """Eight particles in two chunks of four: the batch shape this process has compiled,
     so the workers load their kernels from the persistent cache instead of compiling
     them. ``cold``: taken for a first run (no evaluation traced on this machine), where
-    the worker compiles the partial gradient before its chunk; same numbers."""
+    the worker compiles the partial gradient before its chunk, and the worker process
+    spawned ahead of the mechanism (``linkopt._design.ahead``, as ``linkopt optimize``
+    does) and adopted by the pool; same numbers."""
+    from linkopt._design import ahead
     from linkopt._design import workers as workers_module
 
     asked = []
     if cold:
         monkeypatch.setattr(workers_module, "batch_traced_before", lambda *a: False)
-        ahead = Workers._compile_ahead
+        compile_ahead = Workers._compile_ahead
 
         def spy(self, chunks):
-            ahead(self, chunks)
+            compile_ahead(self, chunks)
             asked.append(self._compiling)
 
         monkeypatch.setattr(Workers, "_compile_ahead", spy)
@@ -275,7 +278,10 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(
         ]
     )
     designs = np.concatenate([run.position, other])
+    if cold:
+        ahead.start(2)
     with Workers(five_bar, 2) as workers:
+        assert ahead.adopt(2) is None  # taken by the pool, or never spawned
         split = workers.evaluate(designs)
         gradients = workers.partial_gradient(designs, split, alpha)
     for name in (f.name for f in dataclasses.fields(ev)):
@@ -288,6 +294,27 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(
     if cold:  # asked once, and the worker's compilation ran without an error
         (compiling,) = asked
         assert compiling is not None and compiling.exception() is None
+
+
+def test_processes_spawned_ahead_serve_one_pool_of_their_count():
+    """``ahead.start(count)`` spawns ``count - 1`` processes once; only a pool of
+    ``count`` takes them, once; ``close`` ends what nothing took."""
+    from linkopt._design import ahead
+
+    ahead.start(1)
+    assert ahead.adopt(1) is None and ahead.adopt(2) is None
+    ahead.start(2)
+    try:
+        assert ahead.adopt(3) is None
+        pool = ahead.adopt(2)
+        assert pool is not None and ahead.adopt(2) is None
+        assert pool.submit(int, "7").result(timeout=120) == 7
+        pool.shutdown()
+    finally:
+        ahead.close()
+    ahead.start(2)
+    ahead.close()
+    assert ahead.adopt(2) is None
 
 
 def test_blas_limit_reaches_the_openblas_that_jax_loads_later():

@@ -23,6 +23,7 @@ import os
 import sys
 from pathlib import Path
 
+from .._design import ahead
 from .._design.settings import OptimizerSettings
 from .._errors import InputError
 from .evaluation import map_progress
@@ -168,6 +169,15 @@ def run_optimize(args) -> int:
     check_run_flags(args)
     if args.seed < 0:
         raise InputError(f"--seed: expected a non-negative integer, got {args.seed}")
+    if args.scheduler is None:  # the workers import while this process loads the file
+        ahead.start(args.workers)
+    try:
+        return _run_optimize(args)
+    finally:
+        ahead.close()
+
+
+def _run_optimize(args) -> int:
     mech = load(args.file)
     from .._design.run import locked_run_folder, write_outputs
 

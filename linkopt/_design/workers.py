@@ -29,6 +29,12 @@ compiles the partial gradient before its first chunk, while the caller compiles 
 evaluation; each then loads the other's executable from the persistent cache. The
 numbers do not change; ``benchmarks/bench_optimizer.py`` times the first (cold) run.
 
+A worker's start-up (a Python and JAX import, about a second) can overlap the caller's
+own: :mod:`linkopt._design.ahead` spawns the worker processes before the mechanism is
+loaded, and the next :class:`Workers` of as many processes adopts them, so that a first
+iteration does not wait for their imports. Each task therefore carries its mechanism (a
+few kilobytes), which a worker keeps while the next task's has the same fingerprint.
+
 A worker that dies (killed, out of memory, or a crash in XLA) breaks the pool: a new
 pool recomputes the chunks that had no result, up to ``RETRIES`` times, and then the
 calling process computes them itself, so a lost worker costs time but never hangs or
@@ -41,7 +47,6 @@ workers for their lifetime, in the calling process only while it computes.
 from __future__ import annotations
 
 import dataclasses
-import multiprocessing
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
@@ -50,12 +55,14 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import one_blas_thread
-from .._engine.model import Mechanism
+from .._engine.model import Mechanism, fingerprint
+from . import ahead
 from .evaluation import Evaluation, alpha_minus, batch_traced_before, evaluate
 from .partial import compile_gradient, partial_gradient
 
 RETRIES = 2  # new pools tried after a worker dies, before this process takes over
-_MECHANISM: Mechanism | None = None  # set in each worker process by _initialise
+#: The mechanism of this worker process's latest task, by fingerprint.
+_MECHANISM: tuple[str, Mechanism] | None = None
 
 
 def chunk_slices(n: int, count: int) -> list[slice]:
@@ -65,19 +72,22 @@ def chunk_slices(n: int, count: int) -> list[slice]:
     return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def _initialise(mech: Mechanism) -> None:
+def _mechanism(key: str, mech: Mechanism) -> Mechanism:
+    """The task's mechanism: the one this worker kept if it has the fingerprint
+    ``key`` (its programs' numbers are on the device already), else ``mech``."""
     global _MECHANISM
-    _MECHANISM = mech
-    one_blas_thread()  # for the worker's lifetime (module docstring)
+    if _MECHANISM is None or _MECHANISM[0] != key:
+        _MECHANISM = (key, mech)
+    return _MECHANISM[1]
 
 
-def _compile_gradients(sizes: tuple[int, ...]) -> None:
+def _compile_gradients(key: str, mech: Mechanism, sizes: tuple[int, ...]) -> None:
     for rows in sizes:
-        compile_gradient(_MECHANISM, rows)
+        compile_gradient(_mechanism(key, mech), rows)
 
 
-def _evaluate_chunk(designs: np.ndarray) -> Evaluation:
-    return jax.tree_util.tree_map(np.asarray, evaluate(_MECHANISM, designs))
+def _evaluate_chunk(key: str, mech: Mechanism, designs: np.ndarray) -> Evaluation:
+    return jax.tree_util.tree_map(np.asarray, evaluate(_mechanism(key, mech), designs))
 
 
 def _evaluate_chunk_here(mech: Mechanism, designs: np.ndarray) -> Evaluation:
@@ -99,6 +109,7 @@ class Workers:
             )
         self.mech = mech
         self.count = count
+        self._key = fingerprint(mech)
         self._pool = None
         # (designs, evaluation, alpha, gradient) of a first chunk
         self._early: tuple | None = None
@@ -110,24 +121,22 @@ class Workers:
             self._pool = self._start_pool()
 
     def _start_pool(self) -> ProcessPoolExecutor:
-        # spawn, not fork: fork would copy JAX's threads
-        return ProcessPoolExecutor(
-            self.count - 1,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=_initialise,
-            initargs=(self.mech,),
-        )
+        """The processes spawned ahead (:mod:`linkopt._design.ahead`), or new ones."""
+        return ahead.adopt(self.count) or ahead.spawn(self.count - 1)
+
+    def _task(self, fn, *args) -> Future:
+        return self._pool.submit(fn, self._key, self.mech, *args)
 
     def _submit(self, chunks: list[np.ndarray]) -> list[Future]:
         """Futures of the chunks; a pool already broken (a worker died while idle)
         is replaced first."""
         try:
-            return [self._pool.submit(_evaluate_chunk, chunk) for chunk in chunks]
+            return [self._task(_evaluate_chunk, chunk) for chunk in chunks]
         except BrokenProcessPool:
             self._pool.shutdown(wait=False, cancel_futures=True)
             self.restarts += 1
             self._pool = self._start_pool()
-            return [self._pool.submit(_evaluate_chunk, chunk) for chunk in chunks]
+            return [self._task(_evaluate_chunk, chunk) for chunk in chunks]
 
     def _compile_ahead(self, chunks: list[np.ndarray]) -> None:
         """On a cold start (the evaluation of a chunk never traced on this machine),
@@ -142,7 +151,7 @@ class Workers:
             return
         sizes = tuple(dict.fromkeys(len(chunk) for chunk in chunks))
         try:
-            self._compiling = self._pool.submit(_compile_gradients, sizes)
+            self._compiling = self._task(_compile_gradients, sizes)
         except BrokenProcessPool:  # _submit replaces the pool
             pass
 

@@ -76,7 +76,7 @@ def _orthonormalise(x: Float[Array, "B n k"]) -> Float[Array, "B n k"]:
 SHIFT = 1e-13
 
 
-def _plain_smallest(a: Float[Array, "B n n"], start: Float[Array, "B n k"]):
+def plain_smallest(a: Float[Array, "B n n"], start: Float[Array, "B n k"]):
     """:func:`smallest_right_vectors` from the Gram matrices ``a = JᵀJ`` and the start
     blocks, in plain JAX operations."""
     n = a.shape[-1]
@@ -95,7 +95,7 @@ def _plain_smallest(a: Float[Array, "B n n"], start: Float[Array, "B n k"]):
 
 @jax.custom_jvp
 def _kernel_smallest(a: Float[Array, "B n n"], start: Float[Array, "B n k"]):
-    """:func:`_plain_smallest` in one call of the compiled kernel, with its
+    """:func:`plain_smallest` in one call of the compiled kernel, with its
     derivative."""
     return dense.smallest_right(
         a,
@@ -107,7 +107,7 @@ def _kernel_smallest(a: Float[Array, "B n n"], start: Float[Array, "B n k"]):
 
 
 _kernel_smallest.defjvp(
-    lambda primals, tangents: jax.jvp(_plain_smallest, primals, tangents)
+    lambda primals, tangents: jax.jvp(plain_smallest, primals, tangents)
 )
 
 
@@ -124,7 +124,7 @@ def smallest_right_vectors(jac: Float[Array, "B m n"]) -> Float[Array, "B n"]:
     start = jnp.broadcast_to(jnp.asarray(start), (a.shape[0],) + start.shape)
     if dense.serves_smallest_right(a, start.shape[-1]):
         return _kernel_smallest(a, start)
-    return _plain_smallest(a, start)
+    return plain_smallest(a, start)
 
 
 def sigmas_of(jac: Float[Array, "2 m n"]) -> Float[Array, 2]:

@@ -1,0 +1,70 @@
+"""Worker processes spawned before their mechanism exists, without importing JAX here.
+
+A worker's start-up is a Python and JAX import, about a second on a 2-core machine, and
+an optimiser's first iteration waited for it. :func:`start` spawns the ``count - 1``
+worker processes of a :class:`linkopt._design.workers.Workers` of ``count`` processes
+at once, so that they import while the caller loads and checks the mechanism
+(``linkopt optimize`` calls it before loading the file); the next ``Workers`` of as many
+processes adopts them (:func:`adopt`), and :func:`close` ends them where none does (a
+file that fails to load, a finished run resumed). This module imports neither JAX nor
+the engine, so that the processes start before the caller's own imports.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+
+#: Processes spawned by :func:`start`, not adopted yet, with the ``count`` they serve.
+_AHEAD: tuple[int, ProcessPoolExecutor] | None = None
+
+
+def initialise() -> None:
+    """A worker process's start-up: the imports, and OpenBLAS held to one thread for
+    its lifetime (:mod:`linkopt._config`)."""
+    from .._config import one_blas_thread
+    from . import evaluation, partial  # noqa: F401  (the imports are the start-up)
+
+    one_blas_thread()
+
+
+def _ready() -> None:
+    """A task that only makes the pool spawn a process (:func:`start`)."""
+
+
+def spawn(count: int) -> ProcessPoolExecutor:
+    """A pool of ``count`` worker processes (spawn, not fork: fork would copy JAX's
+    threads)."""
+    return ProcessPoolExecutor(
+        count, mp_context=multiprocessing.get_context("spawn"), initializer=initialise
+    )
+
+
+def start(count: int) -> None:
+    """Spawn the ``count - 1`` worker processes of a ``Workers`` of ``count`` now;
+    nothing for ``count`` < 2 or when some are spawned already."""
+    global _AHEAD
+    if count < 2 or _AHEAD is not None:
+        return
+    pool = spawn(count - 1)
+    for _ in range(count - 1):  # each submit to a pool with no idle process spawns one
+        pool.submit(_ready)
+    _AHEAD = (count, pool)
+
+
+def adopt(count: int) -> ProcessPoolExecutor | None:
+    """The processes of :func:`start` if they serve ``count`` (and are then no longer
+    held here), else None."""
+    global _AHEAD
+    if _AHEAD is None or _AHEAD[0] != count:
+        return None
+    pool, _AHEAD = _AHEAD[1], None
+    return pool
+
+
+def close() -> None:
+    """End the processes of :func:`start` that nothing adopted."""
+    global _AHEAD
+    if _AHEAD is not None:
+        _AHEAD[1].shutdown(wait=False, cancel_futures=True)
+        _AHEAD = None
