@@ -22,7 +22,7 @@ WHY_SKIPPED = f"{EXTENSION} is not built (linkopt installed without a C++ compil
 needs_extension = pytest.mark.skipif(not BUILT, reason=WHY_SKIPPED)
 SIZES = [1, 7, 35, 98]
 #: the largest order of the damped solve (and of the two-matrix paths, dense.cc)
-DAMPED_MAX_N = 89
+DAMPED_MAX_N = 160
 #: leading (batch) dimensions of the operands
 BATCHES = [(), (3,), (2, 2)]
 #: names under which this file registers the handlers (not linkopt's own names)
@@ -173,7 +173,7 @@ def test_handlers_match_numpy(ffi, n, batch):
 
 
 @pytest.mark.parametrize("batch", [*BATCHES, (5,), (7,)], ids=str)
-@pytest.mark.parametrize("n", [1, 2, 7, 35, 63, DAMPED_MAX_N])
+@pytest.mark.parametrize("n", [1, 2, 7, 35, 63, 91, DAMPED_MAX_N])
 def test_damped_solve_is_the_cholesky_and_solve_of_the_damped_matrix(ffi, n, batch):
     """Bitwise: the factor and solve of a + d I by the other handlers (four, two or
     one matrices of a batch at a time, in the same operations); and against numpy."""
@@ -191,7 +191,7 @@ def test_damped_solve_is_the_cholesky_and_solve_of_the_damped_matrix(ffi, n, bat
 
 
 @pytest.mark.parametrize("count", [2, 3, 5, 7])
-@pytest.mark.parametrize("n", [7, 35, 64, DAMPED_MAX_N, 98])
+@pytest.mark.parametrize("n", [7, 35, 64, 91, DAMPED_MAX_N, DAMPED_MAX_N + 10])
 def test_a_batch_factors_as_its_matrices_one_at_a_time(ffi, n, count):
     """The group paths of the Cholesky handler (batches: four matrices at a time
     where the CPU has AVX2, then two, then one) give the bits of the one-matrix path

@@ -17,7 +17,7 @@ order ``n`` at most ``_dense.max_n()``, 512, else an error):
 * ``lower_inverse``: ``L (..., n, n)`` -> ``L⁻¹``;
 * ``damped_solve``: ``a (..., n, n)``, ``d (...)``, ``b (..., n)`` -> ``(a + d I)⁻¹ b``
   (``cholesky`` of ``a + d I`` and ``tri_solve`` mode 2 in one call, the same numbers;
-  order at most ``_dense.damped_max_n()``, 89);
+  order at most ``_dense.damped_max_n()``, 160);
 * ``smallest_right``: ``a (..., n, n)`` (a Gram matrix ``JᵀJ``), ``start (..., n, k)``,
   attributes ``iterations``, ``sweeps`` (int32) and ``shift`` (f64) -> the right
   singular vector of ``J``'s smallest singular value, ``(..., n)``: every step of

@@ -16,7 +16,7 @@
 //                   Rayleigh–Ritz (smallest_right; k <= kSmallestMaxK)
 // Every handler refuses n > kMaxN (LkDampedSolve n > kLanesMaxN, LkSmallestRight
 // k > kSmallestMaxK), mismatched shapes and an unknown mode with an ffi::Error; none
-// but LkSmallestRight allocates (scratch is on the stack; its own is on the heap).
+// allocates beyond one scratch buffer per call.
 // Single-threaded, plain loops written as axpys so -O3 vectorises them without
 // -ffast-math (no reassociated reductions, except the explicit 4-accumulator dot);
 // LkCholesky and LkDampedSolve work on two or four matrices of a batch at a time
@@ -171,18 +171,32 @@ void lower_inverse_one(const double* __restrict l, double* __restrict x, int64_t
 // FMA: setup.py builds with -ffp-contract=off), so results are bitwise the same for any
 // L; the compiler vectorises across the group instead of along short, unaligned rows.
 // A lane whose factor fails (a non-positive or NaN pivot) is recomputed by the
-// one-matrix code, which writes its NaN pattern. Scratch is a stack buffer of kScratch
-// doubles, so these paths take n <= kLanesMaxN; larger orders run the one-matrix code.
+// one-matrix code, which writes its NaN pattern. These paths take n <= kLanesMaxN;
+// larger orders run the one-matrix code.
 
 constexpr int64_t tri(int64_t i) { return i * (i + 1) / 2; }
 
-// Doubles of the stack scratch buffer (128 KiB): a packed group of four and its
-// right-hand sides, or one full n x n matrix.
-constexpr int64_t kScratch = 16384;
-// The largest order of the group paths and of the damped solve.
-constexpr int64_t kLanesMaxN = 89;
-static_assert(4 * tri(kLanesMaxN) + 4 * kLanesMaxN <= kScratch, "kScratch");
-static_assert(kLanesMaxN * kLanesMaxN <= kScratch, "kScratch");
+// The largest order of the group paths and of the damped solve (a Stewart platform's
+// 13 bodies are 91 coordinates).
+constexpr int64_t kLanesMaxN = 160;
+
+// Doubles of a group path's scratch: a packed group of four and its right-hand sides,
+// or one full n x n matrix.
+constexpr int64_t lanes_scratch(int64_t n) {
+  return 4 * tri(n) + 4 * n > n * n ? 4 * tri(n) + 4 * n : n * n;
+}
+
+// A 64-byte aligned heap buffer of doubles, freed with the scope (data is null when
+// the allocation failed).
+struct Scratch {
+  double* data;
+  explicit Scratch(int64_t doubles)
+      : data(static_cast<double*>(
+            std::aligned_alloc(64, ((doubles * sizeof(double) + 63) / 64) * 64))) {}
+  ~Scratch() { std::free(data); }
+  Scratch(const Scratch&) = delete;
+  Scratch& operator=(const Scratch&) = delete;
+};
 
 #if defined(__GNUC__) || defined(__clang__)
 #define LK_LANES 1
@@ -455,7 +469,9 @@ ffi::Error CholeskyImpl(ffi::Buffer<ffi::F64> a, ffi::ResultBuffer<ffi::F64> out
   int64_t b = 0;
 #ifdef LK_LANES
   if (n <= kLanesMaxN) {
-    alignas(64) double scratch[kScratch];
+    Scratch buffer(lanes_scratch(n));
+    if (buffer.data == nullptr) return ffi::Error::Internal("out of memory");
+    double* scratch = buffer.data;
     // the lanes of a group whose factor failed: chol_one writes their NaN pattern
     auto redo = [&](unsigned bad, int count) {
       for (int w = 0; w < count; ++w)
@@ -543,7 +559,9 @@ ffi::Error DampedSolveImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> d,
   const double* bp = b.typed_data();
   double* xp = out->typed_data();
   const int64_t nn = n * n;
-  alignas(64) double scratch[kScratch];
+  Scratch buffer(lanes_scratch(n));
+  if (buffer.data == nullptr) return ffi::Error::Internal("out of memory");
+  double* scratch = buffer.data;
   double col[kLanesMaxN];
   // one matrix: a + d I factored in scratch by chol_one, then the two solves
   auto one = [&](int64_t i) {
@@ -844,10 +862,9 @@ ffi::Error SmallestRightImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> star
   const double* ap = a.typed_data();
   const double* sp = start.typed_data();
   double* op = out->typed_data();
-  const size_t doubles = smallest_scratch(n, k);
-  double* scratch = static_cast<double*>(
-      std::aligned_alloc(64, ((doubles * sizeof(double) + 63) / 64) * 64));
-  if (scratch == nullptr) return ffi::Error::Internal("out of memory");
+  Scratch buffer(smallest_scratch(n, k));
+  if (buffer.data == nullptr) return ffi::Error::Internal("out of memory");
+  double* scratch = buffer.data;
   int64_t b = 0;
 #ifdef LK_LANES
 #ifdef LK_AVX2
@@ -863,7 +880,6 @@ ffi::Error SmallestRightImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> star
   for (; b < batch; ++b)
     smallest_group1(ap + b * n * n, sp + b * n * k, op + b * n, n, k, iterations, sweeps,
                     shift, scratch);
-  std::free(scratch);
   return ffi::Error::Success();
 }
 }  // namespace
