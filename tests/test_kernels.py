@@ -372,6 +372,7 @@ def test_smallest_right_refuses_bad_operands(ffi):
         ffi.smallest_right(a, start, iterations=-1)
 
 
+@needs_extension
 def test_smallest_right_vectors_differentiate_as_the_plain_code():
     """Where the kernel serves it, singularity.smallest_right_vectors takes the plain
     steps' derivative (its callers stop the gradient; a user's may not)."""

@@ -16,7 +16,7 @@
 //                   Rayleigh–Ritz (smallest_right; k <= kSmallestMaxK)
 // Every handler refuses n > kMaxN (LkDampedSolve n > kLanesMaxN, LkSmallestRight
 // k > kSmallestMaxK), mismatched shapes and an unknown mode with an ffi::Error; none
-// allocates beyond one scratch buffer per call.
+// allocates but for the scratch of large orders (Scratch).
 // Single-threaded, plain loops written as axpys so -O3 vectorises them without
 // -ffast-math (no reassociated reductions, except the explicit 4-accumulator dot);
 // LkCholesky and LkDampedSolve work on two or four matrices of a batch at a time
@@ -186,14 +186,25 @@ constexpr int64_t lanes_scratch(int64_t n) {
   return 4 * tri(n) + 4 * n > n * n ? 4 * tri(n) + 4 * n : n * n;
 }
 
-// A 64-byte aligned heap buffer of doubles, freed with the scope (data is null when
-// the allocation failed).
+// A 64-byte aligned scratch buffer of doubles for one call: on the stack up to
+// kStackScratch doubles (128 KiB, the orders up to 89 of the group paths), else on the
+// heap (data is null when that allocation failed).
+constexpr int64_t kStackScratch = 16384;
+
 struct Scratch {
+  alignas(64) double stack[kStackScratch];
+  double* heap = nullptr;
   double* data;
-  explicit Scratch(int64_t doubles)
-      : data(static_cast<double*>(
-            std::aligned_alloc(64, ((doubles * sizeof(double) + 63) / 64) * 64))) {}
-  ~Scratch() { std::free(data); }
+  explicit Scratch(int64_t doubles) {
+    if (doubles <= kStackScratch) {
+      data = stack;
+    } else {
+      heap = static_cast<double*>(
+          std::aligned_alloc(64, ((doubles * sizeof(double) + 63) / 64) * 64));
+      data = heap;
+    }
+  }
+  ~Scratch() { std::free(heap); }
   Scratch(const Scratch&) = delete;
   Scratch& operator=(const Scratch&) = delete;
 };
