@@ -616,8 +616,8 @@ ffi::Error DampedSolveImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> d,
 // of a + shift·trace(a)·I; the start block x (n x k) orthonormalised; `iterations`
 // times x <- orthonormalised(A⁻¹ x), A⁻¹ x by the two triangular solves with L (the
 // plain-JAX code multiplies by L⁻ᵀL⁻¹: the same in exact arithmetic); the Ritz matrix
-// r = xᵀ a x; `sweeps` cyclic Jacobi sweeps of r (Golub & Van Loan Alg. 8.4.3, the
-// rotation of symmetric_eigh, applied to rows and columns p and q of the symmetric r);
+// r = xᵀ a x; `sweeps` cyclic Jacobi sweeps of r (Golub & Van Loan Sec. 8.5, with the
+// rotation of symmetric_eigh, Alg. 8.5.1, applied to rows and columns p and q of r);
 // and x times the rotation column of r's smallest diagonal entry (NaN sorted last, the
 // first of equal ones). Orthonormalised is Gram–Schmidt with each projection done
 // twice, v / sqrt(v·v + 1e-300). Sums run in other orders than XLA's, so the result
