@@ -95,7 +95,6 @@ class ClusterWorkers(Workers):
     def __init__(self, mech: Mechanism, count: int, client: Client):
         self.client = client
         super().__init__(mech, count)
-        self.key = fingerprint(mech)
         self.computed_here = 0  # chunks computed here after KilledWorker
         self._plugin = f"linkopt-mechanism-{self.key[:16]}"
         client.register_plugin(MechanismPlugin(mech), name=self._plugin)

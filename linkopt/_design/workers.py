@@ -109,7 +109,7 @@ class Workers:
             )
         self.mech = mech
         self.count = count
-        self._key = fingerprint(mech)
+        self.key = fingerprint(mech)  # a task's mechanism, in the workers
         self._pool = None
         # (designs, evaluation, alpha, gradient) of a first chunk
         self._early: tuple | None = None
@@ -125,7 +125,7 @@ class Workers:
         return ahead.adopt(self.count) or ahead.spawn(self.count - 1)
 
     def _task(self, fn, *args) -> Future:
-        return self._pool.submit(fn, self._key, self.mech, *args)
+        return self._pool.submit(fn, self.key, self.mech, *args)
 
     def _submit(self, chunks: list[np.ndarray]) -> list[Future]:
         """Futures of the chunks; a pool already broken (a worker died while idle)

@@ -361,10 +361,9 @@ def smallest_right(
     its Gram matrices ``a`` (where :func:`serves_smallest_right`): the same steps in
     one call (``dense.cc``, ``LkSmallestRight``). Not differentiable: its caller
     defines the derivative."""
-    out = jax.ShapeDtypeStruct(a.shape[:-1], a.dtype)
-    return jax.ffi.ffi_call(
-        TARGETS["smallest_right"], out, vmap_method="broadcast_all"
-    )(
+    return _call(
+        "smallest_right",
+        jax.ShapeDtypeStruct(a.shape[:-1], a.dtype),
         a,
         start,
         iterations=np.int32(iterations),
