@@ -3,8 +3,9 @@
 The file gives approximate anchors and declared dimensions (``[[lengths]]``, bodies in
 their own frame; :mod:`linkopt._engine.assembly`); the command writes the assembled
 file (world anchors to full precision, an ordinary mechanism file that every command
-reads) and reports how far each anchor moved, the declared lengths as assembled and
-σ_min at the assembled rest pose, with a warning when that pose is near a singularity.
+reads) and reports how far each anchor moved, the declared lengths as assembled, how
+far each prismatic or cylindrical joint slid, and σ_min at the assembled rest pose,
+with a warning when that pose is near a singularity.
 Nothing is written when the loops do not close or the assembled file would not pass
 ``linkopt check`` (the error says so); a missing folder of ``--out`` is made, as every
 command's ``--out`` does, once the file can be written.
@@ -122,6 +123,9 @@ def _payload(source: Path, out: Path, report, sigma_fk: float, sigma_bk: float):
             {"joints": list(pair), "declared": d, "assembled": a}
             for pair, d, a in report.lengths
         ],
+        "slides": [
+            {"joint": j, "drawn": d, "assembled": a} for j, d, a in report.slides
+        ],
         "residual": report.residual,
         "sigma_min_fk": sigma_fk,
         "sigma_min_bk": sigma_bk,
@@ -143,6 +147,12 @@ def _print_report(payload: dict) -> None:
         print(
             f"  length {i}–{j}: declared {item['declared']:g}, assembled "
             f"{item['assembled']!r}"
+        )
+    for item in payload["slides"]:
+        moved = item["assembled"] - item["drawn"]
+        print(
+            f"  slide {item['joint']}: drawn {item['drawn']:.6g}, assembled "
+            f"{item['assembled']:.6g} {units} (moved {moved:+.6g})"
         )
     print(
         f"  largest move {payload['largest_move']:.6g} {units}; residual "

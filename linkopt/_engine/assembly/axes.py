@@ -18,6 +18,9 @@ from ..model import MOTOR_JOINTS
 
 #: Joint kinds whose one axis both bodies carry (their axes stay parallel).
 SHARED_AXIS = ("revolute", "prismatic", "cylindrical")
+#: Joint kinds whose bodies slide along the axis: the second body's anchor of the
+#: joint only has to lie on the axis line through the first's (the slide is free).
+LINE_JOINTS = ("prismatic", "cylindrical")
 #: The motor fields of :class:`~linkopt._engine.assembly.problem.Rows`.
 MOTOR_FIELDS = (
     "motor_linear",
@@ -109,8 +112,11 @@ def _carrier(frames, frame_of, j, body) -> tuple[int, np.ndarray | None]:
 
 def axis_rows(axes: tuple[Axis, ...], joints):
     """Rows ``p · q = 0`` that keep the carriers of each axis together: two for a
-    shared axis (``q`` ⟂ two normals ``p`` of the first carrier: parallel), one for a
-    universal joint (its two axes perpendicular). None where no carrier moves."""
+    shared axis (``q`` ⟂ two normals ``p`` of the first carrier: parallel), a third for
+    a prismatic joint (no turn about the axis: the normal ``u`` of the first carrier
+    and the normal of the second nearest to it, ``u₂``, keep ``(n × u) · u₂ = 0``, as
+    drawn), one for a universal joint (its two axes perpendicular). None where no
+    carrier moves."""
     p_frame, p_vec, q_frame, q_vec, labels = [], [], [], [], []
     for axis in axes:
         name = joints[axis.joint]["name"]
@@ -126,6 +132,8 @@ def axis_rows(axes: tuple[Axis, ...], joints):
             u = any_normal(vp)
             pairs = [(u, vq), (np.cross(vp, u), vq)]
             text = f"the {axis.key} of {name}"
+            if joints[axis.joint].get("type") == "prismatic":
+                pairs.append((np.cross(vp, u), _nearest_normal(u, vq)))
         if fp < 0 and fq < 0:
             continue  # held on both sides: nothing moves it
         for p, q in pairs:
@@ -141,6 +149,14 @@ def axis_rows(axes: tuple[Axis, ...], joints):
         "axis_vq": np.array(q_vec, dtype=float).reshape(-1, 3),
     }
     return arrays, labels
+
+
+def _nearest_normal(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The unit normal of ``v`` nearest ``u`` (``u`` with its part along ``v``
+    removed); any normal where ``u`` is along ``v``."""
+    w = u - (u @ v) * v
+    norm = np.linalg.norm(w)
+    return w / norm if norm > 1e-9 else any_normal(v)
 
 
 def _partner(axes: tuple[Axis, ...], axis: Axis) -> Axis | None:
@@ -207,8 +223,9 @@ def read_motors(
 
 def _farthest(body, m, pairs, anchors, axis, linear) -> int:
     """The anchor of ``body`` (other than joint ``m``) farthest from the motor's axis
-    line (rotary) or point (linear); -1 when none is off it."""
-    best, best_d = -1, 1e-9
+    line (rotary: -1 when none is off it) or point (linear: any other anchor, a slider
+    pinned at its rail anchor too; -1 when it has none)."""
+    best, best_d = -1, -1.0 if linear else 1e-9
     for j, pair in enumerate(pairs):
         if j == m or body not in pair:
             continue

@@ -9,8 +9,24 @@ from dataclasses import dataclass
 import numpy as np
 from jaxtyping import Float
 
-from ..fields import Reader, field_name, is_number_list, shown
-from .axes import Axis, axis_key, axis_rows, read_axes, read_motors
+from ..fields import Reader, is_number_list, shown
+from .axes import (
+    LINE_JOINTS,
+    Axis,
+    axis_key,
+    axis_rows,
+    read_axes,
+    read_motors,
+)
+from .lines import (
+    Slide,
+    anchor_field,
+    check_rigid,
+    holder,
+    implicit_frames,
+    line_rows,
+    slides_on,
+)
 
 BODY_KEYS = ("frame", "orientation", "anchors", "axes")
 
@@ -22,8 +38,9 @@ class Rows:
     is read without JAX.
 
     ``J`` joints, ``F`` bodies in their own frame, ``N`` lengths, ``R`` local anchors,
-    ``A`` axis rows, ``M`` held motors. A vector carried by frame ``f`` turns with the
-    frame's turn from the drawing; a held one (``-1``) stays as written.
+    ``S`` anchors on a slide line, ``A`` axis rows, ``M`` held motors. A vector carried
+    by frame ``f`` turns with the frame's turn from the drawing; a held one (``-1``)
+    stays as written.
     """
 
     pairs: np.ndarray  # (N, 2) int joint indices
@@ -31,6 +48,10 @@ class Rows:
     local_frame: np.ndarray  # (R,) int frame index
     local_joint: np.ndarray  # (R,) int joint index
     local_at: np.ndarray  # (R, 3) anchor in the body frame
+    line_frame: np.ndarray  # (S,) int frame index of the sliding body
+    line_joint: np.ndarray  # (S,) int its prismatic or cylindrical joint
+    line_at: np.ndarray  # (S, 3) its anchor of the joint in its frame
+    line_n: np.ndarray  # (S, 2, 3) two normals of its axis (world, as drawn)
     rotation0: np.ndarray  # (F, 3, 3) drawn frame orientations
     axis_p: np.ndarray  # (A,) int frame carrying p, -1 for a held (world) vector
     axis_vp: np.ndarray  # (A, 3) p as drawn (world, at the drawn frame)
@@ -58,10 +79,12 @@ class Problem:
     frame_names: tuple[str, ...]  # bodies in their own frame
     frame_bodies: tuple[int, ...]
     frames0: np.ndarray  # (F, 3) drawn frame origins
+    frame_implicit: tuple[bool, ...]  # a body given by world anchors, read as a frame
     rows: Rows
     row_labels: tuple[tuple[str, tuple[str, ...], str], ...]  # (where, joints, text)
     row_joints: tuple[tuple[int, ...], ...]  # per row, the joints it concerns
     axes: tuple[Axis, ...]  # the joint axes bodies carry
+    slides: tuple[Slide, ...]
     pairs: tuple[tuple[int, int], ...]  # per joint, its two bodies
     body_names: tuple[str, ...]
     ground: int
@@ -97,10 +120,15 @@ def read_problem(data: dict, source: str, motors=None) -> Problem:
     ]
     frames = _read_frames(rd, bodies, ground, joint_index, pairs, joints)
     anchors0 = _drawn_anchors(rd, joints, pairs, frames, ground)
+    frames += implicit_frames(bodies, joints, pairs, frames, anchors0, ground)
     scale = _scale(rd, head, anchors0)
     lengths, length_labels = _read_lengths(rd, data, joint_index, scale)
-    local, local_labels = _local_rows(frames, scale, joints)
+    check_rigid(rd, frames, lengths, anchors0, scale, joints, bodies)
     axes = read_axes(rd, frames, joints, pairs)
+    local, local_labels = _local_rows(frames, scale, joints, pairs, ground)
+    line, line_labels, slides = line_rows(
+        rd, frames, scale, joints, pairs, ground, axes
+    )
     axis_arrays, axis_labels = axis_rows(axes, joints)
     motor_rows, motor_names, motor_labels = read_motors(
         rd, data, joints, joint_index, pairs, anchors0, ground, scale, motors, axes
@@ -111,11 +139,12 @@ def read_problem(data: dict, source: str, motors=None) -> Problem:
         local_frame=local[0],
         local_joint=local[1],
         local_at=local[2],
+        **line,
         rotation0=np.array([f["rotation"] for f in frames]).reshape(-1, 3, 3),
         **axis_arrays,
         **motor_rows,
     )
-    labels = length_labels + local_labels + axis_labels + motor_labels
+    labels = length_labels + local_labels + line_labels + axis_labels + motor_labels
     return Problem(
         joint_names=tuple(j["name"] for j in joints),
         drawn=anchors0,
@@ -124,10 +153,12 @@ def read_problem(data: dict, source: str, motors=None) -> Problem:
         frame_names=tuple(bodies[f["body"]]["name"] for f in frames),
         frame_bodies=tuple(f["body"] for f in frames),
         frames0=np.array([f["origin"] for f in frames]).reshape(-1, 3) / scale,
+        frame_implicit=tuple(f["implicit"] for f in frames),
         rows=rows,
         row_labels=tuple(lab[:3] for lab in labels),
         row_joints=tuple(lab[3] for lab in labels),
         axes=axes,
+        slides=slides,
         pairs=tuple(pairs),
         body_names=tuple(b["name"] for b in bodies),
         ground=ground,
@@ -189,6 +220,7 @@ def _read_frames(rd, bodies, ground, joint_index, pairs, joints) -> list[dict]:
                 "rotation": _orientation(rd, body, where),
                 "anchors": _local_anchors(rd, body, where, k, joint_index, pairs),
                 "axes": _local_axes(rd, body, where, k, joint_index, pairs, joints),
+                "implicit": False,
             }
         )
     return frames
@@ -274,16 +306,17 @@ def _local_axes(
 
 def _drawn_anchors(rd, joints, pairs, frames, ground) -> Float[np.ndarray, "J 3"]:
     """Each joint's drawn world anchor: ``anchor``, or where the frames of its bodies
-    put it (their mean). A joint whose both bodies give it in their frames has no
-    ``anchor`` (it would be given twice); every other joint needs one."""
-    images: dict[int, list[np.ndarray]] = {}
+    put it (their mean; a prismatic or cylindrical joint's is its first body's, along
+    whose axis line the second slides). A joint whose both bodies give it in their
+    frames has no ``anchor`` (it would be given twice); every other joint needs one."""
+    images: dict[int, dict[int, np.ndarray]] = {}
     for f in frames:
         for joint, at in f["anchors"].items():
-            images.setdefault(joint, []).append(f["origin"] + f["rotation"] @ at)
+            images.setdefault(joint, {})[f["body"]] = f["origin"] + f["rotation"] @ at
     anchors = np.zeros((len(joints), 3))
     for k, joint in enumerate(joints):
         where, given = f"joints[{k}]", "anchor" in joint
-        if given and len(images.get(k, [])) == 2:
+        if given and len(images.get(k, {})) == 2:
             raise rd.fail(
                 f"{where}.anchor",
                 f"joint {joint['name']!r} is placed by the frames of both its bodies; "
@@ -296,8 +329,12 @@ def _drawn_anchors(rd, joints, pairs, frames, ground) -> Float[np.ndarray, "J 3"
                 f"{where}.anchor",
                 "missing required field: a joint on the ground is placed in the world",
             )
+        elif joint.get("type") in LINE_JOINTS and holder(
+            pairs[k], ground
+        ) in images.get(k, {}):
+            anchors[k] = images[k][holder(pairs[k], ground)]
         elif k in images:
-            anchors[k] = np.mean(images[k], axis=0)
+            anchors[k] = np.mean(list(images[k].values()), axis=0)
         else:
             raise rd.fail(f"{where}.anchor", "missing required field")
     return anchors
@@ -352,16 +389,19 @@ def _read_lengths(rd, data, joint_index, scale):
     return arrays, labels
 
 
-def _local_rows(frames, scale, joints):
-    """One 3-row block per local anchor: ``a_j = p_b + R_b ℓ_bj``."""
+def _local_rows(frames, scale, joints, pairs, ground):
+    """One 3-row block per local anchor: ``a_j = p_b + R_b ℓ_bj``; but for the body
+    that slides on a prismatic or cylindrical joint (:func:`.lines.line_rows`)."""
     frame, joint, at, labels = [], [], [], []
     for f_index, f in enumerate(frames):
         for j, local in f["anchors"].items():
+            if slides_on(joints[j], pairs[j], f["body"], ground):
+                continue
             frame.append(f_index)
             joint.append(j)
             at.append(local / scale)
             name = joints[j]["name"]
-            where = f"bodies[{f['body']}].anchors.{field_name(name)}"
+            where = anchor_field(f, j, joints)
             labels.append((where, (), f"the local anchor of {name}", (j,)))
     arrays = (
         np.array(frame, dtype=int),

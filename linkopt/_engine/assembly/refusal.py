@@ -9,7 +9,7 @@ import numpy as np
 from ..fields import Reader
 from .problem import Problem, Rows
 from .solve import CLOSE_TOL, residual_np, solve, without_motors
-from .write import fit
+from .write import fit, slide_values
 
 #: An axis held as written on a body given by world anchors may turn this far (rad)
 #: with the body's best-fit rotation before the assembly is refused.
@@ -21,57 +21,128 @@ CHECK_TOL = 1e-9
 def refuse(rd: Reader, problem: Problem, x0, x) -> None:
     """The loops do not close from the drawing: say which loop, which dimensions and
     by how much, and which axes are held (module docstring); with motors held, first
-    whether freeing them would close."""
+    whether freeing them would close, and then what the motors would have to be."""
     free = without_motors(problem.rows)
     if len(problem.motor_names):
         y, residual, _ = solve(problem, x0, free)
         if residual <= CLOSE_TOL:
-            names = ", ".join(repr(n) for n in problem.motor_names)
-            raise rd.fail(
-                "[[motors]]",
-                f"the loops close, but not with motor(s) {names} held at their drawn "
-                "values (plus --motors): choose motor values the mechanism can reach, "
-                "or draw it closer to an assembly",
-            )
+            raise rd.fail("[[motors]]", _motors_free(problem, x, y))
         x = y
     sizes = (len(problem.joint_names), len(problem.frame_names))
     r = residual_np(sizes, free, x)
-    missing = np.abs(r) > max(1e-3 * float(np.max(np.abs(r))), CLOSE_TOL)
+    missing = _missing(r)
     rows = np.flatnonzero(missing)
     labels = [problem.row_labels[k] for k in rows]
-    gap, angle = _misses(r, missing, problem.rows)
-    gap *= problem.scale
-    missed = sorted({j for k in rows for j in problem.row_joints[k]})
-    joints, bodies, count = _loop(problem, missed)
-    dims = _dimensions(problem, rows)
-    turned = f" and its axes by {angle:.3g}°" if angle > 0 else ""
+    joints, bodies, count = _loop(problem, _joints_of(problem, rows))
+    dims = _dimensions(problem, rows, r)
     raise rd.fail(
         labels[0][0] if labels else "[[lengths]]",
         f"the loop{'s' if count > 1 else ''} through joints "
         f"{', '.join(problem.joint_names[j] for j in joints)} (bodies "
         f"{', '.join(problem.body_names[b] for b in bodies)}) does not close: {dims} "
-        f"cannot all hold; the closest assembly misses by {gap:.6g} {problem.units}"
-        f"{turned} in all{_held_axes(problem, joints)}",
+        f"cannot all hold; the closest assembly misses by {_gap(problem, r, missing)} "
+        f"in all{_slides(problem, x, joints)}{_held_axes(problem, joints)}",
     )
 
 
-def _dimensions(problem: Problem, missing: np.ndarray) -> str:
+def _missing(r: np.ndarray) -> np.ndarray:
+    """The rows that miss: above 1e-3 of the largest miss (and the tolerance)."""
+    return np.abs(r) > max(1e-3 * float(np.max(np.abs(r), initial=0.0)), CLOSE_TOL)
+
+
+def _joints_of(problem: Problem, rows) -> list[int]:
+    return sorted({j for k in rows for j in problem.row_joints[k]})
+
+
+def _gap(problem: Problem, r: np.ndarray, missing: np.ndarray) -> str:
+    """``'12.5 mm'``, and ``' and its axes by 0.3°'`` where axes miss."""
+    gap, angle = _misses(r, missing, problem.rows)
+    turned = f" and its axes by {angle:.3g}°" if angle > 0 else ""
+    return f"{gap * problem.scale:.6g} {problem.units}{turned}"
+
+
+def _motors_free(problem: Problem, x, y) -> str:
+    """The message for loops that close only with the motors free: held, how far the
+    closest assembly misses and where; free, where the nearest assembly puts each
+    motor (from its held value)."""
+    sizes = (len(problem.joint_names), len(problem.frame_names))
+    rows = problem.rows
+    r = residual_np(sizes, rows, x)
+    missing = _missing(r)
+    count = len(rows.motor_target)
+    missing[len(r) - count :] = False  # the motors themselves are held
+    joints, _, _ = _loop(problem, _joints_of(problem, np.flatnonzero(missing)))
+    through = ", ".join(problem.joint_names[j] for j in joints)
+    offsets = residual_np(sizes, rows, y)[len(r) - count :]
+    names = ", ".join(repr(name) for name in problem.motor_names)
+    drives = ", ".join(
+        f"{name!r} drives joint {problem.joint_names[j]}"
+        for name, j in zip(problem.motor_names, rows.motor_joint)
+    )
+    needs = "; ".join(
+        _motor_offset(name, v, linear, problem)
+        for name, v, linear in zip(problem.motor_names, offsets, rows.motor_linear)
+        if abs(v) > CLOSE_TOL
+    )
+    return (
+        f"the loops close, but not with motor(s) {names} held at their drawn values "
+        f"(plus --motors; {drives}): held there, the closest assembly misses by "
+        f"{_gap(problem, r, missing)} in all (the loop through joints {through}); "
+        f"with them free, the assembly nearest the drawing has {needs or 'them there'}"
+        f"{_slides(problem, y, joints)}: choose motor values the mechanism can "
+        "reach, or draw it closer to an assembly"
+    )
+
+
+def _motor_offset(name: str, value: float, linear: bool, problem: Problem) -> str:
+    if linear:
+        return f"{name!r} {value * problem.scale:+.6g} {problem.units} from it"
+    return f"{name!r} {value:+.6g} rad ({np.degrees(value):+.4g}°) from it"
+
+
+def _slides(problem: Problem, x, joints) -> str:
+    """``; the slide of cyl is -0.4 mm`` for the loop's sliding joints: where the
+    sliding body's anchor of each sits along the axis from the joint's (file units)."""
+    items = [
+        f"{problem.joint_names[j]} ({problem.body_names[b]} along its axis) "
+        f"{v:+.6g} {problem.units}"
+        for j, b, v in slide_values(problem, x)
+        if j in joints
+    ]
+    if not items:
+        return ""
+    return f"; at that assembly the slide{'s' if len(items) > 1 else ''} of " + (
+        ", ".join(items)
+    )
+
+
+def _dimensions(problem: Problem, missing: np.ndarray, r: np.ndarray) -> str:
     """What cannot all hold, from the rows that miss: declared lengths as written, the
-    bodies whose part drawings (anchors in their frames) miss, the joints whose axes
-    miss."""
+    bodies whose part drawings (anchors in their frames) miss, the sliding anchors off
+    their joints' axis lines (and by how much), the joints whose axes miss."""
     rows = problem.rows
     n, count = len(rows.lengths), 3 * len(rows.local_joint)
+    lines = 2 * len(rows.line_joint)
     texts = [problem.row_labels[k][2] for k in missing if k < n]
     parts = {
         problem.frame_names[rows.local_frame[(k - n) // 3]]
         for k in missing
         if n <= k < n + count
     }
-    axes = {problem.row_joints[k][0] for k in missing if k >= n + count}
+    off = sorted({(k - n - count) // 2 for k in missing if 0 <= k - n - count < lines})
+    axes = {problem.row_joints[k][0] for k in missing if k >= n + count + lines}
     if parts:
         names = ", ".join(b for b in problem.frame_names if b in parts)
         frames = "its frame" if len(parts) == 1 else "their frames"
         texts.append(f"the anchors of {names} in {frames}")
+    for s in off:
+        miss = np.linalg.norm(r[n + count + 2 * s : n + count + 2 * s + 2])
+        joint = problem.joint_names[rows.line_joint[s]]
+        body = problem.frame_names[rows.line_frame[s]]
+        texts.append(
+            f"{body}'s anchor of {joint} on the axis line of {joint} (off it by "
+            f"{miss * problem.scale:.6g} {problem.units})"
+        )
     if axes:
         names = ", ".join(problem.joint_names[j] for j in sorted(axes))
         texts.append(f"the axes of {names}")
@@ -80,14 +151,18 @@ def _dimensions(problem: Problem, missing: np.ndarray) -> str:
 
 def _misses(r, missing, rows: Rows) -> tuple[float, float]:
     """The gap in reference lengths (|length - declared| per missing length row, the
-    distance per local anchor, its 3 rows together) and the axes' miss in degrees
-    (the angle per axis row)."""
+    distance per local anchor, its 3 rows together, and per sliding anchor off its
+    axis line, its 2 rows together) and the axes' miss in degrees (the angle per axis
+    row)."""
     n, count = len(rows.lengths), 3 * len(rows.local_joint)
+    lines = 2 * len(rows.line_joint)
     lengths = np.abs(r[:n]) * missing[:n]
     local = np.linalg.norm(r[n : n + count].reshape(-1, 3), axis=1)
-    axes = np.abs(r[n + count : n + count + len(rows.axis_p)])
+    line = np.linalg.norm(r[n + count : n + count + lines].reshape(-1, 2), axis=1)
+    start = n + count + lines
+    axes = np.abs(r[start : start + len(rows.axis_p)])
     angle = np.degrees(np.arcsin(np.minimum(axes, 1.0)))
-    return float(np.sum(lengths) + np.sum(local)), float(np.sum(angle))
+    return float(np.sum(lengths) + np.sum(local) + np.sum(line)), float(np.sum(angle))
 
 
 def _loop(problem: Problem, missed: list[int]) -> tuple[list[int], list[int], int]:

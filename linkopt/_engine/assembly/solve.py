@@ -96,8 +96,8 @@ def rotation(omega):
 
 
 def _residual(sizes: tuple[int, int], rows: Rows, x):
-    """Length rows, local-anchor rows (3 each), axis rows, motor rows; homogenised
-    (rad for axes and rotary motors)."""
+    """Length rows, local-anchor rows (3 each), slide-line rows (2 each), axis rows,
+    motor rows; homogenised (rad for axes and rotary motors)."""
     import jax.numpy as jnp
 
     joints, frames = sizes
@@ -111,12 +111,17 @@ def _residual(sizes: tuple[int, int], rows: Rows, x):
         "rij,rj->ri", rot[rows.local_frame], rows.local_at
     )
     local = (a[rows.local_joint] - image).ravel()
+    on_line = pose[rows.line_frame, :3] + jnp.einsum(
+        "sij,sj->si", rot[rows.line_frame], rows.line_at
+    )
+    normals = jnp.einsum("sij,skj->ski", turn[rows.line_frame], rows.line_n)
+    line = jnp.einsum("ski,si->sk", normals, a[rows.line_joint] - on_line).ravel()
     carry = jnp.concatenate([jnp.eye(3)[None], turn])  # index: frame + 1
     p = jnp.einsum("aij,aj->ai", carry[rows.axis_p + 1], rows.axis_vp)
     q = jnp.einsum("aij,aj->ai", carry[rows.axis_q + 1], rows.axis_vq)
     axes = jnp.sum(p * q, axis=-1)
     motors = _motor_residual(rows, a, carry[rows.motor_frame + 1])
-    return jnp.concatenate([lengths, local, axes, motors])
+    return jnp.concatenate([lengths, local, line, axes, motors])
 
 
 def _motor_residual(rows: Rows, a, carry):

@@ -11,7 +11,7 @@ import numpy as np
 from ..fields import is_number_list
 from .axes import any_normal
 from .problem import BODY_KEYS, Problem
-from .solve import residual_np, rotation
+from .solve import residual_np, rotation, start
 
 
 @dataclass(frozen=True)
@@ -26,11 +26,15 @@ class Move:
 
 @dataclass(frozen=True)
 class Report:
-    """What an assembly did: the moves, the declared lengths as achieved, the largest
-    constraint residual left (file units for lengths) and the iteration counts."""
+    """What an assembly did: the moves, the declared lengths as achieved, the slides
+    (per prismatic or cylindrical joint whose sliding body has a frame: where that
+    body's anchor of the joint sat along the axis from the joint's, drawn and
+    assembled, file units), the largest constraint residual left (file units for
+    lengths) and the iteration counts."""
 
     moves: tuple[Move, ...]
     lengths: tuple[tuple[tuple[str, str], float, float], ...]  # (pair, declared, got)
+    slides: tuple[tuple[str, float, float], ...]  # (joint, drawn, assembled)
     residual: float
     iterations: int
     units: str
@@ -61,6 +65,10 @@ def written(data: dict, problem: Problem, x: np.ndarray) -> dict:
     _set_axes(out, problem, rotations)
     for f, b in enumerate(problem.frame_bodies):
         body = out["bodies"][b]
+        if problem.frame_implicit[f]:  # given by world anchors: its origin, if any
+            if "origin" in body:
+                body["origin"] = [float(v) for v in poses[f, :3] * problem.scale]
+            continue
         for key in BODY_KEYS:
             body.pop(key, None)
         body["origin"] = [float(v) for v in poses[f, :3] * problem.scale]
@@ -121,8 +129,10 @@ def _frame_rotations(problem: Problem, poses: np.ndarray) -> np.ndarray:
 
 def _carry_points(out, problem, anchors, poses, rotations) -> None:
     """Points given by ``position`` move with their body: on a body given in its own
-    frame the position is in that frame (as its anchors are), on any other body it is
-    a world position at rest, carried by the best-fit rigid motion of its anchors."""
+    frame the position is in that frame (as its anchors are); on any other body it is
+    a world position at rest, carried by the body's frame when it has one read from
+    its drawing (:func:`.lines.implicit_frames`), else by the best-fit rigid motion of
+    its anchors."""
     names = [b.get("name") for b in out["bodies"]]
     frame_of = {b: f for f, b in enumerate(problem.frame_bodies)}
     scale = problem.scale
@@ -133,9 +143,12 @@ def _carry_points(out, problem, anchors, poses, rotations) -> None:
             continue  # the loader reports it
         b = names.index(point["body"])
         old = np.asarray(point["position"], dtype=float)
-        if b in frame_of:  # given in the body frame, as the body's anchors are
+        if b in frame_of:  # in the body frame, or at its drawn pose (implicit)
             f = frame_of[b]
-            new = poses[f, :3] * scale + rotations[f] @ old
+            local = (
+                old - problem.frames0[f] * scale if problem.frame_implicit[f] else old
+            )
+            new = poses[f, :3] * scale + rotations[f] @ local
         else:
             on = [j for j in range(len(anchors)) if b in _bodies_of(out, j, names)]
             rot, before, after = fit(problem.anchors0[on] * scale, anchors[on])
@@ -197,14 +210,46 @@ def report(problem: Problem, x: np.ndarray, residual: float, iterations: int) ->
         )
         for k, (i, j) in enumerate(rows.pairs)
     )
+    drawn = {j: v for j, _, v in slide_values(problem, start(problem))}
+    slides = tuple(
+        (problem.joint_names[j], drawn[j], v) for j, _, v in slide_values(problem, x)
+    )
     return Report(
-        moves, lengths, _geometric_residual(problem, x), iterations, problem.units
+        moves,
+        lengths,
+        slides,
+        _geometric_residual(problem, x),
+        iterations,
+        problem.units,
     )
 
 
+def slide_values(problem: Problem, x: np.ndarray):
+    """Per :class:`~.lines.Slide`: (joint, sliding body, slide in file units), where
+    the slide is the second body's anchor of the joint minus the first's along the
+    axis as the sliding body carries it (turned with its frame)."""
+    import jax.numpy as jnp
+
+    count = len(problem.joint_names)
+    anchors = x[: 3 * count].reshape(count, 3)
+    poses = x[3 * count :].reshape(-1, 6)
+    rows = problem.rows
+    turn = np.asarray(rotation(jnp.asarray(poses[:, 3:]))) if len(poses) else poses
+    out = []
+    for slide in problem.slides:
+        f, j = rows.line_frame[slide.row], rows.line_joint[slide.row]
+        at = poses[f, :3] + turn[f] @ rows.rotation0[f] @ rows.line_at[slide.row]
+        n = turn[f] @ np.cross(*rows.line_n[slide.row])
+        value = slide.sign * float((at - anchors[j]) @ n) * problem.scale
+        out.append((j, slide.body, value))
+    return out
+
+
 def _geometric_residual(problem: Problem, x: np.ndarray) -> float:
-    """Largest miss of a declared length or local anchor (file units)."""
+    """Largest miss of a declared length, local anchor or sliding anchor off its axis
+    line (file units)."""
     sizes = (len(problem.joint_names), len(problem.frame_names))
-    count = len(problem.rows.lengths) + 3 * len(problem.rows.local_joint)
+    rows = problem.rows
+    count = len(rows.lengths) + 3 * len(rows.local_joint) + 2 * len(rows.line_joint)
     r = residual_np(sizes, problem.rows, x)[:count]
     return float(np.max(np.abs(r), initial=0.0)) * problem.scale
