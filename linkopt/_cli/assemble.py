@@ -149,16 +149,21 @@ def _print_report(payload: dict) -> None:
             f"{item['assembled']!r}"
         )
     for item in payload["slides"]:
-        moved = item["assembled"] - item["drawn"]
+        drawn, assembled = (_clean(item[k]) for k in ("drawn", "assembled"))
         print(
-            f"  slide {item['joint']}: drawn {item['drawn']:.6g}, assembled "
-            f"{item['assembled']:.6g} {units} (moved {moved:+.6g})"
+            f"  slide {item['joint']}: drawn {drawn:.6g}, assembled {assembled:.6g} "
+            f"{units} (moved {_clean(assembled - drawn):+.6g})"
         )
     print(
         f"  largest move {payload['largest_move']:.6g} {units}; residual "
         f"{payload['residual']:.2e} {units}; σ_min at rest: FK "
         f"{payload['sigma_min_fk']:.4g}, BK {payload['sigma_min_bk']:.4g}"
     )
+
+
+def _clean(value: float) -> float:
+    """A slide shown as 0 below 1e-9 file units (the solve's rounding)."""
+    return value if abs(value) > 1e-9 else 0.0
 
 
 def register(subparsers) -> None:

@@ -63,57 +63,63 @@ def _gap(problem: Problem, r: np.ndarray, missing: np.ndarray) -> str:
 
 def _motors_free(problem: Problem, x, y) -> str:
     """The message for loops that close only with the motors free: held, how far the
-    closest assembly misses and where; free, where the nearest assembly puts each
-    motor (from its held value)."""
+    closest assembly misses (its loop, and the motors' own share); free, where the
+    nearest assembly to the drawing puts each motor (from the value held)."""
     sizes = (len(problem.joint_names), len(problem.frame_names))
     rows = problem.rows
     r = residual_np(sizes, rows, x)
     missing = _missing(r)
     count = len(rows.motor_target)
-    missing[len(r) - count :] = False  # the motors themselves are held
+    missing[len(r) - count :] = False  # the motors' share is given apart
     joints, _, _ = _loop(problem, _joints_of(problem, np.flatnonzero(missing)))
-    through = ", ".join(problem.joint_names[j] for j in joints)
-    offsets = residual_np(sizes, rows, y)[len(r) - count :]
     names = ", ".join(repr(name) for name in problem.motor_names)
     drives = ", ".join(
         f"{name!r} drives joint {problem.joint_names[j]}"
         for name, j in zip(problem.motor_names, rows.motor_joint)
     )
-    needs = "; ".join(
-        _motor_offset(name, v, linear, problem)
-        for name, v, linear in zip(problem.motor_names, offsets, rows.motor_linear)
-        if abs(v) > CLOSE_TOL
+    held = _motor_offsets(problem, r[len(r) - count :], "off")
+    free = _motor_offsets(
+        problem, residual_np(sizes, rows, y)[len(r) - count :], "from the value held"
     )
     return (
         f"the loops close, but not with motor(s) {names} held at their drawn values "
         f"(plus --motors; {drives}): held there, the closest assembly misses by "
-        f"{_gap(problem, r, missing)} in all (the loop through joints {through}); "
-        f"with them free, the assembly nearest the drawing has {needs or 'them there'}"
-        f"{_slides(problem, y, joints)}: choose motor values the mechanism can "
-        "reach, or draw it closer to an assembly"
+        f"{_gap(problem, r, missing)} in the loop through joints "
+        f"{', '.join(problem.joint_names[j] for j in joints)}"
+        f"{' and has ' + held if held else ''}; with them free, the assembly nearest "
+        f"the drawing has {free or 'them where held'}{_slides(problem, y, joints)}: "
+        "choose motor values the mechanism can reach, or draw it closer to an assembly"
     )
 
 
-def _motor_offset(name: str, value: float, linear: bool, problem: Problem) -> str:
-    if linear:
-        return f"{name!r} {value * problem.scale:+.6g} {problem.units} from it"
-    return f"{name!r} {value:+.6g} rad ({np.degrees(value):+.4g}°) from it"
+def _motor_offsets(problem: Problem, values, words: str) -> str:
+    """``'lift' +3.2 mm off, 'crank' -0.1 rad (-5.7°) off``: the motors' rows (rad or
+    reference lengths) where they are not zero."""
+    items = []
+    for name, v, linear in zip(problem.motor_names, values, problem.rows.motor_linear):
+        if abs(v) <= CLOSE_TOL:
+            continue
+        if linear:
+            items.append(f"{name!r} {v * problem.scale:+.6g} {problem.units} {words}")
+        else:
+            items.append(f"{name!r} {v:+.6g} rad ({np.degrees(v):+.4g}°) {words}")
+    return ", ".join(items)
 
 
 def _slides(problem: Problem, x, joints) -> str:
-    """``; the slide of cyl is -0.4 mm`` for the loop's sliding joints: where the
-    sliding body's anchor of each sits along the axis from the joint's (file units)."""
-    items = [
-        f"{problem.joint_names[j]} ({problem.body_names[b]} along its axis) "
-        f"{v:+.6g} {problem.units}"
-        for j, b, v in slide_values(problem, x)
-        if j in joints
-    ]
-    if not items:
-        return ""
-    return f"; at that assembly the slide{'s' if len(items) > 1 else ''} of " + (
-        ", ".join(items)
-    )
+    """``; at that assembly cyl has slid -0.4 mm (rod along the axis from barrel)``
+    for the loop's prismatic and cylindrical joints whose sliding bodies have frames:
+    where the second body's anchor of each sits along the axis from the first's."""
+    items = []
+    for j, _, v in slide_values(problem, x):
+        if j in joints:
+            first, second = problem.pairs[j]
+            items.append(
+                f"{problem.joint_names[j]} has slid {v:+.6g} {problem.units} "
+                f"({problem.body_names[second]} along the axis from "
+                f"{problem.body_names[first]})"
+            )
+    return f"; at that assembly {', '.join(items)}" if items else ""
 
 
 def _dimensions(problem: Problem, missing: np.ndarray, r: np.ndarray) -> str:
