@@ -240,3 +240,20 @@ def test_cylindrical_joint_slides_too():
     slide = result.report.slides[0][2]
     assert slide == pytest.approx(np.linalg.norm(b - G) - BARREL - ROD, abs=1e-9)
     assert linkopt.mobility(build(result.data, "cylindrical.toml")) == 1
+
+
+def test_declared_length_on_a_cylinder_body_given_by_world_anchors_must_agree():
+    """A barrel given by world anchors is read as its drawing (rigid): its drawn length
+    may be declared, a different one is a one-line error naming the length."""
+    data = cylinder("world", "linear")
+    data["lengths"].append({"joints": ["G", "cyl"], "length": BARREL})
+    assert assemble(copy.deepcopy(data), "agree.toml").report.residual < 1e-9
+    data["lengths"][-1]["length"] = 149.0
+    with pytest.raises(linkopt.MechanismFileError) as err:
+        assemble(data, "rigid.toml")
+    message = str(err.value)
+    assert message.startswith(
+        "rigid.toml: lengths[1]: G and cyl are both on body 'barrel', which carries "
+        "the axis of a prismatic or cylindrical joint and so is rigid as drawn"
+    )
+    assert "declared 149" in message and "\n" not in message

@@ -32,10 +32,18 @@ What is solved (choices the issue leaves open, made here):
   ground is held, so a slider in its own frame stays where that anchor is written). An
   assembly that turns a body given by world anchors off the axes it holds is refused
   (:func:`.refusal.check_held_axes`).
+* A prismatic or cylindrical joint slides (:mod:`.lines`): its anchor belongs to the
+  ground or its first body, and the other body only has to bring its anchor of the
+  joint onto the axis line through it (two rows), so the travel takes up what the
+  drawing got wrong; a prismatic joint also keeps its bodies from turning about the
+  axis (a third axis row). A body given by world anchors that carries such an axis is
+  read as a part drawing at its drawn pose (rigid, its axis turning with it).
 * Each motor is held at its drawn value: a rotary motor keeps the angle about its axis
   (as its first body carries it) between the anchor of its second body farthest from
   the axis and that of its first body (a fixed world direction when the first body is
-  the ground); a linear motor keeps the offset along its axis. ``motors``
+  the ground); a linear motor keeps the offset along its axis between the second
+  body's farthest anchor and the first body's (or the joint's anchor on the ground):
+  the drawn stroke between the pins, not the slide, which stays free. ``motors``
   (``--motors``) turns them by these values (rad, file units) from the drawing before
   assembling. The assembled rest pose then *defines* motor zero, as for every file
   (motors are measured from the rest pose).
@@ -54,8 +62,11 @@ What is solved (choices the issue leaves open, made here):
   the joints that miss), the dimensions that cannot all hold at the closest assembly
   (the least squares minimum from the drawing), the gap, the sum of their misses in
   file units (for a single loop pulled straight that is the amount by which it fails
-  to close) and the axes' miss in degrees, and which of the loop's axes are held as
-  written. Where the loops close only with the motors free, the message says so.
+  to close) and the axes' miss in degrees, which of the loop's axes are held as
+  written, where its prismatic and cylindrical joints slid and how far a sliding
+  anchor stays off its axis line. Where the loops close only with the motors free, the
+  message says so, with the motors' joints, the miss with them held (the motors' share
+  apart) and where the nearest free assembly puts them.
 * Points given by ``position`` move with their body. On a body given in its own
   frame the position is in that frame, like the body's anchors, and follows the
   assembled frame exactly; on a body given by world anchors it is a world position
@@ -74,6 +85,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..fields import Reader
+from .lines import check_rigid
 from .problem import BODY_KEYS, Problem, frame_bodies, read_problem
 from .refusal import CHECK_TOL, check_declared, check_held_axes, refuse
 from .solve import CLOSE_TOL, solve, start
@@ -147,6 +159,7 @@ def assemble(data: dict, source: str, motors=None) -> Assembled:
     from the drawing first. :class:`MechanismFileError` for bad fields and for loops
     that do not close."""
     problem = read_problem(data, source, motors)
+    check_rigid(Reader(source), problem)
     x0 = start(problem)
     x, residual, iterations = solve(problem, x0, problem.rows)
     if residual > CLOSE_TOL:

@@ -96,27 +96,33 @@ def _is_vector(value) -> bool:
     )
 
 
-def check_rigid(rd, frames, lengths, anchors, scale, joints, bodies) -> None:
-    """A declared length (``lengths``: joint pairs ``(N, 2)``, values ``(N,)`` in
-    reference lengths) between two anchors of a body read as a part drawing at its
-    drawn pose (:func:`implicit_frames`) must be the drawn distance: it is rigid."""
-    pairs, values = lengths
-    for f in frames:
-        if not f["implicit"]:
+def check_rigid(rd, problem) -> None:
+    """A declared length between two anchors of a body read as a part drawing at its
+    drawn pose (:func:`implicit_frames`) must be the drawn distance: it is rigid.
+    (Checked when assembling; a file that is not assembled has its lengths checked
+    against its anchors anyway.)"""
+    rows = problem.rows
+    for f, implicit in enumerate(problem.frame_implicit):
+        if not implicit:
             continue
-        for k, (i, j) in enumerate(pairs):
-            if i not in f["anchors"] or j not in f["anchors"]:
-                continue
-            drawn = float(np.linalg.norm(anchors[i] - anchors[j]))
-            if abs(drawn / scale - values[k]) > RIGID_TOL:
+        on = set(rows.local_joint[rows.local_frame == f]) | set(
+            rows.line_joint[rows.line_frame == f]
+        )
+        for k, (i, j) in enumerate(rows.pairs):
+            drawn = float(np.linalg.norm(problem.drawn[i] - problem.drawn[j]))
+            if (
+                i in on
+                and j in on
+                and abs(drawn - problem.declared[k]) > (RIGID_TOL * problem.scale)
+            ):
                 raise rd.fail(
                     f"lengths[{k}]",
-                    f"{joints[i]['name']} and {joints[j]['name']} are both on body "
-                    f"{bodies[f['body']]['name']!r}, which carries the axis of a "
+                    f"{problem.joint_names[i]} and {problem.joint_names[j]} are both "
+                    f"on body {problem.frame_names[f]!r}, which carries the axis of a "
                     "prismatic or cylindrical joint and so is rigid as drawn: its "
-                    f"anchors are {drawn:.12g} apart, declared {values[k] * scale:g}; "
-                    "fix the anchors, drop the length, or give the body in its own "
-                    "frame",
+                    f"anchors are {drawn:.12g} {problem.units} apart, declared "
+                    f"{problem.declared[k]:g}; fix the anchors, drop the length, or "
+                    "give the body in its own frame",
                 )
 
 

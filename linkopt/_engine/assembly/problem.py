@@ -21,7 +21,6 @@ from .axes import (
 from .lines import (
     Slide,
     anchor_field,
-    check_rigid,
     holder,
     implicit_frames,
     line_rows,
@@ -123,7 +122,6 @@ def read_problem(data: dict, source: str, motors=None) -> Problem:
     frames += implicit_frames(bodies, joints, pairs, frames, anchors0, ground)
     scale = _scale(rd, head, anchors0)
     lengths, length_labels = _read_lengths(rd, data, joint_index, scale)
-    check_rigid(rd, frames, lengths, anchors0, scale, joints, bodies)
     axes = read_axes(rd, frames, joints, pairs)
     local, local_labels = _local_rows(frames, scale, joints, pairs, ground)
     line, line_labels, slides = line_rows(
