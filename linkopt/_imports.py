@@ -53,6 +53,7 @@ JAX_FREE = frozenset(
         "_engine",
         "_engine.assembly",
         "_engine.assembly.axes",
+        "_engine.assembly.lines",
         "_engine.assembly.problem",
         "_engine.assembly.refusal",
         "_engine.assembly.solve",

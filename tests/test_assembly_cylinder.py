@@ -164,7 +164,8 @@ def test_cli_assembles_a_cylinder_that_check_accepts(variant, tmp_path, capsys):
 def test_prismatic_joint_does_not_turn_about_its_axis():
     """The third axis row of the prismatic joint: turning the rod about the cylinder
     axis by φ makes it sin φ (up to sign), turning barrel and rod together leaves it
-    at its drawn value, turning the rod about a normal leaves it."""
+    at its drawn value, and so does turning the rod about the pins' axis z (a normal of
+    the cylinder's axis: that is the parallel rows' business)."""
     problem = read_problem(cylinder("frames", "linear"), "x")
     labels = [label[2] for label in problem.row_labels]
     rows = [k for k, text in enumerate(labels) if text == "the axis of cyl"]
@@ -182,6 +183,12 @@ def test_prismatic_joint_does_not_turn_about_its_axis():
         assert abs(abs(twisted - drawn) - math.sin(phi)) < 1e-6
         x[barrel : barrel + 3] = phi * drawn_axis()
         assert abs(residual_np(sizes, problem.rows, x)[rows[2]] - drawn) < 1e-6
+        x = x0.copy()
+        x[rod : rod + 3] = [0.0, 0.0, phi]
+        turned = residual_np(sizes, problem.rows, x)[rows]
+        assert abs(turned[2] - drawn) < 1e-12 and np.max(np.abs(turned[:2])) > 0.9 * (
+            math.sin(phi)
+        )
     assert abs(drawn) < 1e-9
 
 
@@ -257,3 +264,16 @@ def test_declared_length_on_a_cylinder_body_given_by_world_anchors_must_agree():
         "the axis of a prismatic or cylindrical joint and so is rigid as drawn"
     )
     assert "declared 149" in message and "\n" not in message
+
+
+@pytest.mark.parametrize("variant", ["frames", "world"])
+def test_motors_extend_the_cylinder_from_its_drawn_stroke(variant):
+    """``motors = [12]``: the pins end 12 further apart along the axis than drawn, B on
+    the boom's circle, and the slide takes the parts' error as before."""
+    result = assemble(cylinder(variant, "linear"), "x", motors=[12.0])
+    b = drawn_b(variant)
+    expected = on_circles(BOOM, (b - G) @ drawn_axis() + 12.0, b)
+    got = anchors_of(result.data)["B"]
+    assert np.max(np.abs(got - expected)) < 1e-9
+    slide = result.report.slides[0][2]
+    assert slide == pytest.approx(np.linalg.norm(got - G) - BARREL - ROD, abs=1e-9)
