@@ -26,6 +26,7 @@ from linkopt._engine.assembly import assemble, read_problem, start
 from linkopt._engine.assembly.solve import residual_np
 from linkopt._engine.fields import parse_text
 from linkopt._files.loader import build
+from linkopt._files.writer import dumps
 
 DATA = Path(__file__).parent / "data"
 PIVOT = np.zeros(3)
@@ -277,3 +278,74 @@ def test_motors_extend_the_cylinder_from_its_drawn_stroke(variant):
     assert np.max(np.abs(got - expected)) < 1e-9
     slide = result.report.slides[0][2]
     assert slide == pytest.approx(np.linalg.norm(got - G) - BARREL - ROD, abs=1e-9)
+
+
+#: The excavator's cylinders: (joint, barrel, rod, pivot joint, eye joint).
+CYLINDERS = (
+    ("lift", "barrel1", "rod1", "G1", "B1"),
+    ("crowd", "barrel2", "rod2", "C2", "B2"),
+)
+
+
+def quaternion_x(q) -> np.ndarray:
+    """The body's x axis in the world for the quaternion ``[w, 0, 0, z]``."""
+    t = 2 * math.atan2(q[3], q[0])
+    return np.array([math.cos(t), math.sin(t), 0.0])
+
+
+def angle_at(centre, a, b) -> float:
+    u, v = a - centre, b - centre
+    return math.atan2(np.cross(u, v)[2], u @ v)
+
+
+@pytest.mark.parametrize("motors", ["linear", "rotary"])
+def test_two_cylinder_excavator_drawn_roughly_assembles(motors, tmp_path, capsys):
+    """``tests/data/excavator_drawn.toml``: two loops, boom and stick each driven by a
+    cylinder drawn a few hundredths of a degree off with its rod tenths of a mm long.
+    Linear motors keep the drawn strokes (pin distance along the drawn axis); rotary
+    motors at O and S keep the boom's drawn direction and the stick's drawn angle on
+    the boom. Each cylinder ends on its pins, and its slide is the pins' distance less
+    barrel and rod."""
+    data = parse_text(DATA / "excavator_drawn.toml")
+    if motors == "rotary":
+        data["motors"] = [
+            {"name": "boom", "joint": "O"},
+            {"name": "stick", "joint": "S"},
+        ]
+        data["outputs"] = [
+            {"name": name, "joint": name, "min": -5.0, "max": 5.0}
+            for name in ("lift", "crowd")
+        ]
+    drawn = anchors_of_problem(data)
+    result = assemble(copy.deepcopy(data), "excavator.toml")
+    got = anchors_of(result.data)
+    bodies = {b["name"]: b for b in data["bodies"]}
+    slides = {name: s for name, _, s in result.report.slides}
+    for joint, barrel, rod, pivot, eye in CYLINDERS:
+        along = got[eye] - got[pivot]
+        axis = next(j["axis"] for j in result.data["joints"] if j["name"] == joint)
+        assert np.linalg.norm(np.cross(axis, along / np.linalg.norm(along))) < 1e-12
+        length = bodies[barrel]["anchors"][joint][0] + bodies[rod]["anchors"][eye][0]
+        assert slides[joint] == pytest.approx(np.linalg.norm(along) - length, abs=1e-9)
+        if motors == "linear":
+            stroke = (drawn[eye] - drawn[pivot]) @ quaternion_x(
+                bodies[barrel]["orientation"]
+            )
+            assert np.linalg.norm(along) == pytest.approx(stroke, abs=1e-9)
+    if motors == "rotary":
+        s, o = got["S"], got["O"]
+        assert np.linalg.norm(np.cross(s / np.linalg.norm(s), drawn["S"])) < 1e-12
+        assert angle_at(s, o, got["B2"]) == pytest.approx(
+            angle_at(drawn["S"], drawn["O"], drawn["B2"]), abs=1e-12
+        )
+    assert result.report.residual < 1e-9
+    out = tmp_path / "excavator.toml"
+    out.write_text(dumps(result.data))
+    assert main(["check", str(out)]) == 0
+    assert "mobility           2" in capsys.readouterr().out
+
+
+def anchors_of_problem(data: dict) -> dict[str, np.ndarray]:
+    """The drawn anchors, as assembly reads them (frames resolved)."""
+    problem = read_problem(copy.deepcopy(data), "x")
+    return dict(zip(problem.joint_names, problem.drawn))
