@@ -15,6 +15,19 @@ half of ``(ds/da) δ``: that is how a step that crossed a forward singularity on
 another assembly branch shows up. The paper's BFGS with an unguarded step could cross
 (its Fig. 4); this guard is our addition.
 
+Motor limits (``[[motors]]`` ``min``/``max``) make both searches minimisations over
+the box of allowed motor values, by the projected Newton method (Bertsekas, 1982): a
+motor at a limit whose descent direction points out of the box is held (its row and
+column of the model are replaced by the identity's, its gradient component by zero),
+the step of the others is solved as before, and the trial point is clipped into the
+box. So every sample lies within the limits, an IK target that needs a motor beyond
+one is left with a reach residual (a failure in ``f_design``, as an unreached target),
+and an adversarial sample searches only poses the motors can take. A penalty on the
+excess instead would let samples stand outside the limits by an amount set by its
+weight, and clipping alone (without holding) would stall the others' steps against a
+limit. The iteration stops on the projected gradient (a held component counts as
+zero). Without limits none of this is traced.
+
 The step bound ``r`` is a trust radius: it starts at the file's ``max_step``, doubles
 after an accepted step that it had to shorten (up to ``RADIUS_GROWTH · max_step``) and
 halves after a rejected one (down to ``max_step``). Samples travel up to about 2 rad
@@ -174,12 +187,20 @@ def _trial(mech: Mechanism, geom: Geometry, it: _Iterate, fresh) -> _Trial:
     its linear prediction ``s + (ds/da) δ``."""
     size = it.motors.shape[0]
     system = it.hessian + it.damping * jnp.eye(size)
-    delta = -dense.solve(system, it.gradient)  # LU, as jnp.linalg.solve
+    gradient = it.gradient
+    box = motor_box(mech)
+    if box is not None:  # static: without limits the step is as it was
+        free = ~_pinned(box, it.motors, gradient)
+        system = jnp.where(free[:, None] & free[None, :], system, jnp.eye(size))
+        gradient = jnp.where(free, gradient, 0.0)
+    delta = -dense.solve(system, gradient)  # LU, as jnp.linalg.solve
     norm = jnp.sqrt(delta @ delta)
     shortened = norm > it.radius
     delta = jnp.where(
         fresh, 0.0, delta * jnp.minimum(1.0, it.radius / jnp.maximum(norm, 1e-300))
     )
+    if box is not None:
+        delta = jnp.clip(it.motors + delta, *box) - it.motors
     predicted = jnp.where(fresh, 0.0, it.ds_da @ delta)
     trial = solve_single(
         mech, "fk", geom, it.motors + delta, it.state + predicted, TRIAL_ITERATIONS
@@ -188,6 +209,21 @@ def _trial(mech: Mechanism, geom: Geometry, it: _Iterate, fresh) -> _Trial:
     departure = jnp.sqrt(jnp.sum((trial.state - it.state - predicted) ** 2))
     on_branch = departure <= BRANCH_TOL * jnp.sqrt(predicted @ predicted) + 1e-10
     return _Trial(delta, shortened, state, trial.converged, on_branch)
+
+
+def motor_box(mech: Mechanism) -> tuple | None:
+    """The motor limits ``(lower, upper)`` in homogenised units, ``(M,)`` each
+    (``±inf`` where a motor has none), or None for a file without limits."""
+    if not mech.motor_limited:
+        return None
+    scale = mech.motor_scale
+    return mech.motor_min / scale, mech.motor_max / scale
+
+
+def _pinned(box, motors, gradient) -> Bool[Array, " M"]:
+    """The motors held at a limit by the descent direction ``-gradient``."""
+    lower, upper = box
+    return ((motors <= lower) & (gradient > 0)) | ((motors >= upper) & (gradient < 0))
 
 
 def _bfgs(it: _Iterate, delta, gradient) -> Float[Array, "M M"]:
@@ -254,7 +290,13 @@ def _step(
         return jnp.where(accept, new, old)
 
     damping, radius = _trust(it, accept, trial.shortened, max_step)
-    small = jnp.max(jnp.abs(pick(gradient, it.gradient))) < GRADIENT_TOL
+    kept = pick(gradient, it.gradient)
+    box = motor_box(mech)
+    if box is not None:  # a gradient that pushes against a limit is spent
+        kept = jnp.where(
+            _pinned(box, pick(it.motors + delta, it.motors), kept), 0, kept
+        )
+    small = jnp.max(jnp.abs(kept)) < GRADIENT_TOL
     stalled = (
         accept & ~trial.shortened & (it.value - value <= VALUE_RTOL * jnp.abs(value))
     )
