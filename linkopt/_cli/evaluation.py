@@ -311,6 +311,8 @@ def map_progress(interval: float = PROGRESS_INTERVAL):
 
 def verification_payload(mech, result) -> dict:
     """What ``linkopt verify`` reports (``--json``) for one verification."""
+    from .payloads import verified_limits
+
     return {
         "passed": result.passed,
         "coverage": result.coverage,
@@ -325,6 +327,7 @@ def verification_payload(mech, result) -> dict:
         if result.unreached_example is None
         else dict(zip(mech.output_names, map(float, result.unreached_example))),
         **_verified_collision(mech, result),
+        **verified_limits(mech, result),
     }
 
 
@@ -394,6 +397,10 @@ def _print_verification(mech, payload: dict) -> None:
         )
     if "collision" in payload:
         print("  " + _collision_line(payload["collision"]))
+    if "motor_limits" in payload:
+        from .payloads import limits_line
+
+        print("  " + limits_line(payload["motor_limits"]))
 
 
 def _collision_line(entry: dict) -> str:
