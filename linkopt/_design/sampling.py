@@ -199,8 +199,8 @@ def _trial(mech: Mechanism, geom: Geometry, it: _Iterate, fresh) -> _Trial:
     delta = jnp.where(
         fresh, 0.0, delta * jnp.minimum(1.0, it.radius / jnp.maximum(norm, 1e-300))
     )
-    if box is not None:
-        delta = jnp.clip(it.motors + delta, *box) - it.motors
+    if box is not None:  # into the box (exactly the step where it stays inside)
+        delta = jnp.clip(delta, box[0] - it.motors, box[1] - it.motors)
     predicted = jnp.where(fresh, 0.0, it.ds_da @ delta)
     trial = solve_single(
         mech, "fk", geom, it.motors + delta, it.state + predicted, TRIAL_ITERATIONS
