@@ -15,6 +15,7 @@ from conftest import MECHANISMS
 import linkopt
 from linkopt._cli.main import main
 from linkopt._design.evaluation import targets
+from linkopt._design.motor_box import motor_box
 from linkopt._engine.lifting import numbers, structure_key
 from linkopt._engine.model import digest, fingerprint
 from linkopt._export import mjcf, urdf
@@ -71,8 +72,6 @@ def test_limits_are_read_in_file_units_and_homogenised_for_the_samples():
     mech = slider("min = -3.0\n", "one_sided.toml")
     assert mech.motor_limited
     assert mech.motor_min.tolist() == [-3.0] and mech.motor_max.tolist() == [math.inf]
-    from linkopt._design.sampling import motor_box
-
     low, high = motor_box(mech)
     assert float(low[0]) == -3.0 / mech.length_scale and float(high[0]) == math.inf
 
@@ -144,7 +143,8 @@ def test_samples_stay_within_the_limits_and_an_unreachable_target_fails():
     assert sorted(ik[ends].tolist()) == pytest.approx([-3.0, 2.0], abs=1e-12)
     reach = np.asarray(ev.ik_reach)
     assert np.all(reach[ends] > 1e-3) and reach[middle] < 1e-12
-    assert float(ev.f_design) >= float(np.mean(reach)) > 1e-3
+    assert float(ev.f_design) == pytest.approx(float(np.mean(reach)), rel=1e-12)
+    assert float(ev.f_design) > 1e-3
     # the IK sample at a limit is the best the stroke allows: the crank angle there
     # is the one FK gives at the limit
     angle = np.asarray(linkopt.output_values(mech, np.asarray(ev.ik_states)))[:, 0]
@@ -325,3 +325,22 @@ def test_urdf_and_mjcf_of_an_open_chain_read_back(tmp_path):
     np.testing.assert_allclose(model.actuator("push").ctrlrange, [-0.01, 0.025])
     assert model.actuator("swing").ctrlrange[0] == -1.0
     assert model.actuator("swing").ctrlrange[1] == math.inf
+
+
+def test_a_rotary_limit_held_while_the_other_motor_moves():
+    """Two motors, one limit each side of the hinge's rest angle: the targets at
+    y = 20 need the arm turned to about -0.23 rad, below its limit of -0.2; their IK
+    samples stop with the hinge held at -0.2 while the slide still moves (projected
+    Newton), and the other targets are reached."""
+    text = ARM.replace("min = -1.0\n", "min = -0.2\nmax = 0.3\n")
+    mech = linkopt.loads(text.replace("min = -10.0\n", "min = -20.0\n"), "swing.toml")
+    ev = linkopt.evaluate(mech)
+    _assert_within(mech, ev)
+    goals, reach = targets(mech), np.asarray(ev.ik_reach)
+    swing = np.asarray(ev.ik_motors)[:, 1]
+    low = goals[:, 1] == 20.0
+    assert np.all(swing[low] == -0.2) and np.all(reach[low] > 1e-4)
+    assert np.all(reach[~low] < 1e-12)
+    # held at the limit, the slide puts the tip at the target's x: only y is missed
+    tips = np.asarray(linkopt.output_values(mech, np.asarray(ev.ik_states)))
+    np.testing.assert_allclose(tips[low, 0], goals[low, 0], atol=1e-6)

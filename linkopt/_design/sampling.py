@@ -16,17 +16,8 @@ another assembly branch shows up. The paper's BFGS with an unguarded step could 
 (its Fig. 4); this guard is our addition.
 
 Motor limits (``[[motors]]`` ``min``/``max``) make both searches minimisations over
-the box of allowed motor values, by the projected Newton method (Bertsekas, 1982): a
-motor at a limit whose descent direction points out of the box is held (its row and
-column of the model are replaced by the identity's, its gradient component by zero),
-the step of the others is solved as before, and the trial point is clipped into the
-box. So every sample lies within the limits, an IK target that needs a motor beyond
-one is left with a reach residual (a failure in ``f_design``, as an unreached target),
-and an adversarial sample searches only poses the motors can take. A penalty on the
-excess instead would let samples stand outside the limits by an amount set by its
-weight, and clipping alone (without holding) would stall the others' steps against a
-limit. The iteration stops on the projected gradient (a held component counts as
-zero). Without limits none of this is traced.
+the box of allowed motor values by projected Newton steps
+(:mod:`linkopt._design.motor_box`); without limits none of it is traced.
 
 The step bound ``r`` is a trust radius: it starts at the file's ``max_step``, doubles
 after an accepted step that it had to shorten (up to ``RADIUS_GROWTH · max_step``) and
@@ -79,6 +70,7 @@ from .._engine.kinematics import solve_single
 from .._engine.model import Mechanism
 from .._engine.singularity import sigmas_of, stacked_jacobians
 from .metrics import Thresholds, attractive, barrier, culled
+from .motor_box import held, into_box, motor_box, projected
 
 ARMIJO = 1e-4
 GRADIENT_TOL = 1e-9
@@ -190,17 +182,15 @@ def _trial(mech: Mechanism, geom: Geometry, it: _Iterate, fresh) -> _Trial:
     gradient = it.gradient
     box = motor_box(mech)
     if box is not None:  # static: without limits the step is as it was
-        free = ~_pinned(box, it.motors, gradient)
-        system = jnp.where(free[:, None] & free[None, :], system, jnp.eye(size))
-        gradient = jnp.where(free, gradient, 0.0)
+        system, gradient = held(box, it.motors, system, gradient)
     delta = -dense.solve(system, gradient)  # LU, as jnp.linalg.solve
     norm = jnp.sqrt(delta @ delta)
     shortened = norm > it.radius
     delta = jnp.where(
         fresh, 0.0, delta * jnp.minimum(1.0, it.radius / jnp.maximum(norm, 1e-300))
     )
-    if box is not None:  # into the box (exactly the step where it stays inside)
-        delta = jnp.clip(delta, box[0] - it.motors, box[1] - it.motors)
+    if box is not None:
+        delta = into_box(box, it.motors, delta)
     predicted = jnp.where(fresh, 0.0, it.ds_da @ delta)
     trial = solve_single(
         mech, "fk", geom, it.motors + delta, it.state + predicted, TRIAL_ITERATIONS
@@ -209,21 +199,6 @@ def _trial(mech: Mechanism, geom: Geometry, it: _Iterate, fresh) -> _Trial:
     departure = jnp.sqrt(jnp.sum((trial.state - it.state - predicted) ** 2))
     on_branch = departure <= BRANCH_TOL * jnp.sqrt(predicted @ predicted) + 1e-10
     return _Trial(delta, shortened, state, trial.converged, on_branch)
-
-
-def motor_box(mech: Mechanism) -> tuple | None:
-    """The motor limits ``(lower, upper)`` in homogenised units, ``(M,)`` each
-    (``±inf`` where a motor has none), or None for a file without limits."""
-    if not mech.motor_limited:
-        return None
-    scale = mech.motor_scale
-    return mech.motor_min / scale, mech.motor_max / scale
-
-
-def _pinned(box, motors, gradient) -> Bool[Array, " M"]:
-    """The motors held at a limit by the descent direction ``-gradient``."""
-    lower, upper = box
-    return ((motors <= lower) & (gradient > 0)) | ((motors >= upper) & (gradient < 0))
 
 
 def _bfgs(it: _Iterate, delta, gradient) -> Float[Array, "M M"]:
@@ -293,9 +268,7 @@ def _step(
     kept = pick(gradient, it.gradient)
     box = motor_box(mech)
     if box is not None:  # a gradient that pushes against a limit is spent
-        kept = jnp.where(
-            _pinned(box, pick(it.motors + delta, it.motors), kept), 0, kept
-        )
+        kept = projected(box, pick(it.motors + delta, it.motors), kept)
     small = jnp.max(jnp.abs(kept)) < GRADIENT_TOL
     stalled = (
         accept & ~trial.shortened & (it.value - value <= VALUE_RTOL * jnp.abs(value))
