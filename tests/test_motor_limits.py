@@ -3,6 +3,7 @@ keep the IK and adversarial samples within them, fail ``verify`` where the targe
 needs a motor beyond them, and travel into ``check``, the written file, the maps and
 the MJCF and URDF exports. A file without limits is computed as before."""
 
+import dataclasses
 import functools
 import json
 import math
@@ -344,3 +345,35 @@ def test_a_rotary_limit_held_while_the_other_motor_moves():
     # held at the limit, the slide puts the tip at the target's x: only y is missed
     tips = np.asarray(linkopt.output_values(mech, np.asarray(ev.ik_states)))
     np.testing.assert_allclose(tips[low, 0], goals[low, 0], atol=1e-6)
+
+
+def test_a_verification_round_adds_the_cell_beyond_the_limits():
+    from linkopt._design.rounds import failing_places
+    from linkopt._design.verify import Verification
+
+    mech = tight()
+    cell = np.array([-0.8])
+    check = Verification(
+        passed=False,
+        coverage=1.0,
+        cells=9,
+        threshold=15.0,
+        max_f_sing=10.0,
+        min_sigma_fk=0.1,
+        min_sigma_bk=0.3,
+        worst_outputs=np.array([0.8]),
+        unreached_example=None,
+        grid_shape=(9,),
+        limit_motor="slide",
+        limit_value=15.06,
+        limit_outputs=cell,
+        limit_excess=13.06,
+    )
+    assert check.beyond_limits
+    assert failing_places(mech, check) == []  # -0.8 is a grid target already
+    inside = dataclasses.replace(check, limit_outputs=np.array([-0.7]))
+    assert failing_places(mech, inside) == [[-0.7]]
+    kept = dataclasses.replace(inside, limit_excess=-1.0, passed=True)
+    assert not kept.beyond_limits and failing_places(mech, kept) == []
+    assert kept.as_json()["limit_motor"] == "slide"
+    assert "limit_motor" not in dataclasses.replace(kept, limit_excess=None).as_json()
