@@ -7,6 +7,7 @@ import dataclasses
 import functools
 import json
 import math
+from types import SimpleNamespace
 
 import matplotlib
 import numpy as np
@@ -223,6 +224,7 @@ def test_the_written_file_keeps_the_limits(tmp_path):
 def test_the_maps_draw_the_limits():
     from matplotlib import pyplot as plt
 
+    from linkopt._design.plot_maps import plot_windows
     from linkopt._design.space_plots import limit_lines
 
     text = (MECHANISMS / "five_bar.toml").read_text()
@@ -233,6 +235,10 @@ def test_the_maps_draw_the_limits():
         motor = f'[[motors]]\nname = "{name}"\njoint = "{joint}"\n'
         text = text.replace(motor, motor + limits)
     mech = linkopt.loads(text, "limited_five_bar.toml")
+    samples = SimpleNamespace(ik_motors=np.zeros((1, 2)), adv_motors=np.zeros((1, 2)))
+    rest = linkopt.rest_state(mech)
+    (low, high), _, _ = plot_windows(mech, samples, rest, None)
+    assert np.all(low < [-0.5, -0.3]) and np.all(high > [0.3, 0.75])
     fig, ax = plt.subplots()
     assert limit_lines(ax, mech) == 3
     lines = [(tuple(line.get_xdata()), tuple(line.get_ydata())) for line in ax.lines]
