@@ -383,3 +383,17 @@ def test_a_verification_round_adds_the_cell_beyond_the_limits():
     assert not kept.beyond_limits and failing_places(mech, kept) == []
     assert kept.as_json()["limit_motor"] == "slide"
     assert "limit_motor" not in dataclasses.replace(kept, limit_excess=None).as_json()
+
+
+def test_evaluate_names_the_samples_held_at_a_limit(tmp_path, capsys):
+    path = tmp_path / "tight.toml"
+    path.write_text(SLIDER.replace(MOTOR, MOTOR + "min = -3.0\nmax = 2.0\n"))
+    assert main(["evaluate", str(path), "--json"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    entry = payload["motor_limits"]["slide"]
+    assert (entry["min"], entry["max"]) == (-3.0, 2.0)
+    missed = [k for k, s in enumerate(payload["samples"]) if s["ik"]["f_bk"] > 1e-6]
+    assert entry["held"] == missed and len(missed) == 2
+    assert main(["evaluate", str(path)]) == 0
+    line = f"IK samples held at a motor limit: slide (targets {missed[0]}, {missed[1]})"
+    assert line in capsys.readouterr().out

@@ -63,6 +63,7 @@ def evaluation_payload(mech, ev, design=None) -> dict:
     ``design`` (file units, None: the file's)."""
     from .._design.evaluation import alpha_minus, capped, rest_conditioning, targets
     from .._engine.readout import output_values
+    from .payloads import held_at_limits
 
     ik_out = np.asarray(output_values(mech, ev.ik_states, design=design))
     adv_out = np.asarray(output_values(mech, ev.adv_states, design=design))
@@ -80,6 +81,7 @@ def evaluation_payload(mech, ev, design=None) -> dict:
         "capped_samples": dict(zip(("ik", "adversarial"), capped(mech, ev))),
         "samples": samples,
         **_evaluated_collision(mech, ev, design),
+        **held_at_limits(mech, ev),
     }
 
 
@@ -175,6 +177,10 @@ def run_evaluate(args) -> int:
         )
     if "collision" in payload:
         _print_collision(payload["collision"])
+    from .payloads import held_line
+
+    if line := held_line(payload.get("motor_limits", {})):
+        print(line)
     return 0
 
 

@@ -159,3 +159,33 @@ def limits_line(entry: dict) -> str:
         f"motor limits: FAIL: motor {entry['motor']} needs {entry['value']:.4g}, "
         f"beyond its limits {span} by {entry['excess']:.4g}, at {cell}"
     )
+
+
+def held_at_limits(mech: Mechanism, ev) -> dict:
+    """``evaluate --json``'s ``motor_limits`` entry, only for a file with motor limits:
+    each motor's min and max and the targets (indices into ``samples``) whose IK sample
+    holds it at a limit (within 1e-9 rad or reference lengths), i.e. targets that
+    need the motor beyond it when their ``f_bk`` is not zero."""
+    if not mech.motor_limited:
+        return {}
+    motors = np.asarray(ev.ik_motors)  # homogenised
+    low, high = (
+        np.asarray(v) / mech.motor_scale for v in (mech.motor_min, mech.motor_max)
+    )
+    held = (motors <= low + 1e-9) | (motors >= high - 1e-9)
+    return {
+        "motor_limits": {
+            name: motor_limits(mech, m) | {"held": np.flatnonzero(held[:, m]).tolist()}
+            for m, name in enumerate(mech.motor_names)
+        }
+    }
+
+
+def held_line(entry: dict) -> str | None:
+    """``evaluate``'s line on the IK samples held at a motor limit (None: none)."""
+    held = [
+        f"{name} (targets {', '.join(map(str, motor['held']))})"
+        for name, motor in entry.items()
+        if motor["held"]
+    ]
+    return f"  IK samples held at a motor limit: {'; '.join(held)}" if held else None
