@@ -63,6 +63,7 @@ def evaluation_payload(mech, ev, design=None) -> dict:
     ``design`` (file units, None: the file's)."""
     from .._design.evaluation import alpha_minus, capped, rest_conditioning, targets
     from .._engine.readout import output_values
+    from .payloads import held_at_limits
 
     ik_out = np.asarray(output_values(mech, ev.ik_states, design=design))
     adv_out = np.asarray(output_values(mech, ev.adv_states, design=design))
@@ -80,6 +81,7 @@ def evaluation_payload(mech, ev, design=None) -> dict:
         "capped_samples": dict(zip(("ik", "adversarial"), capped(mech, ev))),
         "samples": samples,
         **_evaluated_collision(mech, ev, design),
+        **held_at_limits(mech, ev),
     }
 
 
@@ -175,6 +177,10 @@ def run_evaluate(args) -> int:
         )
     if "collision" in payload:
         _print_collision(payload["collision"])
+    from .payloads import held_line
+
+    if line := held_line(payload.get("motor_limits", {})):
+        print(line)
     return 0
 
 
@@ -311,6 +317,8 @@ def map_progress(interval: float = PROGRESS_INTERVAL):
 
 def verification_payload(mech, result) -> dict:
     """What ``linkopt verify`` reports (``--json``) for one verification."""
+    from .payloads import verified_limits
+
     return {
         "passed": result.passed,
         "coverage": result.coverage,
@@ -325,6 +333,7 @@ def verification_payload(mech, result) -> dict:
         if result.unreached_example is None
         else dict(zip(mech.output_names, map(float, result.unreached_example))),
         **_verified_collision(mech, result),
+        **verified_limits(mech, result),
     }
 
 
@@ -394,6 +403,10 @@ def _print_verification(mech, payload: dict) -> None:
         )
     if "collision" in payload:
         print("  " + _collision_line(payload["collision"]))
+    if "motor_limits" in payload:
+        from .payloads import limits_line
+
+        print("  " + limits_line(payload["motor_limits"]))
 
 
 def _collision_line(entry: dict) -> str:

@@ -82,6 +82,15 @@ def _print_rest_pose(rest: dict) -> None:
     )
 
 
+def _limits(motor: dict) -> str:
+    """A motor's limits as ``check`` prints them (empty without any): unlimited sides
+    as ±inf."""
+    if "min" not in motor and "max" not in motor:
+        return ""
+    low, high = motor.get("min", -float("inf")), motor.get("max", float("inf"))
+    return f", limits [{low:g}, {high:g}]"
+
+
 def _print_summary(info: dict) -> None:
     """The tables of ``linkopt check``: sizes, motors, outputs, parameters, joints."""
     sizes = {
@@ -94,7 +103,11 @@ def _print_summary(info: dict) -> None:
     sizes["bodies"] = ", ".join(info["bodies"])
     _print_table("sizes", sizes)
     _print_table(
-        "motors", {k: f"{v['kind']} at {v['joint']}" for k, v in info["motors"].items()}
+        "motors",
+        {
+            k: f"{v['kind']} at {v['joint']}{_limits(v)}"
+            for k, v in info["motors"].items()
+        },
     )
     _print_table(
         "outputs",

@@ -42,7 +42,10 @@ def summary(mech: Mechanism) -> dict:
         "idle_spins": [mech.body_names[b] for b in mech.idle_bodies],
         "motors": {
             n: {"joint": mech.joint_names[j], "kind": "linear" if lin else "revolute"}
-            for n, j, lin in zip(mech.motor_names, mech.motor_joints, mech.motor_linear)
+            | motor_limits(mech, k)
+            for k, (n, j, lin) in enumerate(
+                zip(mech.motor_names, mech.motor_joints, mech.motor_linear)
+            )
         },
         "outputs": {
             n: {"kind": k, "min": float(lo), "max": float(hi)}
@@ -110,3 +113,79 @@ def configuration(
         "sigma_min_fk": sigma_fk,
         "sigma_min_bk": sigma_bk,
     }
+
+
+def motor_limits(mech: Mechanism, motor: int) -> dict:
+    """A motor's ``min`` and ``max`` (rad or file units) as ``check`` reports them:
+    only the sides the file gives."""
+    if not mech.motor_limited:
+        return {}
+    sides = {"min": mech.motor_min[motor], "max": mech.motor_max[motor]}
+    return {k: float(v) for k, v in sides.items() if np.isfinite(v)}
+
+
+def verified_limits(mech, result) -> dict:
+    """``verify --json``'s ``motor_limits`` entry, only for a file with motor limits:
+    the motor furthest beyond (or closest to) its limits, its value, its limits and
+    its cell (:func:`linkopt._design.verify.limit_check`)."""
+    if result.limit_excess is None:
+        return {}
+    entry = {"kept": not result.beyond_limits, "excess": result.limit_excess}
+    if result.limit_motor is not None:
+        motor = mech.motor_names.index(result.limit_motor)
+        entry |= {
+            "motor": result.limit_motor,
+            "value": result.limit_value,
+            "min": float(mech.motor_min[motor]),
+            "max": float(mech.motor_max[motor]),
+            "cell": dict(zip(mech.output_names, map(float, result.limit_outputs))),
+        }
+    return {"motor_limits": entry}
+
+
+def limits_line(entry: dict) -> str:
+    """One line on the motor that comes closest to, or goes furthest beyond, its
+    limits (rad or file units)."""
+    if "motor" not in entry:
+        return "motor limits: no cell reached"
+    cell = ", ".join(f"{n}={v:.4g}" for n, v in entry["cell"].items())
+    span = f"[{entry['min']:.4g}, {entry['max']:.4g}]"
+    if entry["kept"]:
+        return (
+            f"motor limits: kept; closest: motor {entry['motor']} at "
+            f"{entry['value']:.4g} of {span} at {cell}"
+        )
+    return (
+        f"motor limits: FAIL: motor {entry['motor']} needs {entry['value']:.4g}, "
+        f"beyond its limits {span} by {entry['excess']:.4g}, at {cell}"
+    )
+
+
+def held_at_limits(mech: Mechanism, ev) -> dict:
+    """``evaluate --json``'s ``motor_limits`` entry, only for a file with motor limits:
+    each motor's min and max and the targets (indices into ``samples``) whose IK sample
+    holds it at a limit (within 1e-9 rad or reference lengths), i.e. targets that
+    need the motor beyond it when their ``f_bk`` is not zero."""
+    if not mech.motor_limited:
+        return {}
+    motors = np.asarray(ev.ik_motors)  # homogenised
+    low, high = (
+        np.asarray(v) / mech.motor_scale for v in (mech.motor_min, mech.motor_max)
+    )
+    held = (motors <= low + 1e-9) | (motors >= high - 1e-9)
+    return {
+        "motor_limits": {
+            name: motor_limits(mech, m) | {"held": np.flatnonzero(held[:, m]).tolist()}
+            for m, name in enumerate(mech.motor_names)
+        }
+    }
+
+
+def held_line(entry: dict) -> str | None:
+    """``evaluate``'s line on the IK samples held at a motor limit (None: none)."""
+    held = [
+        f"{name} (targets {', '.join(map(str, motor['held']))})"
+        for name, motor in entry.items()
+        if motor["held"]
+    ]
+    return f"  IK samples held at a motor limit: {'; '.join(held)}" if held else None

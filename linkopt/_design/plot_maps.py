@@ -25,9 +25,9 @@ def _window(points: np.ndarray, low, high, pad: float):
 
 
 def plot_windows(mech: Mechanism, evaluation: Evaluation, rest, design):
-    """The maps' motor window (the samples and the rest pose, at least ±0.3, padded)
-    and output window (the target range and the rest outputs, padded 20 %), and the
-    rest outputs."""
+    """The maps' motor window (the samples, the rest pose and the finite motor
+    limits, at least ±0.3, padded) and output window (the target range and the rest
+    outputs, padded 20 %), and the rest outputs."""
     samples = np.concatenate(
         [np.asarray(evaluation.ik_motors), np.asarray(evaluation.adv_motors)]
     )
@@ -37,6 +37,11 @@ def plot_windows(mech: Mechanism, evaluation: Evaluation, rest, design):
         0.3,
         PADDING,
     )
+    if mech.motor_limited:  # the limits drawn in the maps lie inside them
+        finite = [
+            np.where(np.isfinite(v), v, 0.0) for v in (mech.motor_min, mech.motor_max)
+        ]
+        motors = _window(np.vstack([*motors, *finite]), -0.3, 0.3, 0.05)
     rest_out = np.asarray(output_values(mech, rest, design=design))
     outputs = _window(
         np.vstack([rest_out, mech.output_min, mech.output_max]),

@@ -13,7 +13,9 @@ there and its adversarial sample starts there):
   sits where the culled singularity term is already positive;
 - with ``[collision]`` enabled, the cell of the least clearance when that is below the
   clearance, so the IK sample sits in the collision and the collision term of
-  ``f_design`` counts it.
+  ``f_design`` counts it;
+- with motor limits, the cell that needs a motor furthest beyond its limits, so that
+  target's IK sample, held within the limits, leaves a reach residual.
 
 and the run goes on (:func:`linkopt._design.optimizer.reopen`). The budget is
 ``verify_rounds`` such continuations of at most ``iterations`` iterations each; a run
@@ -69,6 +71,8 @@ def failing_places(mech: Mechanism, check: Verification) -> list[list[float]]:
         places.append(np.asarray(check.worst_outputs, dtype=float))
     if collided(mech, check):
         places.append(np.asarray(check.collision_outputs, dtype=float))
+    if check.beyond_limits:
+        places.append(np.asarray(check.limit_outputs, dtype=float))
     known = targets(mech)
     scale = np.asarray(mech.output_scale, dtype=float)
     new = []

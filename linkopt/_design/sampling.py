@@ -15,6 +15,10 @@ half of ``(ds/da) δ``: that is how a step that crossed a forward singularity on
 another assembly branch shows up. The paper's BFGS with an unguarded step could cross
 (its Fig. 4); this guard is our addition.
 
+Motor limits (``[[motors]]`` ``min``/``max``) make both searches minimisations over
+the box of allowed motor values by projected Newton steps
+(:mod:`linkopt._design.motor_box`); without limits none of it is traced.
+
 The step bound ``r`` is a trust radius: it starts at the file's ``max_step``, doubles
 after an accepted step that it had to shorten (up to ``RADIUS_GROWTH · max_step``) and
 halves after a rejected one (down to ``max_step``). Samples travel up to about 2 rad
@@ -66,6 +70,7 @@ from .._engine.kinematics import solve_single
 from .._engine.model import Mechanism
 from .._engine.singularity import sigmas_of, stacked_jacobians
 from .metrics import Thresholds, attractive, barrier, culled
+from .motor_box import held, into_box, motor_box, projected
 
 ARMIJO = 1e-4
 GRADIENT_TOL = 1e-9
@@ -174,12 +179,18 @@ def _trial(mech: Mechanism, geom: Geometry, it: _Iterate, fresh) -> _Trial:
     its linear prediction ``s + (ds/da) δ``."""
     size = it.motors.shape[0]
     system = it.hessian + it.damping * jnp.eye(size)
-    delta = -dense.solve(system, it.gradient)  # LU, as jnp.linalg.solve
+    gradient = it.gradient
+    box = motor_box(mech)
+    if box is not None:  # static: without limits the step is as it was
+        system, gradient = held(box, it.motors, system, gradient)
+    delta = -dense.solve(system, gradient)  # LU, as jnp.linalg.solve
     norm = jnp.sqrt(delta @ delta)
     shortened = norm > it.radius
     delta = jnp.where(
         fresh, 0.0, delta * jnp.minimum(1.0, it.radius / jnp.maximum(norm, 1e-300))
     )
+    if box is not None:
+        delta = into_box(box, it.motors, delta)
     predicted = jnp.where(fresh, 0.0, it.ds_da @ delta)
     trial = solve_single(
         mech, "fk", geom, it.motors + delta, it.state + predicted, TRIAL_ITERATIONS
@@ -254,7 +265,11 @@ def _step(
         return jnp.where(accept, new, old)
 
     damping, radius = _trust(it, accept, trial.shortened, max_step)
-    small = jnp.max(jnp.abs(pick(gradient, it.gradient))) < GRADIENT_TOL
+    kept = pick(gradient, it.gradient)
+    box = motor_box(mech)
+    if box is not None:  # a gradient that pushes against a limit is spent
+        kept = projected(box, pick(it.motors + delta, it.motors), kept)
+    small = jnp.max(jnp.abs(kept)) < GRADIENT_TOL
     stalled = (
         accept & ~trial.shortened & (it.value - value <= VALUE_RTOL * jnp.abs(value))
     )

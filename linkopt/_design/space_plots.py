@@ -4,7 +4,8 @@ the paper's Fig. 2, 4 and 6.
 Depends on the core, never the reverse. Colours follow the paper: brighter = closer to
 a singularity (``f_sing``, log scale, colour bar), black = infeasible or off the rest
 branch, magenta contour = the target range in end-effector space and its preimage in
-motor space, white circles = IK samples, magenta crosses = adversarial samples. The
+motor space, white circles = IK samples, magenta crosses = adversarial samples, orange
+dashed lines = the motor limits (a file that has them). The
 maps themselves are :mod:`linkopt._design.plot_maps`'.
 """
 
@@ -240,6 +241,26 @@ def _scatter_samples(ax, ik: Float[np.ndarray, "n 2"], adv: Float[np.ndarray, "m
     )
 
 
+#: Colour of the motor limits in motor space (:func:`limit_lines`).
+LIMIT_COLOUR = "#ffa500"
+
+
+def limit_lines(ax, mech: Mechanism) -> int:
+    """The first two motors' limits as dashed lines in motor space (vertical for the
+    first motor, horizontal for the second; none for a side without a limit or a
+    file without limits); returns how many it drew."""
+    if not mech.motor_limited:
+        return 0
+    drawn = 0
+    for motor, line in ((0, ax.axvline), (1, ax.axhline)):
+        for value in (mech.motor_min[motor], mech.motor_max[motor]):
+            if np.isfinite(value):
+                label = "motor limits" if not drawn else None
+                line(value, color=LIMIT_COLOUR, ls="--", lw=1.8, label=label, zorder=5)
+                drawn += 1
+    return drawn
+
+
 def _draw_row(mech: Mechanism, left, right, row: _Row, layer: _Layer, samples):
     """Both panels of a row, the target range in each, and the samples; returns the
     right panel's image (for the colour bar)."""
@@ -275,6 +296,7 @@ def _draw_row(mech: Mechanism, left, right, row: _Row, layer: _Layer, samples):
         else:
             _reported_contours(ax, mech, grid)
     _scatter_samples(left, samples.ik_a[row.ik], samples.adv_a[row.adv])
+    limit_lines(left, mech)
     _scatter_samples(right, samples.ik_b[row.ik], samples.adv_b[row.adv])
     right.legend(loc="upper right", fontsize=8, facecolor="0.85")
     return image

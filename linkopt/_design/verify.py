@@ -7,7 +7,10 @@ batched). A design passes when every cell is reached on the rest branch (coverag
 every cell has ``f_sing < α₋``, the threshold below which the culled metric is zero.
 A file with ``[collision]`` enabled must also keep every pair of checked links at
 least the clearance apart in every reached cell (:mod:`linkopt._engine.collision`);
-the result then names the closest pair and its cell.
+the result then names the closest pair and its cell. A file with motor limits
+(``[[motors]]`` ``min``/``max``) must keep every motor within them in every reached
+cell: the result names the motor that goes furthest beyond (or comes closest to) its
+limits, its value and its cell (:func:`limit_check`).
 
 A grid of ``resolution^K`` cells is costed before it is allocated
 (:func:`check_resolution`, against :data:`linkopt._design.maps.MAX_CELLS` and
@@ -25,7 +28,7 @@ from .._engine.collision import clearance, has_collision, pair_names
 from .._engine.geometry import rest_state
 from .._engine.kinematics import check_design, solve_bk, solve_bk_path
 from .._engine.model import Mechanism
-from .._engine.readout import output_values
+from .._engine.readout import motor_values, output_values
 from .._engine.singularity import singular_values
 from .evaluation import alpha_minus
 from .maps import (
@@ -57,20 +60,68 @@ class Verification:
     min_clearance: float | None = None
     collision_pair: tuple[str, str] | None = None
     collision_outputs: np.ndarray | None = None
+    #: With motor limits (else None): the motor that goes furthest beyond its limits
+    #: over the reached cells (or, when none does, comes closest to one), its value
+    #: (rad or file units), its cell (output values, file units) and by how much it is
+    #: beyond (negative: the margin left), in the motor's units.
+    limit_motor: str | None = None
+    limit_value: float | None = None
+    limit_outputs: np.ndarray | None = None
+    limit_excess: float | None = None
 
     def as_json(self) -> dict:
         """The fields as JSON-ready values (arrays and the grid shape as lists), as
         ``verification.json`` and a run's verification rounds hold them; the collision
-        fields only when the file checks collisions."""
+        fields only when the file checks collisions, the limit fields only when it has
+        motor limits."""
         return {
             k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple)) else v)
             for k, v in vars(self).items()
-            if k not in COLLISION_FIELDS or self.min_clearance is not None
+            if (k not in COLLISION_FIELDS or self.min_clearance is not None)
+            and (k not in LIMIT_FIELDS or self.limit_excess is not None)
         }
+
+    @property
+    def beyond_limits(self) -> bool:
+        """Whether a reached cell needs a motor beyond its limits."""
+        return self.limit_excess is not None and self.limit_excess > 0.0
 
 
 #: The :class:`Verification` fields of a file with ``[collision]`` enabled.
 COLLISION_FIELDS = ("min_clearance", "collision_pair", "collision_outputs")
+#: The :class:`Verification` fields of a file with motor limits.
+LIMIT_FIELDS = ("limit_motor", "limit_value", "limit_outputs", "limit_excess")
+#: How far (homogenised: rad, or reference lengths) a motor may stand past its limit
+#: and still count as within it: a cell on the limit is solved to the LM tolerance.
+LIMIT_SLACK = 1e-9
+
+
+def limit_check(
+    mech: Mechanism, states: np.ndarray, feasible: np.ndarray, reached, design
+) -> dict:
+    """The motor-limit fields of a verification (:class:`Verification`): over the
+    reached cells, the motor whose value lies furthest beyond its limits, compared in
+    homogenised units (rad, reference lengths), with its value and cell; the excess is
+    zero within :data:`LIMIT_SLACK`. ``limit_excess`` -inf when no cell was reached;
+    empty without motor limits."""
+    if not mech.motor_limited:
+        return {}
+    flat = states.reshape(-1, states.shape[-1])[feasible.reshape(-1)]
+    if not len(flat):
+        return {"limit_excess": float("-inf")}
+    motors = np.asarray(motor_values(mech, flat, design=design))
+    beyond = np.maximum(motors - mech.motor_max, mech.motor_min - motors)
+    scaled = beyond / mech.motor_scale
+    cell, motor = np.unravel_index(int(np.argmax(scaled)), scaled.shape)
+    excess = float(beyond[cell, motor])
+    if 0.0 < scaled[cell, motor] <= LIMIT_SLACK:
+        excess = 0.0
+    return {
+        "limit_motor": mech.motor_names[motor],
+        "limit_value": float(motors[cell, motor]),
+        "limit_outputs": reached[cell],
+        "limit_excess": excess,
+    }
 
 
 def collision_check(
@@ -220,8 +271,10 @@ def verify(
     missing = values[~feasible]
     collision = collision_check(mech, states, feasible, reached, design)
     clear = collision.get("min_clearance", np.inf) >= _band(mech)
+    limits = limit_check(mech, states, feasible, reached, design)
+    kept = limits.get("limit_excess", -np.inf) <= 0.0
     return Verification(
-        passed=coverage == 1.0 and max_f < threshold and clear,
+        passed=coverage == 1.0 and max_f < threshold and clear and kept,
         coverage=coverage,
         cells=int(feasible.size),
         threshold=threshold,
@@ -232,6 +285,7 @@ def verify(
         unreached_example=missing[0] if len(missing) else None,
         grid_shape=shape,
         **collision,
+        **limits,
     )
 
 

@@ -3,10 +3,10 @@
 A :class:`~.model.Mechanism` mixes *structure* (bodies, joint families, which body each
 joint, point, motor and output belongs to, settings that shape arrays) with *numbers*
 (anchors, axes, body origins, points and how they follow their bodies, output ranges,
-the reference length, the design space's map and bounds, and the settings that are
-numbers: weights, steps, tolerances, iteration caps, α₋, the extra targets' values,
-collision radii and band). The programs of :mod:`.programs` take the numbers as
-arguments, as MuJoCo MJX passes its ``Model``:
+motor limits, the reference length, the design space's map and bounds, and the
+settings that are numbers: weights, steps, tolerances, iteration caps, α₋, the extra
+targets' values, collision radii and band). The programs of :mod:`.programs` take
+the numbers as arguments, as MuJoCo MJX passes its ``Model``:
 
 * :func:`numbers` reads them off a concrete mechanism (numpy; float64, iteration caps
   int64);
@@ -77,6 +77,9 @@ COLLISION_FIELDS = (
     "body_offsets",
     "body_radii",
 )
+#: Motor limits, taken as data when a file has them (``inf`` where a motor has none on
+#: one side; whether the file has any is static and keyed).
+LIMIT_FIELDS = ("motor_min", "motor_max")
 #: Integer settings (iteration caps), lifted as int64.
 INTEGER_FIELDS = frozenset(
     {"max_iterations", "ik_iterations", "adversarial_iterations"}
@@ -101,6 +104,9 @@ def numbers(mech: Mechanism) -> dict:
         )
     if mech.output_frames is not None:
         out["output_frames"] = np.asarray(mech.output_frames, dtype=np.float64)
+    if mech.motor_limited:
+        for name in LIMIT_FIELDS:
+            out[name] = np.asarray(getattr(mech, name), dtype=np.float64)
     for table, fields in _settings(mech):
         for name in fields:
             out[f"{table}.{name}"] = _setting(mech, table, name)
@@ -171,6 +177,8 @@ def lift(mech: Mechanism, values: dict) -> Mechanism:
     extra = {}
     if mech.output_frames is not None:
         extra["output_frames"] = values["output_frames"]
+    if mech.motor_limited:
+        extra |= {name: values[name] for name in LIMIT_FIELDS}
     for table, fields in _settings(mech):
         extra[table] = dataclasses.replace(
             getattr(mech, table), **{n: values[f"{table}.{n}"] for n in fields}

@@ -284,6 +284,11 @@ class Mechanism:
     )
     #: Link solids and checked pairs of ``[collision]`` (None without the table).
     collision: Collision | None = field(default=None, metadata=UNLESS_SET)
+    #: Motor limits ``(M,)`` (rad, or file units for linear motors, from the rest
+    #: pose; ``-inf`` / ``inf`` where a motor has none on that side), None when no motor
+    #: of the file has a limit: then neither enters a program or the fingerprint.
+    motor_min: np.ndarray | None = field(default=None, metadata=UNLESS_SET)
+    motor_max: np.ndarray | None = field(default=None, metadata=UNLESS_SET)
 
     @property
     def num_bodies(self) -> int:
@@ -305,6 +310,11 @@ class Mechanism:
     def motor_scale(self) -> np.ndarray:
         """Per-motor divisor from file units to homogenised units, shape ``(M,)``."""
         return per_length(self.motor_linear, self.length_scale)
+
+    @property
+    def motor_limited(self) -> bool:
+        """Whether a motor of the file has a limit (static: it shapes the programs)."""
+        return self.motor_min is not None
 
     @property
     def output_scale(self) -> np.ndarray:

@@ -21,9 +21,10 @@ its two bodies:
   joint.
 
 Motors are ``position`` actuators on their joints (gains from the exported masses, a
-5 Hz critically damped servo), named points are sites, the links are capsules between
-the joint anchors, and every length is in metres (the scale is written in a comment).
-Gravity is zero: a mechanism file does not say which way is down.
+5 Hz critically damped servo; a motor's limits are its actuator's ``ctrlrange`` and
+its joint's ``range``, both ``limited``), named points are sites, the links are
+capsules between the joint anchors, and every length is in metres (the scale is
+written in a comment). Gravity is zero: a mechanism file does not say which way is down.
 """
 
 from __future__ import annotations
@@ -143,6 +144,9 @@ class _Writer:
             attributes = {"name": name, "type": _MJ_KIND[dof.kind], "pos": at}
             if dof.kind != "ball":
                 attributes["axis"] = xml_numbers(dof.axis)
+            limits = motor_range(self.mech, joint, self.s)
+            if limits is not None:
+                attributes |= {"limited": "true", "range": limits}
             ET.SubElement(element, "joint", attributes)
 
     def add_body(self, parent_element, body: int) -> None:
@@ -246,7 +250,28 @@ def _actuators(w: _Writer, root) -> None:
             joint=mech.joint_names[int(joint)],
             kp=xml_numbers(kp),
             kv=xml_numbers(2.0 * math.sqrt(kp * carrier)),
+            **_ctrl_range(mech, int(joint), w.s),
         )
+
+
+def motor_range(mech: Mechanism, joint: int, s: float) -> str | None:
+    """The limits of the motor on ``joint`` as MJCF writes a range (rad, or metres
+    for a linear motor: ``s`` metres per file unit; ``inf`` on a side without one),
+    None when the joint has no motor or the file no limits. A motor joint's
+    coordinate is its motor value (:func:`joint_values`)."""
+    motors = np.flatnonzero(mech.motor_joints == joint)
+    if not mech.motor_limited or not len(motors):
+        return None
+    m = int(motors[0])
+    scale = s if mech.motor_linear[m] else 1.0
+    return xml_numbers([mech.motor_min[m] * scale, mech.motor_max[m] * scale])
+
+
+def _ctrl_range(mech: Mechanism, joint: int, s: float) -> dict:
+    """The ``ctrllimited``/``ctrlrange`` of a position actuator on ``joint`` (its
+    motor's limits), none without them."""
+    limits = motor_range(mech, joint, s)
+    return {} if limits is None else {"ctrllimited": "true", "ctrlrange": limits}
 
 
 def mjcf_text(

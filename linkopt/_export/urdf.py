@@ -11,10 +11,12 @@ Tait–Bryan axes) gets massless intermediate links named ``<joint>_link<k>``. E
 named point is a link on a fixed joint (the arms' ``tip`` is the tool frame). Lengths
 are in metres.
 
-Limits: a revolute joint whose angle is an output gets that output's range as its
-limits; other revolute joints are ``continuous``. The file knows no limits for a
-prismatic joint: it gets ± the reference length, and effort and velocity (which URDF
-requires on a limit) are written as 0, unknown.
+Limits: a motor joint with limits (``[[motors]]`` ``min``/``max``) gets them (a side
+the file leaves open: ± the reference length for a slide, ±π for a hinge); else a
+revolute joint whose angle is an output gets that output's range as its limits;
+other revolute joints are ``continuous``. A prismatic joint without motor limits gets
+± the reference length. Effort and velocity (which URDF requires on a limit) are
+written as 0, unknown.
 """
 
 from __future__ import annotations
@@ -59,6 +61,27 @@ def _limits(mech: Mechanism, joint: int) -> tuple[float, float] | None:
         if mech.output_joints[k] == joint and mech.output_coords[k] < 0:
             return float(mech.output_min[k]), float(mech.output_max[k])
     return None
+
+
+def motor_limits(mech: Mechanism, joint: int) -> tuple[float, float] | None:
+    """The limits of the motor on ``joint`` (rad or file units; ±inf on a side the
+    file leaves open), None without a motor or limits."""
+    motors = np.flatnonzero(mech.motor_joints == joint)
+    if not mech.motor_limited or not len(motors):
+        return None
+    m = int(motors[0])
+    return float(mech.motor_min[m]), float(mech.motor_max[m])
+
+
+def _motor_urdf_limits(mech: Mechanism, joint: int, slide: bool, s: float) -> tuple:
+    """A limited motor joint's URDF limits (metres or rad): the motor's, a side the
+    file leaves open ± the reference length (slide) or ±π (hinge; module docstring)."""
+    wide, scale = (mech.length_scale, s) if slide else (np.pi, 1.0)
+    low, high = motor_limits(mech, joint)
+    return (
+        (low if np.isfinite(low) else -wide) * scale,
+        (high if np.isfinite(high) else wide) * scale,
+    )
 
 
 def _joint(root, name, kind, parent, child, xyz, axis=None, limits=None) -> None:
@@ -107,6 +130,9 @@ def _edge_joints(root, mech, rest_pose, edge, frames, s) -> None:
             limits = (-length, length)
         else:
             kind = "continuous" if limits is None else "revolute"
+        if len(edge.dofs) == 1 and motor_limits(mech, edge.joint) is not None:
+            limits = _motor_urdf_limits(mech, edge.joint, dof.kind == "slide", s)
+            kind = "prismatic" if dof.kind == "slide" else "revolute"
         xyz = offset if k == 0 else np.zeros(3)
         _joint(root, names[k], kind, chain[k], chain[k + 1], xyz, dof.axis, limits)
 

@@ -119,7 +119,7 @@ def _read_parts(
     symmetry, design parameters and settings (file order of dependence)."""
     anchors = np.array([j["anchor"] for j in joints])
     points = read_points(rd, data, body_index, joints, scale)
-    motors = read_motors(rd, data, joints)
+    motors = read_motors(rd, data, joints, scale)
     outputs, reported = read_outputs(rd, data, points, joints, scale)
     symmetry = read_symmetry(
         rd, data, lambda t, key, at: position(rd, t, key, at, scale)

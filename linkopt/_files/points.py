@@ -8,7 +8,7 @@ import numpy as np
 from .._engine.attachment import attach
 from .._engine.fields import Reader
 from .._engine.model import MOTOR_JOINTS
-from .bounds import position
+from .bounds import check_position, position
 
 
 def read_points(
@@ -59,15 +59,16 @@ def _read_point(
     return {"name": item["name"], "body": body, "joint": joint, "position": rest}
 
 
-def read_motors(rd: Reader, data: dict, joints: list[dict]) -> list[dict]:
-    """``[[motors]]``: each drives one revolute or prismatic joint, no joint twice."""
+def read_motors(rd: Reader, data: dict, joints: list[dict], scale: float) -> list[dict]:
+    """``[[motors]]``: each drives one revolute or prismatic joint, no joint twice,
+    with its optional limits (:func:`_read_limits`)."""
     items = rd.entries(data, "motors", required=True)
     rd.names(items, "motors")
     joint_index = {j["name"]: k for k, j in enumerate(joints)}
     motors, used = [], {}
     for k, item in enumerate(items):
         where = f"motors[{k}]"
-        rd.keys(item, where, {"name", "joint"}, {"name", "joint"})
+        rd.keys(item, where, {"name", "joint", "min", "max"}, {"name", "joint"})
         joint = rd.lookup(joint_index, item["joint"], f"{where}.joint", "joint")
         kind = joints[joint]["type"]
         if kind not in MOTOR_JOINTS:
@@ -82,10 +83,52 @@ def read_motors(rd: Reader, data: dict, joints: list[dict]) -> list[dict]:
                 f"joint {item['joint']!r} already driven by motors[{used[joint]}]",
             )
         used[joint] = k
+        linear = MOTOR_JOINTS[kind]
         motors.append(
-            {"name": item["name"], "joint": joint, "linear": MOTOR_JOINTS[kind]}
+            {"name": item["name"], "joint": joint, "linear": linear}
+            | _read_limits(rd, item, where, linear, scale)
         )
     return motors
+
+
+#: Largest |limit| of a rotary motor (rad): motor values read off a state are angles
+#: in (-π, π], so a limit past π could never be told from one on the other side.
+MAX_TURN = float(np.pi)
+
+
+def _read_limits(
+    rd: Reader, item: dict, where: str, linear: bool, scale: float
+) -> dict:
+    """A motor's ``min`` and ``max`` (rad, or file units of stroke for a linear
+    motor, from the rest pose like its values): each optional, a side not given is
+    unlimited (``-inf`` / ``inf``). The rest value 0 must lie in ``[min, max]`` (the
+    samples and the continuation start there) and ``min < max``."""
+    limits = {"min": -np.inf, "max": np.inf}
+    for key in ("min", "max"):
+        if key not in item:
+            continue
+        value = rd.number(item, key, where)
+        if linear:
+            check_position(rd, f"{where}.{key}", value, scale)
+        elif abs(value) > MAX_TURN:
+            raise rd.fail(
+                f"{where}.{key}",
+                f"expected a rotary limit within ±π rad, got {value:g}",
+            )
+        limits[key] = value
+    if not limits["min"] <= 0.0 <= limits["max"]:
+        side = "min" if limits["min"] > 0.0 else "max"
+        raise rd.fail(
+            f"{where}.{side}",
+            f"the rest value 0 must lie within [min, max], got {side}={limits[side]:g}",
+        )
+    if not limits["min"] < limits["max"]:
+        raise rd.fail(
+            f"{where}.min",
+            f"motor limits need min < max, got min={limits['min']:g} and "
+            f"max={limits['max']:g}",
+        )
+    return limits
 
 
 def point_fields(
@@ -108,12 +151,17 @@ def point_fields(
 
 
 def motor_fields(motors: list[dict]) -> dict:
-    """The Mechanism fields of the motors."""
+    """The Mechanism fields of the motors; ``motor_min`` / ``motor_max`` only when a
+    motor of the file has a limit (else the fields stay None, and every program is as
+    without limits)."""
+    lower = np.array([m["min"] for m in motors], dtype=float)
+    upper = np.array([m["max"] for m in motors], dtype=float)
+    limited = bool(np.isfinite(lower).any() or np.isfinite(upper).any())
     return {
         "motor_names": tuple(m["name"] for m in motors),
         "motor_joints": np.array([m["joint"] for m in motors], dtype=int),
         "motor_linear": np.array([m["linear"] for m in motors], dtype=bool),
-    }
+    } | ({"motor_min": lower, "motor_max": upper} if limited else {})
 
 
 #: Largest distance of a named point from an idle body's axis, in reference lengths.
