@@ -280,6 +280,9 @@ def test_fk_and_bk_commands_print_the_tilts(five_bar_pointing, tmp_path, capsys)
     expected = _tilt(_five_bar_tip(0.15, -0.1), frame[0], frame[1])
     np.testing.assert_allclose(list(record["outputs"].values()), expected, atol=1e-9)
     assert list(record["outputs"]) == ["tilt_1", "tilt_2"]
+    assert main(["check", str(path), "--json"]) == 0
+    outputs = json.loads(capsys.readouterr().out)["outputs"]
+    assert outputs["tilt_2"] == {"kind": "direction", "min": -0.3, "max": 0.3}
 
 
 @pytest.mark.parametrize(
