@@ -222,3 +222,112 @@ def test_optimize_writes_the_mjcf_beside_the_toml(tmp_path, five_bar, monkeypatc
     mujoco.mj_forward(model, data)
     tip = optimized.anchors[optimized.joint_names.index("tip")] * 1e-3
     assert np.abs(data.site("ee").xpos - tip).max() < 1e-15
+
+
+# ---- issue 45: driven from rest, every shipped closed-loop mechanism settles -------
+
+SHIPPED = sorted(p.stem for p in (ROOT / "mechanisms").glob("*.toml"))
+
+
+@functools.cache
+def _spherical_five_bar() -> linkopt.Mechanism:
+    """The spherical five-bar of ``test_assembly_spherical`` (every axis through one
+    centre), assembled from its drawing."""
+    from test_assembly_spherical import drawing
+
+    from linkopt._engine.assembly import assemble
+    from linkopt._engine.fields import parse_toml
+    from linkopt._files.writer import dumps
+
+    result = assemble(parse_toml(drawing(), "sph.toml"), "sph.toml")
+    return linkopt.loads(dumps(result.data), "spherical_five_bar.toml")
+
+
+def _offsets(mech) -> np.ndarray:
+    """Motor values away from rest: 0.2 rad, or 5 % of the reference length for a
+    linear motor, alternating in sign (0.2, -0.14, 0.2, ...)."""
+    signs = np.where(np.arange(mech.num_motors) % 2 == 0, 1.0, -0.7)
+    return 0.2 * signs * np.where(mech.motor_linear, 0.25 * mech.length_scale, 1.0)
+
+
+def _settling_error(mech, data, state, s) -> float:
+    """Largest distance (m) of a body origin or a site from linkopt's FK state."""
+    bodies = np.asarray(state).reshape(-1, 7)[:, :3] * mech.length_scale * s
+    points = np.asarray(linkopt.point_positions(mech, state)).reshape(-1, 3) * s
+    return max(
+        *(
+            np.linalg.norm(data.body(b).xpos - bodies[k])
+            for k, b in enumerate(mech.body_names)
+        ),
+        *(
+            np.linalg.norm(data.site(p).xpos - points[k])
+            for k, p in enumerate(mech.point_names)
+        ),
+    )
+
+
+@pytest.mark.parametrize("name", [*SHIPPED, "spherical_five_bar"])
+def test_driven_from_rest_settles_onto_fk(name):
+    """Issue 45: the actuators' controls set to motor values that FK solves, from the
+    rest pose, MuJoCo settles onto linkopt's FK within 1e-3 reference lengths in 5
+    simulated seconds (bodies and sites), with the equalities closed, and the file
+    carries no settling warning."""
+    if name == "spherical_five_bar":
+        mech = _spherical_five_bar()
+    else:
+        mech = _mechanism(name)
+    motors = _offsets(mech)
+    sol = linkopt.solve_fk(mech, motors)
+    assert bool(sol.converged)
+    text, summary = mjcf.mjcf_text(mech)
+    assert summary["warnings"] == [] and "warning" not in text
+    model = mujoco.MjModel.from_xml_string(text)
+    data = mujoco.MjData(model)
+    s = summary["metres_per_unit"]
+    size = mech.length_scale * s
+    data.ctrl[:] = motors * np.where(mech.motor_linear, s, 1.0)
+    mujoco.mj_forward(model, data)
+    assert _settling_error(mech, data, sol.state, s) > 1e-2 * size  # it starts away
+    mujoco.mj_step(model, data, nstep=int(5.0 / model.opt.timestep))
+    error = _settling_error(mech, data, sol.state, s) / size
+    equality = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+    print(f"{name}: settled to {error:.1e} reference lengths")
+    assert error < 1e-3
+    assert np.abs(data.efc_pos[equality]).max() < 1e-6 * size
+    assert np.abs(data.qvel).max() < 1e-3  # at rest, not passing through
+
+
+LOCKED = """
+[[parameters]]
+name = "tilt"
+joint = "D"
+coordinate = "axis_x"
+min = -0.5
+max = 0.5
+"""
+
+
+def test_a_design_that_locks_the_loop_is_named_in_the_file_and_by_the_cli(
+    tmp_path, capsys
+):
+    """A four-bar whose design tilts the rocker's axis out of parallel is a spatial
+    4R loop: redundant in the plane, locked once tilted (mobility 0). Its MJCF cannot
+    settle onto FK and says so, in the file and on stderr; the file's own design
+    (the axis parallel) carries no warning."""
+    from linkopt._cli.main import main
+
+    source = tmp_path / "tilted.toml"
+    source.write_text((ROOT / "mechanisms" / "four_bar.toml").read_text() + LOCKED)
+    mech = linkopt.load(source)
+    assert mjcf.mjcf_text(mech)[1]["warnings"] == []
+    design = np.append(mech.design.p0[:-1], 0.3)
+    text, summary = mjcf.mjcf_text(mech, design)
+    assert len(summary["warnings"]) == 1
+    assert "mobility 0 at rest but 1 motor(s)" in summary["warnings"][0]
+    assert "<!-- warning: this design has mobility 0" in text
+    out = tmp_path / "tilted.xml"
+    args = ["export", str(source), "--format", "mjcf", "--out", str(out)]
+    assert main([*args, "--design", ",".join(map(repr, design.tolist()))]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {out}: this design has mobility 0" in err
+    assert "warning: this design has mobility 0" in out.read_text()

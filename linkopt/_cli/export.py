@@ -9,6 +9,7 @@ the file's units, a closed-loop file asked for as URDF, ``--thickness``, and ``-
 from __future__ import annotations
 
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -87,6 +88,8 @@ def run_export(args) -> int:
     summary = _export(args, mech, design, out)
     summary = {"file": args.file, "out": str(out), **summary}
     summary["seconds"] = round(time.perf_counter() - start, 3)
+    for line in summary.get("warnings", ()):
+        print(f"warning: {out}: {line}", file=sys.stderr)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:

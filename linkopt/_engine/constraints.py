@@ -216,6 +216,15 @@ def _output_rows(mech: Mechanism, geom: Geometry, state, outputs, table=None):
             qi, qj, frame[:, 0], frame[:, 1], table.coords[index], outputs, index
         )
 
+    def direction(index):
+        _, q = body_frames(state)
+        pair, frame = table.bodies[index], jnp.asarray(table.frames[index])
+        every = jax.vmap(joint_types.direction_angles)(
+            q[pair[:, 0]], q[pair[:, 1]], frame[:, 0], frame[:, 1]
+        )
+        value = jnp.stack([every[g, int(k)] for g, k in enumerate(table.coords[index])])
+        return value if outputs is None else joint_types.wrap(value - outputs[index])
+
     def displacement(index):
         frames = _joint_frames(mech, geom, state, table.joints[index])
         value = jax.vmap(joint_types.slide)(*frames[:7])
@@ -229,6 +238,7 @@ def _output_rows(mech: Mechanism, geom: Geometry, state, outputs, table=None):
             (tait_bryan, sequence),
             (table.of("orientation"), orientation),
             (table.of("displacement"), displacement),
+            (table.of("direction"), direction),
         ],
     )
 

@@ -361,12 +361,30 @@ def _output_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
 
 
 def _orientation_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
-    """Orientation and displacement output rows (see ``_output_groups``): the
-    Tait–Bryan angles of one body relative to another in a fixed frame, and the slide
-    of a prismatic/cylindrical joint (the linear motor's row)."""
+    """Orientation, direction and displacement output rows (see ``_output_groups``):
+    the Tait–Bryan angles of one body relative to another in a fixed frame, the tilt
+    of a body's axis, and the slide of a prismatic/cylindrical joint (the linear
+    motor's row)."""
     groups, order = [], []
     table = mech.output_table
     turned, slid = table.of("orientation"), table.of("displacement")
+    pointed = table.of("direction")
+    if pointed.size:
+        pair = table.bodies[pointed]
+        frame = jnp.asarray(table.frames[pointed])
+        target = None if outputs is None else _take(outputs, pointed)
+        value, ji, jj = _local_row(
+            joint_types.direction_angles,
+            _take(q, pair[:, 0]),
+            _take(q, pair[:, 1]),
+            frame[:, 0],
+            frame[:, 1],
+            table.coords[pointed],
+            target,
+        )
+        blocks = ((pair[:, 0], ji[:, None]), (pair[:, 1], jj[:, None]))
+        groups.append(_Rows(value[:, None], blocks))
+        order.append(pointed)
     if turned.size:
         pair = table.bodies[turned]
         frame = jnp.asarray(table.frames[turned])
@@ -398,16 +416,20 @@ def _orientation_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
 
 def _tait_bryan_row(qi, qj, e1, e2, which: np.ndarray, target):
     """One Tait–Bryan angle per member (``which``: static 0..2), wrapped against
-    ``target``.
+    ``target`` (:func:`_local_row` of :func:`linkopt._engine.joints.tait_bryan`: its
+    three nested ``atan2`` have no short closed form worth keeping)."""
+    return _local_row(joint_types.tait_bryan, qi, qj, e1, e2, which, target)
 
-    Differentiated by forward mode in the 8 local quaternion entries: the three nested
-    ``atan2`` of :func:`linkopt._engine.joints.tait_bryan` have no short closed form
-    worth keeping.
-    """
+
+def _local_row(angles, qi, qj, e1, e2, which: np.ndarray, target):
+    """Angle ``which[g]`` (static) of ``angles(q_i, q_j, e1, e2)`` per member, wrapped
+    against ``target``, differentiated by forward mode in the 8 local quaternion
+    entries."""
     select = jnp.asarray(np.eye(3)[which])  # (G, 3) one-hot
 
     def angle(a, b, n, n2, pick, goal):
-        value = _dot(joint_types.tait_bryan(a, b, n, n2), pick)
+        every = angles(a, b, n, n2)
+        value = _dot(every, pick[: every.shape[0]])
         return value if goal is None else joint_types.wrap(value - goal)
 
     def local(a, b, n, n2, pick, goal):

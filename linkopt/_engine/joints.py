@@ -128,6 +128,41 @@ def tait_bryan(qi: Quat, qj: Quat, e1: Vec, e2: Vec) -> Float[Array, 3]:
     return jnp.stack([first, second, third])
 
 
+#: Below this ``sin θ`` (θ the tilt of :func:`direction_angles`), ``θ / sin θ`` is its
+#: series, so the angles and their derivatives stay finite at rest.
+_SMALL_TILT = 1e-6
+
+
+def direction_angles(qi: Quat, qj: Quat, d: Vec, e1: Vec) -> Float[Array, 2]:
+    """The tilt ``(τ1, τ2)`` of body j's axis ``d`` relative to body i: the
+    components along ``e1`` and ``e2 = d × e1`` of the rotation vector of the
+    shortest rotation taking ``d`` to ``v = R_iᵀ R_j d`` (rest axes, ``e1 ⟂ d``);
+    zero at rest.
+
+    With ``v = c0 d + c1 e1 + c2 e2``, ``s = √(c1² + c2²) = sin θ`` and
+    ``θ = atan2(s, c0)`` the angle between ``d`` and ``v``:
+    ``(τ1, τ2) = (θ / s) (-c2, c1)``. A rotation by α about ``e1`` gives ``(α, 0)``,
+    one about ``e2`` ``(0, α)``; a spin about ``d`` gives ``(0, 0)``. Smooth wherever
+    ``θ < π`` (the only singular direction is ``-d``); below ``s`` = 1e-6,
+    ``θ / s = (1 - s² / 3c0²) / c0`` (the series of ``atan x / x``), so rest has
+    exact, finite derivatives.
+    """
+    a = rotate(qj, d)
+    c0 = rotate(qi, d) @ a
+    c1 = rotate(qi, e1) @ a
+    c2 = rotate(qi, jnp.cross(d, e1)) @ a
+    s2 = c1 * c1 + c2 * c2
+    small = (s2 < _SMALL_TILT**2) & (c0 > 0)
+    s = jnp.sqrt(jnp.where(small, 1.0, s2))
+    c0_safe = jnp.where(small, c0, 1.0)
+    ratio = jnp.where(
+        small,
+        (1.0 - s2 / (3.0 * c0_safe * c0_safe)) / c0_safe,
+        jnp.arctan2(s, c0) / s,
+    )
+    return ratio * jnp.stack([-c2, c1])
+
+
 def wrap(angle: Float[Array, ...]) -> Float[Array, ...]:
     """``angle`` wrapped to (-π, π], smooth away from ±π."""
     return jnp.arctan2(jnp.sin(angle), jnp.cos(angle))

@@ -171,6 +171,7 @@ OUTPUT_KINDS: dict[str, bool] = {
     "angle": False,
     "orientation": False,
     "displacement": True,
+    "direction": False,
 }
 
 
@@ -184,7 +185,10 @@ class OutputTable:
     Tait–Bryan angle 0..2 of a universal/spherical joint) or of a displacement
     (prismatic/cylindrical joint); ``bodies`` ``(K, 2)``: reference body and body of
     an orientation, whose Tait–Bryan angle ``coords`` is measured in the frame
-    ``frames[k] = (e1, e2)``. Unused entries are -1 (zero for frames).
+    ``frames[k] = (e1, e2)``, or of a direction, whose tilt ``coords`` (0, 1) of the
+    body's axis ``frames[k, 0]`` is measured about ``frames[k, 1]`` and their cross
+    product (:func:`linkopt._engine.joints.direction_angles`). Unused entries are -1
+    (zero for frames).
     """
 
     names: tuple[str, ...]
@@ -250,7 +254,7 @@ class Mechanism:
     motor_joints: np.ndarray  # (M,) int
     motor_linear: np.ndarray  # (M,) bool
     output_names: tuple[str, ...]
-    # "position" | "angle" | "orientation" | "displacement" (see OUTPUT_KINDS)
+    # "position" | "angle" | "orientation" | "displacement" | "direction" (OUTPUT_KINDS)
     output_kinds: tuple[str, ...]
     output_points: np.ndarray  # (K,) int, -1 except for positions
     output_coords: (

@@ -21,10 +21,18 @@ its two bodies:
   joint.
 
 Motors are ``position`` actuators on their joints (gains from the exported masses, a
-5 Hz critically damped servo; a motor's limits are its actuator's ``ctrlrange`` and
-its joint's ``range``, both ``limited``), named points are sites, the links are
-capsules between the joint anchors, and every length is in metres (the scale is
-written in a comment). Gravity is zero: a mechanism file does not say which way is down.
+5 Hz critically damped servo behind a 50 ms command filter; a motor's limits are
+its actuator's ``ctrlrange`` and its joint's ``range``, both ``limited``), named
+points are sites, the links are capsules between the joint anchors, and every
+length is in metres (the scale is written in a comment). Gravity is zero: a
+mechanism file does not say which way is down.
+
+Dynamics: driven from rest to motor values, the model settles onto
+linkopt's FK. Every joint has damping and armature, and the equalities' ``solref``
+and ``solimp``, the time step and the solver's tolerance are set, all scaled to the
+mechanism's reference inertia and length (the constants below say why each value).
+A design that cannot settle (:mod:`.settling`) gets a warning comment in the file and
+in the summary.
 """
 
 from __future__ import annotations
@@ -36,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from .._engine.model import Mechanism
+from .settling import settling_warnings
 from .tree import (
     Edge,
     Rest,
@@ -50,13 +59,44 @@ from .tree import (
     spanning_tree,
 )
 
-#: Density of the link solids (kg/m³, MuJoCo's default: water) and the servo's
-#: natural frequency (Hz); both only set the dynamics, never the kinematics.
+#: Density of the link solids (kg/m³, MuJoCo's default: water). With the exported
+#: solids' total mass ``M`` and the reference length ``L`` (m) it gives the
+#: reference inertia ``I = M L²`` every gain below is scaled by, so the dynamics are
+#: the same for a mechanism drawn in mm or in m, light or heavy (none of this changes
+#: the kinematics: at the FK solution no force acts, gravity being zero).
 DENSITY = 1000.0
+#: The servo's natural frequency (Hz): ``kp = I ω²`` (``M ω²`` for a linear motor),
+#: ``kv = 2 √(kp I)`` (critically damped for the reference inertia).
 SERVO_HZ = 5.0
+#: Time constant (s) of the first-order filter between a motor's control and its
+#: servo (MuJoCo's ``timeconst``): a step command reaches the joint as a ramp, so the
+#: passive bodies get no impulse.
+SETPOINT_TIME = 0.05
+#: Every joint's damping as a damping ratio of the reference inertia at the servo's
+#: frequency (``2 ζ ω I``; ``2 ζ ω M`` for slides). Passive modes the servos do not
+#: reach (an idle rod's spin, a mode near a singularity) die out with it; larger values
+#: slow every motion (0.1 took the Stewart platform 2.1 s to settle, 0.03 0.7 s).
+JOINT_DAMPING = 0.03
+#: Every joint's armature (rotor inertia) as a fraction of the reference inertia (of
+#: ``M`` for slides). It keeps light links (a finger's rods, 0.1 % of the reference
+#: inertia) from being flung by the constraint forces: without it the finger's
+#: phalanx flipped to another assembly branch when driven from rest (measured).
+ARMATURE = 0.01
 #: Time step (s). MuJoCo's default 2 ms let the 2-motor neck's light rods oscillate
 #: without settling (measured); 0.5 ms settles every shipped mechanism.
 TIMESTEP = 5e-4
+#: The loop-closing equalities: ``solref`` time constant (s), critically damped:
+#: 4 time steps (MuJoCo asks for at least 2), ten times stiffer than MuJoCo's default
+#: 20 ms; ``solimp`` impedance from 0.95 to 0.99 over a width of 1e-3 reference
+#: lengths (MuJoCo's default width is 1 mm whatever the size, and 0.9-0.95 left
+#: the delta 1e-3 reference lengths off after 5 s, measured).
+EQUALITY_TIME = 2e-3
+EQUALITY_IMPEDANCE = (0.95, 0.99)
+EQUALITY_WIDTH = 1e-3
+#: The constraint solver: Newton (MuJoCo's default), up to 100 iterations, to a
+#: tolerance of 1e-10 (default 1e-8) so the equalities close to ~1e-12 of the size.
+ITERATIONS = 100
+TOLERANCE = 1e-10
 _MJ_KIND = {"hinge": "hinge", "slide": "slide", "ball": "ball"}
 
 
@@ -87,6 +127,26 @@ def closure_kind(mech: Mechanism, joint: int) -> str:
     )
 
 
+def _solid_mass(start, end, radius: float) -> float:
+    """Mass (kg) of a capsule from ``start`` to ``end`` (m) of ``radius`` (m)."""
+    length = float(np.linalg.norm(np.asarray(end) - np.asarray(start)))
+    return DENSITY * math.pi * radius**2 * (length + 4.0 / 3.0 * radius)
+
+
+def exported_mass(mech: Mechanism, rest_pose: Rest, tree: Tree, thickness, s) -> float:
+    """Total mass (kg) of the solids the export writes: every body's capsules and
+    spheres, and the sphere of each closure body."""
+    mass = 0.0
+    for body in range(mech.num_bodies):
+        if body == mech.ground:
+            continue
+        for start, end, radius in body_capsules(mech, rest_pose, body, thickness):
+            mass += _solid_mass(start * s, end * s, radius * s)
+    closure_radius = 0.5 * (thickness or default_thickness(mech)) * s
+    bodies = sum(closure_kind(mech, j) == "body" for j in tree.closures)
+    return max(mass + bodies * _solid_mass(0.0, 0.0, closure_radius), 1e-12)
+
+
 class _Writer:
     """Builds the MJCF element tree of one design (lengths scaled by ``s``)."""
 
@@ -97,7 +157,9 @@ class _Writer:
         self.s, self.unit = metres_per_unit(mech)
         self.thickness = thickness
         self.radius = 0.5 * (thickness or default_thickness(mech)) * self.s
-        self.mass = 0.0  # kg, summed over the geoms written
+        self.mass = exported_mass(mech, self.rest, self.tree, thickness, self.s)
+        self.size = mech.length_scale * self.s  # the reference length, m
+        self.inertia = self.mass * self.size**2  # kg m², the reference inertia
 
     def local(self, body: int, world) -> str:
         return xml_numbers((np.asarray(world) - self.rest.origins[body]) * self.s)
@@ -108,26 +170,13 @@ class _Writer:
         for start, end, radius in body_capsules(
             self.mech, self.rest, body, self.thickness
         ):
-            r = radius * self.s
+            size = xml_numbers(radius * self.s)
             if np.array_equal(start, end):
-                ET.SubElement(
-                    element,
-                    "geom",
-                    type="sphere",
-                    size=xml_numbers(r),
-                    pos=self.local(body, start),
-                )
-                self.mass += DENSITY * 4 / 3 * math.pi * r**3
+                at = self.local(body, start)
+                ET.SubElement(element, "geom", type="sphere", size=size, pos=at)
                 continue
-            ET.SubElement(
-                element,
-                "geom",
-                type="capsule",
-                size=xml_numbers(r),
-                fromto=self.local(body, start) + " " + self.local(body, end),
-            )
-            length = np.linalg.norm(start - end) * self.s
-            self.mass += DENSITY * (math.pi * r * r * length + 4 / 3 * math.pi * r**3)
+            ends = self.local(body, start) + " " + self.local(body, end)
+            ET.SubElement(element, "geom", type="capsule", size=size, fromto=ends)
 
     def add_sites(self, element, body: int) -> None:
         for p in np.flatnonzero(self.mech.point_bodies == body):
@@ -142,12 +191,21 @@ class _Writer:
     def add_dofs(self, element, body: int, joint: int, dofs, at) -> None:
         for name, dof in zip(dof_names(self.mech, joint, len(dofs)), dofs):
             attributes = {"name": name, "type": _MJ_KIND[dof.kind], "pos": at}
+            attributes |= self.dof_dynamics(dof.kind)
             if dof.kind != "ball":
                 attributes["axis"] = xml_numbers(dof.axis)
             limits = motor_range(self.mech, joint, self.s)
             if limits is not None:
                 attributes |= {"limited": "true", "range": limits}
             ET.SubElement(element, "joint", attributes)
+
+    def dof_dynamics(self, kind: str) -> dict[str, str]:
+        inertia = self.inertia if kind != "slide" else self.mass
+        omega = 2.0 * math.pi * SERVO_HZ
+        return {
+            "damping": xml_numbers(JOINT_DAMPING * 2.0 * omega * inertia),
+            "armature": xml_numbers(ARMATURE * inertia),
+        }
 
     def add_body(self, parent_element, body: int) -> None:
         mech, rest_pose = self.mech, self.rest
@@ -182,7 +240,6 @@ class _Writer:
         dofs = joint_dofs(self.mech, self.rest, joint, reverse=False, hinges_only=False)
         self.add_dofs(cross, body, joint, dofs, xml_numbers(np.zeros(3)))
         ET.SubElement(cross, "geom", type="sphere", size=xml_numbers(self.radius))
-        self.mass += DENSITY * 4 / 3 * math.pi * self.radius**3
 
 
 def closure_body_name(mech: Mechanism, joint: int) -> str:
@@ -236,12 +293,10 @@ def _actuators(w: _Writer, root) -> None:
     mech = w.mech
     if not mech.num_motors:
         return
-    size = mech.length_scale * w.s
-    inertia = max(w.mass, 1e-12) * size * size
     omega = 2.0 * math.pi * SERVO_HZ
     actuator = ET.SubElement(root, "actuator")
     for m, joint in enumerate(mech.motor_joints):
-        carrier = max(w.mass, 1e-12) if mech.motor_linear[m] else inertia
+        carrier = w.mass if mech.motor_linear[m] else w.inertia
         kp = carrier * omega * omega
         ET.SubElement(
             actuator,
@@ -251,6 +306,7 @@ def _actuators(w: _Writer, root) -> None:
             kp=xml_numbers(kp),
             kv=xml_numbers(2.0 * math.sqrt(kp * carrier)),
             **_ctrl_range(mech, int(joint), w.s),
+            timeconst=xml_numbers(SETPOINT_TIME),
         )
 
 
@@ -279,6 +335,8 @@ def mjcf_text(
 ) -> tuple[str, dict]:
     """The MJCF document of ``design`` (None: the file's) and a summary of it."""
     w = _Writer(mech, design, thickness)
+    solref = xml_numbers([EQUALITY_TIME, 1.0])
+    solimp = xml_numbers([*EQUALITY_IMPEDANCE, EQUALITY_WIDTH * w.size])
     root = ET.Element("mujoco", model=mech.name)
     root.append(
         ET.Comment(
@@ -286,6 +344,9 @@ def mjcf_text(
             f"{w.unit} x {w.s:g}; qpos0 is the rest pose of the exported design "
         )
     )
+    warnings = settling_warnings(mech, design)
+    for line in warnings:
+        root.append(ET.Comment(f" warning: {line} "))
     ET.SubElement(root, "compiler", angle="radian", autolimits="true")
     ET.SubElement(
         root,
@@ -293,8 +354,12 @@ def mjcf_text(
         gravity="0 0 0",
         integrator="implicitfast",
         timestep=xml_numbers(TIMESTEP),
+        solver="Newton",
+        iterations=str(ITERATIONS),
+        tolerance=xml_numbers(TOLERANCE),
     )
     default = ET.SubElement(root, "default")
+    ET.SubElement(default, "equality", solref=solref, solimp=solimp)
     ET.SubElement(
         default, "geom", contype="0", conaffinity="0", density=xml_numbers(DENSITY)
     )
@@ -311,6 +376,7 @@ def mjcf_text(
         "actuators": mech.num_motors,
         "sites": len(mech.point_names),
         "metres_per_unit": w.s,
+        "warnings": list(warnings),
     }
     return ET.tostring(root, encoding="unicode") + "\n", summary
 
@@ -321,8 +387,8 @@ def export_mjcf(
     """Write the MJCF file of ``design`` (file units, None: the file's) to ``path``.
 
     Returns a summary (bodies, loop-closing joints, equality rows, actuators, sites,
-    metres per file unit). ``thickness`` is the capsule diameter in file units
-    (default :func:`linkopt._export.tree.default_thickness`).
+    metres per file unit, warnings of :mod:`.settling`). ``thickness`` is the capsule
+    diameter in file units (default :func:`linkopt._export.tree.default_thickness`).
     """
     from .._folders import write_atomic
 

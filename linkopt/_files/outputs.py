@@ -1,6 +1,6 @@
 """The outputs of a mechanism file (``[[outputs]]``): a point's Cartesian coordinate,
-a joint's angle or displacement, or a body's orientation angle, each with its range;
-the BK outputs and the reported ones."""
+a joint's angle or displacement, a body's orientation angle or the tilt of a body's
+axis (direction), each with its range; the BK outputs and the reported ones."""
 
 from __future__ import annotations
 
@@ -83,6 +83,8 @@ def _read_output(
         entry.update(_point_output(rd, item, where, names["point"]))
     elif kind == "orientation":
         entry.update(_orientation_output(rd, item, where, names["body"], ground))
+    elif kind == "direction":
+        entry.update(_direction_output(rd, item, where, names["body"], ground))
     else:
         entry.update(_angle_output(rd, item, where, names["joint"], joints, kind))
     entry.update(_output_range(rd, item, where, entry["kind"], reported, scale))
@@ -111,7 +113,8 @@ def _output_kind(
         raise rd.fail(
             where,
             "give either 'point' and 'coordinate' (a Cartesian output), 'joint' (an "
-            "angle or displacement output) or kind = \"orientation\" and 'body'",
+            'angle or displacement output) or kind = "orientation" or '
+            "\"direction\" and 'body'",
         )
     _check_kind_fields(rd, item, where, kind)
     return kind
@@ -123,6 +126,7 @@ KIND_FIELDS = {
     "angle": {"joint", "angle"},
     "displacement": {"joint"},
     "orientation": {"body", "relative_to", "angle", "axis", "axis2"},
+    "direction": {"body", "relative_to", "angle", "axis", "axis2"},
 }
 #: The field each kind of output needs.
 KIND_NEEDS = {
@@ -130,6 +134,7 @@ KIND_NEEDS = {
     "angle": "joint",
     "displacement": "joint",
     "orientation": "body",
+    "direction": "body",
 }
 
 
@@ -179,6 +184,31 @@ def _orientation_output(
     ground): ``R_refᵀ R_body = Rot(e1, roll) Rot(e2, pitch) Rot(e1 × e2, yaw)`` with
     the frame ``e1 = axis``, ``e2 = axis2`` (default x and y, so x-y'-z''), the
     convention of a spherical joint's angle outputs."""
+    bodies = _body_pair(rd, item, where, body_index, ground, "orientation")
+    if "angle" not in item:
+        raise rd.fail(
+            f"{where}.angle",
+            f"missing required field for an orientation: one of "
+            f"{list(ORIENTATION_ANGLES)} (or 1, 2, 3)",
+        )
+    return {
+        "kind": "orientation",
+        "bodies": bodies,
+        "frame": _orientation_frame(rd, item, where),
+        "coord": _orientation_index(rd, item, where),
+    }
+
+
+def _body_pair(
+    rd: Reader,
+    item: dict,
+    where: str,
+    body_index: dict[str, int],
+    ground: int,
+    what: str,
+) -> tuple[int, int]:
+    """``(relative_to, body)`` of an orientation or direction output (default: the
+    ground), two different bodies."""
     body = rd.lookup(body_index, item["body"], f"{where}.body", "body")
     reference = ground
     if "relative_to" in item:
@@ -188,20 +218,47 @@ def _orientation_output(
     if reference == body:
         raise rd.fail(
             f"{where}.relative_to",
-            f"the orientation of {item['body']!r} relative to itself is always zero",
+            f"the {what} of {item['body']!r} relative to itself is always zero",
         )
-    if "angle" not in item:
-        raise rd.fail(
-            f"{where}.angle",
-            f"missing required field for an orientation: one of "
-            f"{list(ORIENTATION_ANGLES)} (or 1, 2, 3)",
-        )
+    return reference, body
+
+
+def _direction_output(
+    rd: Reader, item: dict, where: str, body_index: dict[str, int], ground: int
+) -> dict:
+    """A tilt angle of ``body``'s ``axis`` relative to ``relative_to`` (default the
+    ground): component ``angle`` (1: about ``axis2``, 2: about ``axis × axis2``) of
+    the rotation vector of the shortest rotation taking ``axis`` to where the body
+    has turned it (:func:`linkopt._engine.joints.direction_angles`)."""
+    bodies = _body_pair(rd, item, where, body_index, ground, "direction")
+    for key, meaning in (("axis", "the body's axis"), ("angle", "1 or 2")):
+        if key not in item:
+            raise rd.fail(
+                f"{where}.{key}",
+                f"missing required field for a direction output: {meaning}",
+            )
+    axis = rd.direction(item, "axis", where)
+    if "axis2" in item:
+        first = rd.direction(item, "axis2", where)
+        if abs(axis @ first) > ORTHOGONAL_TOL:
+            raise rd.fail(f"{where}.axis2", "must be perpendicular to axis")
+    else:
+        first = default_tilt_axis(axis)
     return {
-        "kind": "orientation",
-        "bodies": (reference, body),
-        "frame": _orientation_frame(rd, item, where),
-        "coord": _orientation_index(rd, item, where),
+        "kind": "direction",
+        "bodies": bodies,
+        "frame": np.stack([axis, first]),
+        "coord": rd.integer(item, "angle", where, 1, 2) - 1,
     }
+
+
+def default_tilt_axis(axis: np.ndarray) -> np.ndarray:
+    """The first tilt axis of a direction output without ``axis2``: the world axis
+    (x, y, z) least aligned with ``axis`` (the first on a tie), made perpendicular to
+    it and unit (for ``axis`` z: x, and the second tilt axis ``z × x = y``)."""
+    world = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    first = world - (world @ axis) * axis
+    return first / np.linalg.norm(first)
 
 
 def _orientation_index(rd: Reader, item: dict, where: str) -> int:
