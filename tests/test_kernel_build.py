@@ -17,7 +17,6 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 import pytest
 from cxx import SOURCE, compile_cxx, compiler_or_skip, ffi_include, python_include
 
@@ -259,14 +258,15 @@ def test_empty_operands_return_at_once(shape):
     an error, through XLA (tests/kernels_harness.cc calls the handlers themselves on
     empty buffers with null data)."""
     empty = jnp.zeros(shape)
-    batched = len(shape) == 3
-    for fn in (dense.cholesky, dense.lower_inverse):
-        assert (jax.jit(jax.vmap(fn)) if batched else jax.jit(fn))(empty).shape == shape
     rhs = jnp.zeros(shape[:-1])
+
+    def each(fn, *args):
+        return (jax.jit(jax.vmap(fn)) if len(shape) == 3 else jax.jit(fn))(*args)
+
+    for fn in (dense.cholesky, dense.lower_inverse):
+        assert each(fn, empty).shape == shape
+    for fn in (dense.solve_lower, dense.solve_lower_transpose, dense.cho_solve):
+        assert each(fn, empty, rhs).shape == rhs.shape
+        assert each(fn, empty, rhs[..., None]).shape == rhs.shape + (1,)
     damping = jnp.zeros(shape[:-2])
-    assert dense._call("damped_solve", rhs, empty, damping, rhs).shape == rhs.shape
-    for mode in (0, 1, 2):
-        out = dense._call(
-            "tri_solve", rhs[..., None], empty, rhs[..., None], mode=np.int32(mode)
-        )
-        assert out.shape == shape[:-1] + (1,)
+    assert each(dense.damped_solve, empty, damping, rhs).shape == rhs.shape
