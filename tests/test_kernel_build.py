@@ -158,9 +158,8 @@ def newer_ffi_extension(tmp_path_factory) -> Path:
     return target
 
 
-def _run(extension: Path, mode: str, tmp_path: Path, monkeypatch) -> dict:
+def _run(extension: Path, mode: str, monkeypatch) -> dict:
     monkeypatch.delenv(kernels.ENVIRONMENT, raising=False)
-    monkeypatch.setenv("LINKOPT_CACHE_DIR", str(tmp_path / "cache"))
     done = subprocess.run(
         [sys.executable, "-c", SCRIPT, str(extension), mode],
         capture_output=True,
@@ -173,13 +172,13 @@ def _run(extension: Path, mode: str, tmp_path: Path, monkeypatch) -> dict:
 
 @pytest.mark.slow
 def test_an_extension_built_against_a_newer_ffi_is_refused(
-    newer_ffi_extension, tmp_path, monkeypatch
+    newer_ffi_extension, monkeypatch
 ):
     """The version check refuses it before XLA sees it: one warning that names both
     versions and how to rebuild, nothing registered, every computation runs on the
     plain-JAX path, and `linkopt cache info` says so."""
     major, minor = kernels.running_ffi_api_version()
-    result = _run(newer_ffi_extension, "check", tmp_path, monkeypatch)
+    result = _run(newer_ffi_extension, "check", monkeypatch)
     assert result["targets"] is None
     (warning,) = result["warnings"]
     assert f"XLA FFI API {major}.{minor + 1} (jaxlib 99.0)" in warning
@@ -193,12 +192,12 @@ def test_an_extension_built_against_a_newer_ffi_is_refused(
 
 @pytest.mark.slow
 def test_a_registration_xla_refuses_leaves_jax_working(
-    newer_ffi_extension, tmp_path, monkeypatch
+    newer_ffi_extension, monkeypatch
 ):
     """With linkopt's check skipped, XLA refuses the handler at registration (made to
     happen at once, not when the CPU backend starts): caught, one warning, and JAX
     and linkopt compute as without the kernels."""
-    result = _run(newer_ffi_extension, "force", tmp_path, monkeypatch)
+    result = _run(newer_ffi_extension, "force", monkeypatch)
     assert result["targets"] is None
     (warning,) = result["warnings"]
     assert "XLA refused to register them" in warning
