@@ -22,6 +22,28 @@ SOURCE = "linkopt/_kernels/dense.cc"
 #: x86-64 only: the baseline every x86-64 CPU since about 2009 has (SSE4.2, POPCNT);
 #: never -march=native, which would tie the build to the building machine's CPU
 X86_64_FLAGS = ["-march=x86-64-v2"]
+#: IEEE arithmetic, stated rather than assumed (a user's CFLAGS, or a compiler whose
+#: default is fast math, icx): no fused multiply-adds (-ffp-contract=off), so the
+#: handlers round as the plain-JAX code's steps do and the paths that factor several
+#: matrices at once as the one-matrix path; NaN and Inf kept (std::isnan and
+#: !(d > 0) not folded away); no reassociation or reciprocals
+IEEE_FLAGS = [
+    "-fno-fast-math",
+    "-fno-unsafe-math-optimizations",
+    "-fno-finite-math-only",
+    "-ffp-contract=off",
+]
+MSVC_IEEE_FLAGS = ["/fp:precise"]
+
+
+def _jaxlib_version() -> str:
+    """The version of the jaxlib whose FFI headers build the extension ("" if none)."""
+    try:
+        import jaxlib
+
+        return jaxlib.__version__
+    except Exception:
+        return ""
 
 
 def _include_dir() -> str | None:
@@ -47,13 +69,15 @@ class BuildExt(build_ext):
 
     def build_extension(self, ext):
         if self.compiler.compiler_type == "msvc":
-            ext.extra_compile_args = ["/std:c++17", "/O2", "/EHsc"]
+            ext.extra_compile_args = ["/std:c++17", "/O2", "/EHsc", *MSVC_IEEE_FLAGS]
             return super().build_extension(ext)
-        # -g0: no debug information (Python's own flags add -g); -ffp-contract=off: no
-        # fused multiply-adds, so the handlers round as the plain-JAX code's steps do
-        # and the paths that factor several matrices at once as the one-matrix path
-        # (dense.cc; its AVX2 functions are chosen at run time, X86_64_FLAGS stays)
-        base = ["-std=c++17", "-O3", "-g0", "-fvisibility=hidden", "-ffp-contract=off"]
+        # -g0: no debug information (Python's own flags add -g); IEEE_FLAGS last, so
+        # they override fast math from $CFLAGS (dense.cc also refuses __FAST_MATH__)
+        base = ["-std=c++17", "-O3", "-g0", "-fvisibility=hidden", *IEEE_FLAGS]
+        # XLA's FFI headers as system headers: their own warnings are not dense.cc's
+        # (which builds without one under -Wall -Wextra)
+        base += [f"-isystem{path}" for path in ext.include_dirs]
+        ext.include_dirs = []
         machine = platform.machine().lower()
         arch = X86_64_FLAGS if machine in ("x86_64", "amd64") else []
         ext.extra_compile_args = base + arch
@@ -77,7 +101,10 @@ def _extensions() -> list[Extension]:
             "linkopt._kernels._dense",
             sources=[SOURCE],
             include_dirs=[include],
-            define_macros=[("LK_SOURCE_SHA256", f'"{digest}"')],
+            define_macros=[
+                ("LK_SOURCE_SHA256", f'"{digest}"'),
+                ("LK_JAXLIB_VERSION", f'"{_jaxlib_version()}"'),
+            ],
             language="c++",
             optional=True,
         )

@@ -33,6 +33,7 @@ JAX_FREE = frozenset(
         "_errors",
         "_folders",
         "_imports",
+        "_machine",
         "arms",
         "arms.codesign",
         "arms.dh",

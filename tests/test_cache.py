@@ -106,12 +106,14 @@ def test_cache_info_says_whether_the_kernels_are_in_use(cache, capsys, monkeypat
 
     assert main(["cache", "info"]) == 0
     out = capsys.readouterr().out
-    expected = "in use" if _kernels.handlers() is not None else "not in use: "
+    expected = "in use" if _kernels.handlers() is not None else "not in use, plain JAX"
     assert f"compiled kernels: {expected}" in out
+    assert f"running jaxlib {_kernels.running_jaxlib_version()}" in out
     assert "not bounded" not in out
     monkeypatch.setenv("LINKOPT_KERNELS", "0")
     assert main(["cache", "info"]) == 0
-    assert "not in use: turned off by LINKOPT_KERNELS=0" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "not in use, plain JAX (turned off by LINKOPT_KERNELS=0" in out
 
 
 def test_jax_writes_its_executables_through_the_bounded_cache(tmp_path):

@@ -13,8 +13,33 @@ def _megabytes(count: int) -> str:
     return f"{count / 2**20:.1f} MB"
 
 
+def _version(pair) -> str:
+    return "unknown" if pair is None else ".".join(map(str, pair))
+
+
+def kernels_line(kernels: dict) -> str:
+    """Which path linkopt computes with, and why (:func:`linkopt._kernels.info`)."""
+    if kernels["available"]:
+        line = f"compiled kernels: in use (version {kernels['version']}"
+    else:
+        line = f"compiled kernels: not in use, plain JAX ({kernels['reason']}"
+    if kernels["extension_version"] is not None:
+        line += (
+            f"; built against jaxlib {kernels['built_jaxlib'] or 'unknown'}, XLA FFI "
+            f"API {_version(kernels['ffi_api_version'])}"
+        )
+    line += (
+        f"; running jaxlib {kernels['running_jaxlib'] or 'none'}, XLA FFI API "
+        f"{_version(kernels['running_ffi_api_version'])})"
+    )
+    if kernels["stale"]:
+        line += "; rebuild them (pip install) after editing dense.cc"
+    return line
+
+
 def run_info(args) -> int:
     from .. import _kernels
+    from .._engine import dense  # noqa: F401  (registers the kernels, or refuses them)
 
     payload = _cache.info()
     payload["kernels"] = _kernels.info()
@@ -27,20 +52,7 @@ def run_info(args) -> int:
             f"  {kind:<12} {row['entries']:>6} entries  {_megabytes(row['bytes']):>10}"
             f"  of at most {_megabytes(row['limit_bytes'])}  ({row['folder']})"
         )
-    kernels = payload["kernels"]
-    print(
-        "compiled kernels: "
-        + (
-            f"in use (version {kernels['version']})"
-            if kernels["available"]
-            else f"not in use: {kernels['reason']}"
-        )
-        + (
-            "; rebuild them (pip install) after editing dense.cc"
-            if kernels["stale"]
-            else ""
-        )
-    )
+    print(kernels_line(payload["kernels"]))
     if not payload["bounded_executables"]:
         print(
             "  executables are kept by JAX's own cache here, which is not bounded "

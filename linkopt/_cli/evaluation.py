@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._design.settings import MAX_CELLS
+from .._design.settings import MAX_BYTES, MAX_CELLS
 from .._errors import InputError
 from .._folders import output_folder
 from .values import design_arg, load
@@ -445,7 +445,8 @@ def _add_max_cells(cmd) -> None:
         default=MAX_CELLS,
         help=(
             f"refuse a grid of more cells (default {MAX_CELLS}); the estimated "
-            "memory is capped too (12 GiB)"
+            f"memory is capped too ({MAX_BYTES / 2**30:.3g} GiB here, half of the "
+            "machine's memory)"
         ),
     )
 

@@ -19,17 +19,19 @@ the local run with the same ``--workers``); a scheduler that does not answer wit
 from __future__ import annotations
 
 import json
-import os
 import sys
 from pathlib import Path
 
 from .._design import ahead
 from .._design.settings import OptimizerSettings
 from .._errors import InputError
+from .._machine import default_workers
 from .evaluation import map_progress
 from .values import load
 
-WORKERS = max(1, min(2, os.cpu_count() or 1))
+#: The default --workers: one per core of this machine, at most one per 3 GiB of its
+#: memory and at most 8 (:func:`linkopt._machine.default_workers`; 2 on 2 cores)
+WORKERS = default_workers()
 #: Most sample lanes (particles x IK targets) one iteration may evaluate: the five-bar's
 #: 20 x 9 = 180 lanes take about 1 s per iteration on 2 cores, so 2e5 lanes are about
 #: 20 minutes per iteration there, and more on a larger mechanism.
@@ -289,7 +291,8 @@ def register(subparsers) -> None:
         default=WORKERS,
         help=(
             "processes sharing the particles, and the final verifications and plots "
-            f"(default {WORKERS}: one per core, at most 2); with --scheduler, the "
+            f"(default {WORKERS} here: one per core, at most one per 3 GiB of memory "
+            "and at most 8); with --scheduler, the "
             "chunks each iteration's particles are split into, as in a local run "
             "with this many workers"
         ),

@@ -26,7 +26,8 @@ Budget: a grid's cost grows as its side to the power of its dimension, so caller
 it before anything is allocated (:func:`grid_cost`, :func:`check_budget`;
 :func:`check_plot_resolution` for the plots' maps, and
 :func:`linkopt._design.verify.check_resolution` for ``verify``). The limits,
-:data:`MAX_CELLS` and :data:`MAX_BYTES`, are sized for a 2-core machine with 24 GiB.
+:data:`MAX_CELLS` and :data:`MAX_BYTES` (half of the machine's memory, read at run
+time).
 """
 
 from __future__ import annotations

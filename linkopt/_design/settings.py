@@ -8,14 +8,17 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+from .._machine import grid_memory_cap
+
 #: Default cap on the cells of one dense grid: 100 000 cells (a 316² verify grid, a
 #: 46³ one) at ``maps.SECONDS_PER_CELL`` is about 8 minutes on one core for the
 #: five-bar; ``verify``'s default grid has 1681 cells and ``plot``'s 3600.
 MAX_CELLS = 100_000
-#: Cap on a grid's estimated peak memory: half of a 24 GiB machine, leaving the rest to
-#: the interpreter, jax's compiled code and a second process. It binds before the cell
-#: cap for larger states (σ_min of every cell is one batch: ~120 kB a five-bar cell).
-MAX_BYTES = 12 * 2**30
+#: Cap on a grid's estimated peak memory: half of this machine's memory (12 GiB of
+#: 24 GiB; :func:`linkopt._machine.grid_memory_cap`), leaving the rest to the
+#: interpreter, jax's compiled code and a second process. It binds before the cell cap
+#: for larger states (σ_min of every cell is one batch: ~120 kB a five-bar cell).
+MAX_BYTES = grid_memory_cap()
 #: Frames of an animation by default, and the most it accepts: 600 frames of the
 #: five-bar take about 20 s to draw and some 3 MB of GIF.
 DEFAULT_FRAMES = 60

@@ -25,27 +25,21 @@ differentiable.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import jax
 import numpy as np
 
+from .._machine import cores
+
 #: Rows per block. 64 is two of the solver's 32-lane chunks (``kinematics.CHUNK``): a
 #: 2-D map's wave (at most about twice its side) takes one or two blocks.
 BLOCK = 64
 
 
-def _cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
 #: Most threads that run one batch's blocks at once: the cores this process may use.
-THREADS = _cores()
+THREADS = cores()
 #: The shortest padded continuation path (:func:`path_rows`).
 PATH_BLOCK = 16
 

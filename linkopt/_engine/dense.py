@@ -198,17 +198,43 @@ def _plain_lower_inverse(lower: Float[Array, "n n"]) -> Float[Array, "n n"]:
 # The compiled kernels (module docstring) and the public entry points.
 
 
+def _register_now() -> None:
+    """Make ``jax.ffi.register_ffi_target`` on the CPU register at once, so that XLA's
+    refusal is raised there (where :func:`_register` catches it) rather than when the
+    CPU backend starts, which it would then fail, and every JAX computation with it.
+
+    jaxlib queues CPU registrations until its CPU client is made, which installs
+    ``_xla.register_custom_call_target`` as the CPU handler; installing that same
+    function first (a no-op once the client exists) registers at once. Where this
+    jaxlib lacks it, registration stays queued and the check of the FFI API versions
+    (:mod:`linkopt._kernels`) is the guard."""
+    from jax._src.lib import xla_client
+
+    native = getattr(
+        getattr(xla_client, "_xla", None), "register_custom_call_target", None
+    )
+    if native is not None and hasattr(xla_client, "register_custom_call_handler"):
+        xla_client.register_custom_call_handler("cpu", native)
+
+
 def _register() -> dict[str, str] | None:
     """Register the compiled handlers with XLA once per process (before any program
-    that calls them is deserialised or loaded); their target names, or None."""
+    that calls them is deserialised or loaded); their target names, or None (the
+    plain-JAX code runs; :func:`linkopt._kernels.refuse` warns where XLA refused
+    them)."""
     handlers = _kernels.handlers()
     if handlers is None or not hasattr(jax, "ffi"):  # jax.ffi: jax 0.4.38 and later
         return None
     targets = {}
-    for key, capsule in handlers.items():
-        name = f"linkopt_{key}_v{_kernels.VERSION}"
-        jax.ffi.register_ffi_target(name, capsule, platform="cpu")
-        targets[key] = name
+    try:
+        _register_now()
+        for key, capsule in handlers.items():
+            name = f"linkopt_{key}_v{_kernels.VERSION}"
+            jax.ffi.register_ffi_target(name, capsule, platform="cpu")
+            targets[key] = name
+    except Exception as exc:  # XLA refused a handler: none of them is used
+        _kernels.refuse(f"XLA refused to register them ({exc})")
+        return None
     return targets
 
 

@@ -7,6 +7,17 @@ for ``jax.ffi.register_ffi_target(name, capsule, platform="cpu")``, or None when
 cannot be used (:data:`reason` says why); ``LINKOPT_KERNELS=0`` turns them off.
 :func:`digest` keys compiled programs by the handlers they may call.
 
+The extension records the XLA FFI API version of the headers it was built against, and
+the jaxlib that shipped them. The running jaxlib's version is read from its own headers
+(``jaxlib/include/xla/ffi/api/c_api.h``, what ``jax.ffi.include_dir()`` gives, found
+without importing jaxlib); XLA registers a handler only if its major version is the
+running one and its minor version no newer, so an extension built against a newer FFI
+(a wheel built with a newer jaxlib than the one it is installed with) is not used:
+:func:`handlers` returns None and warns once (:class:`KernelsWarning`) with how to
+rebuild. :mod:`linkopt._engine.dense` registers the handlers inside a guard too; a
+registration XLA refuses all the same is reported by :func:`refuse`, with the same
+outcome. Either way linkopt computes with its plain-JAX code.
+
 The handlers (float64, row-major, every leading dimension a batch dimension; matrix
 order ``n`` at most ``_dense.max_n()``, 512, else an error):
 
@@ -31,7 +42,10 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import importlib.util
 import os
+import re
+import warnings
 from pathlib import Path
 from types import ModuleType
 
@@ -43,6 +57,18 @@ ENVIRONMENT = "LINKOPT_KERNELS"
 #: The handlers' names, the keys of :func:`handlers`.
 NAMES = ("cholesky", "tri_solve", "lower_inverse", "damped_solve", "smallest_right")
 SOURCE = Path(__file__).with_name("dense.cc")
+#: How to rebuild the extension against the running jaxlib (in every refusal's warning).
+REBUILD = (
+    "rebuild it against the installed jaxlib: `pip install --no-build-isolation "
+    "--no-deps --force-reinstall <linkopt source or sdist>`, or `python setup.py "
+    "build_ext --inplace` in a source checkout"
+)
+
+
+class KernelsWarning(RuntimeWarning):
+    """The compiled kernels are built but cannot be used with this jaxlib: linkopt
+    runs its plain-JAX code (the same results to round-off, slower)."""
+
 
 #: Why the latest :func:`handlers` returned None; None after it returned the handlers.
 reason: str | None = "handlers() not called yet"
@@ -50,6 +76,8 @@ reason: str | None = "handlers() not called yet"
 _module: ModuleType | None = None
 _load_error: str | None = None
 _loaded = False
+#: Why XLA (or the FFI check) refused the extension: set once, then never used again.
+_refused: str | None = None
 
 
 def disabled() -> bool:
@@ -86,7 +114,87 @@ def _load() -> ModuleType | None:
                     f"{__name__}._dense has handler version {version}, this linkopt "
                     f"expects {VERSION} (a stale build: reinstall linkopt)"
                 )
+        if _module is not None and (why := _ffi_mismatch(_module)) is not None:
+            refuse(why)
     return _module
+
+
+def running_ffi_api_version() -> tuple[int, int] | None:
+    """``(major, minor)`` of the XLA FFI API of the installed jaxlib, read from its
+    ``include/xla/ffi/api/c_api.h`` (None where jaxlib or the header is missing)."""
+    spec = importlib.util.find_spec("jaxlib")
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    for folder in spec.submodule_search_locations:
+        header = Path(folder, "include", "xla", "ffi", "api", "c_api.h")
+        if header.is_file():
+            return header_ffi_api_version(header.read_text(errors="replace"))
+    return None
+
+
+def header_ffi_api_version(text: str) -> tuple[int, int] | None:
+    """``(XLA_FFI_API_MAJOR, XLA_FFI_API_MINOR)`` as ``c_api.h``'s text defines them."""
+    found = [
+        re.search(rf"^\s*#\s*define\s+XLA_FFI_API_{part}\s+(\d+)", text, re.M)
+        for part in ("MAJOR", "MINOR")
+    ]
+    if None in found:
+        return None
+    return int(found[0].group(1)), int(found[1].group(1))
+
+
+def running_jaxlib_version() -> str | None:
+    """The installed jaxlib's version, from its package metadata (no import)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("jaxlib")
+    except PackageNotFoundError:
+        return None
+
+
+def ffi_compatible(built: tuple[int, int], running: tuple[int, int] | None) -> bool:
+    """Whether XLA of FFI API ``running`` registers handlers built against ``built``:
+    the same major version, a minor version no newer (unknown ``running``: assumed)."""
+    if running is None:
+        return True
+    return built[0] == running[0] and built[1] <= running[1]
+
+
+def _ffi_mismatch(module: ModuleType) -> str | None:
+    """Why the extension cannot be registered with the running jaxlib, or None."""
+    built = tuple(module.ffi_api_version())
+    running = running_ffi_api_version()
+    if ffi_compatible(built, running):
+        return None
+    return (
+        f"{__name__}._dense was built against XLA FFI API {built[0]}.{built[1]} "
+        f"(jaxlib {_built_jaxlib(module) or 'unknown'}), which the installed jaxlib "
+        f"{running_jaxlib_version() or ''} (XLA FFI API {running[0]}.{running[1]}) "
+        "cannot load"
+    )
+
+
+def _built_jaxlib(module: ModuleType) -> str | None:
+    """The jaxlib the extension was built with (None for builds that predate it)."""
+    read = getattr(module, "jaxlib_version", None)
+    return (read() or None) if read is not None else None
+
+
+def refuse(why: str) -> None:
+    """Stop using the extension in this process (``why``: the refusal, e.g. XLA's
+    error from registering a handler): :func:`handlers` returns None from now on, with
+    ``why`` as :data:`reason`, and one :class:`KernelsWarning` says so."""
+    global _refused, reason
+    if _refused is not None:
+        return
+    _refused = reason = why
+    warnings.warn(
+        f"linkopt's compiled kernels are not used: {why}. linkopt runs its plain-JAX "
+        f"code instead (the same results to round-off, slower); {REBUILD}.",
+        KernelsWarning,
+        stacklevel=2,
+    )
 
 
 def handlers() -> dict[str, object] | None:
@@ -100,6 +208,9 @@ def handlers() -> dict[str, object] | None:
     module = _load()
     if module is None:
         reason = _load_error
+        return None
+    if _refused is not None:
+        reason = _refused
         return None
     try:
         capsules = dict(module.capsules())
@@ -163,11 +274,13 @@ def smallest_max_k() -> int | None:
 
 
 def info() -> dict[str, object]:
-    """What a diagnostic prints: availability, :data:`reason`, versions, staleness."""
+    """What a diagnostic prints: availability, :data:`reason`, versions (the handlers',
+    and the XLA FFI API and jaxlib of the build and of this process), staleness."""
     available = handlers() is not None
     module = _load()
     return {
         "available": available,
+        "path": "compiled kernels" if available else "plain JAX",
         "reason": reason,
         "version": VERSION,
         "extension_version": None if module is None else module.version(),
@@ -175,6 +288,9 @@ def info() -> dict[str, object]:
         "damped_max_n": damped_max_n(),
         "smallest_max_k": smallest_max_k(),
         "ffi_api_version": None if module is None else module.ffi_api_version(),
+        "built_jaxlib": None if module is None else _built_jaxlib(module),
+        "running_ffi_api_version": running_ffi_api_version(),
+        "running_jaxlib": running_jaxlib_version(),
         "stale": stale(),
         "digest": digest(),
     }

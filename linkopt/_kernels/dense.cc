@@ -16,7 +16,8 @@
 //                   Rayleigh–Ritz (smallest_right; k <= kSmallestMaxK)
 // Every handler refuses n > kMaxN (LkDampedSolve n > kLanesMaxN, LkSmallestRight
 // k > kSmallestMaxK), mismatched shapes and an unknown mode with an ffi::Error; none
-// allocates but for the scratch of large orders (Scratch).
+// allocates but for the scratch of large orders (with_scratch); an empty operand (n or
+// the batch 0) returns at once.
 // Single-threaded, plain loops written as axpys so -O3 vectorises them without
 // -ffast-math (no reassociated reductions, except the explicit 4-accumulator dot);
 // LkCholesky and LkDampedSolve work on two or four matrices of a batch at a time
@@ -25,8 +26,20 @@
 // kVersion is the ABI of these handlers (names, operands, attributes, semantics):
 // increment it with any such change; linkopt/_kernels/__init__.py refuses an extension
 // of another version.
+//
+// IEEE arithmetic is part of the results (bitwise the same for any batch grouping, NaN
+// from a failing pivot): fast math is refused here, whatever flags a build adds.
+// LK_NO_PYTHON leaves out the Python module (tests/kernels_harness.cc includes this file
+// and calls the handlers' *Impl functions directly, under the sanitizers).
+#if defined(__FAST_MATH__) || defined(_M_FP_FAST) || \
+    (defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__)
+#error "dense.cc must not be built with fast math (-ffast-math, -Ofast, /fp:fast, icx's default): it relies on IEEE NaN and rounding"
+#endif
+
+#ifndef LK_NO_PYTHON
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#endif
 
 #include <cmath>
 #include <cstdint>
@@ -34,6 +47,10 @@
 #include <cstring>
 #include <limits>
 #include <string>
+
+#if defined(_WIN32)
+#include <malloc.h>  // _aligned_malloc
+#endif
 
 #include "xla/ffi/api/ffi.h"
 
@@ -186,28 +203,61 @@ constexpr int64_t lanes_scratch(int64_t n) {
   return 4 * tri(n) + 4 * n > n * n ? 4 * tri(n) + 4 * n : n * n;
 }
 
-// A 64-byte aligned scratch buffer of doubles for one call: on the stack up to
-// kStackScratch doubles (128 KiB, the orders up to 89 of the group paths), else on the
-// heap (data is null when that allocation failed).
+// Scratch of one call: 64-byte aligned doubles, on the stack up to kStackScratch
+// doubles (128 KiB, the orders up to 89 of the group paths), else on the heap.
+// with_scratch(doubles, f) returns f(scratch); the stack array lives only in the frame
+// of stack_scratch (never inlined), so a call whose scratch is on the heap, or that
+// needs none, keeps a small frame (threads with small stacks, e.g. musl's 128 KiB).
 constexpr int64_t kStackScratch = 16384;
 
-struct Scratch {
+#if defined(__GNUC__) || defined(__clang__)
+#define LK_NOINLINE __attribute__((noinline))
+#elif defined(_MSC_VER)
+#define LK_NOINLINE __declspec(noinline)
+#else
+#define LK_NOINLINE
+#endif
+
+// 64-byte aligned heap memory (null when it fails), freed by free_aligned: the C
+// library's own aligned allocation (std::aligned_alloc is missing from MSVC and from
+// libc++ for older macOS targets).
+double* alloc_aligned(int64_t doubles) {
+  const size_t bytes = ((static_cast<size_t>(doubles) * sizeof(double) + 63) / 64) * 64;
+#if defined(_WIN32)
+  return static_cast<double*>(_aligned_malloc(bytes, 64));
+#else
+  void* p = nullptr;
+  return posix_memalign(&p, 64, bytes) == 0 ? static_cast<double*>(p) : nullptr;
+#endif
+}
+
+void free_aligned(double* p) {
+#if defined(_WIN32)
+  _aligned_free(p);
+#else
+  std::free(p);
+#endif
+}
+
+template <class F>
+LK_NOINLINE ffi::Error stack_scratch(F& f) {
   alignas(64) double stack[kStackScratch];
-  double* heap = nullptr;
-  double* data;
-  explicit Scratch(int64_t doubles) {
-    if (doubles <= kStackScratch) {
-      data = stack;
-    } else {
-      heap = static_cast<double*>(
-          std::aligned_alloc(64, ((doubles * sizeof(double) + 63) / 64) * 64));
-      data = heap;
-    }
-  }
-  ~Scratch() { std::free(heap); }
-  Scratch(const Scratch&) = delete;
-  Scratch& operator=(const Scratch&) = delete;
-};
+  return f(stack);
+}
+
+template <class F>
+LK_NOINLINE ffi::Error heap_scratch(int64_t doubles, F& f) {
+  double* heap = alloc_aligned(doubles);
+  if (heap == nullptr) return ffi::Error::Internal("out of memory");
+  ffi::Error result = f(heap);
+  free_aligned(heap);
+  return result;
+}
+
+template <class F>
+ffi::Error with_scratch(int64_t doubles, F&& f) {
+  return doubles <= kStackScratch ? stack_scratch(f) : heap_scratch(doubles, f);
+}
 
 #if defined(__GNUC__) || defined(__clang__)
 #define LK_LANES 1
@@ -469,34 +519,44 @@ ffi::Error same_dims(ffi::Span<const int64_t> a, ffi::Span<const int64_t> b) {
   return ffi::Error::Success();
 }
 
+#ifdef LK_LANES
+// LkCholesky of a batch, its groups by chol_group4/2 (scratch: lanes_scratch(n)).
+ffi::Error cholesky_lanes(const double* src, double* dst, int64_t n, int64_t batch,
+                          double* scratch) {
+  double col[kLanesMaxN];
+  const int64_t nn = n * n;
+  int64_t b = 0;
+  // the lanes of a group whose factor failed: chol_one writes their NaN pattern
+  auto redo = [&](unsigned bad, int count) {
+    for (int w = 0; w < count; ++w)
+      if (bad >> w & 1u) chol_one(src + (b + w) * nn, dst + (b + w) * nn, n, col);
+    b += count;
+  };
+#ifdef LK_AVX2
+  if (has_avx2())
+    while (b + 4 <= batch) redo(chol_group4(src + b * nn, dst + b * nn, n, scratch), 4);
+#endif
+  while (b + 2 <= batch) redo(chol_group2(src + b * nn, dst + b * nn, n, scratch), 2);
+  for (; b < batch; ++b) chol_one(src + b * nn, dst + b * nn, n, col);
+  return ffi::Error::Success();
+}
+#endif
+
 ffi::Error CholeskyImpl(ffi::Buffer<ffi::F64> a, ffi::ResultBuffer<ffi::F64> out) {
   int64_t n, batch;
   if (auto e = square_dims(a, &n, &batch); e.failure()) return e;
   if (auto e = same_dims(a.dimensions(), out->dimensions()); e.failure()) return e;
-  double col[kMaxN];
+  if (n == 0 || batch == 0) return ffi::Error::Success();
   const double* src = a.typed_data();
   double* dst = out->typed_data();
-  const int64_t nn = n * n;
-  int64_t b = 0;
 #ifdef LK_LANES
-  if (n <= kLanesMaxN) {
-    Scratch buffer(lanes_scratch(n));
-    if (buffer.data == nullptr) return ffi::Error::Internal("out of memory");
-    double* scratch = buffer.data;
-    // the lanes of a group whose factor failed: chol_one writes their NaN pattern
-    auto redo = [&](unsigned bad, int count) {
-      for (int w = 0; w < count; ++w)
-        if (bad >> w & 1u) chol_one(src + (b + w) * nn, dst + (b + w) * nn, n, col);
-      b += count;
-    };
-#ifdef LK_AVX2
-    if (has_avx2())
-      while (b + 4 <= batch) redo(chol_group4(src + b * nn, dst + b * nn, n, scratch), 4);
+  if (n <= kLanesMaxN)
+    return with_scratch(lanes_scratch(n), [&](double* scratch) {
+      return cholesky_lanes(src, dst, n, batch, scratch);
+    });
 #endif
-    while (b + 2 <= batch) redo(chol_group2(src + b * nn, dst + b * nn, n, scratch), 2);
-  }
-#endif
-  for (; b < batch; ++b) chol_one(src + b * nn, dst + b * nn, n, col);
+  double col[kMaxN];
+  for (int64_t b = 0; b < batch; ++b) chol_one(src + b * n * n, dst + b * n * n, n, col);
   return ffi::Error::Success();
 }
 
@@ -517,11 +577,11 @@ ffi::Error TriSolveImpl(ffi::Buffer<ffi::F64> l, ffi::Buffer<ffi::F64> b,
       return ffi::Error::InvalidArgument("batch dimensions of L and b differ");
   if (auto e = same_dims(b.dimensions(), out->dimensions()); e.failure()) return e;
   const int64_t k = bd[bd.size() - 1];
+  if (n == 0 || batch == 0 || k == 0) return ffi::Error::Success();
   const double* lp = l.typed_data();
   const double* bp = b.typed_data();
   double* xp = out->typed_data();
   if (xp != bp) std::memcpy(xp, bp, sizeof(double) * batch * n * k);
-  if (k == 0) return ffi::Error::Success();
   for (int64_t i = 0; i < batch; ++i) {
     const double* li = lp + i * n * n;
     double* xi = xp + i * n * k;
@@ -535,44 +595,19 @@ ffi::Error LowerInverseImpl(ffi::Buffer<ffi::F64> l, ffi::ResultBuffer<ffi::F64>
   int64_t n, batch;
   if (auto e = square_dims(l, &n, &batch); e.failure()) return e;
   if (auto e = same_dims(l.dimensions(), out->dimensions()); e.failure()) return e;
+  if (n == 0 || batch == 0) return ffi::Error::Success();
   const double* lp = l.typed_data();
   double* xp = out->typed_data();
-  if (xp == lp && n > 0)
+  if (xp == lp)
     return ffi::Error::InvalidArgument("lower_inverse cannot write over its operand");
   for (int64_t i = 0; i < batch; ++i) lower_inverse_one(lp + i * n * n, xp + i * n * n, n);
   return ffi::Error::Success();
 }
 
-// x = (a + d I)^{-1} b for each matrix of the batch: chol_one of a + d I, then forward
-// and backward_t, with the same operations as LkCholesky of a + d I followed by
-// LkTriSolve mode 2 (bitwise the same x); n <= kLanesMaxN.
-ffi::Error DampedSolveImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> d,
-                           ffi::Buffer<ffi::F64> b, ffi::ResultBuffer<ffi::F64> out) {
-  int64_t n, batch;
-  if (auto e = square_dims(a, &n, &batch); e.failure()) return e;
-  if (n > kLanesMaxN)
-    return ffi::Error::InvalidArgument("matrix order n = " + std::to_string(n) +
-                                       " exceeds the damped solve's limit of " +
-                                       std::to_string(kLanesMaxN));
-  auto ad = a.dimensions();
-  auto dd = d.dimensions();
-  auto bd = b.dimensions();
-  const size_t r = ad.size();
-  if (dd.size() + 2 != r || bd.size() + 1 != r || bd[r - 2] != n)
-    return ffi::Error::InvalidArgument("expected a (..., n, n), d (...) and b (..., n) "
-                                       "with the same batch dimensions");
-  for (size_t i = 0; i + 2 < r; ++i)
-    if (dd[i] != ad[i] || bd[i] != ad[i])
-      return ffi::Error::InvalidArgument("batch dimensions of a, d and b differ");
-  if (auto e = same_dims(b.dimensions(), out->dimensions()); e.failure()) return e;
-  const double* ap = a.typed_data();
-  const double* dp = d.typed_data();
-  const double* bp = b.typed_data();
-  double* xp = out->typed_data();
+// LkDampedSolve of a batch (n >= 1, scratch: lanes_scratch(n)).
+ffi::Error damped_batch(const double* ap, const double* dp, const double* bp, double* xp,
+                        int64_t n, int64_t batch, double* scratch) {
   const int64_t nn = n * n;
-  Scratch buffer(lanes_scratch(n));
-  if (buffer.data == nullptr) return ffi::Error::Internal("out of memory");
-  double* scratch = buffer.data;
   double col[kLanesMaxN];
   // one matrix: a + d I factored in scratch by chol_one, then the two solves
   auto one = [&](int64_t i) {
@@ -607,6 +642,34 @@ ffi::Error DampedSolveImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> d,
   return ffi::Error::Success();
 }
 
+// x = (a + d I)^{-1} b for each matrix of the batch: chol_one of a + d I, then forward
+// and backward_t, with the same operations as LkCholesky of a + d I followed by
+// LkTriSolve mode 2 (bitwise the same x); n <= kLanesMaxN.
+ffi::Error DampedSolveImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> d,
+                           ffi::Buffer<ffi::F64> b, ffi::ResultBuffer<ffi::F64> out) {
+  int64_t n, batch;
+  if (auto e = square_dims(a, &n, &batch); e.failure()) return e;
+  if (n > kLanesMaxN)
+    return ffi::Error::InvalidArgument("matrix order n = " + std::to_string(n) +
+                                       " exceeds the damped solve's limit of " +
+                                       std::to_string(kLanesMaxN));
+  auto ad = a.dimensions();
+  auto dd = d.dimensions();
+  auto bd = b.dimensions();
+  const size_t r = ad.size();
+  if (dd.size() + 2 != r || bd.size() + 1 != r || bd[r - 2] != n)
+    return ffi::Error::InvalidArgument("expected a (..., n, n), d (...) and b (..., n) "
+                                       "with the same batch dimensions");
+  for (size_t i = 0; i + 2 < r; ++i)
+    if (dd[i] != ad[i] || bd[i] != ad[i])
+      return ffi::Error::InvalidArgument("batch dimensions of a, d and b differ");
+  if (auto e = same_dims(b.dimensions(), out->dimensions()); e.failure()) return e;
+  if (n == 0 || batch == 0) return ffi::Error::Success();
+  return with_scratch(lanes_scratch(n), [&](double* scratch) {
+    return damped_batch(a.typed_data(), d.typed_data(), b.typed_data(),
+                        out->typed_data(), n, batch, scratch);
+  });
+}
 
 // ---- the smallest right singular vector (linkopt._engine.singularity) ---------------
 //
@@ -629,12 +692,13 @@ LK_INLINE double* lane_ptr(T* t) {
   return reinterpret_cast<double*>(t);
 }
 
+// v <- its square root, lane by lane (in place: a V4 passed or returned by value would
+// change the ABI between AVX2 and other code, GCC's -Wpsabi).
 template <class T>
-LK_INLINE T lane_sqrt(T v) {
+LK_INLINE void lane_sqrt(T& v) {
   double* lanes_of_v = lane_ptr(&v);
   for (size_t g = 0; g < sizeof(T) / sizeof(double); ++g)
     lanes_of_v[g] = std::sqrt(lanes_of_v[g]);
-  return v;
 }
 
 // (c, s) of the rotation that zeroes r[p, q] (dense.symmetric_eigh's rotation: the
@@ -658,7 +722,7 @@ LK_INLINE void jacobi(T* __restrict r, T* __restrict v, int64_t k, int32_t sweep
   for (int32_t sweep = 0; sweep < sweeps; ++sweep)
     for (int64_t p = 0; p < k; ++p)
       for (int64_t q = p + 1; q < k; ++q) {
-        T c, s;
+        T c = T{} * 0.0, s = T{} * 0.0;  // every lane set by jacobi_rotation
         for (int g = 0; g < count; ++g)
           jacobi_rotation(lane_ptr(&r[p * k + p])[g], lane_ptr(&r[q * k + q])[g],
                           lane_ptr(&r[p * k + q])[g], lane_ptr(&c)[g], lane_ptr(&s)[g]);
@@ -693,7 +757,9 @@ LK_INLINE void orthonormalise(T* __restrict x, int64_t n, int64_t k_) {
       }
     T norm = x[j] * x[j];
     for (int64_t i = 1; i < n; ++i) norm += x[i * k + j] * x[i * k + j];
-    const T scale = 1.0 / lane_sqrt(norm + 1e-300);
+    T root = norm + 1e-300;
+    lane_sqrt(root);
+    const T scale = 1.0 / root;
     for (int64_t i = 0; i < n; ++i) x[i * k + j] = x[i * k + j] * scale;
   }
 }
@@ -752,7 +818,8 @@ LK_INLINE void smallest_right(const T* __restrict a, T* __restrict x,
     l[i * n + i] = a[i * n + i] + added;
   }
   for (int64_t j = 0; j < n; ++j) {  // right-looking Cholesky, lower triangle
-    const T d = lane_sqrt(l[j * n + j]);
+    T d = l[j * n + j];
+    lane_sqrt(d);
     l[j * n + j] = d;
     inv_d[j] = 1.0 / d;
     for (int64_t i = j + 1; i < n; ++i) l[i * n + j] = l[i * n + j] * inv_d[j];
@@ -843,6 +910,28 @@ __attribute__((target("avx2"))) void smallest_group4(const double* a,
 #endif
 #endif  // LK_LANES
 
+// LkSmallestRight of a batch (n >= 1, scratch: smallest_scratch(n, k)).
+ffi::Error smallest_batch(const double* ap, const double* sp, double* op, int64_t n,
+                          int64_t k, int64_t batch, int32_t iterations, int32_t sweeps,
+                          double shift, double* scratch) {
+  int64_t b = 0;
+#ifdef LK_LANES
+#ifdef LK_AVX2
+  if (has_avx2())
+    for (; b + 4 <= batch; b += 4)
+      smallest_group4(ap + b * n * n, sp + b * n * k, op + b * n, n, k, iterations,
+                      sweeps, shift, scratch);
+#endif
+  for (; b + 2 <= batch; b += 2)
+    smallest_group2(ap + b * n * n, sp + b * n * k, op + b * n, n, k, iterations, sweeps,
+                    shift, scratch);
+#endif
+  for (; b < batch; ++b)
+    smallest_group1(ap + b * n * n, sp + b * n * k, op + b * n, n, k, iterations, sweeps,
+                    shift, scratch);
+  return ffi::Error::Success();
+}
+
 // out = smallest_right of each (a, start) of the batch: a (..., n, n), start
 // (..., n, k) with k <= min(n, kSmallestMaxK), out (..., n).
 ffi::Error SmallestRightImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> start,
@@ -873,25 +962,9 @@ ffi::Error SmallestRightImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> star
   const double* ap = a.typed_data();
   const double* sp = start.typed_data();
   double* op = out->typed_data();
-  Scratch buffer(smallest_scratch(n, k));
-  if (buffer.data == nullptr) return ffi::Error::Internal("out of memory");
-  double* scratch = buffer.data;
-  int64_t b = 0;
-#ifdef LK_LANES
-#ifdef LK_AVX2
-  if (has_avx2())
-    for (; b + 4 <= batch; b += 4)
-      smallest_group4(ap + b * n * n, sp + b * n * k, op + b * n, n, k, iterations,
-                      sweeps, shift, scratch);
-#endif
-  for (; b + 2 <= batch; b += 2)
-    smallest_group2(ap + b * n * n, sp + b * n * k, op + b * n, n, k, iterations, sweeps,
-                    shift, scratch);
-#endif
-  for (; b < batch; ++b)
-    smallest_group1(ap + b * n * n, sp + b * n * k, op + b * n, n, k, iterations, sweeps,
-                    shift, scratch);
-  return ffi::Error::Success();
+  return with_scratch(smallest_scratch(n, k), [&](double* scratch) {
+    return smallest_batch(ap, sp, op, n, k, batch, iterations, sweeps, shift, scratch);
+  });
 }
 }  // namespace
 
@@ -930,8 +1003,14 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(LkSmallestRight, SmallestRightImpl,
 
 // ---- the Python extension module linkopt._kernels._dense ---------------------------
 
+#ifndef LK_NO_PYTHON
+
 #ifndef LK_SOURCE_SHA256
 #define LK_SOURCE_SHA256 ""
+#endif
+// The jaxlib whose FFI headers built this module (setup.py), "" if unknown.
+#ifndef LK_JAXLIB_VERSION
+#define LK_JAXLIB_VERSION ""
 #endif
 
 namespace {
@@ -975,6 +1054,10 @@ PyObject* source_sha256(PyObject*, PyObject*) {
   return PyUnicode_FromString(LK_SOURCE_SHA256);
 }
 
+PyObject* jaxlib_version(PyObject*, PyObject*) {
+  return PyUnicode_FromString(LK_JAXLIB_VERSION);
+}
+
 PyMethodDef methods[] = {
     {"capsules", capsules, METH_NOARGS,
      "{'cholesky', 'tri_solve', 'lower_inverse', 'damped_solve', 'smallest_right'} -> a "
@@ -990,6 +1073,9 @@ PyMethodDef methods[] = {
      "(major, minor) of the XLA FFI headers the handlers were built with."},
     {"source_sha256", source_sha256, METH_NOARGS,
      "SHA-256 of the dense.cc text this module was built from ('' if unknown)."},
+    {"jaxlib_version", jaxlib_version, METH_NOARGS,
+     "The version of the jaxlib whose XLA FFI headers built this module ('' if "
+     "unknown)."},
     {nullptr, nullptr, 0, nullptr},
 };
 
@@ -1018,3 +1104,5 @@ PyModuleDef module_def = {
 }  // namespace
 
 PyMODINIT_FUNC PyInit__dense(void) { return PyModuleDef_Init(&module_def); }
+
+#endif  // LK_NO_PYTHON
