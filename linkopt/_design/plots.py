@@ -18,21 +18,20 @@ from .._engine.collision import capsule_ends, has_collision
 from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.model import Mechanism
 from .._engine.readout import joint_positions, point_positions
+from .planar import plane_normal
 
 MAGENTA = "#ff00ff"
 
 
-#: Relative spread (smallest over largest singular value of the centred rest anchors)
-#: above which a mechanism is drawn in three orthographic views, not one plane.
-SPATIAL = 1e-6
-
-
-def _planes(mech: Mechanism) -> list[tuple[int, int]]:
-    """The views of :func:`plot_mechanism`: for joint anchors and points in one plane
-    at rest (up to :data:`SPATIAL`) the two world axes with the largest spread of them
-    (a top view of a planar mechanism), and with ``[collision]`` enabled also a side
-    view, the first of them and the third axis (where layers and lifts show); else the
-    three orthographic views xy, xz, yz."""
+def mechanism_views(mech: Mechanism) -> list[tuple[int, int]]:
+    """The views of :func:`plot_mechanism`: for a planar mechanism
+    (:func:`linkopt._design.planar.plane_normal`, the test the animations use) the two
+    world axes with the largest spread of its joint anchors and points at rest (a top
+    view), and with ``[collision]`` enabled also a side view, the first of them and the
+    third axis (where layers and lifts show); else the three orthographic views xy,
+    xz, yz."""
+    if plane_normal(mech) is None:
+        return [(0, 1), (0, 2), (1, 2)]
     rest = rest_state(mech)
     anchors = np.concatenate(
         [
@@ -40,9 +39,6 @@ def _planes(mech: Mechanism) -> list[tuple[int, int]]:
             np.asarray(point_positions(mech, rest)).reshape(-1, 3),
         ]
     )
-    spread = np.linalg.svd(anchors - anchors.mean(axis=0), compute_uv=False)
-    if spread[0] > 0 and spread[-1] > SPATIAL * spread[0]:
-        return [(0, 1), (0, 2), (1, 2)]
     first, second, third = (int(k) for k in np.argsort(np.ptp(anchors, axis=0))[::-1])
     top = tuple(sorted((first, second)))
     return [top, tuple(sorted((first, third)))] if has_collision(mech) else [top]
@@ -148,7 +144,7 @@ def _draw(ax, mech: Mechanism, design, colour: str, label: str, alpha: float, pl
 
 def _views(planes: list) -> tuple:
     """The figure and its axes (flat) for the views: side by side, or a planar
-    mechanism's top view above its side view (:func:`_planes`), which is short."""
+    mechanism's top view above its side view (:func:`mechanism_views`), which is short."""
     if len(planes) == 2:
         fig, axes = figures.subplots(
             2, 1, figsize=(7.5, 9.0), height_ratios=[3, 1], constrained_layout=True
@@ -173,11 +169,11 @@ def plot_mechanism(
     """The mechanism at rest (joint circles, motor squares, ground triangles, point
     stars); several designs are overlaid, the first in grey. A planar mechanism is
     drawn in its plane, a spatial one (anchors not in one plane) in three orthographic
-    views (:func:`_planes`). With ``[collision]`` enabled the link solids are drawn
+    views (:func:`mechanism_views`). With ``[collision]`` enabled the link solids are drawn
     too, and a planar mechanism gets a side view as well, where their layers
     show."""
     designs = designs or {"initial": None}
-    planes = _planes(mech)
+    planes = mechanism_views(mech)
     fig, axes = _views(planes)
     colours = ["0.55", "tab:blue", "tab:orange", "tab:green"]
     for ax, plane in zip(axes, planes):
