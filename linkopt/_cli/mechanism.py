@@ -41,6 +41,7 @@ def run_check(args) -> int:
             f"{len(info['idle_spins'])} idle spin(s): {', '.join(info['idle_spins'])} "
             "spin about their own axis; fixed by a gauge constraint"
         )
+    _print_collision(info["collision"])
     _print_rest_pose(info["rest_pose"])
     for line in warnings:
         print(f"linkopt: warning: {line}", file=sys.stderr)
@@ -68,6 +69,21 @@ def _rest_pose(mech) -> tuple[dict, list[str]]:
             )
         )
     return info, warnings
+
+
+def _print_collision(collision: dict | None) -> None:
+    """``[collision]``'s line of ``check``: off when the file has none."""
+    if collision is None:
+        print("collision: off (no [collision] table)")
+        return
+    state = "on" if collision["enabled"] else "off (enable = false)"
+    pairs = ", ".join("-".join(p) for p in collision["pairs"]) or "none"
+    print(
+        f"collision: {state}, clearance {collision['clearance']:g} (file units), weight "
+        f"{collision['weight']:g}, {len(collision['pairs'])} checked pair(s) "
+        f"({pairs}; {collision['capsule_pairs']} capsule pair(s) of "
+        f"{collision['capsules']} capsules), {collision['layers']} layer(s)"
+    )
 
 
 def _print_rest_pose(rest: dict) -> None:
