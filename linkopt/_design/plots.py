@@ -144,7 +144,8 @@ def _draw(ax, mech: Mechanism, design, colour: str, label: str, alpha: float, pl
 
 def _views(planes: list) -> tuple:
     """The figure and its axes (flat) for the views: side by side, or a planar
-    mechanism's top view above its side view (:func:`mechanism_views`), which is short."""
+    mechanism's top view above its side view (:func:`mechanism_views`), which is
+    short."""
     if len(planes) == 2:
         fig, axes = figures.subplots(
             2, 1, figsize=(7.5, 9.0), height_ratios=[3, 1], constrained_layout=True
@@ -168,8 +169,8 @@ def plot_mechanism(
 ) -> Path:
     """The mechanism at rest (joint circles, motor squares, ground triangles, point
     stars); several designs are overlaid, the first in grey. A planar mechanism is
-    drawn in its plane, a spatial one (anchors not in one plane) in three orthographic
-    views (:func:`mechanism_views`). With ``[collision]`` enabled the link solids are drawn
+    drawn in its plane, a spatial one in three orthographic views
+    (:func:`mechanism_views`). With ``[collision]`` enabled the link solids are drawn
     too, and a planar mechanism gets a side view as well, where their layers
     show."""
     designs = designs or {"initial": None}
@@ -196,9 +197,13 @@ def plot_mechanism(
 def plot_convergence(
     history: Sequence[dict], path: str | Path, *, title: str = ""
 ) -> Path:
-    """The running best total (``best_total``, non-increasing within a verification
-    round) and its parts per iteration, and each iteration's best total as dots (log
-    scale); histories written before the running best have only the latter."""
+    """The returned design's total (``best_total``) and its parts per iteration, and
+    each iteration's best total as dots (log scale). The returned design is the best
+    seen, feasible first and then by total
+    (:func:`linkopt._design.optimizer.record_iteration`): its total never rises within
+    a verification round except where the first feasible design replaces a lower
+    infeasible one, marked by a dotted line; a dashed line marks each round's start
+    (the added targets change every cost)."""
     it = [h["iteration"] for h in history]
     fig, ax = figures.subplots(figsize=(7, 4.5), constrained_layout=True)
     floor = 1e-16
@@ -213,7 +218,8 @@ def plot_convergence(
             it,
             [max(h[key], floor) for h in history],
             style,
-            label=key.replace("_", " ") + (" (running)" if key == "best_total" else ""),
+            label=key.replace("_", " ")
+            + (" (returned)" if key == "best_total" else ""),
         )
     ax.semilogy(
         it,
@@ -222,10 +228,21 @@ def plot_convergence(
         alpha=0.5,
         label="iteration's best total",
     )
+    _mark_changes(ax, history)
     ax.set_xlabel("iteration")
-    ax.set_ylabel("value (running best design)")
+    ax.set_ylabel("value (returned design)")
     ax.set_title(title)
     ax.legend(fontsize=8)
     path = Path(path)
     fig.savefig(path, dpi=100)
     return path
+
+
+def _mark_changes(ax, history: Sequence[dict]) -> None:
+    """Vertical lines where a verification round starts (dashed) and where the
+    returned design first becomes feasible in a round (dotted)."""
+    for before, h in zip(history, history[1:]):
+        if h.get("round", 0) != before.get("round", 0):
+            ax.axvline(h["iteration"] - 0.5, color="0.6", linestyle="--", lw=0.8)
+        elif h.get("feasible") and not before.get("feasible"):
+            ax.axvline(h["iteration"] - 0.5, color="0.6", linestyle=":", lw=0.8)

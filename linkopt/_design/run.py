@@ -352,7 +352,10 @@ def _summary(
     final: Evaluation,
     checks: dict,
 ) -> dict:
-    """The contents of ``summary.json``."""
+    """The contents of ``summary.json``; ``f_design`` and its parts are the run's
+    last history record's, the returned design's numbers that the progress line and
+    ``history.csv`` give (:func:`linkopt._design.optimizer.record_iteration`)."""
+    last = run.history[-1]
     return {
         "mechanism": mech.source,
         "iterations": run.iteration,
@@ -360,10 +363,10 @@ def _summary(
         "wall_time": run.history[-1]["wall_time"],
         "design": dict(zip(mech.design.names, map(float, design))),
         "initial_design": dict(zip(mech.design.names, map(float, mech.design.p0))),
-        "f_design": float(final.f_design),
-        "reach": float(final.reach),
-        "singularity": float(final.singularity),
-        "regularizer": float(final.regularizer),
+        "f_design": float(last["best_f_design"]),
+        "reach": float(last["reach"]),
+        "singularity": float(last["singularity"]),
+        "regularizer": float(last["regularizer"]),
         "verified": checks["optimized"]["passed"],
         "initial_verified": checks["initial"]["passed"],
         "verification_rounds": [
