@@ -389,6 +389,13 @@ def test_run_outputs_hold_the_optimised_file_verifications_and_figures(
     assert f"best f_design {summary['f_design']:.4e}, regulariser " in line
     assert f"regulariser {summary['regularizer']:.2e}" in line
     assert last["best_design"] == design.tolist()
+    from linkopt._design.on_bounds import on_bounds
+
+    assert summary["at_bounds"] == on_bounds(five_bar, design)
+    assert (
+        json.loads((tmp_path / "summary.json").read_text())["at_bounds"]
+        == (summary["at_bounds"])
+    )
 
 
 def test_a_killed_worker_is_replaced_and_the_numbers_do_not_change(

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from linkopt import InputError
-from linkopt._cli.optimize import _round_line
+from linkopt._cli.optimize import round_line
 from linkopt._design.checkpoint import HISTORY_FIELDS, decode, encode
 from linkopt._design.evaluation import capped, evaluate, targets
 from linkopt._design.optimizer import OptimizerSettings, start
@@ -110,11 +110,11 @@ def test_a_run_goes_on_after_a_failed_verification_and_records_its_rounds(
     # one numbering (issue 44): the progress line's round and iteration count are
     # those of the record that summary.json lists
     for record in (first, second):
-        assert _round_line(record).startswith(
+        assert round_line(record).startswith(
             f"verification round {record['round']} after {record['iteration']} "
             "iterations: "
         )
-    assert _round_line(second).endswith("failed; " + second["stopped"])
+    assert round_line(second).endswith("failed; " + second["stopped"])
     # the checkpoint holds the rounds, and a resume of the finished run keeps them
     data = json.loads((tmp_path / "run" / CHECKPOINT).read_text())
     assert len(data["rounds"]) == 2
@@ -228,7 +228,7 @@ def test_a_round_that_stops_says_why(five_bar):
     known = with_targets(five_bar, failing_places(five_bar, verify(five_bar)))
     stuck = verification_round(known, run, settings).rounds[-1]
     assert stuck["added_targets"] == [] and "IK targets already" in stuck["stopped"]
-    assert _round_line(stuck).endswith("score the same targets")
+    assert round_line(stuck).endswith("score the same targets")
     spent = dataclasses.replace(settings, verify_rounds=0)
     last = verification_round(five_bar, run, spent).rounds[-1]
     assert last["stopped"] == "no verification rounds left (--verify-rounds 0)"

@@ -62,6 +62,7 @@ def evaluation_payload(mech, ev, design=None) -> dict:
     """What ``linkopt evaluate`` reports (``--json``) for one evaluation of
     ``design`` (file units, None: the file's)."""
     from .._design.evaluation import alpha_minus, capped, rest_conditioning, targets
+    from .._design.on_bounds import on_bounds
     from .._engine.readout import output_values
 
     ik_out = np.asarray(output_values(mech, ev.ik_states, design=design))
@@ -78,6 +79,7 @@ def evaluation_payload(mech, ev, design=None) -> dict:
         "alpha_minus": alpha_minus(mech),
         "rest_pose": rest_conditioning(mech).as_json(),
         "capped_samples": dict(zip(("ik", "adversarial"), capped(mech, ev))),
+        "at_bounds": on_bounds(mech, design),
         "samples": samples,
         **_evaluated_collision(mech, ev, design),
     }
@@ -175,6 +177,11 @@ def run_evaluate(args) -> int:
         )
     if "collision" in payload:
         _print_collision(payload["collision"])
+    from .._design.on_bounds import bounds_line
+
+    line = bounds_line(payload["at_bounds"])
+    if line is not None:
+        print(f"  {line}")
     return 0
 
 

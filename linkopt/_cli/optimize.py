@@ -46,6 +46,7 @@ _SUMMARY_KEYS = (
     "verification_rounds",
     "capped_samples",
     "design",
+    "at_bounds",
     "optimized_file",
 )
 
@@ -95,7 +96,7 @@ def check_mechanism(args, mech) -> None:
     _check_work(args, mech)
 
 
-def _round_line(record: dict) -> str:
+def round_line(record: dict) -> str:
     """The progress line of a verification round (:mod:`linkopt._design.rounds`),
     numbered as ``summary.json``'s ``verification_rounds`` and ``history.csv``'s
     ``round`` are: round 0 verifies the design of the iterations of round 0."""
@@ -154,7 +155,7 @@ def _progress():
 
     def report(record: dict) -> None:
         if "passed" in record:
-            print(_round_line(record), file=sys.stderr, flush=True)
+            print(round_line(record), file=sys.stderr, flush=True)
             return
         print(iteration_line(record), file=sys.stderr, flush=True)
 
@@ -214,6 +215,11 @@ def _run_optimize(args) -> int:
     names = ("spaces_optimized.png", "convergence.png", "mechanism.png")
     figures = [str(out / name) for name in names if (out / name).is_file()]
     print(f"figures: {', '.join(figures)}", file=sys.stderr)
+    from .._design.on_bounds import bounds_line
+
+    line = bounds_line(summary["at_bounds"])
+    if line is not None:
+        print(f"linkopt: note: {line}", file=sys.stderr)
     if not summary["verified"]:
         print(
             f"linkopt: error: the optimised design does not pass verification (see "

@@ -57,6 +57,7 @@ from .._folders import check_path, run_folder, staged, write_atomic
 from .checkpoint import CHECKPOINT, HISTORY_FIELDS, check_match, decode, encode, read
 from .collision import history_fields, summary_entry
 from .evaluation import Evaluation, alpha_minus, capped, evaluate_in_batch, targets
+from .on_bounds import BOUND_TOLERANCE, on_bounds
 from .optimizer import OptimizerSettings, SwarmRun, best_design, start, step
 from .rounds import verification_round, wants_round, with_targets
 from .workers import Workers, chunk_slices
@@ -367,6 +368,8 @@ def _summary(
         "reach": float(last["reach"]),
         "singularity": float(last["singularity"]),
         "regularizer": float(last["regularizer"]),
+        "at_bounds": on_bounds(mech, design),
+        "bound_tolerance": BOUND_TOLERANCE,
         "verified": checks["optimized"]["passed"],
         "initial_verified": checks["initial"]["passed"],
         "verification_rounds": [
