@@ -49,3 +49,21 @@ def test_a_linear_motors_map_axis_is_in_the_files_unit(tmp_path, monkeypatch):
     assert motor_axes.get_xlabel() == "motor left (mm)"
     assert motor_axes.get_ylabel() == "motor right (mm)"
     assert output_axes.get_xlabel() == "output x (mm)"
+
+
+def test_the_mechanism_figures_axes_are_in_the_files_unit(tmp_path, monkeypatch):
+    from linkopt._design.plots import plot_mechanism
+
+    made = []
+    original = _figures.subplots
+
+    def subplots(*args, **kwargs):
+        fig, axes = original(*args, **kwargs)
+        made.append(fig)
+        return fig, axes
+
+    monkeypatch.setattr(_figures, "subplots", subplots)
+    mech = linkopt.load(MECHANISMS / "slider_crank_linear.toml")
+    plot_mechanism(mech, tmp_path / "m.png")
+    (fig,) = made
+    assert (fig.axes[0].get_xlabel(), fig.axes[0].get_ylabel()) == ("x (mm)", "y (mm)")

@@ -18,6 +18,7 @@ from .._engine.collision import capsule_ends, has_collision
 from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.model import Mechanism
 from .._engine.readout import joint_positions, point_positions
+from . import labels
 from .planar import plane_normal
 
 MAGENTA = "#ff00ff"
@@ -184,8 +185,9 @@ def plot_mechanism(
                 _capsules(ax, mech, design, colour, plane)
         _target_box(ax, mech, plane)
         ax.set_aspect("equal")
-        ax.set_xlabel("xyz"[plane[0]])
-        ax.set_ylabel("xyz"[plane[1]])
+        unit = f" ({labels.length_unit(mech) or 'length units'})"
+        ax.set_xlabel("xyz"[plane[0]] + unit)
+        ax.set_ylabel("xyz"[plane[1]] + unit)
         view = "" if len(planes) == 1 else f" ({'xyz'[plane[0]]}{'xyz'[plane[1]]} view)"
         ax.set_title(f"{mech.name} at rest{view}")
     axes[0].legend(loc="best", fontsize=8)
