@@ -87,3 +87,31 @@ def test_an_internal_error_is_one_line_and_exit_3(monkeypatch, capsys):
     assert "--debug" in err
     with pytest.raises(ValueError, match="inside broke"):
         main(["--debug", "check", path])
+
+
+def test_check_shows_collision_settings(capsys, tmp_path):
+    """Regression (issue 44): ``check`` said nothing of ``[collision]``. The layered
+    four-bar checks one pair (ground and coupler: the others share a joint, or are
+    excluded) on two layers (the coupler lifted by 8 mm)."""
+    layers = MECHANISMS.parent / "tests" / "data" / "four_bar_layers.toml"
+    assert main(["check", str(layers), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)["collision"]
+    assert info["enabled"] and info["clearance"] == 1.6 and info["weight"] == 1.0
+    assert info["pairs"] == [["ground", "coupler"]] and info["layers"] == 2
+    assert info["capsules"] == 4 and info["capsule_pairs"] == 1
+    assert main(["check", str(layers)]) == 0
+    line = next(
+        ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("collision")
+    )
+    assert line.startswith("collision: on, clearance 1.6 (file units), weight 1")
+    assert "1 checked pair(s) (ground-coupler" in line and "2 layer(s)" in line
+    off = tmp_path / "off.toml"
+    off.write_text(layers.read_text().replace("enable = true", "enable = false"))
+    assert main(["check", str(off), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["collision"]["enabled"] is False
+    assert main(["check", str(off)]) == 0
+    assert "collision: off (enable = false)" in capsys.readouterr().out
+    assert main(["check", str(MECHANISMS / "five_bar.toml"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["collision"] is None
+    assert main(["check", str(MECHANISMS / "five_bar.toml")]) == 0
+    assert "collision: off (no [collision] table)" in capsys.readouterr().out

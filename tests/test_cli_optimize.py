@@ -1,6 +1,8 @@
 """``linkopt optimize``: bad settings exit 2 with one line before any run starts; a
 run that ends with no verified design exits 1 and says so."""
 
+import json
+
 import pytest
 from conftest import MECHANISMS
 
@@ -53,16 +55,24 @@ def test_a_run_that_ends_unverified_exits_one_and_says_so(
         "initial_verified": False,
         "verification_rounds": [],
         "capped_samples": {"ik": 0, "adversarial": 0},
-        "design": {},
+        "design": {"base_x": 45.0},
+        "at_bounds": {"base_x": {"bound": "upper", "value": 45.0, "limit": 45.0}},
         "optimized_file": str(tmp_path / "run" / "optimized.toml"),
     }
     monkeypatch.setattr(run, "optimize", lambda *args, **kwargs: None)
     monkeypatch.setattr(run, "write_outputs", lambda *args, **kwargs: summary)
     out = tmp_path / "run"
     assert main(["optimize", str(MECHANISMS / "five_bar.toml"), "--out", str(out)]) == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["at_bounds"] == summary["at_bounds"]
+    err = captured.err.strip().splitlines()
     assert err[-1].startswith("linkopt: error: the optimised design does not pass")
     assert str(out / "verification.json") in err[-1]
+    # the final report names the parameters on a bound (issue 44)
+    assert err[-2] == (
+        "linkopt: note: 1 parameter(s) on a bound (within 1e-06 of its range): "
+        "base_x = 45 (upper bound); the optimum may lie beyond it"
+    )
 
 
 def test_the_figures_line_names_only_the_figures_written(tmp_path, monkeypatch, capsys):
@@ -85,6 +95,7 @@ def test_the_figures_line_names_only_the_figures_written(tmp_path, monkeypatch, 
             "verification_rounds": [],
             "capped_samples": {"ik": 0, "adversarial": 0},
             "design": {},
+            "at_bounds": {},
             "optimized_file": str(out / "optimized.toml"),
         }
 

@@ -374,6 +374,28 @@ def test_run_outputs_hold_the_optimised_file_verifications_and_figures(
     assert summary["f_design"] == pytest.approx(
         float(evaluate(five_bar, design).f_design), rel=1e-9, abs=1e-30
     )
+    # one record (issues 44, 45): summary, history.csv and the progress line give the
+    # returned design's numbers
+    last = run.history[-1]
+    for key, column in (("f_design", "best_f_design"), ("regularizer", "regularizer")):
+        assert summary[key] == last[column]
+    rows = (tmp_path / "history.csv").read_text().splitlines()
+    row = dict(zip(rows[0].split(","), rows[-1].split(",")))
+    assert float(row["best_f_design"]) == summary["f_design"]
+    assert float(row["regularizer"]) == summary["regularizer"]
+    from linkopt._cli.optimize import iteration_line
+
+    line = iteration_line(last)
+    assert f"best f_design {summary['f_design']:.4e}, regulariser " in line
+    assert f"regulariser {summary['regularizer']:.2e}" in line
+    assert last["best_design"] == design.tolist()
+    from linkopt._design.on_bounds import on_bounds
+
+    assert summary["at_bounds"] == on_bounds(five_bar, design)
+    assert (
+        json.loads((tmp_path / "summary.json").read_text())["at_bounds"]
+        == (summary["at_bounds"])
+    )
 
 
 def test_a_killed_worker_is_replaced_and_the_numbers_do_not_change(

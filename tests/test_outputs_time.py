@@ -14,7 +14,7 @@ from conftest import ROOT
 import linkopt
 from linkopt._design import maps
 from linkopt._design.checkpoint import decode, encode
-from linkopt._design.optimizer import OptimizerSettings, record_iteration, start
+from linkopt._design.optimizer import OptimizerSettings, reopen, score, start
 from linkopt._design.plots import plot_mechanism
 
 ARM = ROOT / "tests/data/arm_3r.toml"
@@ -90,7 +90,7 @@ def test_spatial_mechanism_is_drawn_in_three_views(arm, tmp_path):
 
 
 class _Ev:
-    """The four per-particle arrays :func:`record_iteration` reads, with
+    """The four per-particle arrays :func:`score` reads, with
     ``f_design`` = 0.9 of the total and the regulariser the rest."""
 
     def __init__(self, totals):
@@ -105,9 +105,8 @@ SETTINGS = OptimizerSettings(particles=2, iterations=10, seed=0)
 ITERATIONS = [[3.0, 4.0], [5.0, 1.0], [2.0, 6.0], [0.5, 9.0], [np.nan, 7.0]]
 
 
-def _advance(run, totals):
-    ev = _Ev(totals)
-    run = record_iteration(run, ev, ev.f_design + ev.regularizer)
+def _advance(run, totals, settings=SETTINGS):
+    run, _ = score(FIVE_BAR, run, _Ev(totals), settings)
     *done, last = run.history
     return dataclasses.replace(
         run,
@@ -116,9 +115,14 @@ def _advance(run, totals):
     )
 
 
-def test_best_total_is_the_running_best_and_survives_a_resume(tmp_path):
-    five_bar = linkopt.load(ROOT / "mechanisms/five_bar.toml")
-    run = dataclasses.replace(start(five_bar, SETTINGS), result_pos=five_bar.design.p0)
+FIVE_BAR = linkopt.load(ROOT / "mechanisms/five_bar.toml")
+
+
+def test_best_total_is_the_returned_designs_and_survives_a_resume(tmp_path):
+    """Nothing feasible (``f_design`` far above the tolerance): the returned design
+    is the lowest total seen."""
+    five_bar = FIVE_BAR
+    run = start(five_bar, SETTINGS)
     for totals in ITERATIONS[:2]:
         run = _advance(run, totals)
     data = json.loads(json.dumps(encode(run, five_bar, SETTINGS), allow_nan=True))
@@ -128,9 +132,58 @@ def test_best_total_is_the_running_best_and_survives_a_resume(tmp_path):
     best = [h["best_total"] for h in run.history]
     assert best == [h["best_total"] for h in resumed.history] == [3, 1, 1, 0.5, 0.5]
     assert [h["iteration_total"] for h in run.history] == [3, 1, 2, 0.5, 7]
-    for h in run.history:  # the parts are the running best design's
+    for h in run.history:  # the parts are the returned design's
         assert h["best_f_design"] + h["regularizer"] == pytest.approx(h["best_total"])
-    # a verification round changes the targets: the running best starts again
+        assert not h["feasible"]
+    # a verification round changes the targets: the numbers start again
     rounds = ({"added_targets": [[0.0, 40.0]]},)
-    after = _advance(dataclasses.replace(run, rounds=rounds), [8.0, 9.0])
+    again = reopen(dataclasses.replace(run, finished=True, rounds=rounds), SETTINGS)
+    after = _advance(again, [8.0, 9.0])
     assert after.history[-1]["best_total"] == 8.0 and after.history[-1]["round"] == 1
+
+
+def test_the_history_follows_the_returned_design_feasible_first():
+    """Regression (issues 44, 45): the progress line paired the lowest f_design of any
+    iteration with another design's regulariser, and history.csv's running best
+    (lowest total) was not the returned design (feasible first). Here particle 1 is
+    feasible (f_design ≤ tolerance) from the second iteration, with a higher total than
+    particle 0: the record is particle 1's from then on, and the returned design's key
+    (infeasible, total) never rises."""
+    settings = dataclasses.replace(SETTINGS, tolerance=0.05)
+    run = start(FIVE_BAR, settings)
+    # (f_design, regulariser) of particles 0 and 1: particle 0 is never feasible
+    for pairs in (
+        [(3.0, 0.0), (4.0, 0.0)],
+        [(0.5, 0.0), (0.01, 1.09)],
+        [(0.2, 0.0), (0.02, 1.03)],
+        [(0.1, 0.0), (0.03, 1.05)],
+        [(0.4, 0.0), (0.04, 0.86)],
+    ):
+        run = _advance_by(run, pairs, settings)
+    history = run.history
+    assert [h["feasible"] for h in history] == [False, True, True, True, True]
+    assert [h["best_total"] for h in history] == pytest.approx(
+        [3.0, 1.1, 1.05, 1.05, 0.9]
+    )
+    assert [h["best_f_design"] for h in history] == [3.0, 0.01, 0.02, 0.02, 0.04]
+    assert [h["regularizer"] for h in history] == [0.0, 1.09, 1.03, 1.03, 0.86]
+    assert [h["iteration_total"] for h in history] == [3.0, 0.5, 0.2, 0.1, 0.4]
+    np.testing.assert_array_equal(history[-1]["best_design"], run.position[1])
+    keys = [(not h["feasible"], h["best_total"]) for h in history]
+    assert all(b <= a for a, b in zip(keys, keys[1:]))
+    from linkopt._cli.optimize import iteration_line
+
+    line = iteration_line(history[2])
+    assert "best f_design 2.0000e-02, regulariser 1.03e+00 (feasible;" in line
+
+
+def _advance_by(run, pairs, settings):
+    """:func:`_advance` with each particle's ``f_design`` and regulariser given."""
+    ev = _Ev([0.0] * len(pairs))
+    ev.f_design = np.array([p[0] for p in pairs])
+    ev.regularizer = np.array([p[1] for p in pairs])
+    ev.reach, ev.singularity = ev.f_design, 0.0 * ev.f_design
+    run, _ = score(FIVE_BAR, run, ev, settings)
+    *done, last = run.history
+    last = {**last, "wall_time": float(run.iteration)}
+    return dataclasses.replace(run, iteration=run.iteration + 1, history=(*done, last))

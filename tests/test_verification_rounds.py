@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from linkopt import InputError
+from linkopt._cli.optimize import round_line
 from linkopt._design.checkpoint import HISTORY_FIELDS, decode, encode
 from linkopt._design.evaluation import capped, evaluate, targets
 from linkopt._design.optimizer import OptimizerSettings, start
@@ -106,6 +107,14 @@ def test_a_run_goes_on_after_a_failed_verification_and_records_its_rounds(
     assert second["added_targets"] == []  # the budget of one round is spent
     assert run.iteration == 2 and run.finished
     assert [r["round"] for r in seen if "passed" in r] == [0, 1]
+    # one numbering (issue 44): the progress line's round and iteration count are
+    # those of the record that summary.json lists
+    for record in (first, second):
+        assert round_line(record).startswith(
+            f"verification round {record['round']} after {record['iteration']} "
+            "iterations: "
+        )
+    assert round_line(second).endswith("failed; " + second["stopped"])
     # the checkpoint holds the rounds, and a resume of the finished run keeps them
     data = json.loads((tmp_path / "run" / CHECKPOINT).read_text())
     assert len(data["rounds"]) == 2
@@ -185,3 +194,41 @@ def test_the_last_round_serves_the_default_resolution_asked_for(five_bar):
     assert last_round_verification(five_bar, run, design, default) == {}
     assert last_round_verification(five_bar, run, design, default + 2) is None
     assert last_round_verification(five_bar, run, design + 1.0, None) is None
+
+
+def test_an_infeasible_design_whose_samples_see_no_singularity_gets_a_round(
+    five_bar,
+):
+    """Regression (issue 44): rounds ran only once a design was feasible, so a design
+    whose samples read no singularity while the grid held one never had the grid's
+    worst cells added. A finished, infeasible run whose returned design's samples show
+    no singularity is verified, and the failing places join the targets."""
+    settings = dataclasses.replace(LAX, tolerance=1e-12, iterations=4, verify_rounds=1)
+    run = dataclasses.replace(
+        _finished_at_p0(five_bar, settings), result_feasible=False, result_total=0.3
+    )
+    clear = {**run.history[-1], "best_f_design": 0.3, "reach": 0.3}
+    run = dataclasses.replace(run, history=(clear,))
+    assert wants_round(run, settings)
+    reopened = verification_round(five_bar, run, settings)
+    (record,) = reopened.rounds
+    assert record["feasible"] is False and not record["passed"]
+    assert len(record["added_targets"]) == 2 and not reopened.finished
+    assert reopened.limit == run.iteration + settings.iterations
+    # samples that show the singularity already: no round before feasibility
+    seen = {**clear, "singularity": 2.0, "best_f_design": 2.3}
+    assert not wants_round(dataclasses.replace(run, history=(seen,)), settings)
+
+
+def test_a_round_that_stops_says_why(five_bar):
+    """A failed round that does not go on records why, and the progress line says it:
+    its places are targets already, or no rounds are left."""
+    settings = dataclasses.replace(LAX, verify_rounds=1)
+    run = _finished_at_p0(five_bar, settings)
+    known = with_targets(five_bar, failing_places(five_bar, verify(five_bar)))
+    stuck = verification_round(known, run, settings).rounds[-1]
+    assert stuck["added_targets"] == [] and "IK targets already" in stuck["stopped"]
+    assert round_line(stuck).endswith("score the same targets")
+    spent = dataclasses.replace(settings, verify_rounds=0)
+    last = verification_round(five_bar, run, spent).rounds[-1]
+    assert last["stopped"] == "no verification rounds left (--verify-rounds 0)"

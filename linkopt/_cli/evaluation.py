@@ -62,6 +62,7 @@ def evaluation_payload(mech, ev, design=None) -> dict:
     """What ``linkopt evaluate`` reports (``--json``) for one evaluation of
     ``design`` (file units, None: the file's)."""
     from .._design.evaluation import alpha_minus, capped, rest_conditioning, targets
+    from .._design.on_bounds import on_bounds
     from .._engine.readout import output_values
     from .payloads import held_at_limits
 
@@ -79,6 +80,7 @@ def evaluation_payload(mech, ev, design=None) -> dict:
         "alpha_minus": alpha_minus(mech),
         "rest_pose": rest_conditioning(mech).as_json(),
         "capped_samples": dict(zip(("ik", "adversarial"), capped(mech, ev))),
+        "at_bounds": on_bounds(mech, design),
         "samples": samples,
         **_evaluated_collision(mech, ev, design),
         **held_at_limits(mech, ev),
@@ -181,6 +183,11 @@ def run_evaluate(args) -> int:
 
     if line := held_line(payload.get("motor_limits", {})):
         print(line)
+    from .._design.on_bounds import bounds_line
+
+    line = bounds_line(payload["at_bounds"])
+    if line is not None:
+        print(f"  {line}")
     return 0
 
 

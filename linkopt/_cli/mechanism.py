@@ -11,7 +11,7 @@ import sys
 
 import numpy as np
 
-from .values import MAX_ROWS, design_arg, load, read_values
+from .values import MAX_ROWS, at_design, design_arg, load, read_values
 
 
 def _print_table(title: str, items: dict) -> None:
@@ -23,24 +23,32 @@ def _print_table(title: str, items: dict) -> None:
 def run_check(args) -> int:
     """Exit 0 for a valid file, warnings included: a rest pose near a singularity is
     a valid mechanism (the file may set ``alpha_minus``), so it is said, not
-    refused."""
+    refused. With ``--design``, the file at that design (:func:`.values.at_design`)."""
     mech = load(args.file)
+    design = design_arg(mech, args.design)
+    mech = at_design(mech, design)
     from . import payloads
 
     info = payloads.summary(mech)
+    if design is not None:
+        info["design"] = dict(zip(mech.design.names, map(float, design)))
     info["rest_pose"], warnings = _rest_pose(mech)
     info["warnings"] = warnings
     if args.json:
         print(json.dumps(info, indent=2))
         return 0
     count = f" with {len(warnings)} warning(s)" if warnings else ""
-    print(f"{info['name']} ({info['file']}): OK{count}")
+    at = ""
+    if "design" in info:
+        at = " at design " + ", ".join(f"{k}={v:g}" for k, v in info["design"].items())
+    print(f"{info['name']} ({info['file']}){at}: OK{count}")
     _print_summary(info)
     if info["idle_spins"]:
         print(
             f"{len(info['idle_spins'])} idle spin(s): {', '.join(info['idle_spins'])} "
             "spin about their own axis; fixed by a gauge constraint"
         )
+    _print_collision(info["collision"])
     _print_rest_pose(info["rest_pose"])
     for line in warnings:
         print(f"linkopt: warning: {line}", file=sys.stderr)
@@ -68,6 +76,21 @@ def _rest_pose(mech) -> tuple[dict, list[str]]:
             )
         )
     return info, warnings
+
+
+def _print_collision(collision: dict | None) -> None:
+    """``[collision]``'s line of ``check``: off when the file has none."""
+    if collision is None:
+        print("collision: off (no [collision] table)")
+        return
+    state = "on" if collision["enabled"] else "off (enable = false)"
+    pairs = ", ".join("-".join(p) for p in collision["pairs"]) or "none"
+    print(
+        f"collision: {state}, clearance {collision['clearance']:g} (file units), "
+        f"weight {collision['weight']:g}, {len(collision['pairs'])} checked pair(s) "
+        f"({pairs}; {collision['capsule_pairs']} capsule pair(s) of "
+        f"{collision['capsules']} capsules), {collision['layers']} layer(s)"
+    )
 
 
 def _print_rest_pose(rest: dict) -> None:
@@ -285,6 +308,13 @@ def register(subparsers) -> None:
         "check", help="validate a mechanism file and summarise it"
     )
     check.add_argument("file")
+    check.add_argument(
+        "--design",
+        help=(
+            "design values in parameter order (comma-separated), or a mechanism file "
+            "with the same parameters: summarise the file at that design"
+        ),
+    )
     check.add_argument("--json", action="store_true", help="machine-readable output")
     check.set_defaults(run=run_check)
     for kind, what, text, run in (

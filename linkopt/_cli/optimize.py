@@ -48,6 +48,7 @@ _SUMMARY_KEYS = (
     "verification_rounds",
     "capped_samples",
     "design",
+    "at_bounds",
     "optimized_file",
 )
 
@@ -97,11 +98,13 @@ def check_mechanism(args, mech) -> None:
     _check_work(args, mech)
 
 
-def _round_line(record: dict) -> str:
-    """The progress line of a verification round (:mod:`linkopt._design.rounds`)."""
+def round_line(record: dict) -> str:
+    """The progress line of a verification round (:mod:`linkopt._design.rounds`),
+    numbered as ``summary.json``'s ``verification_rounds`` and ``history.csv``'s
+    ``round`` are: round 0 verifies the design of the iterations of round 0."""
     head = (
-        f"verification {record['round'] + 1} after iteration "
-        f"{record['iteration'] - 1}: coverage {record['coverage']:.3f}, max f_sing "
+        f"verification round {record['round']} after {record['iteration']} "
+        f"iterations: coverage {record['coverage']:.3f}, max f_sing "
         f"{record['max_f_sing']:.4g} (threshold {record['threshold']:.4g})"
     )
     if record["passed"]:
@@ -111,7 +114,26 @@ def _round_line(record: dict) -> str:
             ", ".join(f"{v:.6g}" for v in t) for t in record["added_targets"]
         )
         return head + f": failed; going on with IK targets added at ({places})"
-    return head + ": failed; no verification rounds left"
+    return head + ": failed; " + record.get("stopped", "no verification rounds left")
+
+
+def iteration_line(record: dict) -> str:
+    """The progress line of an iteration: the returned design's ``f_design`` and
+    regulariser, from the history record that ``history.csv``, ``summary.json`` and
+    the convergence plot read (:func:`linkopt._design.optimizer.record_iteration`),
+    and this iteration's best particle's ``f_design``."""
+    done = record["iteration"] + 1
+    elapsed = record["wall_time"]
+    remaining = elapsed / done * (record["limit"] - done)
+    feasible = "feasible" if record.get("feasible") else "not feasible"
+    round_ = f" (round {record['round']})" if record.get("round") else ""
+    return (
+        f"iteration {record['iteration']:4d}{round_}  best f_design "
+        f"{record['best_f_design']:.4e}, regulariser {record['regularizer']:.2e} "
+        f"({feasible}; this iteration's best f_design "
+        f"{record['iteration_f_design']:.4e})"
+        f"  elapsed {elapsed:6.1f} s  at most {remaining:6.1f} s left"
+    )
 
 
 def _check_work(args, mech) -> None:
@@ -135,20 +157,9 @@ def _progress():
 
     def report(record: dict) -> None:
         if "passed" in record:
-            print(_round_line(record), file=sys.stderr, flush=True)
+            print(round_line(record), file=sys.stderr, flush=True)
             return
-        done = record["iteration"] + 1
-        elapsed = record["wall_time"]
-        remaining = elapsed / done * (record["limit"] - done)
-        print(
-            f"iteration {record['iteration']:4d}  best f_design "
-            f"{record['best_f_design_overall']:.4e}"
-            f" (this iteration {record['iteration_f_design']:.4e}, regulariser "
-            f"{record['regularizer']:.2e})"
-            f"  elapsed {elapsed:6.1f} s  at most {remaining:6.1f} s left",
-            file=sys.stderr,
-            flush=True,
-        )
+        print(iteration_line(record), file=sys.stderr, flush=True)
 
     return report
 
@@ -206,6 +217,11 @@ def _run_optimize(args) -> int:
     names = ("spaces_optimized.png", "convergence.png", "mechanism.png")
     figures = [str(out / name) for name in names if (out / name).is_file()]
     print(f"figures: {', '.join(figures)}", file=sys.stderr)
+    from .._design.on_bounds import bounds_line
+
+    line = bounds_line(summary["at_bounds"])
+    if line is not None:
+        print(f"linkopt: note: {line}", file=sys.stderr)
     if not summary["verified"]:
         print(
             f"linkopt: error: the optimised design does not pass verification (see "

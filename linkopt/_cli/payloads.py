@@ -69,6 +69,28 @@ def summary(mech: Mechanism) -> dict:
             n: {"type": t, "anchor": [float(v) for v in a]}
             for n, t, a in zip(mech.joint_names, mech.joint_types, mech.anchors)
         },
+        "collision": collision_summary(mech),
+    }
+
+
+def collision_summary(mech: Mechanism) -> dict | None:
+    """``[collision]`` as ``check`` reports it (None without the table): whether it is
+    enabled, the clearance (file units) and weight, the checked body pairs (by name),
+    the capsules and capsule pairs, and the layers (distinct body layer offsets)."""
+    c = mech.collision
+    if c is None:
+        return None
+    layers = np.unique(np.round(np.asarray(c.body_offsets, dtype=float), 12), axis=0)
+    return {
+        "enabled": bool(c.enabled),
+        "clearance": float(c.clearance),
+        "weight": float(c.weight),
+        "pairs": [
+            [mech.body_names[a], mech.body_names[b]] for a, b in np.asarray(c.pairs)
+        ],
+        "capsules": len(c.segment_bodies),
+        "capsule_pairs": len(c.capsule_pairs),
+        "layers": len(layers),
     }
 
 

@@ -209,3 +209,21 @@ def _within_bounds(mech, values: np.ndarray, where: str) -> np.ndarray:
             f"[{mech.design.lower[k]:g}, {mech.design.upper[k]:g}]"
         )
     return values
+
+
+def at_design(mech, design: np.ndarray | None):
+    """``mech`` with ``design`` as its file's design (None: ``mech``): the mechanism
+    that the file written at ``design`` (``optimize``'s ``optimized.toml``) reads back
+    as, with the file's own ``alpha_minus`` (or none) and checks, so ``check
+    --design`` reports what ``check`` of that file would."""
+    if design is None:
+        return mech
+    from .._files.loader import build
+    from .._files.writer import design_definition
+
+    data = design_definition(mech, design, 0.0)
+    if mech.evaluation.alpha_minus is None:
+        del data["evaluation"]["alpha_minus"]
+    else:
+        data["evaluation"]["alpha_minus"] = float(mech.evaluation.alpha_minus)
+    return build(data, mech.source)

@@ -2,9 +2,9 @@
 ``linkopt animate`` and an optimisation run's ``motion_*.gif``). The frames, the path
 and the default loop are :mod:`linkopt._design.motion`'s.
 
-A mechanism is planar when its rest joint anchors lie in one plane (to
-``PLANAR_TOLERANCE`` of its reference length) and every joint axis is normal to it; it
-is drawn in that plane (the world axes' names when the plane is a coordinate plane),
+A planar mechanism (:func:`linkopt._design.planar.plane_normal`, the test the
+mechanism figure uses too: a prismatic axis in the plane keeps it planar) is drawn in
+its plane (the world axes' names when the plane is a coordinate plane),
 others in a fixed 3-D view. Each moving body is the outline of the convex hull of its
 joint anchors and named points in their best-fit plane (a segment when they are
 collinear; members inside the hull are not on it), all bodies coloured by the
@@ -29,8 +29,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.colors import LogNorm
 
 from .. import _figures as figures
-from .._engine.geometry import design_vector, geometry
-from .._engine.model import AXIAL_JOINTS, Mechanism
+from .._engine.model import Mechanism
 from .motion import (
     DEFAULT_FRAMES,
     Motion,
@@ -38,12 +37,10 @@ from .motion import (
     motion,
     unreached_message,
 )
+from .planar import plane_basis
 
 #: Frames per second of the GIF.
 FPS = 15
-#: Out-of-plane spread of the anchors and axes, relative to the reference length, below
-#: which a mechanism is drawn in its plane.
-PLANAR_TOLERANCE = 1e-9
 MAGENTA = "#ff00ff"
 
 
@@ -56,31 +53,6 @@ def colour_norm(values: Float[np.ndarray, " T"], f_sing_range=None) -> LogNorm:
     values = np.asarray(values)[np.isfinite(values)]
     low = max(float(np.min(values)), 1e-3)
     return LogNorm(vmin=low, vmax=max(float(np.percentile(values, 99)), low * 10))
-
-
-def plane_basis(mech: Mechanism, design=None) -> np.ndarray | None:
-    """``(2, 3)`` orthonormal in-plane axes of a planar mechanism (module docstring),
-    world axes where the plane is a coordinate plane; None for a spatial one."""
-    geom = geometry(mech, design_vector(mech, design))
-    anchors = np.asarray(geom.anchors) * mech.length_scale
-    centred = anchors - anchors.mean(axis=0)
-    _, sigma, vt = np.linalg.svd(centred, full_matrices=True)
-    axes = np.asarray(geom.axes)[[t in AXIAL_JOINTS for t in mech.joint_types]]
-    tol = PLANAR_TOLERANCE * mech.length_scale
-    if len(axes) and (len(sigma) < 2 or sigma[1] <= tol):
-        normal = axes[0]  # anchors on a line (or one point): the axes choose the plane
-    else:
-        normal = vt[2]
-    if np.max(np.abs(centred @ normal), initial=0.0) > tol:
-        return None
-    if len(axes) and np.max(np.linalg.norm(np.cross(axes, normal), axis=1)) > 1e-9:
-        return None
-    k = int(np.argmax(np.abs(normal)))
-    if abs(normal[k]) >= 1.0 - 1e-12:
-        return np.eye(3)[[i for i in range(3) if i != k]]
-    first = np.cross(normal, np.eye(3)[int(np.argmin(np.abs(normal)))])
-    first /= np.linalg.norm(first)
-    return np.stack([first, np.cross(normal, first)])
 
 
 def _members(mech: Mechanism, body: int) -> np.ndarray:

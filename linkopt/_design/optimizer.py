@@ -43,14 +43,14 @@ the run for up to ``iterations`` more iterations, at most ``verify_rounds`` time
 from __future__ import annotations
 
 import dataclasses
-import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from jaxtyping import Bool, Float
 
 from .._engine.model import Mechanism
-from .collision import history_columns
+from .collision import COLLISION_COLUMNS, history_columns
 from .evaluation import Evaluation, alpha_minus
 from .settings import OptimizerSettings
 from .swarm import BoundaryHandler, Star, compute_pbest, compute_position, create_swarm
@@ -184,22 +184,32 @@ def _update_bests(run: SwarmRun, swarm, costs: np.ndarray) -> SwarmRun:
 
 
 def _update_result(
-    run: SwarmRun, feasible: np.ndarray, costs: np.ndarray, settings: OptimizerSettings
-) -> SwarmRun:
+    run: SwarmRun,
+    feasible: np.ndarray,
+    costs: np.ndarray,
+    settings: OptimizerSettings,
+    swarm_improved: bool,
+) -> tuple[SwarmRun, int | None]:
     """Keep the best design seen (feasible first, then by total) and count stalled
-    iterations."""
+    iterations; also the particle of this iteration that is now the returned design,
+    or None when it is an earlier one. ``swarm_improved``: whether this iteration
+    lowered the swarm's best total (then the swarm's best is this iteration's best
+    particle, pyswarms' star topology)."""
     if not feasible.any():
+        chosen = None
         if not run.result_feasible:  # nothing feasible yet: the swarm's best
             run = dataclasses.replace(
                 run,
                 result_pos=np.asarray(run.best_pos).copy(),
                 result_total=run.best_cost,
             )
-        return dataclasses.replace(run, stalled=run.stalled + 1)
+            chosen = _iteration_best(costs) if swarm_improved else None
+        return dataclasses.replace(run, stalled=run.stalled + 1), chosen
     k = int(np.argmin(np.where(feasible, costs, np.inf)))
     improved = not run.result_feasible or costs[k] < run.result_total * (
         1.0 - settings.improvement
     )
+    chosen = None
     if not run.result_feasible or costs[k] < run.result_total:
         run = dataclasses.replace(
             run,
@@ -207,11 +217,12 @@ def _update_result(
             result_total=float(costs[k]),
             result_feasible=True,
         )
-    return dataclasses.replace(run, stalled=0 if improved else run.stalled + 1)
+        chosen = k
+    return dataclasses.replace(run, stalled=0 if improved else run.stalled + 1), chosen
 
 
-#: The history columns that describe the running best design (:func:`record_iteration`).
-RUNNING_PARTS = ("best_f_design", "regularizer", "reach", "singularity")
+#: The history columns that describe the returned design (:func:`record_iteration`).
+RUNNING_PARTS = ("best_total", "best_f_design", "regularizer", "reach", "singularity")
 
 
 def _iteration_best(costs: np.ndarray) -> int:
@@ -220,46 +231,60 @@ def _iteration_best(costs: np.ndarray) -> int:
     return int(np.argmin(np.where(np.isnan(costs), np.inf, costs)))
 
 
-def _running_best(
-    run: SwarmRun, ev: Evaluation, costs: np.ndarray, extra: dict | None = None
-) -> dict:
-    """``best_total`` and its parts for the history: the lowest total evaluated so far
-    in this round of the run, so that the column never rises within a round.
-
-    A verification round adds IK targets, which changes every cost (:func:`reopen`
-    forgets the bests for the same reason), so the running best restarts with the
-    round: the record's ``round`` says which round it belongs to. Before this,
-    ``best_total`` was the iteration's best particle and could rise. ``extra``: more
-    columns of the iteration's best particle, kept with the running best as its parts
-    are (the collision columns, :func:`linkopt._design.collision.history_columns`)."""
-    best = _iteration_best(costs)
-    current = {
-        "best_total": float(costs[best]),
-        "best_f_design": float(ev.f_design[best]),
-        "regularizer": float(ev.regularizer[best]),
-        "reach": float(ev.reach[best]),
-        "singularity": float(ev.singularity[best]),
-        **(extra or {}),
+def _parts(ev: Evaluation, costs: np.ndarray, k: int, extra: dict) -> dict:
+    """Particle ``k``'s total and its parts, as the history names them."""
+    return {
+        "best_total": float(costs[k]),
+        "best_f_design": float(ev.f_design[k]),
+        "regularizer": float(ev.regularizer[k]),
+        "reach": float(ev.reach[k]),
+        "singularity": float(ev.singularity[k]),
+        **extra,
     }
+
+
+def _returned_parts(
+    run: SwarmRun,
+    ev: Evaluation,
+    costs: np.ndarray,
+    chosen: int | None,
+    columns: Callable[[int], dict],
+) -> dict:
+    """``best_total`` and its parts for the history: those of the design the run
+    returns (:func:`best_design`; feasible first, then by total), so that the progress
+    line, ``history.csv``, ``summary.json`` and the convergence plot give one design's
+    numbers. ``chosen``: the particle of this iteration that is that design
+    (:func:`_update_result`), else the design is an earlier one and its numbers carry
+    over from the previous record. A verification round adds IK targets, which changes
+    every cost (:func:`reopen` forgets the returned design's for the same reason), so
+    the numbers restart with the round; the record's ``round`` says which round it
+    belongs to. ``columns(k)``: more columns of particle ``k`` (the collision columns,
+    :func:`linkopt._design.collision.history_columns`)."""
     previous = run.history[-1] if run.history else None
-    if previous is None or previous.get("round", 0) != len(run.rounds):
-        return current
-    if not previous["best_total"] <= current["best_total"]:  # NaN-safe: NaN loses
-        return current
-    return {k: previous.get(k, math.nan) for k in current}
+    same_round = previous is not None and previous.get("round", 0) == len(run.rounds)
+    if chosen is None and same_round:
+        keys = (*RUNNING_PARTS, *COLLISION_COLUMNS)
+        return {k: previous[k] for k in keys if k in previous}
+    k = _iteration_best(costs) if chosen is None else chosen  # nothing finite yet
+    return _parts(ev, costs, k, columns(k))
 
 
 def record_iteration(
-    run: SwarmRun, ev: Evaluation, costs: np.ndarray, extra: dict | None = None
+    run: SwarmRun,
+    ev: Evaluation,
+    costs: np.ndarray,
+    chosen: int | None = None,
+    columns: Callable[[int], dict] = lambda k: {},
 ) -> SwarmRun:
     """``run`` with the iteration's history row appended (the run loop adds
-    ``wall_time``): the running best (:func:`_running_best`, with the ``extra``
-    columns of this iteration's best particle) and, as ``iteration_total`` and
-    ``iteration_f_design``, this iteration's best particle."""
+    ``wall_time``): the returned design's total and parts (:func:`_returned_parts`,
+    with ``feasible``, whether it is feasible) and, as ``iteration_total`` and
+    ``iteration_f_design``, this iteration's best particle's."""
     best = _iteration_best(costs)
     record = {
         "iteration": run.iteration,
-        **_running_best(run, ev, costs, extra),
+        **_returned_parts(run, ev, costs, chosen, columns),
+        "feasible": bool(run.result_feasible),
         "iteration_total": float(costs[best]),
         "iteration_f_design": float(ev.f_design[best]),
         "round": len(run.rounds),
@@ -268,13 +293,25 @@ def record_iteration(
         "limit": run.limit,
     }
     record["best_design"] = [float(v) for v in run.result_pos]
-    record["best_f_design_overall"] = float(
-        min(
-            h.get("iteration_f_design", h["best_f_design"])
-            for h in (*run.history, record)
-        )
-    )
     return dataclasses.replace(run, history=(*run.history, record))
+
+
+def score(mech: Mechanism, run: SwarmRun, ev: Evaluation, settings: OptimizerSettings):
+    """``run`` after this iteration's evaluation ``ev`` of its positions: bests,
+    returned design and history row (not yet moved); and the pyswarms swarm with the
+    bests, for the move."""
+    costs = _costs(ev)
+    swarm = _swarm(run, settings, settings.inertia(run.iteration))
+    previous_best = run.best_cost
+    run = _update_bests(run, swarm, costs)
+    feasible = np.asarray(ev.f_design) <= settings.tolerance
+    improved = run.best_cost < previous_best
+    run, chosen = _update_result(run, feasible, costs, settings, improved)
+    position = run.position
+    run = record_iteration(
+        run, ev, costs, chosen, lambda k: history_columns(mech, ev, position, k)
+    )
+    return run, swarm
 
 
 def _converged(run: SwarmRun, settings: OptimizerSettings) -> bool:
@@ -331,13 +368,7 @@ def step(
     this process only)."""
     workers = workers or Workers(mech)
     ev = workers.evaluate(run.position)
-    costs = _costs(ev)
-    swarm = _swarm(run, settings, settings.inertia(run.iteration))
-    run = _update_bests(run, swarm, costs)
-    feasible = np.asarray(ev.f_design) <= settings.tolerance
-    extra = history_columns(mech, ev, run.position, _iteration_best(costs))
-    run = _update_result(run, feasible, costs, settings)
-    run = record_iteration(run, ev, costs, extra)
+    run, swarm = score(mech, run, ev, settings)
     if _converged(run, settings):
         return dataclasses.replace(run, finished=True, iteration=run.iteration + 1)
     return _move(mech, run, swarm, ev, settings, workers)

@@ -18,21 +18,21 @@ from .._engine.collision import capsule_ends, has_collision
 from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.model import Mechanism
 from .._engine.readout import joint_positions, point_positions
+from . import labels
+from .planar import plane_normal
 
 MAGENTA = "#ff00ff"
 
 
-#: Relative spread (smallest over largest singular value of the centred rest anchors)
-#: above which a mechanism is drawn in three orthographic views, not one plane.
-SPATIAL = 1e-6
-
-
-def _planes(mech: Mechanism) -> list[tuple[int, int]]:
-    """The views of :func:`plot_mechanism`: for joint anchors and points in one plane
-    at rest (up to :data:`SPATIAL`) the two world axes with the largest spread of them
-    (a top view of a planar mechanism), and with ``[collision]`` enabled also a side
-    view, the first of them and the third axis (where layers and lifts show); else the
-    three orthographic views xy, xz, yz."""
+def mechanism_views(mech: Mechanism) -> list[tuple[int, int]]:
+    """The views of :func:`plot_mechanism`: for a planar mechanism
+    (:func:`linkopt._design.planar.plane_normal`, the test the animations use) the two
+    world axes with the largest spread of its joint anchors and points at rest (a top
+    view), and with ``[collision]`` enabled also a side view, the first of them and the
+    third axis (where layers and lifts show); else the three orthographic views xy,
+    xz, yz."""
+    if plane_normal(mech) is None:
+        return [(0, 1), (0, 2), (1, 2)]
     rest = rest_state(mech)
     anchors = np.concatenate(
         [
@@ -40,9 +40,6 @@ def _planes(mech: Mechanism) -> list[tuple[int, int]]:
             np.asarray(point_positions(mech, rest)).reshape(-1, 3),
         ]
     )
-    spread = np.linalg.svd(anchors - anchors.mean(axis=0), compute_uv=False)
-    if spread[0] > 0 and spread[-1] > SPATIAL * spread[0]:
-        return [(0, 1), (0, 2), (1, 2)]
     first, second, third = (int(k) for k in np.argsort(np.ptp(anchors, axis=0))[::-1])
     top = tuple(sorted((first, second)))
     return [top, tuple(sorted((first, third)))] if has_collision(mech) else [top]
@@ -148,7 +145,8 @@ def _draw(ax, mech: Mechanism, design, colour: str, label: str, alpha: float, pl
 
 def _views(planes: list) -> tuple:
     """The figure and its axes (flat) for the views: side by side, or a planar
-    mechanism's top view above its side view (:func:`_planes`), which is short."""
+    mechanism's top view above its side view (:func:`mechanism_views`), which is
+    short."""
     if len(planes) == 2:
         fig, axes = figures.subplots(
             2, 1, figsize=(7.5, 9.0), height_ratios=[3, 1], constrained_layout=True
@@ -172,12 +170,12 @@ def plot_mechanism(
 ) -> Path:
     """The mechanism at rest (joint circles, motor squares, ground triangles, point
     stars); several designs are overlaid, the first in grey. A planar mechanism is
-    drawn in its plane, a spatial one (anchors not in one plane) in three orthographic
-    views (:func:`_planes`). With ``[collision]`` enabled the link solids are drawn
+    drawn in its plane, a spatial one in three orthographic views
+    (:func:`mechanism_views`). With ``[collision]`` enabled the link solids are drawn
     too, and a planar mechanism gets a side view as well, where their layers
     show."""
     designs = designs or {"initial": None}
-    planes = _planes(mech)
+    planes = mechanism_views(mech)
     fig, axes = _views(planes)
     colours = ["0.55", "tab:blue", "tab:orange", "tab:green"]
     for ax, plane in zip(axes, planes):
@@ -187,8 +185,9 @@ def plot_mechanism(
                 _capsules(ax, mech, design, colour, plane)
         _target_box(ax, mech, plane)
         ax.set_aspect("equal")
-        ax.set_xlabel("xyz"[plane[0]])
-        ax.set_ylabel("xyz"[plane[1]])
+        unit = f" ({labels.length_unit(mech) or 'length units'})"
+        ax.set_xlabel("xyz"[plane[0]] + unit)
+        ax.set_ylabel("xyz"[plane[1]] + unit)
         view = "" if len(planes) == 1 else f" ({'xyz'[plane[0]]}{'xyz'[plane[1]]} view)"
         ax.set_title(f"{mech.name} at rest{view}")
     axes[0].legend(loc="best", fontsize=8)
@@ -200,9 +199,13 @@ def plot_mechanism(
 def plot_convergence(
     history: Sequence[dict], path: str | Path, *, title: str = ""
 ) -> Path:
-    """The running best total (``best_total``, non-increasing within a verification
-    round) and its parts per iteration, and each iteration's best total as dots (log
-    scale); histories written before the running best have only the latter."""
+    """The returned design's total (``best_total``) and its parts per iteration, and
+    each iteration's best total as dots (log scale). The returned design is the best
+    seen, feasible first and then by total
+    (:func:`linkopt._design.optimizer.record_iteration`): its total never rises within
+    a verification round except where the first feasible design replaces a lower
+    infeasible one, marked by a dotted line; a dashed line marks each round's start
+    (the added targets change every cost)."""
     it = [h["iteration"] for h in history]
     fig, ax = figures.subplots(figsize=(7, 4.5), constrained_layout=True)
     floor = 1e-16
@@ -217,7 +220,8 @@ def plot_convergence(
             it,
             [max(h[key], floor) for h in history],
             style,
-            label=key.replace("_", " ") + (" (running)" if key == "best_total" else ""),
+            label=key.replace("_", " ")
+            + (" (returned)" if key == "best_total" else ""),
         )
     ax.semilogy(
         it,
@@ -226,10 +230,21 @@ def plot_convergence(
         alpha=0.5,
         label="iteration's best total",
     )
+    _mark_changes(ax, history)
     ax.set_xlabel("iteration")
-    ax.set_ylabel("value (running best design)")
+    ax.set_ylabel("value (returned design)")
     ax.set_title(title)
     ax.legend(fontsize=8)
     path = Path(path)
     fig.savefig(path, dpi=100)
     return path
+
+
+def _mark_changes(ax, history: Sequence[dict]) -> None:
+    """Vertical lines where a verification round starts (dashed) and where the
+    returned design first becomes feasible in a round (dotted)."""
+    for before, h in zip(history, history[1:]):
+        if h.get("round", 0) != before.get("round", 0):
+            ax.axvline(h["iteration"] - 0.5, color="0.6", linestyle="--", lw=0.8)
+        elif h.get("feasible") and not before.get("feasible"):
+            ax.axvline(h["iteration"] - 0.5, color="0.6", linestyle=":", lw=0.8)

@@ -3,10 +3,16 @@
 The sparse samples of ``f_design`` carry no guarantee (paper Sec. VII), and a sample
 minimisation that stopped at its cap may read low (:mod:`linkopt._design.evaluation`),
 so a run can accept a design that ``linkopt verify`` rejects. When a run has finished
-with a feasible design, :func:`verification_round` verifies it on the dense grid
-(:func:`linkopt._design.verify.verify`, default resolution). Where verification fails,
-the failing places become IK targets of the evaluation (each target's IK sample goes
-there and its adversarial sample starts there):
+with a feasible design, or with a design whose samples show no singularity (the
+singularity part of its ``f_design`` is 0) though it is not feasible (a reach or
+collision part: the run stopped at its iteration cap), :func:`verification_round`
+verifies it on the dense grid (:func:`linkopt._design.verify.verify`, default
+resolution). The second case is issue 44's: nine samples read no singularity on a
+design whose grid had ``f_sing`` 1e5 above ``α₋``, and no round ran because the
+design never became feasible; the grid's worst cell is news to the samples whether the
+design is feasible or not. Where verification fails, the failing places become IK
+targets of the evaluation (each target's IK sample goes there and its adversarial
+sample starts there):
 
 - one unreached cell (the first in grid order), so the reach term counts it;
 - the cell of the largest ``f_sing`` when that is at or above ``α₋``, so the IK sample
@@ -20,9 +26,9 @@ there and its adversarial sample starts there):
 and the run goes on (:func:`linkopt._design.optimizer.reopen`). The budget is
 ``verify_rounds`` such continuations of at most ``iterations`` iterations each; a run
 still failing after them, or whose failing places are all targets already, stops with
-its last design and says that it is unverified. Every round is recorded (iteration,
-the design, coverage, worst ``f_sing``, the targets it added); ``summary.json`` lists
-them.
+its last design and says that it is unverified, the round's ``stopped`` saying why.
+Every round is recorded (iteration, the design, whether it was feasible, coverage,
+worst ``f_sing``, the targets it added); ``summary.json`` lists them.
 """
 
 from __future__ import annotations
@@ -50,15 +56,22 @@ def with_targets(mech: Mechanism, targets) -> Mechanism:
 
 
 def wants_round(run: SwarmRun, settings: OptimizerSettings) -> bool:
-    """Whether ``run`` has finished with a feasible design that no round has verified
-    yet (and verification in the loop is on)."""
+    """Whether ``run`` has finished with a design that no round has verified yet, and
+    that is feasible or whose samples show no singularity (module docstring), with
+    verification in the loop on."""
     checked = bool(run.rounds) and run.rounds[-1]["iteration"] == run.iteration
     return (
         settings.verify_rounds > 0
         and run.finished
-        and run.result_feasible
+        and (run.result_feasible or samples_clear(run))
         and not checked
     )
+
+
+def samples_clear(run: SwarmRun) -> bool:
+    """Whether the returned design's samples show no singularity: the singularity part
+    of its ``f_design`` (the history's last record) is 0."""
+    return bool(run.history) and run.history[-1].get("singularity") == 0.0
 
 
 def failing_places(mech: Mechanism, check: Verification) -> list[list[float]]:
@@ -93,13 +106,17 @@ def collided(mech: Mechanism, check: Verification) -> bool:
     )
 
 
-def _record(run: SwarmRun, check: Verification, added: list) -> dict:
+def _record(
+    run: SwarmRun, check: Verification, added: list, stopped: str | None
+) -> dict:
     """The round's record (module docstring); ``verification`` is what
-    ``verification.json`` holds for the design."""
-    return {
+    ``verification.json`` holds for the design, ``stopped`` why a failed round does
+    not go on."""
+    record = {
         "round": len(run.rounds),
         "iteration": run.iteration,
         "design": [float(v) for v in best_design(run)],
+        "feasible": bool(run.result_feasible),
         "passed": bool(check.passed),
         "coverage": float(check.coverage),
         "max_f_sing": float(check.max_f_sing),
@@ -107,6 +124,23 @@ def _record(run: SwarmRun, check: Verification, added: list) -> dict:
         "added_targets": added,
         "verification": check.as_json(),
     }
+    return record if stopped is None else {**record, "stopped": stopped}
+
+
+def _stop_reason(
+    run: SwarmRun, settings: OptimizerSettings, check: Verification, added: list
+) -> str | None:
+    """Why a round that failed does not go on, or None (it passed, or goes on)."""
+    if check.passed:
+        return None
+    if not added:
+        return (
+            "its failing places are IK targets already, so more iterations would "
+            "score the same targets"
+        )
+    if len(run.rounds) >= settings.verify_rounds:
+        return f"no verification rounds left (--verify-rounds {settings.verify_rounds})"
+    return None
 
 
 def verification_round(
@@ -114,10 +148,11 @@ def verification_round(
 ) -> SwarmRun:
     """Verify the finished ``run``'s design on ``mech`` (the file's mechanism with the
     targets added so far) and record the round; where it fails and the budget allows,
-    add the failing places as targets and :func:`reopen` the run."""
+    add the failing places as targets and :func:`reopen` the run, feasible or not."""
     check = verify(mech, best_design(run))
     added = [] if check.passed else failing_places(mech, check)
     reopening = bool(added) and len(run.rounds) < settings.verify_rounds
-    record = _record(run, check, added if reopening else [])
+    stopped = _stop_reason(run, settings, check, added)
+    record = _record(run, check, added if reopening else [], stopped)
     run = dataclasses.replace(run, rounds=(*run.rounds, record))
     return reopen(run, settings) if reopening else run

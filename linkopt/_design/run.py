@@ -57,6 +57,7 @@ from .._folders import check_path, run_folder, staged, write_atomic
 from .checkpoint import CHECKPOINT, HISTORY_FIELDS, check_match, decode, encode, read
 from .collision import history_fields, summary_entry
 from .evaluation import Evaluation, alpha_minus, capped, evaluate_in_batch, targets
+from .on_bounds import BOUND_TOLERANCE, on_bounds
 from .optimizer import OptimizerSettings, SwarmRun, best_design, start, step
 from .rounds import verification_round, wants_round, with_targets
 from .workers import Workers, chunk_slices
@@ -352,7 +353,10 @@ def _summary(
     final: Evaluation,
     checks: dict,
 ) -> dict:
-    """The contents of ``summary.json``."""
+    """The contents of ``summary.json``; ``f_design`` and its parts are the run's
+    last history record's, the returned design's numbers that the progress line and
+    ``history.csv`` give (:func:`linkopt._design.optimizer.record_iteration`)."""
+    last = run.history[-1]
     return {
         "mechanism": mech.source,
         "iterations": run.iteration,
@@ -360,10 +364,12 @@ def _summary(
         "wall_time": run.history[-1]["wall_time"],
         "design": dict(zip(mech.design.names, map(float, design))),
         "initial_design": dict(zip(mech.design.names, map(float, mech.design.p0))),
-        "f_design": float(final.f_design),
-        "reach": float(final.reach),
-        "singularity": float(final.singularity),
-        "regularizer": float(final.regularizer),
+        "f_design": float(last["best_f_design"]),
+        "reach": float(last["reach"]),
+        "singularity": float(last["singularity"]),
+        "regularizer": float(last["regularizer"]),
+        "at_bounds": on_bounds(mech, design),
+        "bound_tolerance": BOUND_TOLERANCE,
         "verified": checks["optimized"]["passed"],
         "initial_verified": checks["initial"]["passed"],
         "verification_rounds": [

@@ -26,6 +26,7 @@ from .._engine.collision import has_collision
 from .._engine.kinematics import check_design
 from .._engine.model import Mechanism
 from .._engine.readout import output_values
+from . import labels
 from .evaluation import Evaluation
 from .maps import MAX_BYTES, MAX_CELLS, Map2D, check_plot_resolution
 from .plot_maps import check_spaces, section_maps, space_maps
@@ -169,8 +170,8 @@ def _section_rows(
         _Row(
             motors,
             outputs,
-            f" at {mech.motor_names[2]} = {a_cut:.3g}",
-            f" at {mech.output_names[2]} = {b_cut:.3g}",
+            f" at {mech.motor_names[2]} = {a_cut:.3g} {labels.motor_unit(mech, 2)}",
+            f" at {mech.output_names[2]} = {b_cut:.3g} {labels.output_unit(mech, 2)}",
             _nearest(samples.ik_b[:, 2], b_cuts) == k,
             _nearest(samples.adv_b[:, 2], b_cuts) == k,
         )
@@ -264,11 +265,7 @@ def limit_lines(ax, mech: Mechanism) -> int:
 def _draw_row(mech: Mechanism, left, right, row: _Row, layer: _Layer, samples):
     """Both panels of a row, the target range in each, and the samples; returns the
     right panel's image (for the colour bar)."""
-    motor_labels = [
-        f"motor {n} ({'rad' if not lin else 'length'})"
-        for n, lin in zip(mech.motor_names, mech.motor_linear)
-    ]
-    output_labels = [f"output {n}" for n in mech.output_names]
+    motor_labels, output_labels = labels.motor_labels(mech), labels.output_labels(mech)
     lo, hi = mech.output_min, mech.output_max
     _panel(left, row.motors, layer, "motor space" + row.at_motor, motor_labels)
     image = _panel(

@@ -10,7 +10,9 @@ space with the written design as its initial one (tests/test_design_parameters.p
 Named points given by ``position`` are written where the design puts them
 (:mod:`linkopt._engine.attachment`). The reference length, α₋ and body frame origins
 of the original are written explicitly so that the new file is homogenised and judged
-exactly as the design was during optimisation.
+exactly as the design was during optimisation. The source file's leading comment block
+(its header: what the mechanism is, its units, its sources) is kept, below the
+``header`` the caller gives.
 """
 
 from __future__ import annotations
@@ -134,11 +136,30 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
     return data
 
 
+def source_header(mech: Mechanism) -> str:
+    """The leading comment block of the file ``mech`` was loaded from (its lines up to
+    the first that is neither a comment nor blank, trailing blank lines dropped), or
+    ``""`` when it was not loaded from a file that is still readable."""
+    try:
+        text = Path(mech.source).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError, ValueError):
+        return ""
+    lines = []
+    for line in text.splitlines():
+        if line.strip() and not line.lstrip().startswith("#"):
+            break
+        lines.append(line.rstrip())
+    while lines and not lines[-1]:
+        lines.pop()
+    return "".join(f"{line}\n" for line in lines)
+
+
 def write_design(
     mech: Mechanism, design, alpha_minus: float, path: str | Path, header: str = ""
 ) -> Path:
     """Write ``design`` (``(P,)`` finite numbers) as a mechanism file that every command
-    accepts; ``alpha_minus`` a finite number."""
+    accepts; ``alpha_minus`` a finite number. ``header`` becomes comment lines at the
+    top, followed by the source file's own header (:func:`source_header`)."""
     check_design(mech, design)
     if design is None:
         raise InputError("design: expected the design to write, got None")
@@ -148,6 +169,10 @@ def write_design(
         raise InputError(f"alpha_minus: expected a finite number, got {alpha_minus!r}")
     path = Path(path)
     comment = "".join(f"# {line}\n" for line in header.splitlines())
-    text = comment + dumps(design_definition(mech, design, alpha_minus))
+    kept = source_header(mech)
+    if comment and kept:
+        comment += "#\n"
+    text = comment + kept + ("\n" if comment or kept else "")
+    text += dumps(design_definition(mech, design, alpha_minus))
     write_atomic(path, text)  # a reader sees the old file or the whole new one
     return path

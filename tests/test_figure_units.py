@@ -1,0 +1,69 @@
+"""Figure axes carry the file's units (issue 44): a linear motor's axis is in the
+file's length unit, not "(length)"; a revolute motor's and an angle output's in rad."""
+
+from pathlib import Path
+
+import pytest
+from conftest import MECHANISMS
+
+import linkopt
+from linkopt import _figures
+from linkopt._design import labels
+from linkopt._design.evaluation import evaluate
+from linkopt._design.space_plots import plot_spaces
+
+BIGLIDE = Path(__file__).with_name("biglide.toml")
+
+
+def test_labels_follow_each_motor_and_output_kind():
+    stewart = linkopt.load(MECHANISMS / "stewart.toml")
+    assert set(labels.motor_labels(stewart)) == {
+        f"motor {n} (mm)" for n in stewart.motor_names
+    }
+    slider = linkopt.load(MECHANISMS / "slider_crank_linear.toml")
+    assert labels.motor_labels(slider) == ["motor slide (mm)"]
+    assert labels.output_labels(slider) == ["output crank_angle (rad)"]
+    five_bar = linkopt.load(MECHANISMS / "five_bar.toml")
+    assert labels.motor_labels(five_bar) == ["motor left (rad)", "motor right (rad)"]
+    assert labels.output_labels(five_bar) == ["output x (mm)", "output y (mm)"]
+    unnamed = linkopt.loads(BIGLIDE.read_text().replace('units = "mm"\n', ""))
+    assert labels.motor_unit(unnamed, 0) == "length units"
+
+
+@pytest.mark.slow
+def test_a_linear_motors_map_axis_is_in_the_files_unit(tmp_path, monkeypatch):
+    """The biglide's two slider motors, on its motor-space map."""
+    made = []
+
+    def subplots(*args, **kwargs):
+        fig, axes = original(*args, **kwargs)
+        made.append(fig)
+        return fig, axes
+
+    original = _figures.subplots
+    monkeypatch.setattr(_figures, "subplots", subplots)
+    mech = linkopt.load(BIGLIDE)
+    plot_spaces(mech, evaluate(mech), tmp_path / "spaces.png", resolution=8)
+    (fig,) = made
+    motor_axes, output_axes = fig.axes[:2]
+    assert motor_axes.get_xlabel() == "motor left (mm)"
+    assert motor_axes.get_ylabel() == "motor right (mm)"
+    assert output_axes.get_xlabel() == "output x (mm)"
+
+
+def test_the_mechanism_figures_axes_are_in_the_files_unit(tmp_path, monkeypatch):
+    from linkopt._design.plots import plot_mechanism
+
+    made = []
+    original = _figures.subplots
+
+    def subplots(*args, **kwargs):
+        fig, axes = original(*args, **kwargs)
+        made.append(fig)
+        return fig, axes
+
+    monkeypatch.setattr(_figures, "subplots", subplots)
+    mech = linkopt.load(MECHANISMS / "slider_crank_linear.toml")
+    plot_mechanism(mech, tmp_path / "m.png")
+    (fig,) = made
+    assert (fig.axes[0].get_xlabel(), fig.axes[0].get_ylabel()) == ("x (mm)", "y (mm)")
