@@ -1,13 +1,14 @@
 """The kinds of design parameter, each read into the anchor and axis moves it makes
 per unit change (:class:`Move`): ``coordinate`` (with ``ties`` and symmetric
-``mirror``/``copies``), ``length`` and ``radius``. :mod:`.design_space` turns the moves
-into the DesignSpace's matrix.
+``mirror``/``copies``), ``length`` and ``radius``; the link angles and offsets
+(``twist``, ``offset``) are in :mod:`.design_angles`. :mod:`.design_space` turns the
+moves into the DesignSpace's matrix.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -17,7 +18,10 @@ from .symmetry import MIRROR_TOL, Symmetry
 
 #: Largest |bound| of an axis-component parameter (the axis is normalised).
 MAX_AXIS_BOUND = 1e6
-KINDS = ("coordinate", "length", "radius")
+#: How far (relative to the bounds' magnitude) a rest value may lie outside its bounds
+#: and count as on them: the round-off of a design written at a bound.
+BOUND_ROUND_OFF = 1e-12
+KINDS = ("coordinate", "length", "radius", "twist", "offset")
 ANCHOR, AXIS = 0, 1
 
 
@@ -32,6 +36,7 @@ class Context:
     symmetry: Symmetry | None
     scale: float
     check_position: Callable[[str, object], None]
+    axis_lengths: np.ndarray  # (J,) length of each joint's axis as the file writes it
 
     @property
     def tol(self) -> float:
@@ -74,6 +79,7 @@ class Parameter:
     is_length: bool
     moves: list[Move]
     links: list[tuple[int, list[int]]]  # length: (from joint, to joints), copies too
+    turns: tuple = ()  # twist: its design_angles.Turn
 
 
 def read_parameter(ctx: Context, item: dict, where: str) -> Parameter:
@@ -82,8 +88,17 @@ def read_parameter(ctx: Context, item: dict, where: str) -> Parameter:
         raise ctx.rd.fail(
             f"{where}.kind", f"expected one of {list(KINDS)}, got {shown(kind)}"
         )
-    reader = {"coordinate": _coordinate, "length": _length, "radius": _radius}[kind]
-    return reader(ctx, item, where)
+    from . import design_angles  # it builds on this module's readers
+
+    reader = {
+        "coordinate": _coordinate,
+        "length": _length,
+        "radius": _radius,
+        "twist": design_angles.twist,
+        "offset": design_angles.offset,
+    }[kind]
+    par = reader(ctx, item, where)
+    return replace(par, value=min(max(par.value, par.low), par.high))
 
 
 # --- coordinate parameters (with ties and symmetric copies) ---------------------------
@@ -98,7 +113,9 @@ def _coordinate(ctx: Context, item: dict, where: str) -> Parameter:
     group = _joint_group(ctx, item["joint"], f"{where}.joint", part)
     _check_axial(ctx, f"{where}.coordinate", group, part, item["joint"])
     joint = group[0]
-    value = float(ctx.joints[joint]["axis" if part == AXIS else "anchor"][c])
+    value = float(ctx.joints[joint]["anchor"][c])
+    if part == AXIS:  # a component of the axis as written, not of the unit axis
+        value = float(ctx.joints[joint]["axis"][c] * ctx.axis_lengths[joint])
     label = f"{field_name(ctx.name(joint))}.{item['coordinate']}"
     low, high = _bounds(rd, item, where, value, label)
     _check_bound_magnitude(ctx, where, (low, high), part)
@@ -542,13 +559,16 @@ def _radial(ctx: Context, where: str, joint: int, center, axis) -> np.ndarray:
 def _bounds(
     rd: Reader, item: dict, where: str, value: float, label: str
 ) -> tuple[float, float]:
-    """``min < max``, with the rest value between them."""
+    """``min < max``, with the rest value between them (or within round-off of a
+    bound: a design written at its bound reads back, :func:`read_parameter` puts it
+    on the bound)."""
     low, high = rd.number(item, "min", where), rd.number(item, "max", where)
     if not low < high:
         raise rd.fail(
             f"{where}.min", f"bounds need min < max, got min={low} and max={high}"
         )
-    if not low <= value <= high:
+    slack = BOUND_ROUND_OFF * max(1.0, abs(low), abs(high))
+    if not low - slack <= value <= high + slack:
         raise rd.fail(
             f"{where}.{'min' if value < low else 'max'}",
             f"the rest value {value:g} of {label} lies outside [{low:g}, {high:g}]",
