@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 from jaxtyping import Bool, Float
 
+from .._engine.mobility import mobility_changes
 from .._engine.model import Mechanism
 from .collision import history_columns
 from .evaluation import Evaluation, alpha_minus
@@ -331,16 +332,41 @@ def step(
     this process only)."""
     workers = workers or Workers(mech)
     ev = workers.evaluate(run.position)
-    costs = _costs(ev)
+    refused = _mobility_refused(mech, run.position)
+    costs = np.where(refused.mask, np.inf, _costs(ev))
     swarm = _swarm(run, settings, settings.inertia(run.iteration))
     run = _update_bests(run, swarm, costs)
-    feasible = np.asarray(ev.f_design) <= settings.tolerance
+    feasible = (np.asarray(ev.f_design) <= settings.tolerance) & ~refused.mask
     extra = history_columns(mech, ev, run.position, _iteration_best(costs))
     run = _update_result(run, feasible, costs, settings)
     run = record_iteration(run, ev, costs, extra)
+    if refused.columns:  # this iteration's, not the running best's
+        *before, record = run.history
+        run = dataclasses.replace(run, history=(*before, {**record, **refused.columns}))
     if _converged(run, settings):
         return dataclasses.replace(run, finished=True, iteration=run.iteration + 1)
     return _move(mech, run, swarm, ev, settings, workers)
+
+
+@dataclass(frozen=True)
+class Refused:
+    """The particles whose design changes the mobility at rest (they count as
+    infeasible, with an infinite cost), and the history columns that say so: how many,
+    and the first one's reason (:meth:`MobilityChange.words`)."""
+
+    mask: Bool[np.ndarray, " N"]
+    columns: dict
+
+
+def _mobility_refused(mech: Mechanism, designs: np.ndarray) -> Refused:
+    changes = mobility_changes(mech, designs)
+    mask = np.array([c is not None for c in changes], dtype=bool)
+    if not mask.any():
+        return Refused(mask, {})
+    first = changes[int(np.argmax(mask))]
+    return Refused(
+        mask, {"refused": int(mask.sum()), "refused_reason": first.words(mech)}
+    )
 
 
 def swarm_moves(
