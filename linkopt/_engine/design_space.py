@@ -2,7 +2,8 @@
 :class:`~.model.DesignSpace` (the kinds in :mod:`.design_kinds`, the ``[symmetry]`` in
 :mod:`.symmetry`).
 
-Every parameter kind is a linear map onto the flat rest geometry (joint anchors and
+Every parameter kind but the link angles (``twist``, :mod:`.design_angles`, turns
+applied after the map) is a linear map onto the flat rest geometry (joint anchors and
 primary axes, file units), so the optimiser, the partial gradient, the writer and
 ``verify`` treat them alike:
 
@@ -12,7 +13,12 @@ primary axes, file units), so the optimiser, the partial gradient, the writer an
 * ``length``: the distance from the anchor of joint ``from`` to the centroid of the
   anchors of ``to`` (joints of ``body``); the ``to`` joints translate along the rest
   direction of that link, so the parameter *is* the link length;
-* ``radius``: the distance of ``joints`` from an axis; each anchor moves radially.
+* ``radius``: the distance of ``joints`` from an axis; each anchor moves radially;
+* ``offset``: the distance between two parallel axes, moved like a length.
+
+An axis component is one of the axis as the file writes it (:func:`_axis_lengths`):
+the unit axis moves by the change over that length, so a design written with its axes
+unnormalised reads back as the same parameters and the same map.
 
 Why moving anchors keeps the rest pose assembled: the rest state is the body origins
 with identity orientations, the same for every design, and a joint's local anchor in

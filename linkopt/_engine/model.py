@@ -128,8 +128,10 @@ class DesignSpace:
     """Free design parameters ``p`` (after ties) and their linear map onto the geometry.
 
     ``geometry_flat(p) = geometry_flat(p0) + matrix @ (p - p0)``, where the flat
-    geometry is ``[anchors (J,3), axes (J,3)]`` raveled, in file units. Every kind of
-    parameter is such a linear map (:mod:`.design_space`): a ``coordinate`` drives one
+    geometry is ``[anchors (J,3), axes (J,3)]`` raveled, in file units (an axis moves
+    by its axis-component parameters over the length of the axis as written), then
+    the link angles' ``turns`` (:mod:`.design_angles`). Every other kind of parameter
+    is such a linear map (:mod:`.design_space`): a ``coordinate`` drives one
     coordinate of a joint, plus its ``ties`` and its ``mirror``/``copies`` images under
     the ``[symmetry]``; a ``length`` moves the ``to`` anchors of a link along its rest
     direction (and with every move of its ``from`` anchor); a ``radius`` moves joints
