@@ -146,6 +146,8 @@ def test_a_written_design_evaluates_as_the_design(name, tmp_path):
     design = within(mech, np.linspace(0.2, 0.8, mech.design.size))
     path = write_design(mech, design, alpha_minus(mech), tmp_path / "written.toml")
     again = linkopt.load(path)
+    note = "# Axes are written unnormalised: the parameters shoulder_tilt are"
+    assert (note in path.read_text()) == (name == "delta_axes")
     read = design_arg(mech, str(path))
     np.testing.assert_allclose(read, design, rtol=1e-12, atol=1e-12)
     want = linkopt.evaluate(mech, design)

@@ -30,9 +30,9 @@ from .design_kinds import (
     Context,
     Move,
     Parameter,
-    _bounds,
-    _link_joints,
-    _positive_bounds,
+    bounds,
+    link_joints,
+    positive_bounds,
 )
 from .fields import shown
 
@@ -61,7 +61,7 @@ def _two_axes(ctx: Context, item: dict, where: str) -> tuple[int, int]:
         raise rd.fail(
             f"{where}.to", f"expected one joint name, got {shown(item['to'])}"
         )
-    source, (target,) = _link_joints(ctx, item, where, body)
+    source, (target,) = link_joints(ctx, item, where, body)
     for key, j in (("from", source), ("to", target)):
         if not np.any(ctx.joints[j]["axis"]) or ctx.joints[j]["type"] == "spherical":
             raise rd.fail(
@@ -84,7 +84,7 @@ def twist(ctx: Context, item: dict, where: str) -> Parameter:
             'at rest and have no twist; their distance is kind = "offset"',
         )
     value = float(np.arctan2(np.linalg.norm(cross), a @ b))
-    low, high = _bounds(ctx.rd, item, where, value, "the twist")
+    low, high = bounds(ctx.rd, item, where, value, "the twist")
     if low <= 0.0 or high >= np.pi:
         raise ctx.rd.fail(
             f"{where}.{'min' if low <= 0.0 else 'max'}",
@@ -128,7 +128,7 @@ def offset(ctx: Context, item: dict, where: str) -> Parameter:
             f"the axes of {ctx.name(source)!r} and {ctx.name(target)!r} coincide at "
             "rest; expected a positive offset",
         )
-    low, high = _positive_bounds(ctx, item, where, value, "offset")
+    low, high = positive_bounds(ctx, item, where, value, "offset")
     moves = [Move(target, ANCHOR, across / value)]
     return Parameter(value, low, high, True, moves, [(source, [target])])
 

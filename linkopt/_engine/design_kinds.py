@@ -117,7 +117,7 @@ def _coordinate(ctx: Context, item: dict, where: str) -> Parameter:
     if part == AXIS:  # a component of the axis as written, not of the unit axis
         value = float(ctx.joints[joint]["axis"][c] * ctx.axis_lengths[joint])
     label = f"{field_name(ctx.name(joint))}.{item['coordinate']}"
-    low, high = _bounds(rd, item, where, value, label)
+    low, high = bounds(rd, item, where, value, label)
     _check_bound_magnitude(ctx, where, (low, high), part)
     moves = [Move(g, part, np.eye(3)[c]) for g in group]
     moves += _ties(ctx, item, where, part, {(g, c) for g in group})
@@ -393,7 +393,7 @@ def _length(ctx: Context, item: dict, where: str) -> Parameter:
     fields = {"name", "kind", "body", "from", "to", "min", "max"}
     rd.keys(item, where, fields | {"copies"}, fields)
     body = rd.lookup(ctx.body_index, item["body"], f"{where}.body", "body")
-    source, targets = _link_joints(ctx, item, where, body)
+    source, targets = link_joints(ctx, item, where, body)
     offset = np.mean([ctx.anchor(t) for t in targets], axis=0) - ctx.anchor(source)
     value = float(np.linalg.norm(offset))
     if value <= ctx.tol:
@@ -402,7 +402,7 @@ def _length(ctx: Context, item: dict, where: str) -> Parameter:
             f"zero-length link: the anchors of {shown(item['from'])} and "
             f"{shown(item['to'])} coincide at rest; expected a positive length",
         )
-    low, high = _positive_bounds(ctx, item, where, value, "link length")
+    low, high = positive_bounds(ctx, item, where, value, "link length")
     unit = offset / value
     moves = [Move(t, ANCHOR, unit) for t in targets]
     links = [(source, targets)]
@@ -413,7 +413,7 @@ def _length(ctx: Context, item: dict, where: str) -> Parameter:
     return Parameter(value, low, high, True, moves, links)
 
 
-def _link_joints(
+def link_joints(
     ctx: Context, item: dict, where: str, body: int
 ) -> tuple[int, list[int]]:
     """``from`` (one joint) and ``to`` (a joint or a list), all joints of ``body``."""
@@ -536,7 +536,7 @@ def _radius(ctx: Context, item: dict, where: str) -> Parameter:
                 f"joint {ctx.name(j)!r} is {np.linalg.norm(r):.12g} from the axis, "
                 f"{ctx.name(joints[0])!r} {value:.12g}; expected joints on one circle",
             )
-    low, high = _positive_bounds(ctx, item, where, value, "radius")
+    low, high = positive_bounds(ctx, item, where, value, "radius")
     moves = [Move(j, ANCHOR, r / np.linalg.norm(r)) for j, r in zip(joints, radial)]
     return Parameter(value, low, high, True, moves, [])
 
@@ -556,7 +556,7 @@ def _radial(ctx: Context, where: str, joint: int, center, axis) -> np.ndarray:
 # --- bounds ---------------------------------------------------------------------------
 
 
-def _bounds(
+def bounds(
     rd: Reader, item: dict, where: str, value: float, label: str
 ) -> tuple[float, float]:
     """``min < max``, with the rest value between them (or within round-off of a
@@ -576,12 +576,12 @@ def _bounds(
     return low, high
 
 
-def _positive_bounds(
+def positive_bounds(
     ctx: Context, item: dict, where: str, value: float, label: str
 ) -> tuple[float, float]:
     """Bounds of a length or radius: positive (at zero the direction is lost), within
     the position bound, around the rest value."""
-    low, high = _bounds(ctx.rd, item, where, value, f"the {label}")
+    low, high = bounds(ctx.rd, item, where, value, f"the {label}")
     if low <= 0:
         raise ctx.rd.fail(f"{where}.min", f"a {label} needs min > 0, got min={low:g}")
     ctx.check_position(f"{where}.max", (low, high))

@@ -143,6 +143,23 @@ def _length(vector) -> float:
     return largest * float(np.linalg.norm(vec / largest))
 
 
+def axis_note(mech: Mechanism) -> str:
+    """The line a written file carries where a parameter is an axis component: its
+    axes are written unnormalised on purpose (a normalised axis is another design)."""
+    axes = [
+        name
+        for name, item in zip(mech.design.names, mech.raw.get("parameters", []))
+        if str(item.get("coordinate", "")).startswith("axis_")
+    ]
+    if not axes:
+        return ""
+    return (
+        f"Axes are written unnormalised: the parameters {', '.join(axes)} are "
+        "components of the axes as written here (normalised, they would read back "
+        "as other values)."
+    )
+
+
 def write_design(
     mech: Mechanism, design, alpha_minus: float, path: str | Path, header: str = ""
 ) -> Path:
@@ -156,6 +173,7 @@ def write_design(
     ):
         raise InputError(f"alpha_minus: expected a finite number, got {alpha_minus!r}")
     path = Path(path)
+    header = "\n".join(filter(None, [header, axis_note(mech)]))
     comment = "".join(f"# {line}\n" for line in header.splitlines())
     text = comment + dumps(design_definition(mech, design, alpha_minus))
     write_atomic(path, text)  # a reader sees the old file or the whole new one
