@@ -19,6 +19,7 @@ import linkopt
 from linkopt._design.evaluation import alpha_minus, evaluate
 from linkopt._design.partial import frozen_objective, partial_gradient
 from linkopt._engine.geometry import geometry
+from linkopt._engine.lifting import structure_key
 
 TEXT = (MECHANISMS / "spherical_five_bar.toml").read_text()
 RADIUS = 50.0
@@ -113,6 +114,19 @@ def _axis_angle(axis, theta) -> np.ndarray:
     k = axis / np.linalg.norm(axis)
     cross = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
     return np.eye(3) + math.sin(theta) * cross + (1 - math.cos(theta)) * cross @ cross
+
+
+def test_a_written_twisted_design_shares_the_program_and_its_fk(sph, tmp_path):
+    """The turns are program arguments: the file written at ``DESIGN`` (other turning
+    lines and joints) has the same structure and, through the same program, the FK of
+    the design."""
+    path = linkopt.write_design(sph, DESIGN, 10.0, tmp_path / "twisted.toml")
+    written = linkopt.load(path)
+    assert structure_key(written) == structure_key(sph)
+    motors = np.array([[0.1, -0.05], [-0.15, 0.1]])
+    ours = linkopt.solve_fk(sph, motors, design=DESIGN).state
+    theirs = linkopt.solve_fk(written, motors).state
+    np.testing.assert_allclose(theirs, ours, rtol=0, atol=1e-10)
 
 
 def test_the_partial_gradient_of_link_angles_matches_finite_differences(sph):
