@@ -458,7 +458,8 @@ MALFORMED = {
     "unknown_kind": (
         edit(A, 'kind = "radius"', 'kind = "angle"'),
         "parameters[0].kind",
-        "expected one of ['coordinate', 'length', 'radius'], got 'angle'",
+        "expected one of ['coordinate', 'length', 'radius', 'twist', 'offset'], got "
+        "'angle'",
     ),
     "unknown_symmetry": (
         edit(A, 'kind = "rotation"', 'kind = "helix"'),

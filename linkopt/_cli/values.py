@@ -194,9 +194,18 @@ def design_arg(mech, text: str | None) -> np.ndarray | None:
                 f"{text}: parameters {list(other.design.names)} do not match those "
                 f"of {mech.source}: {list(names)}"
             )
-        return _within_bounds(mech, other.design.p0, text)
+        return _same_mobility(mech, _within_bounds(mech, other.design.p0, text), text)
     values = np.array(parse_row(text, names, "--design"))
-    return _within_bounds(mech, values, "--design")
+    return _same_mobility(mech, _within_bounds(mech, values, "--design"), "--design")
+
+
+def _same_mobility(mech, values: np.ndarray, where: str) -> np.ndarray:
+    """``values``, refused where the design changes the mobility at rest (the motors
+    that no longer move named)."""
+    from .._engine.mobility import check_design_mobility
+
+    check_design_mobility(mech, values, where)
+    return values
 
 
 def _within_bounds(mech, values: np.ndarray, where: str) -> np.ndarray:

@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 from jaxtyping import Bool, Float
 
+from .._engine.mobility import mobility_changes
 from .._engine.model import Mechanism
 from .collision import COLLISION_COLUMNS, history_columns
 from .evaluation import Evaluation, alpha_minus
@@ -296,15 +297,25 @@ def record_iteration(
     return dataclasses.replace(run, history=(*run.history, record))
 
 
-def score(mech: Mechanism, run: SwarmRun, ev: Evaluation, settings: OptimizerSettings):
+def score(
+    mech: Mechanism,
+    run: SwarmRun,
+    ev: Evaluation,
+    settings: OptimizerSettings,
+    refused: Bool[np.ndarray, " N"] | None = None,
+):
     """``run`` after this iteration's evaluation ``ev`` of its positions: bests,
     returned design and history row (not yet moved); and the pyswarms swarm with the
-    bests, for the move."""
+    bests, for the move. ``refused`` particles (a design that changes the mobility)
+    cost infinity and are infeasible."""
     costs = _costs(ev)
+    feasible = np.asarray(ev.f_design) <= settings.tolerance
+    if refused is not None:
+        costs = np.where(refused, np.inf, costs)
+        feasible = feasible & ~refused
     swarm = _swarm(run, settings, settings.inertia(run.iteration))
     previous_best = run.best_cost
     run = _update_bests(run, swarm, costs)
-    feasible = np.asarray(ev.f_design) <= settings.tolerance
     improved = run.best_cost < previous_best
     run, chosen = _update_result(run, feasible, costs, settings, improved)
     position = run.position
@@ -368,10 +379,35 @@ def step(
     this process only)."""
     workers = workers or Workers(mech)
     ev = workers.evaluate(run.position)
-    run, swarm = score(mech, run, ev, settings)
+    refused = _mobility_refused(mech, run.position)
+    run, swarm = score(mech, run, ev, settings, refused.mask)
+    if refused.columns:  # this iteration's, not the returned design's
+        *before, record = run.history
+        run = dataclasses.replace(run, history=(*before, {**record, **refused.columns}))
     if _converged(run, settings):
         return dataclasses.replace(run, finished=True, iteration=run.iteration + 1)
     return _move(mech, run, swarm, ev, settings, workers)
+
+
+@dataclass(frozen=True)
+class Refused:
+    """The particles whose design changes the mobility at rest (they count as
+    infeasible, with an infinite cost), and the history columns that say so: how many,
+    and the first one's reason (:meth:`MobilityChange.words`)."""
+
+    mask: Bool[np.ndarray, " N"]
+    columns: dict
+
+
+def _mobility_refused(mech: Mechanism, designs: np.ndarray) -> Refused:
+    changes = mobility_changes(mech, designs)
+    mask = np.array([c is not None for c in changes], dtype=bool)
+    if not mask.any():
+        return Refused(mask, {})
+    first = changes[int(np.argmax(mask))]
+    return Refused(
+        mask, {"refused": int(mask.sum()), "refused_reason": first.words(mech)}
+    )
 
 
 def swarm_moves(

@@ -71,10 +71,24 @@ def save_checkpoint(
         out / CHECKPOINT, json.dumps(encode(run, mech, settings), allow_nan=True)
     )
     fields = history_fields(mech, HISTORY_FIELDS)
+    if any("refused" in h for h in run.history):  # designs that change the mobility
+        fields = [*fields, "refused", "refused_reason"]
     lines = [",".join(fields)] + [
-        ",".join(repr(h.get(f, math.nan)) for f in fields) for h in run.history
+        ",".join(_cell(h.get(f, _UNREFUSED.get(f, math.nan))) for f in fields)
+        for h in run.history
     ]
     write_atomic(out / "history.csv", "\n".join(lines) + "\n")
+
+
+#: ``history.csv``'s mobility columns in an iteration that refused no design.
+_UNREFUSED = {"refused": 0, "refused_reason": ""}
+
+
+def _cell(value) -> str:
+    """A ``history.csv`` cell: a number as ``repr``, a text quoted (RFC 4180)."""
+    if isinstance(value, str):
+        return '"' + value.replace('"', '""') + '"'
+    return repr(value)
 
 
 def load_checkpoint(

@@ -27,6 +27,7 @@ import numpy as np
 from .._engine.collision import clearance, has_collision, pair_names
 from .._engine.geometry import rest_state
 from .._engine.kinematics import check_design, solve_bk, solve_bk_path
+from .._engine.mobility import check_design_mobility
 from .._engine.model import Mechanism
 from .._engine.readout import motor_values, output_values
 from .._engine.singularity import singular_values
@@ -233,6 +234,8 @@ def verify(
     """Grid the target range and check coverage and singularity distance (see module
     doc); ``resolution`` and the limits are checked first (:func:`check_resolution`)."""
     check_design(mech, design)
+    if design is not None:
+        check_design_mobility(mech, design, "design")
     resolution = check_resolution(
         mech, resolution, max_cells=max_cells, max_bytes=max_bytes
     )

@@ -1,13 +1,14 @@
 """The kinds of design parameter, each read into the anchor and axis moves it makes
 per unit change (:class:`Move`): ``coordinate`` (with ``ties`` and symmetric
-``mirror``/``copies``), ``length`` and ``radius``. :mod:`.design_space` turns the moves
-into the DesignSpace's matrix.
+``mirror``/``copies``), ``length`` and ``radius``; the link angles and offsets
+(``twist``, ``offset``) are in :mod:`.design_angles`. :mod:`.design_space` turns the
+moves into the DesignSpace's matrix.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -17,7 +18,10 @@ from .symmetry import MIRROR_TOL, Symmetry
 
 #: Largest |bound| of an axis-component parameter (the axis is normalised).
 MAX_AXIS_BOUND = 1e6
-KINDS = ("coordinate", "length", "radius")
+#: How far (relative to the bounds' magnitude) a rest value may lie outside its bounds
+#: and count as on them: the round-off of a design written at a bound.
+BOUND_ROUND_OFF = 1e-12
+KINDS = ("coordinate", "length", "radius", "twist", "offset")
 ANCHOR, AXIS = 0, 1
 
 
@@ -32,6 +36,7 @@ class Context:
     symmetry: Symmetry | None
     scale: float
     check_position: Callable[[str, object], None]
+    axis_lengths: np.ndarray  # (J,) length of each joint's axis as the file writes it
 
     @property
     def tol(self) -> float:
@@ -74,6 +79,7 @@ class Parameter:
     is_length: bool
     moves: list[Move]
     links: list[tuple[int, list[int]]]  # length: (from joint, to joints), copies too
+    turns: tuple = ()  # twist: its design_angles.Turn
 
 
 def read_parameter(ctx: Context, item: dict, where: str) -> Parameter:
@@ -82,8 +88,17 @@ def read_parameter(ctx: Context, item: dict, where: str) -> Parameter:
         raise ctx.rd.fail(
             f"{where}.kind", f"expected one of {list(KINDS)}, got {shown(kind)}"
         )
-    reader = {"coordinate": _coordinate, "length": _length, "radius": _radius}[kind]
-    return reader(ctx, item, where)
+    from . import design_angles  # it builds on this module's readers
+
+    reader = {
+        "coordinate": _coordinate,
+        "length": _length,
+        "radius": _radius,
+        "twist": design_angles.twist,
+        "offset": design_angles.offset,
+    }[kind]
+    par = reader(ctx, item, where)
+    return replace(par, value=min(max(par.value, par.low), par.high))
 
 
 # --- coordinate parameters (with ties and symmetric copies) ---------------------------
@@ -98,9 +113,11 @@ def _coordinate(ctx: Context, item: dict, where: str) -> Parameter:
     group = _joint_group(ctx, item["joint"], f"{where}.joint", part)
     _check_axial(ctx, f"{where}.coordinate", group, part, item["joint"])
     joint = group[0]
-    value = float(ctx.joints[joint]["axis" if part == AXIS else "anchor"][c])
+    value = float(ctx.joints[joint]["anchor"][c])
+    if part == AXIS:  # a component of the axis as written, not of the unit axis
+        value = float(ctx.joints[joint]["axis"][c] * ctx.axis_lengths[joint])
     label = f"{field_name(ctx.name(joint))}.{item['coordinate']}"
-    low, high = _bounds(rd, item, where, value, label)
+    low, high = bounds(rd, item, where, value, label)
     _check_bound_magnitude(ctx, where, (low, high), part)
     moves = [Move(g, part, np.eye(3)[c]) for g in group]
     moves += _ties(ctx, item, where, part, {(g, c) for g in group})
@@ -376,7 +393,7 @@ def _length(ctx: Context, item: dict, where: str) -> Parameter:
     fields = {"name", "kind", "body", "from", "to", "min", "max"}
     rd.keys(item, where, fields | {"copies"}, fields)
     body = rd.lookup(ctx.body_index, item["body"], f"{where}.body", "body")
-    source, targets = _link_joints(ctx, item, where, body)
+    source, targets = link_joints(ctx, item, where, body)
     offset = np.mean([ctx.anchor(t) for t in targets], axis=0) - ctx.anchor(source)
     value = float(np.linalg.norm(offset))
     if value <= ctx.tol:
@@ -385,7 +402,7 @@ def _length(ctx: Context, item: dict, where: str) -> Parameter:
             f"zero-length link: the anchors of {shown(item['from'])} and "
             f"{shown(item['to'])} coincide at rest; expected a positive length",
         )
-    low, high = _positive_bounds(ctx, item, where, value, "link length")
+    low, high = positive_bounds(ctx, item, where, value, "link length")
     unit = offset / value
     moves = [Move(t, ANCHOR, unit) for t in targets]
     links = [(source, targets)]
@@ -396,7 +413,7 @@ def _length(ctx: Context, item: dict, where: str) -> Parameter:
     return Parameter(value, low, high, True, moves, links)
 
 
-def _link_joints(
+def link_joints(
     ctx: Context, item: dict, where: str, body: int
 ) -> tuple[int, list[int]]:
     """``from`` (one joint) and ``to`` (a joint or a list), all joints of ``body``."""
@@ -519,7 +536,7 @@ def _radius(ctx: Context, item: dict, where: str) -> Parameter:
                 f"joint {ctx.name(j)!r} is {np.linalg.norm(r):.12g} from the axis, "
                 f"{ctx.name(joints[0])!r} {value:.12g}; expected joints on one circle",
             )
-    low, high = _positive_bounds(ctx, item, where, value, "radius")
+    low, high = positive_bounds(ctx, item, where, value, "radius")
     moves = [Move(j, ANCHOR, r / np.linalg.norm(r)) for j, r in zip(joints, radial)]
     return Parameter(value, low, high, True, moves, [])
 
@@ -539,16 +556,19 @@ def _radial(ctx: Context, where: str, joint: int, center, axis) -> np.ndarray:
 # --- bounds ---------------------------------------------------------------------------
 
 
-def _bounds(
+def bounds(
     rd: Reader, item: dict, where: str, value: float, label: str
 ) -> tuple[float, float]:
-    """``min < max``, with the rest value between them."""
+    """``min < max``, with the rest value between them (or within round-off of a
+    bound: a design written at its bound reads back, :func:`read_parameter` puts it
+    on the bound)."""
     low, high = rd.number(item, "min", where), rd.number(item, "max", where)
     if not low < high:
         raise rd.fail(
             f"{where}.min", f"bounds need min < max, got min={low} and max={high}"
         )
-    if not low <= value <= high:
+    slack = BOUND_ROUND_OFF * max(1.0, abs(low), abs(high))
+    if not low - slack <= value <= high + slack:
         raise rd.fail(
             f"{where}.{'min' if value < low else 'max'}",
             f"the rest value {value:g} of {label} lies outside [{low:g}, {high:g}]",
@@ -556,12 +576,12 @@ def _bounds(
     return low, high
 
 
-def _positive_bounds(
+def positive_bounds(
     ctx: Context, item: dict, where: str, value: float, label: str
 ) -> tuple[float, float]:
     """Bounds of a length or radius: positive (at zero the direction is lost), within
     the position bound, around the rest value."""
-    low, high = _bounds(ctx.rd, item, where, value, f"the {label}")
+    low, high = bounds(ctx.rd, item, where, value, f"the {label}")
     if low <= 0:
         raise ctx.rd.fail(f"{where}.min", f"a {label} needs min > 0, got min={low:g}")
     ctx.check_position(f"{where}.max", (low, high))

@@ -2,7 +2,8 @@
 :class:`~.model.DesignSpace` (the kinds in :mod:`.design_kinds`, the ``[symmetry]`` in
 :mod:`.symmetry`).
 
-Every parameter kind is a linear map onto the flat rest geometry (joint anchors and
+Every parameter kind but the link angles (``twist``, :mod:`.design_angles`, turns
+applied after the map) is a linear map onto the flat rest geometry (joint anchors and
 primary axes, file units), so the optimiser, the partial gradient, the writer and
 ``verify`` treat them alike:
 
@@ -12,7 +13,12 @@ primary axes, file units), so the optimiser, the partial gradient, the writer an
 * ``length``: the distance from the anchor of joint ``from`` to the centroid of the
   anchors of ``to`` (joints of ``body``); the ``to`` joints translate along the rest
   direction of that link, so the parameter *is* the link length;
-* ``radius``: the distance of ``joints`` from an axis; each anchor moves radially.
+* ``radius``: the distance of ``joints`` from an axis; each anchor moves radially;
+* ``offset``: the distance between two parallel axes, moved like a length.
+
+An axis component is one of the axis as the file writes it (:func:`_axis_lengths`):
+the unit axis moves by the change over that length, so a design written with its axes
+unnormalised reads back as the same parameters and the same map.
 
 Why moving anchors keeps the rest pose assembled: the rest state is the body origins
 with identity orientations, the same for every design, and a joint's local anchor in
@@ -32,9 +38,10 @@ from collections.abc import Callable
 import numpy as np
 from jaxtyping import Float
 
+from .design_angles import turn_joints
 from .design_kinds import ANCHOR, AXIS, Context, Move, read_parameter
 from .fields import Reader
-from .model import DesignSpace
+from .model import DesignSpace, Turns
 from .symmetry import MIRROR_TOL, Symmetry, read_symmetry
 
 __all__ = ["read_design", "read_symmetry"]
@@ -54,19 +61,29 @@ def read_design(
     items = rd.entries(data, "parameters", required=False)
     rd.names(items, "parameters")
     joint_index = {j["name"]: k for k, j in enumerate(joints)}
-    ctx = Context(rd, joints, joint_index, body_index, symmetry, scale, check_position)
+    ctx = Context(
+        rd,
+        joints,
+        joint_index,
+        body_index,
+        symmetry,
+        scale,
+        check_position,
+        _axis_lengths(data, len(joints)),
+    )
     params = [
         read_parameter(ctx, item, f"parameters[{k}]") for k, item in enumerate(items)
     ]
     matrix = np.zeros((6 * len(joints), len(items)))
     owner: dict[int, int] = {}
-    links = []
+    links, turns = [], []
     for k, par in enumerate(params):
         where = f"parameters[{k}]"
         rows = _expanded_rows(ctx, where, par.moves)
-        claimed = set(rows) | _link_rows(ctx, par.links)
+        claimed = set(rows) | _link_rows(ctx, par.links) | _turn_rows(ctx, par.turns)
         _claim_rows(rd, where, k, rows, claimed, owner, matrix)
         links += [(where, source, target) for source, target in par.links]
+        turns += [(k, turn) for turn in par.turns]
     _compose(ctx, matrix, links)
     _align_legs(ctx, matrix, owner)
     return DesignSpace(
@@ -76,7 +93,67 @@ def read_design(
         np.array([p.high for p in params], dtype=float),
         matrix,
         np.array([p.is_length for p in params], dtype=bool),
+        _turns(ctx, turns, matrix, links) if turns else None,
     )
+
+
+def _turn_rows(ctx: Context, turns) -> set[int]:
+    """A twist owns the anchor and axis rows of the joints it turns."""
+    return {
+        _row(ctx, j, part, c)
+        for turn in turns
+        for j in ctx.coincident_all(turn.targets)
+        for part in (ANCHOR, AXIS)
+        for c in range(3)
+    }
+
+
+def _turns(ctx: Context, turns: list, matrix: np.ndarray, links: list) -> Turns:
+    """The twists as :class:`Turns`; refused where a linear parameter moves a joint
+    a twist turns or measures from (the twist's centre and normal would not follow),
+    or measures from a turned joint (its far end would not turn)."""
+    wheres = [f"parameters[{k}]" for k, _ in turns]
+    ordered = turn_joints(ctx, wheres, turns)
+    for k, turn, mask in ordered:
+        for where, source, _ in links:
+            if mask[source]:
+                raise ctx.rd.fail(
+                    where,
+                    f"measured from joint {ctx.name(source)!r}, which "
+                    f"parameters[{k}] (a twist) turns; expected a length or offset "
+                    "from a joint that no twist turns",
+                )
+        for j in [turn.source, *np.flatnonzero(mask)]:
+            rows = [_row(ctx, j, part, c) for part in (ANCHOR, AXIS) for c in range(3)]
+            if np.any(matrix[rows]):
+                raise ctx.rd.fail(
+                    f"parameters[{k}]",
+                    f"joint {ctx.name(j)!r} of this twist is also moved by a "
+                    "parameter that is not a twist; expected a twist's joints moved "
+                    "by twists only",
+                )
+    select = np.zeros((len(turns), matrix.shape[1]))
+    for t, (k, _, _) in enumerate(ordered):
+        select[t, k] = 1.0
+    return Turns(
+        select,
+        np.array([turn.center for _, turn, _ in ordered]),
+        np.array([turn.normal for _, turn, _ in ordered]),
+        np.array([mask for _, _, mask in ordered]),
+    )
+
+
+def _axis_lengths(data: dict, count: int) -> np.ndarray:
+    """The length of each joint's ``axis`` as the file writes it (1 where it has
+    none). An axis-component parameter is a component of that written vector, so a
+    design writes back unnormalised and reads back as the same parameters."""
+    out = np.ones(count)
+    for k, item in enumerate(data.get("joints", [])[:count]):
+        if isinstance(item, dict) and "axis" in item:
+            vec = np.asarray(item["axis"], dtype=float)
+            largest = float(np.max(np.abs(vec)))
+            out[k] = largest * float(np.linalg.norm(vec / largest))
+    return out
 
 
 # --- the matrix -----------------------------------------------------------------------
@@ -105,6 +182,8 @@ def _expanded_rows(ctx: Context, where: str, moves: list[Move]) -> dict[int, flo
                     "anchor at rest and must move together; this parameter moves "
                     "them differently",
                 )
+    for j in axis:  # the unit axis moves by the written axis's move over its length
+        axis[j] = axis[j] / ctx.axis_lengths[j]
     rows = {}
     for part, table in ((ANCHOR, anchor), (AXIS, axis)):
         for j, vec in table.items():

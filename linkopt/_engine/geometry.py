@@ -64,16 +64,46 @@ def design_array(mech: Mechanism, design=None) -> np.ndarray:
     return padded_design(mech, mech.design.p0 if design is None else design)
 
 
-def geometry(mech: Mechanism, design=None) -> Geometry:
-    """Homogenised rest geometry of the design ``p`` (file units), traceable in
-    ``p``."""
+def moved_joints(
+    mech: Mechanism, design=None
+) -> tuple[Float[Array, "J 3"], Float[Array, "J 3"]]:
+    """Joint anchors (file units) and primary axes (not normalised: unit at the
+    file's design, moved by the design's linear map) of the design ``p``, traceable
+    in ``p``."""
     p = design_vector(mech, design)
     joints = mech.anchors.shape[0]
     flat0 = jnp.concatenate([jnp.ravel(mech.anchors), jnp.ravel(mech.axes)])
-    flat = flat0 + jnp.asarray(mech.design.matrix) @ (p - mech.design.p0)
+    change = p - mech.design.p0
+    flat = flat0 + jnp.asarray(mech.design.matrix) @ change
     anchors = flat[: 3 * joints].reshape(joints, 3)
+    axes = flat[3 * joints :].reshape(joints, 3)
+    turns = mech.design.turns
+    if turns is None:
+        return anchors, axes
+    for t in range(turns.select.shape[0]):  # downstream first (Turns)
+        rotation = _rotation(turns.normals[t], jnp.asarray(turns.select[t]) @ change)
+        center = jnp.asarray(turns.centers[t])
+        on = jnp.asarray(turns.joints[t])[:, None] > 0.5
+        anchors = jnp.where(on, center + (anchors - center) @ rotation.T, anchors)
+        axes = jnp.where(on, axes @ rotation.T, axes)
+    return anchors, axes
+
+
+def _rotation(normal: Float[Array, " 3"], angle) -> Float[Array, "3 3"]:
+    """Rodrigues' matrix of the turn by ``angle`` about the unit ``normal``."""
+    n = jnp.asarray(normal)
+    k = jnp.array(
+        [[0.0, -n[2], n[1]], [n[2], 0.0, -n[0]], [-n[1], n[0], 0.0]], dtype=n.dtype
+    )
+    return jnp.eye(3) + jnp.sin(angle) * k + (1.0 - jnp.cos(angle)) * (k @ k)
+
+
+def geometry(mech: Mechanism, design=None) -> Geometry:
+    """Homogenised rest geometry of the design ``p`` (file units), traceable in
+    ``p``."""
+    anchors, raw_axes = moved_joints(mech, design)
     has_axis = mech.axis_present[:, None]
-    axes = jnp.where(has_axis, _unit(flat[3 * joints :].reshape(joints, 3)), 0.0)
+    axes = jnp.where(has_axis, _unit(raw_axes), 0.0)
     helpers = _perpendicular(jnp.asarray(np.eye(3)[mech.helper_index]), axes)
     axes2 = _perpendicular(jnp.asarray(mech.axes2), axes)
     points = follow(mech.point_attachment, mech.point_positions, mech.anchors, anchors)

@@ -50,6 +50,9 @@ FIELDS = (
 #: The design space's fields taken as data, padded to :func:`design_class` columns
 #: (zeros: a padded parameter moves nothing; ``is_length`` False).
 DESIGN_FIELDS = ("p0", "lower", "upper", "matrix", "is_length")
+#: The link angles' fields (:class:`~.model.Turns`), taken as data where a file has
+#: twists; ``select`` padded like the design map, the number of turns keyed.
+TURN_FIELDS = ("select", "centers", "normals", "joints")
 ATTACHMENT_FIELDS = ("weights", "offsets", "spans")
 #: Settings taken as data (``[solver]``, ``[evaluation]``, ``[collision]``): editing
 #: a weight, a step, an iteration cap, a threshold or an extra target's values reuses
@@ -98,6 +101,13 @@ def numbers(mech: Mechanism) -> dict:
     out = {name: np.asarray(getattr(mech, name), dtype=np.float64) for name in FIELDS}
     for name in DESIGN_FIELDS:
         out[f"design.{name}"] = _padded_design_field(mech, name)
+    turns = mech.design.turns
+    if turns is not None:
+        for name in TURN_FIELDS:
+            value = np.asarray(getattr(turns, name), dtype=np.float64)
+            if name == "select":
+                value = padded_design(mech, value)
+            out[f"design.turns.{name}"] = value
     for name in ATTACHMENT_FIELDS:
         out[f"points.{name}"] = np.asarray(
             getattr(mech.point_attachment, name), np.float64
@@ -165,9 +175,15 @@ def lift(mech: Mechanism, values: dict) -> Mechanism:
     """``mech`` with its numbers replaced by ``values`` (as :func:`numbers` gives
     them; tracers inside a program)."""
     names = mech.design.names
+    turns = mech.design.turns
+    if turns is not None:
+        turns = dataclasses.replace(
+            turns, **{n: values[f"design.turns.{n}"] for n in TURN_FIELDS}
+        )
     design = dataclasses.replace(
         mech.design,
         names=names + ("",) * (design_class(len(names)) - len(names)),
+        turns=turns,
         **{n: values[f"design.{n}"] for n in DESIGN_FIELDS},
     )
     attachment = dataclasses.replace(

@@ -8,10 +8,11 @@ import jax
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._errors import MechanismFileError
+from .._errors import InputError, MechanismFileError
 from . import programs
-from .constraints import passive_residual
+from .constraints import homogenised_motor_values, passive_residual
 from .geometry import geometry, rest_state
+from .lifting import padded_design
 from .model import Mechanism
 from .singularity import sigma_min_pair, stacked_jacobians
 
@@ -107,3 +108,97 @@ def _idle_note(mech: Mechanism) -> str:
         f" ({count} idle spin(s) of rods between two ball joints are already fixed "
         "by gauge rows and not counted)"
     )
+
+
+# --- the mobility of other designs ----------------------------------------------------
+
+#: A motor whose rate is below this on every motion the rest pose allows (homogenised,
+#: per unit state velocity) no longer moves.
+LOCKED_TOL = 1e-8
+
+
+@dataclass(frozen=True)
+class MobilityChange:
+    """A design whose rest pose has another mobility than its motors number:
+    ``mobility`` found, ``locked`` the motors that cannot move at all there."""
+
+    design: np.ndarray
+    mobility: int
+    locked: tuple[str, ...]
+
+    def words(self, mech: Mechanism) -> str:
+        """One line naming the design, the mobility and the motors."""
+        named = ", ".join(
+            f"{n} = {v:.6g}" for n, v in zip(mech.design.names, self.design)
+        )
+        motors = mech.num_motors
+        if self.mobility > motors:
+            what = (
+                f"more motions than its {motors} motor(s) fix: the rest pose is "
+                "singular for this design"
+            )
+        elif self.locked:
+            what = f"motor(s) {', '.join(self.locked)} no longer move"
+        else:
+            what = (
+                f"motors {', '.join(mech.motor_names)} no longer move independently "
+                f"(only {self.mobility} of them can be set)"
+            )
+        return (
+            f"the design ({named}) has mobility {self.mobility} at the rest pose, the "
+            f"file's {motors}: {what}"
+        )
+
+
+def _design_rest_program(mech: Mechanism, designs):
+    """Per design: the passive Jacobian and the motors' Jacobian at the rest pose."""
+    state = rest_state(mech)
+
+    def one(design):
+        geom = geometry(mech, design)
+        passive = jax.jacfwd(lambda s: passive_residual(mech, geom, s))(state)
+        motors = jax.jacfwd(lambda s: homogenised_motor_values(mech, geom, s))(state)
+        return passive, motors
+
+    return jax.vmap(one)(designs)
+
+
+def mobility_changes(mech: Mechanism, designs) -> list[MobilityChange | None]:
+    """For each design ``(N, n_p)`` (file units): None where its rest pose has the
+    mobility the motors number (the file's, checked on loading), else what changed
+    (a design that turns a spherical loop into a general spatial one that locks)."""
+    designs = np.atleast_2d(np.asarray(designs, dtype=np.float64))
+    passive, motors = programs.call(
+        "design_mobility", mech, _design_rest_program, padded_design(mech, designs)
+    )
+    passive = np.asarray(passive)
+    values = np.linalg.svd(passive, compute_uv=False)  # (N, min(P, S)), batched
+    ranks = np.sum(values > RANK_TOL * values[:, :1], axis=1)
+    return [
+        None
+        if mech.state_size - rank == mech.num_motors
+        else _change(mech, d, p, np.asarray(m))
+        for d, p, m, rank in zip(designs, passive, motors, ranks)
+    ]
+
+
+def _change(mech: Mechanism, design, passive, motors) -> MobilityChange:
+    """What changed at ``design``: the mobility, and the motors whose rate is zero on
+    every motion the rest pose allows (the null space of the passive rows)."""
+    _, values, vt = np.linalg.svd(passive)
+    rank = int(np.sum(values > RANK_TOL * values[0]))
+    rates = motors @ vt[rank:].T  # each motor's rate on each allowed motion
+    locked = tuple(
+        name
+        for name, row in zip(mech.motor_names, rates)
+        if np.linalg.norm(row) <= LOCKED_TOL
+    )
+    return MobilityChange(np.asarray(design), mech.state_size - rank, locked)
+
+
+def check_design_mobility(mech: Mechanism, design, where: str) -> None:
+    """:class:`~linkopt.InputError` naming ``where`` when ``design`` changes the
+    mobility at rest (:func:`mobility_changes`)."""
+    (change,) = mobility_changes(mech, design)
+    if change is not None:
+        raise InputError(f"{where}: {change.words(mech)}")

@@ -128,8 +128,10 @@ class DesignSpace:
     """Free design parameters ``p`` (after ties) and their linear map onto the geometry.
 
     ``geometry_flat(p) = geometry_flat(p0) + matrix @ (p - p0)``, where the flat
-    geometry is ``[anchors (J,3), axes (J,3)]`` raveled, in file units. Every kind of
-    parameter is such a linear map (:mod:`.design_space`): a ``coordinate`` drives one
+    geometry is ``[anchors (J,3), axes (J,3)]`` raveled, in file units (an axis moves
+    by its axis-component parameters over the length of the axis as written), then
+    the link angles' ``turns`` (:mod:`.design_angles`). Every other kind of parameter
+    is such a linear map (:mod:`.design_space`): a ``coordinate`` drives one
     coordinate of a joint, plus its ``ties`` and its ``mirror``/``copies`` images under
     the ``[symmetry]``; a ``length`` moves the ``to`` anchors of a link along its rest
     direction (and with every move of its ``from`` anchor); a ``radius`` moves joints
@@ -147,10 +149,27 @@ class DesignSpace:
     is_length: (
         np.ndarray
     )  # (n_p,) bool: an anchor coordinate (file units), not an axis component
+    #: Link angles (``kind = "twist"``), the one part that is not linear; None when
+    #: there are none.
+    turns: Turns | None = field(default=None, metadata=UNLESS_SET)
 
     @property
     def size(self) -> int:
         return len(self.names)
+
+
+@dataclass(frozen=True)
+class Turns:
+    """``T`` link-angle parameters (:mod:`.design_angles`), applied after the linear
+    map in order: the joints marked in ``joints[t]`` turn by ``select[t] @ (p - p0)``
+    radians about the line through ``centers[t]`` along ``normals[t]`` (anchors about
+    the line, axes about its direction). A turn's joints include those of the turns
+    listed before it that hang from them, so a chain of link angles composes."""
+
+    select: np.ndarray  # (T, n_p) one-hot: the parameter of each turn
+    centers: np.ndarray  # (T, 3) a point of the turning line, file units
+    normals: np.ndarray  # (T, 3) unit direction of the turning line
+    joints: np.ndarray  # (T, J) 1.0 for the joints that turn
 
 
 def per_length(is_length: np.ndarray, length_scale):

@@ -2,7 +2,9 @@
 
 The file's own tables are kept; joint anchors and axes take the design's values
 (symmetric copies, ties, composed lengths and straight legs included), and every
-parameter's rest value moves with them: a coordinate is read back from its anchor, a
+parameter's rest value moves with them: a coordinate is read back from its anchor (an
+axis component from the axis, written unnormalised: a parameter is a component of the
+axis as the file writes it, and a normalised axis would read back as other values), a
 length from its two joints, a radius from its joints' distance to the axis, and the
 directions a length or radius moves along are the same at the written design (a
 length moves along its link, a radius radially), so reloading gives the same design
@@ -23,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._engine.geometry import geometry
+from .._engine.geometry import geometry, moved_joints
 from .._engine.kinematics import check_design
 from .._engine.model import Mechanism
 from .._errors import InputError
@@ -110,12 +112,8 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
     """The parsed definition of ``mech`` with ``design`` baked into its rest
     geometry."""
     design = np.asarray(design, dtype=float)
-    flat = np.concatenate(
-        [mech.anchors.ravel(), mech.axes.ravel()]
-    ) + mech.design.matrix @ (design - mech.design.p0)
-    count = len(mech.joint_names)
-    anchors = flat[: 3 * count].reshape(count, 3)
-    axes = flat[3 * count :].reshape(count, 3)
+    anchors, axes = (np.asarray(v) for v in moved_joints(mech, design))
+    rest = geometry(mech, design)
     data = copy.deepcopy(mech.raw)
     data["mechanism"]["reference_length"] = float(mech.length_scale)
     for body, origin in zip(data["bodies"], mech.body_origins):
@@ -127,9 +125,11 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
         ]
     for k, joint in enumerate(data["joints"]):
         joint["anchor"] = [float(v) for v in anchors[k]]
-        if "axis" in joint:
-            joint["axis"] = [float(v) for v in axes[k] / np.linalg.norm(axes[k])]
-    points = np.asarray(geometry(mech, design).points) * mech.length_scale
+        if "axis" in joint:  # unnormalised: axis components read back as written
+            joint["axis"] = [float(v) for v in axes[k] * _length(joint["axis"])]
+        if "axis2" in joint:  # kept perpendicular to the moved axis
+            joint["axis2"] = [float(v) for v in np.asarray(rest.axes2[k])]
+    points = np.asarray(rest.points) * mech.length_scale
     for k, point in enumerate(data.get("points", [])):
         if "position" in point:  # where the design put it (attachment)
             point["position"] = [float(v) for v in points[k]]
@@ -154,6 +154,32 @@ def source_header(mech: Mechanism) -> str:
     return "".join(f"{line}\n" for line in lines)
 
 
+def _length(vector) -> float:
+    """The length of an axis as the source file writes it: its axis-component
+    parameters are components of that vector (:mod:`linkopt._engine.design_space`),
+    so the written axis keeps it and reads back as the same parameters."""
+    vec = np.asarray(vector, dtype=float)
+    largest = float(np.max(np.abs(vec)))
+    return largest * float(np.linalg.norm(vec / largest))
+
+
+def axis_note(mech: Mechanism) -> str:
+    """The line a written file carries where a parameter is an axis component: its
+    axes are written unnormalised on purpose (a normalised axis is another design)."""
+    axes = [
+        name
+        for name, item in zip(mech.design.names, mech.raw.get("parameters", []))
+        if str(item.get("coordinate", "")).startswith("axis_")
+    ]
+    if not axes:
+        return ""
+    return (
+        f"Axes are written unnormalised: the parameters {', '.join(axes)} are "
+        "components of the axes as written here (normalised, they would read back "
+        "as other values)."
+    )
+
+
 def write_design(
     mech: Mechanism, design, alpha_minus: float, path: str | Path, header: str = ""
 ) -> Path:
@@ -168,6 +194,7 @@ def write_design(
     ):
         raise InputError(f"alpha_minus: expected a finite number, got {alpha_minus!r}")
     path = Path(path)
+    header = "\n".join(filter(None, [header, axis_note(mech)]))
     comment = "".join(f"# {line}\n" for line in header.splitlines())
     kept = source_header(mech)
     if comment and kept:
