@@ -4,13 +4,14 @@ The file's own tables are kept; joint anchors and axes take the design's values
 (symmetric copies, ties, composed lengths and straight legs included), and every
 parameter's rest value moves with them: a coordinate is read back from its anchor, a
 length from its two joints, a radius from its joints' distance to the axis, and the
-directions a length or radius moves along are the same at the written design (a
-length moves along its link, a radius radially), so reloading gives the same design
-space with the written design as its initial one (tests/test_design_parameters.py).
-Named points given by ``position`` are written where the design puts them
-(:mod:`linkopt._engine.attachment`). The reference length, α₋ and body frame origins
-of the original are written explicitly so that the new file is homogenised and judged
-exactly as the design was during optimisation.
+directions a length or radius moves along are the same at the written design (a length
+moves along its link, a radius radially), so reloading gives the same design space with
+the written design as its initial one (tests/test_design_parameters.py). Named points
+given by ``position`` are written where the design puts them
+(:mod:`linkopt._engine.attachment`), with their ``follow`` rule written out. The
+reference length, α₋ and body frame origins of the original are written explicitly so
+that the new file is homogenised and judged exactly as the design was during
+optimisation.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from .._engine.kinematics import check_design
 from .._engine.model import Mechanism
 from .._errors import InputError
 from .._folders import write_atomic
+from .points import DEFAULT_FOLLOW
 
 #: TOML basic-string escapes; other control characters are written as ``\\uXXXX``.
 _ESCAPES = {
@@ -131,6 +133,7 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
     for k, point in enumerate(data.get("points", [])):
         if "position" in point:  # where the design put it (attachment)
             point["position"] = [float(v) for v in points[k]]
+            point["follow"] = point.get("follow", DEFAULT_FOLLOW)  # the rule, explicit
     return data
 
 
