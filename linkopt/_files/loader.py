@@ -28,6 +28,7 @@ from .._engine.design_space import read_design, read_symmetry
 from .._engine.fields import Reader, parse_text, parse_toml
 from .._engine.links import read_collision
 from .._engine.model import Mechanism
+from .._engine.welding import weld
 from .bounds import check_position, position, reference_length
 from .outputs import output_fields, read_outputs
 from .points import idle_spins, motor_fields, point_fields, read_motors, read_points
@@ -80,6 +81,7 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
     collision = read_collision(rd, mech)  # [collision], bodies' radius and layer
     if collision is not None:
         mech = dataclasses.replace(mech, collision=collision)
+    mech = weld(mech)  # bodies joined by fixed joints: one body (issue 44)
     if check:
         from .._engine.mobility import check_mobility  # needs JAX; not for parsing
 

@@ -9,6 +9,7 @@ from .._engine.attachment import attach
 from .._engine.fields import Reader
 from .._engine.model import MOTOR_JOINTS
 from .bounds import position
+from .topology import pins
 
 
 def read_points(
@@ -125,10 +126,7 @@ def point_fields(
 ) -> dict:
     """The Mechanism fields of the named points, with how each follows its body."""
     positions = np.array([p["position"] for p in points]).reshape(-1, 3)
-    on_body = [
-        np.array([k for k, j in enumerate(joints) if p["body"] in j["bodies"]])
-        for p in points
-    ]
+    on_body = [np.array(pins(joints, p["body"])) for p in points]
     follows = np.array([p["joint"] for p in points], dtype=int)
     fixed = np.array([p["follow"] == "frame" for p in points], dtype=bool)
     return {

@@ -1,0 +1,179 @@
+"""Welded parts change nothing (issue 44, part 3): bodies joined by ``fixed`` joints
+are one rigid body for every metric (:mod:`linkopt._engine.welding`). An inert part
+welded onto a moving body changed f_sing at one pose from 52.48 to 71.48 and α₋ from
+38.5 to 42.8 before; here every shipped mechanism gets such a part and every number
+is compared with the file's own to 1e-10."""
+
+import copy
+
+import numpy as np
+import pytest
+from conftest import MECHANISMS
+
+import linkopt
+from linkopt._design.evaluation import alpha_minus, rest_conditioning
+from linkopt._engine.geometry import rest_state
+from linkopt._engine.welding import part_state, parts
+from linkopt._files.writer import dumps
+
+SHIPPED = sorted(p.stem for p in MECHANISMS.glob("*.toml"))
+#: The five-bar and four-bar are also evaluated (f_design); the others compile
+#: their evaluation for minutes, their σ_min, f_sing, α₋ and FK are compared.
+EVALUATED = ("five_bar", "four_bar")
+
+
+def moving_body(mech) -> int:
+    """The body a motor turns (the second body of the first motor's joint)."""
+    return int(mech.joint_bodies[mech.motor_joints[0], 1])
+
+
+def with_welded_part(mech, onto: int | None = None) -> str:
+    """The file of ``mech`` (its assembled tables) with a part welded by a ``fixed``
+    joint onto a moving body, at that body's first anchor (the anchors' span, hence
+    the reference length, is unchanged), with a named point at the body's anchor
+    centroid."""
+    data = copy.deepcopy(mech.raw)
+    body = moving_body(mech) if onto is None else onto
+    joints = mech.joints_on(body)
+    data["bodies"].append({"name": "welded_part"})
+    data["joints"].append(
+        {
+            "name": "weld",
+            "type": "fixed",
+            "bodies": [mech.body_names[body], "welded_part"],
+            "anchor": [float(v) for v in mech.anchors[joints[0]]],
+        }
+    )
+    centre = mech.anchors[joints].mean(axis=0)
+    data.setdefault("points", []).append(
+        {"name": "on_part", "body": "welded_part", "position": list(map(float, centre))}
+    )
+    data["mechanism"].pop("assemble", None)  # the tables are assembled already
+    return dumps(data)
+
+
+def motor_rows(mech) -> np.ndarray:
+    """The rest pose and two small motor moves (0.05 rad, or 1 % of the reference
+    length for linear motors)."""
+    step = np.where(mech.motor_linear, 0.01 * mech.length_scale, 0.05)
+    signs = np.array([np.ones(mech.num_motors), (-1.0) ** np.arange(mech.num_motors)])
+    return np.vstack([np.zeros(mech.num_motors), signs * step])
+
+
+@pytest.fixture(scope="module", params=SHIPPED)
+def pair(request):
+    mech = linkopt.load(MECHANISMS / f"{request.param}.toml")
+    welded = linkopt.loads(with_welded_part(mech), f"{request.param}_welded.toml")
+    return request.param, mech, welded
+
+
+def test_the_part_is_merged_into_its_body(pair):
+    _, mech, welded = pair
+    assert welded.body_names == mech.body_names
+    assert welded.state_size == mech.state_size
+    assert parts(welded).body_names == mech.body_names + ("welded_part",)
+    assert welded.joint_types[-1] == "welded"
+
+
+def test_fk_sigma_min_and_f_sing_are_unchanged(pair):
+    _, mech, welded = pair
+    rows = motor_rows(mech)
+    one, two = linkopt.solve_fk(mech, rows), linkopt.solve_fk(welded, rows)
+    assert np.asarray(one.converged).tolist() == np.asarray(two.converged).tolist()
+    np.testing.assert_allclose(two.state, one.state, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(
+        linkopt.output_values(welded, two.state) / mech.output_scale,
+        linkopt.output_values(mech, one.state) / mech.output_scale,
+        rtol=0,
+        atol=1e-10,
+    )
+    for states in (rest_state(mech)[None], np.asarray(one.state)):
+        np.testing.assert_allclose(
+            linkopt.singular_values(welded, states),
+            linkopt.singular_values(mech, states),
+            rtol=1e-10,
+        )
+        np.testing.assert_allclose(
+            linkopt.f_sing(welded, states), linkopt.f_sing(mech, states), rtol=1e-10
+        )
+
+
+def test_rest_conditioning_and_alpha_minus_are_unchanged(pair):
+    _, mech, welded = pair
+    one, two = rest_conditioning(mech), rest_conditioning(welded)
+    assert two.f_sing == pytest.approx(one.f_sing, rel=1e-10)
+    np.testing.assert_allclose(two.jacobian_sigmas, one.jacobian_sigmas, rtol=1e-10)
+    if not one.near_singular:
+        assert alpha_minus(welded) == pytest.approx(alpha_minus(mech), rel=1e-10)
+
+
+def test_the_point_on_the_part_reads_as_the_same_point_on_its_body(pair):
+    """FK of the point on the welded part equals FK of the same point placed on the
+    body it is welded to (with the same rule), at every pose."""
+    name, mech, welded = pair
+    data = linkopt.loads(with_welded_part(mech), "x.toml").raw
+    data = copy.deepcopy(data)
+    data["points"][-1]["body"] = mech.body_names[moving_body(mech)]
+    data["bodies"] = data["bodies"][:-1]
+    data["joints"] = data["joints"][:-1]
+    on_body = linkopt.loads(dumps(data), f"{name}_on_body.toml")
+    rows = motor_rows(mech)
+    state = np.asarray(linkopt.solve_fk(welded, rows).state)
+    np.testing.assert_allclose(
+        np.asarray(linkopt.point_positions(welded, state))[:, -1],
+        np.asarray(linkopt.point_positions(on_body, state))[:, -1],
+        rtol=0,
+        atol=1e-9,
+    )
+
+
+def test_a_state_gives_each_part_its_pose(pair):
+    """:func:`part_state`: the part rides on its body: its fixed joint's residual on
+    the parts' mechanism is zero, and its pose is its body's."""
+    _, mech, welded = pair
+    state = np.asarray(linkopt.solve_fk(welded, motor_rows(mech)).state)
+    whole = part_state(welded, state)
+    assert whole.shape == (len(state), parts(welded).state_size)
+    np.testing.assert_allclose(whole[:, : mech.state_size], state, atol=1e-15)
+    joints = np.asarray(linkopt.joint_positions(parts(welded), whole))
+    body = moving_body(mech)
+    first = mech.joints_on(body)[0]
+    np.testing.assert_allclose(joints[:, -1], joints[:, first], atol=1e-9)
+    part = whole.reshape(len(state), -1, 7)[:, -1]
+    np.testing.assert_allclose(
+        part[:, 3:], state.reshape(len(state), -1, 7)[:, body, 3:], atol=1e-15
+    )
+
+
+@pytest.mark.parametrize("name", EVALUATED)
+def test_f_design_is_unchanged(name):
+    mech = linkopt.load(MECHANISMS / f"{name}.toml")
+    welded = linkopt.loads(with_welded_part(mech), f"{name}_welded.toml")
+    one, two = linkopt.evaluate(mech), linkopt.evaluate(welded)
+    assert float(two.f_design) == pytest.approx(float(one.f_design), rel=1e-10)
+    np.testing.assert_allclose(two.ik_f_sing, one.ik_f_sing, rtol=1e-10)
+    np.testing.assert_allclose(two.adv_f_sing, one.adv_f_sing, rtol=1e-10)
+
+
+def test_a_chain_of_welds_merges_into_the_ground_or_first_body():
+    """Two parts welded in a chain onto the five-bar's proximal link, and one welded
+    to the ground: the chain's root is the link, the ground roots its own group."""
+    mech = linkopt.load(MECHANISMS / "five_bar.toml")
+    data = copy.deepcopy(mech.raw)
+    link = mech.body_names[moving_body(mech)]
+    anchor = [float(v) for v in mech.anchors[mech.joints_on(moving_body(mech))[0]]]
+    for name, onto in (("a", link), ("b", "a"), ("c", mech.body_names[mech.ground])):
+        data["bodies"].append({"name": name})
+        data["joints"].append(
+            {"name": f"w{name}", "type": "fixed", "bodies": [name, onto],
+             "anchor": anchor}
+        )  # fmt: skip
+    welded = linkopt.loads(dumps(data), "chain.toml")
+    assert welded.body_names == mech.body_names
+    assert welded.ground == mech.ground
+    states = np.asarray(linkopt.solve_fk(mech, motor_rows(mech)).state)
+    np.testing.assert_allclose(
+        linkopt.singular_values(welded, states),
+        linkopt.singular_values(mech, states),
+        rtol=1e-10,
+    )
