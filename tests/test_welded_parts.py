@@ -177,3 +177,23 @@ def test_a_chain_of_welds_merges_into_the_ground_or_first_body():
         linkopt.singular_values(mech, states),
         rtol=1e-10,
     )
+
+
+def test_exports_and_the_figure_show_the_parts(tmp_path):
+    """The MJCF and the meshes keep the part as its own body, welded; the MJCF
+    joint values of a merged state are those of the file without the part; the
+    design figure draws it."""
+    from linkopt._design.plots import plot_mechanism
+    from linkopt._export.meshes import body_meshes
+    from linkopt._export.mjcf import joint_values, mjcf_text
+
+    mech = linkopt.load(MECHANISMS / "five_bar.toml")
+    welded = linkopt.loads(with_welded_part(mech), "five_bar_welded.toml")
+    text, _ = mjcf_text(welded)
+    assert 'name="welded_part"' in text and "<weld" in text
+    assert len(body_meshes(welded)) == mech.num_bodies + 1
+    state = np.asarray(linkopt.solve_fk(welded, motor_rows(mech)).state)
+    one, two = joint_values(mech, state), joint_values(welded, state)
+    for name, value in one.items():
+        np.testing.assert_allclose(two[name], value, atol=1e-9)
+    assert plot_mechanism(welded, tmp_path / "welded.png").stat().st_size > 0

@@ -19,6 +19,7 @@ from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.model import Mechanism
 from .._engine.point_moves import point_moves
 from .._engine.readout import joint_positions, point_positions
+from .._engine.welding import parts
 
 MAGENTA = "#ff00ff"
 
@@ -202,7 +203,9 @@ def plot_mechanism(
     views (:func:`_planes`). A point that a design moves far on its body is marked
     (:func:`mark_moves`). With ``[collision]`` enabled the link solids are drawn
     too, and a planar mechanism gets a side view as well, where their layers
-    show."""
+    show. Welded parts are drawn as the file's bodies
+    (:func:`~linkopt._engine.welding.parts`)."""
+    mech = parts(mech)
     designs = designs or {"initial": None}
     planes = _planes(mech)
     fig, axes = _views(planes)

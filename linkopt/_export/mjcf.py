@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .._engine.model import Mechanism
+from .._engine.welding import part_state, parts
 from .tree import (
     Edge,
     Rest,
@@ -252,7 +253,9 @@ def _actuators(w: _Writer, root) -> None:
 def mjcf_text(
     mech: Mechanism, design=None, *, thickness: float | None = None
 ) -> tuple[str, dict]:
-    """The MJCF document of ``design`` (None: the file's) and a summary of it."""
+    """The MJCF document of ``design`` (None: the file's) and a summary of it; welded
+    parts are their own bodies (:func:`~linkopt._engine.welding.parts`)."""
+    mech = parts(mech)
     w = _Writer(mech, design, thickness)
     root = ET.Element("mujoco", model=mech.name)
     root.append(
@@ -311,6 +314,7 @@ def joint_values(mech: Mechanism, state, design=None) -> dict[str, np.ndarray]:
     ``design``): MJCF joint name → its coordinates (rad; metres for slides; a ``wxyz``
     quaternion for a ball). With these, MuJoCo's kinematics puts every body where the
     state has it and the equality constraints hold to the state's residual."""
+    mech, state = parts(mech), part_state(mech, state)
     rest_pose = rest(mech, design)
     tree = spanning_tree(mech, rest_pose)
     s, _ = metres_per_unit(mech)
