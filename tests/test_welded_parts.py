@@ -197,3 +197,54 @@ def test_exports_and_the_figure_show_the_parts(tmp_path):
     for name, value in one.items():
         np.testing.assert_allclose(two[name], value, atol=1e-9)
     assert plot_mechanism(welded, tmp_path / "welded.png").stat().st_size > 0
+
+
+def test_a_welded_parts_capsules_keep_their_layer_and_pairs_merge():
+    """A part welded onto the collision four-bar's coupler, in its own layer: its
+    capsule rides on the coupler with the part's layer offset (capsule ends of the
+    merged state equal those of the parts' state), no pair lies inside the group and
+    each merged pair is checked once."""
+    from linkopt._engine.collision import capsule_ends
+    from linkopt._engine.geometry import geometry
+
+    mech = linkopt.load(MECHANISMS / "four_bar_collision.toml")
+    coupler = mech.body_names.index("coupler")
+    data = linkopt.loads(with_welded_part(mech, onto=coupler), "x.toml").raw
+    data = copy.deepcopy(data)
+    data["bodies"][-1]["layer"] = 3.0
+    welded = linkopt.loads(dumps(data), "four_bar_collision_welded.toml")
+    model, whole = welded.collision, parts(welded)
+    part = whole.body_names.index("welded_part")
+    assert part in whole.collision.segment_bodies
+    assert np.all(model.pairs[:, 0] < model.pairs[:, 1])
+    assert len({tuple(p) for p in model.pairs}) == len(model.pairs)
+    owners = model.pairs[model.capsule_owners]
+    np.testing.assert_array_equal(
+        np.sort(model.segment_bodies[model.capsule_pairs], axis=1), owners
+    )
+    states = np.asarray(linkopt.solve_fk(welded, motor_rows(mech)).state)
+    for state, full in zip(states, part_state(welded, states)):
+        np.testing.assert_allclose(
+            capsule_ends(welded, geometry(welded), state),
+            capsule_ends(whole, geometry(whole), full),
+            rtol=0,
+            atol=1e-12,
+        )
+
+
+def test_check_names_the_welded_parts(tmp_path, capsys):
+    from linkopt._cli.main import main
+
+    mech = linkopt.load(MECHANISMS / "five_bar.toml")
+    path = tmp_path / "welded.toml"
+    path.write_text(with_welded_part(mech))
+    assert main(["check", str(path)]) == 0
+    body = mech.body_names[moving_body(mech)]
+    assert f"1 welded part(s), one body with the part they are welded to: " \
+        f"welded_part on {body}" in capsys.readouterr().out  # fmt: skip
+    assert main(["check", str(path), "--json"]) == 0
+    import json
+
+    info = json.loads(capsys.readouterr().out)
+    assert info["welded"] == {"welded_part": body}
+    assert info["bodies"] == list(mech.body_names)

@@ -43,6 +43,11 @@ def run_check(args) -> int:
             f"{len(info['idle_spins'])} idle spin(s): {', '.join(info['idle_spins'])} "
             "spin about their own axis; fixed by a gauge constraint"
         )
+    if info["welded"]:
+        print(
+            f"{len(info['welded'])} welded part(s), one body with the part they are "
+            "welded to: " + ", ".join(f"{k} on {v}" for k, v in info["welded"].items())
+        )
     print_moves(mech, moves, "over the design box")
     _print_rest_pose(info["rest_pose"])
     for line in warnings:

@@ -27,11 +27,10 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 
-import jax
 import numpy as np
 
 from .attachment import follows_one_joint
-from .geometry import geometry
+from .following import follow
 from .model import Mechanism
 
 #: A point moved farther than this share of its body's anchor span is reported.
@@ -125,10 +124,7 @@ def point_moves(mech: Mechanism, designs) -> tuple[PointMove, ...]:
     candidates = np.flatnonzero(~follows_one_joint(mech.point_attachment) & ~fixed)
     if len(candidates) == 0 or mech.design.size == 0:
         return ()
-    scale = mech.length_scale
-    rest = np.asarray(geometry(mech).points) * scale
-    at = jax.vmap(lambda p: _points_and_anchors(mech, p))(designs)
-    moved, anchors = (np.asarray(a) * scale for a in at)
+    rest, moved, anchors = _rest_points(mech, designs)
     carried = _centroids(mech, anchors - mech.anchors[None])  # (N, P, 3)
     distance = np.linalg.norm(moved - rest[None] - carried, axis=-1)  # (N, P)
     spans = anchor_spans(mech)
@@ -151,9 +147,16 @@ def point_moves(mech: Mechanism, designs) -> tuple[PointMove, ...]:
     return tuple(found)
 
 
-def _points_and_anchors(mech: Mechanism, design):
-    rest = geometry(mech, design)
-    return rest.points, rest.anchors
+def _rest_points(mech: Mechanism, designs: np.ndarray):
+    """The points' rest positions at the initial design ``(P, 3)`` and at each design
+    ``(N, P, 3)``, and the anchors ``(N, J, 3)``, file units: :func:`.geometry.geometry`
+    in numpy (no tracing, so a check of a thousand corners takes milliseconds)."""
+    space, count = mech.design, len(mech.anchors)
+    flat = space.matrix[: 3 * count] @ (designs - space.p0).T  # (3J, N)
+    anchors = mech.anchors[None] + flat.T.reshape(-1, count, 3)
+    att, rest = mech.point_attachment, mech.point_positions
+    moved = np.array([follow(att, rest, mech.anchors, a) for a in anchors])
+    return rest, moved.reshape(len(designs), -1, 3), anchors
 
 
 def _centroids(mech: Mechanism, shifts: np.ndarray) -> np.ndarray:
