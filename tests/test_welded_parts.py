@@ -180,7 +180,8 @@ def test_a_chain_of_welds_merges_into_the_ground_or_first_body():
 
 
 def test_exports_and_the_figure_show_the_parts(tmp_path):
-    """The MJCF and the meshes keep the part as its own body, welded; the MJCF
+    """The MJCF and the meshes keep the part as its own body, rigid on the body it is
+    welded to (a child body without a joint); the MJCF
     joint values of a merged state are those of the file without the part; the
     design figure draws it."""
     from linkopt._design.plots import plot_mechanism
@@ -190,7 +191,12 @@ def test_exports_and_the_figure_show_the_parts(tmp_path):
     mech = linkopt.load(MECHANISMS / "five_bar.toml")
     welded = linkopt.loads(with_welded_part(mech), "five_bar_welded.toml")
     text, _ = mjcf_text(welded)
-    assert 'name="welded_part"' in text and "<weld" in text
+    import xml.etree.ElementTree as ET
+
+    (part,) = [
+        b for b in ET.fromstring(text).iter("body") if b.get("name") == "welded_part"
+    ]
+    assert part.find("joint") is None  # rigid on its body: a tree edge with no joint
     assert len(body_meshes(welded)) == mech.num_bodies + 1
     state = np.asarray(linkopt.solve_fk(welded, motor_rows(mech)).state)
     one, two = joint_values(mech, state), joint_values(welded, state)
@@ -248,3 +254,19 @@ def test_check_names_the_welded_parts(tmp_path, capsys):
     info = json.loads(capsys.readouterr().out)
     assert info["welded"] == {"welded_part": body}
     assert info["bodies"] == list(mech.body_names)
+
+
+def test_a_written_design_keeps_the_parts(tmp_path):
+    """``optimized.toml`` of a welded file: every body keeps its own origin and the
+    file reads back to the same merged mechanism."""
+    from linkopt._files.writer import write_design
+
+    mech = linkopt.load(MECHANISMS / "five_bar.toml")
+    welded = linkopt.loads(with_welded_part(mech), "five_bar_welded.toml")
+    path = write_design(welded, welded.design.p0, 10.0, tmp_path / "w.toml")
+    again = linkopt.load(path)
+    assert parts(again).body_names == parts(welded).body_names
+    np.testing.assert_allclose(
+        parts(again).body_origins, parts(welded).body_origins, atol=1e-12
+    )
+    np.testing.assert_allclose(again.body_origins, mech.body_origins, atol=1e-12)

@@ -25,6 +25,7 @@ import numpy as np
 from .._engine.geometry import geometry
 from .._engine.kinematics import check_design
 from .._engine.model import Mechanism
+from .._engine.welding import parts
 from .._errors import InputError
 from .._folders import write_atomic
 from .points import DEFAULT_FOLLOW
@@ -118,7 +119,7 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
     axes = flat[3 * count :].reshape(count, 3)
     data = copy.deepcopy(mech.raw)
     data["mechanism"]["reference_length"] = float(mech.length_scale)
-    for body, origin in zip(data["bodies"], mech.body_origins):
+    for body, origin in zip(data["bodies"], parts(mech).body_origins):
         body["origin"] = [float(v) for v in origin]  # same frames, so the same f_sing
     data.setdefault("evaluation", {})["alpha_minus"] = float(alpha_minus)
     if mech.evaluation.targets:  # the file's and those an optimisation added
