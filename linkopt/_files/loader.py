@@ -14,7 +14,8 @@ bodies and joints (:mod:`.topology`) give the reference length, which bounds the
 points and motors (:mod:`.points`), the outputs (:mod:`.outputs`), the symmetry and
 design parameters (:mod:`linkopt._engine.design_space`) and the settings
 (:mod:`.settings`); ``[collision]`` (:mod:`linkopt._engine.links`) is read last, from
-the mechanism.
+the mechanism. Bodies joined by ``fixed`` joints are then merged into one body
+(:mod:`linkopt._engine.welding`), before the mobility check.
 """
 
 from __future__ import annotations
