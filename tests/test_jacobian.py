@@ -32,17 +32,28 @@ def _tait_bryan_variant(data: dict) -> dict:
     return data
 
 
-VARIANTS = [(path, None) for path in FILES] + [(FILES[-1], _tait_bryan_variant)]
+VARIANTS = [(path, None) for path in FILES] + [
+    (FILES[-1], _tait_bryan_variant),
+    (FILES[-1], "parts"),
+]
 
 
 @pytest.mark.parametrize(
-    "path, variant", VARIANTS, ids=[p.stem for p in FILES] + ["tait_bryan_outputs"]
+    "path, variant",
+    VARIANTS,
+    ids=[p.stem for p in FILES] + ["tait_bryan_outputs", "fixed_joint_unwelded"],
 )
 def test_linearise_matches_jacfwd(path, variant):
     # the all-families file is arbitrary geometry, not an assemblable linkage: no
-    # mobility check
+    # mobility check. Loaded, its fixed joint's bodies are one
+    # (linkopt._engine.welding); "parts" checks the fixed joint's own rows, on the
+    # file's bodies.
     data = tomllib.loads(path.read_text())
-    mech = build(variant(data) if variant else data, str(path), check=False)
+    if variant == "parts":
+        mech = build(data, str(path), check=False).welds.parts
+        assert "fixed" in mech.joint_types
+    else:
+        mech = build(variant(data) if variant else data, str(path), check=False)
     rng = np.random.default_rng(3)
     design = mech.design.p0 + rng.normal(0, 0.01, mech.design.size) * (
         mech.design.upper - mech.design.lower

@@ -17,6 +17,7 @@ import numpy as np
 from .._design.settings import MAX_BYTES, MAX_CELLS
 from .._errors import InputError
 from .._folders import output_folder
+from .mechanism import moved_points, print_moves
 from .values import design_arg, load
 
 _DESIGN_HELP = (
@@ -130,6 +131,8 @@ def run_evaluate(args) -> int:
     mech = load(args.file)
     design = design_arg(mech, args.design)
     payload = evaluation_payload(mech, evaluate(mech, design), design)
+    moves = moved_points(mech, mech.design.p0 if design is None else design)
+    payload["moved_points"] = [m.as_json(mech.design.names) for m in moves]
     if args.json:
         print(json.dumps(payload, indent=2))
         return 0
@@ -188,6 +191,7 @@ def run_evaluate(args) -> int:
     line = bounds_line(payload["at_bounds"])
     if line is not None:
         print(f"  {line}")
+    print_moves(mech, moves, "at this design")
     return 0
 
 

@@ -34,6 +34,8 @@ def run_check(args) -> int:
         info["design"] = dict(zip(mech.design.names, map(float, design)))
     info["rest_pose"], warnings = _rest_pose(mech)
     info["warnings"] = warnings
+    moves = moved_points(mech)
+    info["moved_points"] = [m.as_json(mech.design.names) for m in moves]
     if args.json:
         print(json.dumps(info, indent=2))
         return 0
@@ -49,10 +51,38 @@ def run_check(args) -> int:
             "spin about their own axis; fixed by a gauge constraint"
         )
     _print_collision(info["collision"])
+    if info["welded"]:
+        print(
+            f"{len(info['welded'])} welded part(s), one body with the part they are "
+            "welded to: " + ", ".join(f"{k} on {v}" for k, v in info["welded"].items())
+        )
+    print_moves(mech, moves, "over the design box")
     _print_rest_pose(info["rest_pose"])
     for line in warnings:
         print(f"linkopt: warning: {line}", file=sys.stderr)
     return 0
+
+
+def moved_points(mech, design=None) -> tuple:
+    """The named points a design moves far on their bodies
+    (:mod:`linkopt._engine.point_moves`): over the design box, or at ``design``."""
+    from .._engine.point_moves import box_designs, point_moves
+
+    return point_moves(mech, box_designs(mech) if design is None else design)
+
+
+def print_moves(mech, moves, where: str) -> None:
+    """One line per point a design moves far, under a title naming ``where``."""
+    from .._engine.point_moves import MOVE_SHARE
+
+    if moves:
+        units = mech.raw.get("mechanism", {}).get("units", "")
+        print(
+            f"{len(moves)} point(s) moved by more than {100 * MOVE_SHARE:g} % of "
+            f"their body's anchor span {where}:"
+        )
+        for move in moves:
+            print(f"  {move.line(units)}")
 
 
 def _rest_pose(mech) -> tuple[dict, list[str]]:

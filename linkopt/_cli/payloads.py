@@ -23,6 +23,19 @@ def _named(names, rows) -> dict[str, list[float]]:
     return {name: [float(v) for v in row] for name, row in zip(names, np.asarray(rows))}
 
 
+def welded_parts(mech: Mechanism) -> dict[str, str]:
+    """Each body welded onto another by ``fixed`` joints, and the body it is part of
+    (:mod:`linkopt._engine.welding`)."""
+    if mech.welds is None:
+        return {}
+    names = mech.welds.parts.body_names
+    return {
+        names[k]: mech.body_names[b]
+        for k, b in enumerate(mech.welds.body_of)
+        if names[k] != mech.body_names[b]
+    }
+
+
 def summary(mech: Mechanism) -> dict:
     """What ``linkopt check`` reports: sizes, mobility, motors, outputs, design
     space."""
@@ -40,6 +53,7 @@ def summary(mech: Mechanism) -> dict:
         },
         "mobility": mobility(mech),
         "idle_spins": [mech.body_names[b] for b in mech.idle_bodies],
+        "welded": welded_parts(mech),
         "motors": {
             n: {"joint": mech.joint_names[j], "kind": "linear" if lin else "revolute"}
             | motor_limits(mech, k)

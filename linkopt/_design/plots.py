@@ -17,7 +17,9 @@ from .. import _figures as figures
 from .._engine.collision import capsule_ends, has_collision
 from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.model import Mechanism
+from .._engine.point_moves import point_moves
 from .._engine.readout import joint_positions, point_positions
+from .._engine.welding import parts
 from . import labels
 from .planar import plane_normal
 
@@ -143,6 +145,31 @@ def _draw(ax, mech: Mechanism, design, colour: str, label: str, alpha: float, pl
     )
 
 
+def mark_moves(ax, mech: Mechanism, design, colour: str, plane) -> int:
+    """Mark each named point that ``design`` moves by more than
+    :data:`~linkopt._engine.point_moves.MOVE_SHARE` of its body's anchor span: a
+    hollow circle at its rest position at the initial design, a dashed line to where
+    the design puts it (lines have the gid ``moved-point``). Returns how many."""
+    if design is None:
+        return 0
+    moves = point_moves(mech, np.asarray(design, dtype=float)[None])
+    u, v = plane
+    for move in moves:
+        ax.plot(
+            [move.rest[u], move.moved[u]],
+            [move.rest[v], move.moved[v]],
+            "--",
+            color=colour,
+            lw=1.2,
+            gid="moved-point",
+            label=f"{move.point} moved {100 * move.share:.3g} % of {move.body}",
+        )
+        ax.scatter(
+            [move.rest[u]], [move.rest[v]], s=90, facecolors="none", edgecolors=colour
+        )
+    return len(moves)
+
+
 def _views(planes: list) -> tuple:
     """The figure and its axes (flat) for the views: side by side, or a planar
     mechanism's top view above its side view (:func:`mechanism_views`), which is
@@ -171,9 +198,12 @@ def plot_mechanism(
     """The mechanism at rest (joint circles, motor squares, ground triangles, point
     stars); several designs are overlaid, the first in grey. A planar mechanism is
     drawn in its plane, a spatial one in three orthographic views
-    (:func:`mechanism_views`). With ``[collision]`` enabled the link solids are drawn
+    (:func:`mechanism_views`). A point that a design moves far on its body is marked
+    (:func:`mark_moves`). With ``[collision]`` enabled the link solids are drawn
     too, and a planar mechanism gets a side view as well, where their layers
-    show."""
+    show. Welded parts are drawn as the file's bodies
+    (:func:`~linkopt._engine.welding.parts`)."""
+    mech = parts(mech)
     designs = designs or {"initial": None}
     planes = mechanism_views(mech)
     fig, axes = _views(planes)
@@ -181,6 +211,7 @@ def plot_mechanism(
     for ax, plane in zip(axes, planes):
         for (label, design), colour in zip(designs.items(), colours):
             _draw(ax, mech, design, colour, label, 1.0, plane)
+            mark_moves(ax, mech, design, colour, plane)
             if has_collision(mech):
                 _capsules(ax, mech, design, colour, plane)
         _target_box(ax, mech, plane)

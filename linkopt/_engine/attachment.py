@@ -1,27 +1,35 @@
 """Named points attached to their bodies: where a point is at the rest pose of any
 design.
 
-A design moves joint anchors (:mod:`.design_space`); a named point has to move with
-the body it is on, or a tool point written at a platform's centre ends up off the
-platform once the design changes the rods. The rule, fixed at load from the file's
-initial design:
+A design moves joint anchors (:mod:`.design_space`); each named point has one of two
+rules, the file's choice (``[[points]].follow``, issue 44), fixed at load from the
+file's initial design:
 
-* A point given by ``joint``, or by a ``position`` that coincides with one of its
-  body's anchors (within :data:`COINCIDENT` reference lengths), follows that anchor.
-* Any other point keeps its affine coordinates with respect to its body's anchors:
-  the part of it inside their affine hull (a line for two distinct anchors, a plane for
-  three or more in one plane, all of space otherwise) is the least-norm affine
-  combination ``Σ w_i a_i`` (``Σ w_i = 1``) of the anchors, and the rest, its offset
-  ``d`` from the hull, keeps its length and turns with the hull: along the unit normal
-  of a plane hull, by the smallest rotation taking the old line direction to the new
-  one for a line hull, unchanged for a body with a single anchor position.
+* ``"frame"`` (the default): the point is fixed in its body's frame. Body origins never
+  move with the design and every body has the identity orientation at rest, so its
+  rest position is the same for every design: moving a pin on a part moves none of the
+  part's other features.
+* ``"anchors"``: the point follows its body's anchors, so that a tool point written at
+  a platform's centre stays at the centre when the design changes the rods. A point
+  given by ``joint``, or by a ``position`` that coincides with one of its body's
+  anchors (within :data:`COINCIDENT` reference lengths), follows that anchor (a point
+  given by ``joint`` always does, whatever the rule).
+* Any other point that follows the anchors keeps its affine coordinates with respect to
+  its body's anchors: the part of it inside their affine hull (a line for two distinct
+  anchors, a plane for three or more in one plane, all of space otherwise) is the
+  least-norm affine combination ``Σ w_i a_i`` (``Σ w_i = 1``) of the anchors, and the
+  rest, its offset ``d`` from the hull, keeps its length and turns with the hull: along
+  the unit normal of a plane hull, by the smallest rotation taking the old line
+  direction to the new one for a line hull, unchanged for a body with a single anchor
+  position.
 
-For designs that move a body's anchors rigidly this is the rigid motion of the body;
-for designs that stretch it (a longer link, a wider platform) the point keeps its place
+For designs that move a body's anchors rigidly this is the rigid motion of the body; for
+designs that stretch it (a longer link, a wider platform) the point keeps its place
 among the anchors (a point at the centroid of a platform's joints stays at their
-centroid). The weights, offsets and hull directions are static (numpy); the map from
-anchors to points is linear for the in-hull part, so it is smooth in the design and
-its derivatives come from JAX.
+centroid). A point fixed in its frame has zero weights and the :data:`POINT` hull, so
+the same traced code gives its constant position. The weights, offsets and hull
+directions are static (numpy); the map from anchors to points is linear for the in-hull
+part, so it is smooth in the design and its derivatives come from JAX.
 """
 
 from __future__ import annotations
@@ -74,13 +82,20 @@ def attach(
     positions: Float[np.ndarray, "P 3"],
     follows: np.ndarray,
     scale: float,
+    fixed: np.ndarray | None = None,
 ) -> Attachment:
     """The :class:`Attachment` of points at ``positions`` (rest, initial design, file
     units); ``on_body[p]`` the joints of point ``p``'s body, ``follows[p]`` the joint
-    it follows or -1, ``scale`` the reference length."""
+    it follows or -1, ``scale`` the reference length, ``fixed[p]`` whether the point is
+    fixed in its body's frame (default: none is; a point with ``follows[p] >= 0``
+    follows its joint either way)."""
+    if fixed is None:
+        fixed = np.zeros(len(positions), dtype=bool)
     rows = [
-        _one(anchors, joints, position, joint, scale)
-        for joints, position, joint in zip(on_body, positions, follows)
+        _fixed(len(anchors))
+        if still and joint < 0
+        else _one(anchors, joints, position, joint, scale)
+        for joints, position, joint, still in zip(on_body, positions, follows, fixed)
     ]
     if not rows:
         return Attachment.empty(len(anchors))
@@ -88,6 +103,17 @@ def attach(
     return Attachment(
         np.array(weights), np.array(offsets), np.array(spans), np.array(hulls)
     )
+
+
+def _fixed(count: int):
+    """A point fixed in its body's frame: no weights, no offset, nothing to turn."""
+    return np.zeros(count), np.zeros(3), np.zeros((2, count)), POINT
+
+
+def follows_one_joint(attachment: Attachment) -> np.ndarray:
+    """``(P,)`` bool: the points that follow a single joint's anchor (given by
+    ``joint`` or on an anchor): a design moves them as it moves that joint."""
+    return np.count_nonzero(attachment.weights, axis=1) == 1
 
 
 def _one(anchors, joints, position, joint, scale):

@@ -139,9 +139,10 @@ def capsule_ends(
     places = jnp.concatenate([geom.anchors, geom.points])
     bodies = model.segment_bodies
     offsets = jnp.asarray(model.body_offsets) / mech.length_scale
+    layers = bodies if model.segment_layers is None else model.segment_layers
     local = (
         places[model.segment_places]
-        + offsets[bodies][:, None, :]
+        + offsets[layers][:, None, :]
         - geom.origins[bodies][:, None, :]
     )
     x, q = body_frames(state)

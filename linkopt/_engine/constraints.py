@@ -294,7 +294,7 @@ def bk_residual(mech: Mechanism, geom: Geometry, outputs, state) -> Float[Array,
 
 def constraint_rows(mech: Mechanism) -> dict[str, int]:
     """Row counts of the passive part and of ``C_FK`` / ``C_BK``."""
-    passive = mech.num_bodies + 6 + sum(JOINT_ROWS[t] for t in mech.joint_types)
+    passive = mech.num_bodies + 6 + sum(JOINT_ROWS.get(t, 0) for t in mech.joint_types)
     passive += mech.idle_bodies.size  # one gauge row per idle spin
     return {
         "passive": passive,

@@ -21,43 +21,49 @@ def follow(
     (file units), traceable in ``anchors``; ``positions0`` and ``anchors0`` are those
     of the initial design. Written as the initial positions plus what the design
     changes, so the initial design gives ``positions0`` (to rounding in the turned
-    offsets, about 1e-16 of their length)."""
-    moved = jnp.asarray(attachment.weights) @ (anchors - jnp.asarray(anchors0))
-    points = jnp.asarray(positions0) + moved
+    offsets, about 1e-16 of their length). numpy where ``anchors`` is a numpy array
+    (a concrete mechanism: :mod:`.point_moves` tries many designs without tracing),
+    JAX otherwise."""
+    xp = np if isinstance(anchors, np.ndarray) else jnp
+    moved = xp.asarray(attachment.weights) @ (anchors - xp.asarray(anchors0))
+    points = xp.asarray(positions0) + moved
     for hull, turn in ((LINE, _line), (PLANE, _plane)):
         index = np.flatnonzero(attachment.hulls == hull)
         if len(index):
             spans, offsets = attachment.spans[index], attachment.offsets[index]
-            change = turn(spans, offsets, anchors0, anchors) - turn(
-                spans, offsets, anchors0, jnp.asarray(anchors0)
+            change = turn(xp, spans, offsets, anchors0, anchors) - turn(
+                xp, spans, offsets, anchors0, xp.asarray(anchors0)
             )
-            points = points.at[index].add(change)
+            if xp is np:
+                points[index] += change
+            else:
+                points = points.at[index].add(change)
     return points
 
 
-def _directions(spans: np.ndarray, anchors) -> Float[Array, "N 2 3"]:
-    return jnp.einsum("nkj,jc->nkc", jnp.asarray(spans), anchors)
+def _directions(xp, spans: np.ndarray, anchors) -> Float[Array, "N 2 3"]:
+    return xp.einsum("nkj,jc->nkc", xp.asarray(spans), anchors)
 
 
-def _unit(v: Float[Array, "N 3"]) -> Float[Array, "N 3"]:
-    return v / jnp.linalg.norm(v, axis=-1, keepdims=True)
+def _unit(xp, v: Float[Array, "N 3"]) -> Float[Array, "N 3"]:
+    return v / xp.linalg.norm(v, axis=-1, keepdims=True)
 
 
-def _line(spans, offsets, anchors0, anchors):
+def _line(xp, spans, offsets, anchors0, anchors):
     """The offsets turned by the smallest rotation taking the line's direction at the
     initial design to its direction at this one (Rodrigues)."""
-    u = _unit(_directions(spans, jnp.asarray(anchors0))[:, 0])
-    v = _unit(_directions(spans, anchors)[:, 0])
-    d = jnp.asarray(offsets)
-    k, c = jnp.cross(u, v), jnp.sum(u * v, axis=-1, keepdims=True)
-    kd = jnp.sum(k * d, axis=-1, keepdims=True)
-    return c * d + jnp.cross(k, d) + k * kd / (1.0 + c)
+    u = _unit(xp, _directions(xp, spans, xp.asarray(anchors0))[:, 0])
+    v = _unit(xp, _directions(xp, spans, anchors)[:, 0])
+    d = xp.asarray(offsets)
+    k, c = xp.cross(u, v), xp.sum(u * v, axis=-1, keepdims=True)
+    kd = xp.sum(k * d, axis=-1, keepdims=True)
+    return c * d + xp.cross(k, d) + k * kd / (1.0 + c)
 
 
-def _plane(spans, offsets, anchors0, anchors):
+def _plane(xp, spans, offsets, anchors0, anchors):
     """The offsets (along the plane's normal) along the normal at this design."""
-    e0 = _directions(spans, jnp.asarray(anchors0))
-    e = _directions(spans, anchors)
-    n0 = _unit(jnp.cross(e0[:, 0], e0[:, 1]))
-    n = _unit(jnp.cross(e[:, 0], e[:, 1]))
-    return jnp.sum(jnp.asarray(offsets) * n0, axis=-1, keepdims=True) * n
+    e0 = _directions(xp, spans, xp.asarray(anchors0))
+    e = _directions(xp, spans, anchors)
+    n0 = _unit(xp, xp.cross(e0[:, 0], e0[:, 1]))
+    n = _unit(xp, xp.cross(e[:, 0], e[:, 1]))
+    return xp.sum(xp.asarray(offsets) * n0, axis=-1, keepdims=True) * n

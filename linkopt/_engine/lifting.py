@@ -217,12 +217,14 @@ def _skeleton(mech: Mechanism) -> Mechanism:
     reported = blank.reported
     if reported is not None:
         reported = dataclasses.replace(reported, names=len(reported.names))
+    welds = blank.welds  # the parts never enter a program: their map does
     return dataclasses.replace(
         blank,
         **{name: None for name in IGNORED},
         **counts,
         design=design,
         reported=reported,
+        welds=None if welds is None else tuple(welds.body_of),
     )
 
 

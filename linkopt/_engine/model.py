@@ -30,6 +30,7 @@ from .attachment import Attachment
 
 if TYPE_CHECKING:
     from .symmetry import Symmetry
+    from .welding import Welds
 
 #: Residual rows per passive joint family.
 JOINT_ROWS: dict[str, int] = {
@@ -40,6 +41,9 @@ JOINT_ROWS: dict[str, int] = {
     "cylindrical": 4,
     "fixed": 6,
 }
+#: A ``fixed`` joint inside a group of welded bodies, once the group is one body
+#: (:mod:`.welding`): it joins its body to itself and gives no rows.
+WELDED = "welded"
 #: Joint families that carry a primary axis.
 AXIAL_JOINTS = frozenset({"revolute", "universal", "prismatic", "cylindrical"})
 #: Joint family a motor may drive, and whether that motor is linear.
@@ -116,6 +120,12 @@ class Collision:
     pairs: np.ndarray
     capsule_pairs: np.ndarray
     capsule_owners: np.ndarray
+    #: ``(G,)`` the row of ``body_offsets`` (the layer) of each capsule where it is not
+    #: ``segment_bodies``: a welded part's capsules keep their part's layer
+    #: (:mod:`.welding`); None: ``segment_bodies``.
+    segment_layers: np.ndarray | None = field(
+        default=None, metadata={"digest": "unless set"}
+    )
 
 
 #: A field with this metadata is left out of :func:`digest` while it is None, so that
@@ -312,6 +322,9 @@ class Mechanism:
     #: of the file has a limit: then neither enters a program or the fingerprint.
     motor_min: np.ndarray | None = field(default=None, metadata=UNLESS_SET)
     motor_max: np.ndarray | None = field(default=None, metadata=UNLESS_SET)
+    #: The file's bodies when some are welded by ``fixed`` joints
+    #: (:class:`.welding.Welds`, None when none is).
+    welds: Welds | None = field(default=None, metadata=UNLESS_SET)
 
     @property
     def num_bodies(self) -> int:

@@ -18,6 +18,7 @@ import numpy as np
 import trimesh
 
 from .._engine.model import Mechanism
+from .._engine.welding import parts
 from .._errors import InputError
 from .._folders import write_atomic
 from .tree import Rest, body_capsules, default_thickness, metres_per_unit, rest
@@ -94,7 +95,8 @@ def check_thickness(mech: Mechanism, thickness) -> float:
 def body_meshes(mech: Mechanism, design=None, thickness=None) -> list[trimesh.Trimesh]:
     """One watertight solid per body (file order), world coordinates at the rest pose
     of ``design``, file units; ``thickness`` None: the file's ``[collision]`` radii,
-    or the default thickness."""
+    or the default thickness; a welded part is its own solid."""
+    mech = parts(mech)
     if thickness is not None or mech.collision is None:
         thickness = check_thickness(mech, thickness)
     rest_pose = rest(mech, design)

@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from .._engine.model import Mechanism
+from .._engine.welding import part_state, parts
 from .settling import settling_warnings
 from .tree import (
     Edge,
@@ -333,7 +334,9 @@ def _ctrl_range(mech: Mechanism, joint: int, s: float) -> dict:
 def mjcf_text(
     mech: Mechanism, design=None, *, thickness: float | None = None
 ) -> tuple[str, dict]:
-    """The MJCF document of ``design`` (None: the file's) and a summary of it."""
+    """The MJCF document of ``design`` (None: the file's) and a summary of it; welded
+    parts are their own bodies (:func:`~linkopt._engine.welding.parts`)."""
+    mech = parts(mech)
     w = _Writer(mech, design, thickness)
     solref = xml_numbers([EQUALITY_TIME, 1.0])
     solimp = xml_numbers([*EQUALITY_IMPEDANCE, EQUALITY_WIDTH * w.size])
@@ -402,6 +405,7 @@ def joint_values(mech: Mechanism, state, design=None) -> dict[str, np.ndarray]:
     ``design``): MJCF joint name → its coordinates (rad; metres for slides; a ``wxyz``
     quaternion for a ball). With these, MuJoCo's kinematics puts every body where the
     state has it and the equality constraints hold to the state's residual."""
+    mech, state = parts(mech), part_state(mech, state)
     rest_pose = rest(mech, design)
     tree = spanning_tree(mech, rest_pose)
     s, _ = metres_per_unit(mech)

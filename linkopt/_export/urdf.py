@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .._engine.model import Mechanism
+from .._engine.welding import part_state, parts
 from .._errors import InputError
 from .mjcf import dof_names, xml_numbers
 from .tree import Rest, body_poses, edge_values, metres_per_unit, rest, spanning_tree
@@ -138,7 +139,9 @@ def _edge_joints(root, mech, rest_pose, edge, frames, s) -> None:
 
 
 def urdf_text(mech: Mechanism, design=None) -> tuple[str, dict]:
-    """The URDF document of ``design`` (None: the file's) and a summary of it."""
+    """The URDF document of ``design`` (None: the file's) and a summary of it; welded
+    parts are their own links."""
+    mech = parts(mech)
     check_open_chain(mech)
     rest_pose = rest(mech, design)
     tree = spanning_tree(mech, rest_pose, hinges_only=True)
@@ -191,6 +194,7 @@ def export_urdf(mech: Mechanism, path, design=None) -> dict:
 def urdf_joint_values(mech: Mechanism, state, design=None) -> dict[str, float]:
     """URDF joint name → value (rad, metres) of every moving joint for a linkopt state
     (homogenised, of ``design``)."""
+    mech, state = parts(mech), part_state(mech, state)
     rest_pose = rest(mech, design)
     tree = spanning_tree(mech, rest_pose, hinges_only=True)
     s, _ = metres_per_unit(mech)
@@ -208,6 +212,7 @@ def urdf_joint_values(mech: Mechanism, state, design=None) -> dict[str, float]:
 def link_poses(mech: Mechanism, state, design=None) -> dict[str, np.ndarray]:
     """World 4x4 transform (metres) of every body link and point link for a linkopt
     state, as the URDF's frames are placed (module docstring)."""
+    mech, state = parts(mech), part_state(mech, state)
     rest_pose = rest(mech, design)
     frames = link_frames(mech, rest_pose)
     s, _ = metres_per_unit(mech)

@@ -14,7 +14,8 @@ bodies and joints (:mod:`.topology`) give the reference length, which bounds the
 points and motors (:mod:`.points`), the outputs (:mod:`.outputs`), the symmetry and
 design parameters (:mod:`linkopt._engine.design_space`) and the settings
 (:mod:`.settings`); ``[collision]`` (:mod:`linkopt._engine.links`) is read last, from
-the mechanism.
+the mechanism. Bodies joined by ``fixed`` joints are then merged into one body
+(:mod:`linkopt._engine.welding`), before the mobility check.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from .._engine.design_space import read_design, read_symmetry
 from .._engine.fields import Reader, parse_text, parse_toml
 from .._engine.links import read_collision
 from .._engine.model import Mechanism
+from .._engine.welding import weld
 from .bounds import check_position, position, reference_length
 from .outputs import output_fields, read_outputs
 from .points import idle_spins, motor_fields, point_fields, read_motors, read_points
@@ -80,6 +82,7 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
     collision = read_collision(rd, mech)  # [collision], bodies' radius and layer
     if collision is not None:
         mech = dataclasses.replace(mech, collision=collision)
+    mech = weld(mech)  # bodies joined by fixed joints: one body (issue 44)
     if check:
         from .._engine.mobility import check_mobility  # needs JAX; not for parsing
 

@@ -9,6 +9,7 @@ from .._engine.attachment import attach
 from .._engine.fields import Reader
 from .._engine.model import MOTOR_JOINTS
 from .bounds import check_position, position
+from .topology import pins
 
 
 def read_points(
@@ -38,7 +39,9 @@ def _read_point(
     scale: float,
 ) -> dict:
     """One point: at ``position``, or following the anchor of ``joint``."""
-    rd.keys(item, where, {"name", "body", "position", "joint"}, {"name", "body"})
+    rd.keys(
+        item, where, {"name", "body", "position", "joint", "follow"}, {"name", "body"}
+    )
     body = rd.lookup(names["body"], item["body"], f"{where}.body", "body")
     if ("position" in item) == ("joint" in item):
         raise rd.fail(
@@ -56,7 +59,37 @@ def _read_point(
         rest = joints[joint]["anchor"]
     else:
         joint, rest = -1, position(rd, item, "position", where, scale)
-    return {"name": item["name"], "body": body, "joint": joint, "position": rest}
+    return {
+        "name": item["name"],
+        "body": body,
+        "joint": joint,
+        "position": rest,
+        "follow": _follow_rule(rd, item, where),
+    }
+
+
+#: ``[[points]].follow``: how a point moves when a design moves its body's anchors.
+FOLLOW_RULES = ("frame", "anchors")
+#: The rule of a point given by ``position`` without ``follow``.
+DEFAULT_FOLLOW = "frame"
+
+
+def _follow_rule(rd: Reader, item: dict, where: str) -> str:
+    """``follow``: ``"frame"`` (fixed in its body's frame, the default) or
+    ``"anchors"``; a point given by ``joint`` follows that joint and takes no rule."""
+    if "follow" not in item:
+        return "anchors" if "joint" in item else DEFAULT_FOLLOW
+    if "joint" in item:
+        raise rd.fail(
+            f"{where}.follow", "a point given by 'joint' follows that joint; drop it"
+        )
+    rule = rd.string(item, "follow", where)
+    if rule not in FOLLOW_RULES:
+        raise rd.fail(
+            f"{where}.follow",
+            f"expected one of {', '.join(map(repr, FOLLOW_RULES))}, got {rule!r}",
+        )
+    return rule
 
 
 def read_motors(rd: Reader, data: dict, joints: list[dict], scale: float) -> list[dict]:
@@ -136,17 +169,15 @@ def point_fields(
 ) -> dict:
     """The Mechanism fields of the named points, with how each follows its body."""
     positions = np.array([p["position"] for p in points]).reshape(-1, 3)
-    on_body = [
-        np.array([k for k, j in enumerate(joints) if p["body"] in j["bodies"]])
-        for p in points
-    ]
+    on_body = [np.array(pins(joints, p["body"])) for p in points]
     follows = np.array([p["joint"] for p in points], dtype=int)
+    fixed = np.array([p["follow"] == "frame" for p in points], dtype=bool)
     return {
         "point_names": tuple(p["name"] for p in points),
         "point_bodies": np.array([p["body"] for p in points], dtype=int),
         "point_joints": follows,
         "point_positions": positions,
-        "point_attachment": attach(anchors, on_body, positions, follows, scale),
+        "point_attachment": attach(anchors, on_body, positions, follows, scale, fixed),
     }
 
 

@@ -180,10 +180,10 @@ def body_origins(
     rd: Reader, bodies: list[dict], joints: list[dict], ground: int, scale: float
 ) -> Float[np.ndarray, "B 3"]:
     """Each body's frame origin at rest: ``origin`` if given, else the centroid of its
-    joint anchors. Every body must reach the ground through joints."""
+    pins' anchors (:func:`pins`). Every body must reach the ground through joints."""
     origins = np.zeros((len(bodies), 3))
     for b, body in enumerate(bodies):
-        anchors = [j["anchor"] for j in joints if b in j["bodies"]]
+        anchors = [joints[k]["anchor"] for k in pins(joints, b)]
         if not anchors:
             raise rd.fail(
                 f"bodies[{b}]",
@@ -196,6 +196,17 @@ def body_origins(
         )
     _check_connected(rd, bodies, joints, ground)
     return origins
+
+
+def pins(joints: list[dict], body: int) -> list[int]:
+    """The joints of ``body`` that place its frame and its points: all but its
+    ``fixed`` joints, unless it has only those. A weld's anchor is not a pin of the
+    part, so welding a part onto a body moves neither the body's origin nor its
+    points' rule, and a welded part changes no number
+    (:mod:`linkopt._engine.welding`)."""
+    mine = [k for k, j in enumerate(joints) if body in j["bodies"]]
+    own = [k for k in mine if joints[k]["type"] != "fixed"]
+    return own or mine
 
 
 def _check_connected(

@@ -6,13 +6,14 @@ parameter's rest value moves with them: a coordinate is read back from its ancho
 axis component from the axis, written unnormalised: a parameter is a component of the
 axis as the file writes it, and a normalised axis would read back as other values), a
 length from its two joints, a radius from its joints' distance to the axis, and the
-directions a length or radius moves along are the same at the written design (a
-length moves along its link, a radius radially), so reloading gives the same design
-space with the written design as its initial one (tests/test_design_parameters.py).
-Named points given by ``position`` are written where the design puts them
-(:mod:`linkopt._engine.attachment`). The reference length, α₋ and body frame origins
-of the original are written explicitly so that the new file is homogenised and judged
-exactly as the design was during optimisation. The source file's leading comment block
+directions a length or radius moves along are the same at the written design (a length
+moves along its link, a radius radially), so reloading gives the same design space with
+the written design as its initial one (tests/test_design_parameters.py). Named points
+given by ``position`` are written where the design puts them
+(:mod:`linkopt._engine.attachment`), with their ``follow`` rule written out. The
+reference length, α₋ and body frame origins of the original are written explicitly so
+that the new file is homogenised and judged exactly as the design was during
+optimisation. The source file's leading comment block
 (its header: what the mechanism is, its units, its sources) is kept, below the
 ``header`` the caller gives.
 """
@@ -28,8 +29,10 @@ import numpy as np
 from .._engine.geometry import geometry, moved_joints
 from .._engine.kinematics import check_design
 from .._engine.model import Mechanism
+from .._engine.welding import parts
 from .._errors import InputError
 from .._folders import write_atomic
+from .points import DEFAULT_FOLLOW
 
 #: TOML basic-string escapes; other control characters are written as ``\\uXXXX``.
 _ESCAPES = {
@@ -116,7 +119,7 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
     rest = geometry(mech, design)
     data = copy.deepcopy(mech.raw)
     data["mechanism"]["reference_length"] = float(mech.length_scale)
-    for body, origin in zip(data["bodies"], mech.body_origins):
+    for body, origin in zip(data["bodies"], parts(mech).body_origins):
         body["origin"] = [float(v) for v in origin]  # same frames, so the same f_sing
     data.setdefault("evaluation", {})["alpha_minus"] = float(alpha_minus)
     if mech.evaluation.targets:  # the file's and those an optimisation added
@@ -133,6 +136,7 @@ def design_definition(mech: Mechanism, design, alpha_minus: float) -> dict:
     for k, point in enumerate(data.get("points", [])):
         if "position" in point:  # where the design put it (attachment)
             point["position"] = [float(v) for v in points[k]]
+            point["follow"] = point.get("follow", DEFAULT_FOLLOW)  # the rule, explicit
     return data
 
 
