@@ -266,13 +266,13 @@ def _settling_error(mech, data, state, s) -> float:
     )
 
 
-@pytest.mark.parametrize("name", [*SHIPPED, "spherical_five_bar"])
+@pytest.mark.parametrize("name", [*SHIPPED, "spherical_five_bar_drawn"])
 def test_driven_from_rest_settles_onto_fk(name):
     """Issue 45: the actuators' controls set to motor values that FK solves, from the
     rest pose, MuJoCo settles onto linkopt's FK within 1e-3 reference lengths in 5
     simulated seconds (bodies and sites), with the equalities closed, and the file
     carries no settling warning."""
-    if name == "spherical_five_bar":
+    if name == "spherical_five_bar_drawn":
         mech = _spherical_five_bar()
     else:
         mech = _mechanism(name)
@@ -312,8 +312,9 @@ def test_a_design_that_locks_the_loop_is_named_in_the_file_and_by_the_cli(
 ):
     """A four-bar whose design tilts the rocker's axis out of parallel is a spatial
     4R loop: redundant in the plane, locked once tilted (mobility 0). Its MJCF cannot
-    settle onto FK and says so, in the file and on stderr; the file's own design
-    (the axis parallel) carries no warning."""
+    settle onto FK and says so in the file; the command line refuses the design with
+    the mobility it has; the file's own design (the axis parallel) carries no
+    warning."""
     from linkopt._cli.main import main
 
     source = tmp_path / "tilted.toml"
@@ -325,9 +326,11 @@ def test_a_design_that_locks_the_loop_is_named_in_the_file_and_by_the_cli(
     assert len(summary["warnings"]) == 1
     assert "mobility 0 at rest but 1 motor(s)" in summary["warnings"][0]
     assert "<!-- warning: this design has mobility 0" in text
+    # the command line refuses such a design before exporting it, as every command
+    # that takes --design does (linkopt._engine.mobility), naming the locked motor
     out = tmp_path / "tilted.xml"
     args = ["export", str(source), "--format", "mjcf", "--out", str(out)]
-    assert main([*args, "--design", ",".join(map(repr, design.tolist()))]) == 0
+    assert main([*args, "--design", ",".join(map(repr, design.tolist()))]) == 2
     err = capsys.readouterr().err
-    assert f"warning: {out}: this design has mobility 0" in err
-    assert "warning: this design has mobility 0" in out.read_text()
+    assert "has mobility 0 at the rest pose, the file's 1: motor(s) crank" in err
+    assert not out.exists()

@@ -27,6 +27,14 @@ def moving_body(mech) -> int:
     return int(mech.joint_bodies[mech.motor_joints[0], 1])
 
 
+def pin(mech, body: int) -> int:
+    """The body's first joint whose anchor is fixed in it: not a prismatic or
+    cylindrical joint, whose anchor slides on one of its two bodies (a cylinder's rod
+    carries its slide's anchor only at rest)."""
+    sliding = ("prismatic", "cylindrical")
+    return next(j for j in mech.joints_on(body) if mech.joint_types[j] not in sliding)
+
+
 def with_welded_part(mech, onto: int | None = None) -> str:
     """The file of ``mech`` (its assembled tables) with a part welded by a ``fixed``
     joint onto a moving body, at that body's first anchor (the anchors' span, hence
@@ -41,7 +49,7 @@ def with_welded_part(mech, onto: int | None = None) -> str:
             "name": "weld",
             "type": "fixed",
             "bodies": [mech.body_names[body], "welded_part"],
-            "anchor": [float(v) for v in mech.anchors[joints[0]]],
+            "anchor": [float(v) for v in mech.anchors[pin(mech, body)]],
         }
     )
     centre = mech.anchors[joints].mean(axis=0)
@@ -137,7 +145,7 @@ def test_a_state_gives_each_part_its_pose(pair):
     np.testing.assert_allclose(whole[:, : mech.state_size], state, atol=1e-15)
     joints = np.asarray(linkopt.joint_positions(parts(welded), whole))
     body = moving_body(mech)
-    first = mech.joints_on(body)[0]
+    first = pin(mech, body)
     np.testing.assert_allclose(joints[:, -1], joints[:, first], atol=1e-9)
     part = whole.reshape(len(state), -1, 7)[:, -1]
     np.testing.assert_allclose(
@@ -161,7 +169,7 @@ def test_a_chain_of_welds_merges_into_the_ground_or_first_body():
     mech = linkopt.load(MECHANISMS / "five_bar.toml")
     data = copy.deepcopy(mech.raw)
     link = mech.body_names[moving_body(mech)]
-    anchor = [float(v) for v in mech.anchors[mech.joints_on(moving_body(mech))[0]]]
+    anchor = [float(v) for v in mech.anchors[pin(mech, moving_body(mech))]]
     for name, onto in (("a", link), ("b", "a"), ("c", mech.body_names[mech.ground])):
         data["bodies"].append({"name": name})
         data["joints"].append(
