@@ -1,4 +1,4 @@
-"""Which design parameters sit on a bound (issue 44: five of six parameters of an
+"""Which design parameters sit on a bound (five of six parameters of an
 optimised design ended on their bounds, and nothing said so).
 
 A parameter is on a bound when it lies within ``BOUND_TOLERANCE`` of its range

@@ -7,8 +7,8 @@ with a feasible design, or with a design whose samples show no singularity (the
 singularity part of its ``f_design`` is 0) though it is not feasible (a reach or
 collision part: the run stopped at its iteration cap), :func:`verification_round`
 verifies it on the dense grid (:func:`linkopt._design.verify.verify`, default
-resolution). The second case is issue 44's: nine samples read no singularity on a
-design whose grid had ``f_sing`` 1e5 above ``α₋``, and no round ran because the
+resolution). The second case was met by a user: nine samples read no singularity on
+a design whose grid had ``f_sing`` 1e5 above ``α₋``, and no round ran because the
 design never became feasible; the grid's worst cell is news to the samples whether the
 design is feasible or not. Where verification fails, the failing places become IK
 targets of the evaluation (each target's IK sample goes there and its adversarial

@@ -2,7 +2,7 @@
 design.
 
 A design moves joint anchors (:mod:`.design_space`); each named point has one of two
-rules, the file's choice (``[[points]].follow``, issue 44), fixed at load from the
+rules, the file's choice (``[[points]].follow``), fixed at load from the
 file's initial design:
 
 * ``"frame"`` (the default): the point is fixed in its body's frame. Body origins never

@@ -1,4 +1,4 @@
-"""Named points that a design moves far on their bodies (issue 44).
+"""Named points that a design moves far on their bodies.
 
 A point that follows its body's anchors (``[[points]].follow = "anchors"``,
 :mod:`.attachment`) moves when a design moves them: a pin moved on a two-joint stick

@@ -1,4 +1,4 @@
-"""Welded parts (issue 44): bodies joined by ``fixed`` joints are one rigid body.
+"""Welded parts: bodies joined by ``fixed`` joints are one rigid body.
 
 A ``fixed`` joint gives 6 rows and its second body 7 state coordinates (and a unit
 quaternion row); the rows cancel the coordinates, so the motion is that of the merged

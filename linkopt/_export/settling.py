@@ -1,4 +1,4 @@
-"""Whether an exported MJCF model can settle onto linkopt's FK (issue 45).
+"""Whether an exported MJCF model can settle onto linkopt's FK.
 
 MuJoCo closes the loops with the equality constraints of :mod:`.mjcf`; they hold the
 same conditions as linkopt's passive rows, so the model settles onto FK exactly when

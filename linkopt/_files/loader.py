@@ -82,7 +82,7 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
     collision = read_collision(rd, mech)  # [collision], bodies' radius and layer
     if collision is not None:
         mech = dataclasses.replace(mech, collision=collision)
-    mech = weld(mech)  # bodies joined by fixed joints: one body (issue 44)
+    mech = weld(mech)  # bodies joined by fixed joints: one body
     if check:
         from .._engine.mobility import check_mobility  # needs JAX; not for parsing
 
