@@ -78,7 +78,10 @@ def test_plot_cost_of_three_outputs_is_a_fraction_of_the_3d_grid(arm):
 
 
 def test_spatial_mechanism_is_drawn_in_three_views(arm, tmp_path):
-    planar = plot_mechanism(arm, tmp_path / "planar.png")  # anchors and tip in y = 0
+    # the arm turns about z at its base: spatial, though its anchors lie in y = 0
+    assert mpimg.imread(plot_mechanism(arm, tmp_path / "arm.png")).shape[1] == 3 * 650
+    five_bar = linkopt.load(ROOT / "mechanisms" / "five_bar.toml")  # planar
+    planar = plot_mechanism(five_bar, tmp_path / "planar.png")
     assert mpimg.imread(planar).shape[1] == 650
     text = ARM.read_text()  # the elbow moved along its axis (y): out of that plane
     assert text.count("anchor = [0.0, 0.0, 40.0]") == 1
