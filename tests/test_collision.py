@@ -410,6 +410,7 @@ def test_evaluate_reports_the_collision_term_pair_and_pose():
 #: ``linkopt evaluate --json``'s keys for a file without [collision].
 EVALUATE_KEYS = {
     "f_design",
+    "at_bounds",
     "reach",
     "singularity",
     "regularizer",
