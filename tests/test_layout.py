@@ -25,8 +25,27 @@ ALLOWED = {
     "_export": {"_engine", "_files", "_export", "root"},
     "_design": {"_engine", "_files", "_export", "_design", "root"},
     "_arms": {"_engine", "_files", "_arms", "root"},
-    "_cli": {"_engine", "_files", "_export", "_design", "_arms", "_cli", "root"},
-    "root": {"root", "_engine", "_files", "_export", "_design", "_arms", "_cli"},
+    # synthesis: a second job on the design layer's machinery
+    "_synth": {"_engine", "_files", "_export", "_design", "_synth", "root"},
+    # drawing: figures, maps, animations, the browser view; above every computation
+    "_draw": {
+        "_engine",
+        "_files",
+        "_export",
+        "_design",
+        "_arms",
+        "_synth",
+        "_draw",
+        "root",
+    },
+    "_cli": {
+        *("_engine", "_files", "_export", "_design", "_arms", "_synth", "_draw"),
+        *("_cli", "root"),
+    },
+    "root": {
+        *("root", "_engine", "_files", "_export", "_design", "_arms", "_synth"),
+        *("_draw", "_cli"),
+    },
     # the public namespaces (``linkopt.arms.*``; ``linkopt.export`` is a root module)
     "arms": {"_arms", "arms", "root"},
 }
