@@ -168,10 +168,7 @@ def mobility_changes(mech: Mechanism, designs) -> list[MobilityChange | None]:
     mobility the motors number (the file's, checked on loading), else what changed
     (a design that turns a spherical loop into a general spatial one that locks)."""
     designs = np.atleast_2d(np.asarray(designs, dtype=np.float64))
-    passive, motors = programs.call(
-        "design_mobility", mech, _design_rest_program, padded_design(mech, designs)
-    )
-    passive = np.asarray(passive)
+    passive, motors = _rest_jacobians_of(mech, padded_design(mech, designs))
     values = np.linalg.svd(passive, compute_uv=False)  # (N, min(P, S)), batched
     ranks = np.sum(values > RANK_TOL * values[:, :1], axis=1)
     return [
@@ -180,6 +177,32 @@ def mobility_changes(mech: Mechanism, designs) -> list[MobilityChange | None]:
         else _change(mech, d, p, np.asarray(m))
         for d, p, m, rank in zip(designs, passive, motors, ranks)
     ]
+
+
+#: Designs per call of the mobility program: a swarm, ``verify`` and the export all
+#: run the one program compiled for this batch (the last batch is padded by repeating
+#: its last design), where each batch size compiled a program of its own.
+MOBILITY_BATCH = 8
+
+
+def _rest_jacobians_of(mech: Mechanism, padded: np.ndarray) -> tuple:
+    """The passive and motor Jacobians at rest of each padded design ``(N, P)``, as
+    numpy arrays, in batches of :data:`MOBILITY_BATCH`."""
+    count = len(padded)
+    total = -(-count // MOBILITY_BATCH) * MOBILITY_BATCH
+    padded = np.concatenate([padded, np.repeat(padded[-1:], total - count, axis=0)])
+    parts = [
+        programs.call(
+            "design_mobility",
+            mech,
+            _design_rest_program,
+            padded[start : start + MOBILITY_BATCH],
+        )
+        for start in range(0, total, MOBILITY_BATCH)
+    ]
+    return tuple(
+        np.concatenate([np.asarray(p[k]) for p in parts])[:count] for k in (0, 1)
+    )
 
 
 def _change(mech: Mechanism, design, passive, motors) -> MobilityChange:

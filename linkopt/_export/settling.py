@@ -17,35 +17,22 @@ such a rod does not, and the file says so.
 
 from __future__ import annotations
 
-import jax
 import numpy as np
 
-from .._engine import programs
-from .._engine.constraints import passive_residual
-from .._engine.geometry import design_array, geometry, rest_state
-from .._engine.mobility import RANK_TOL, mobility
+from .._engine.mobility import mobility, mobility_changes
 from .._engine.model import Mechanism
-
-
-def _passive_jacobian(mech: Mechanism, design):
-    geom = geometry(mech, design)
-    state = rest_state(mech)
-    return jax.jacfwd(lambda s: passive_residual(mech, geom, s))(state)
 
 
 def design_mobility(mech: Mechanism, design=None) -> int:
     """Degrees of freedom at the rest pose of ``design`` (None: the file's), idle
     spins not counted (their gauge rows are among the passive rows). The file's own
-    design has passed :func:`linkopt._engine.mobility.check_mobility` while loading,
-    so only another one is computed (a program of its own, compiled once per
-    structure)."""
+    design has passed :func:`linkopt._engine.mobility.check_mobility` while loading;
+    another one goes through :func:`~linkopt._engine.mobility.mobility_changes`, the
+    program that ``verify`` runs on the same design."""
     if design is None or np.array_equal(np.asarray(design), mech.design.p0):
         return mobility(mech)
-    jacobian = programs.call(
-        "export_passive_jacobian", mech, _passive_jacobian, design_array(mech, design)
-    )
-    values = np.linalg.svd(np.asarray(jacobian), compute_uv=False)
-    return mech.state_size - int(np.sum(values > RANK_TOL * values[0]))
+    (change,) = mobility_changes(mech, np.asarray(design, dtype=np.float64)[None])
+    return mech.num_motors if change is None else change.mobility
 
 
 def _idle_points(mech: Mechanism) -> list[str]:
