@@ -53,6 +53,8 @@ JUMP_FACTOR = 10.0
 CLOSURE_TOLERANCE = 1e-6
 #: Rows of a multi-motor sweep without timing: Gauss–Newton iterations per target.
 IK_ITERATIONS = 30
+#: ... and the target's error (file units; quaternion components) that ends them.
+IK_TOLERANCE = 1e-10
 
 
 @dataclass(frozen=True)
@@ -249,15 +251,16 @@ def _reaching_motors(mech, design, targets, rest) -> np.ndarray:
     state = np.asarray(rest_state(mech))
     motors, found = np.asarray(rest, float), []
     for target in np.asarray(targets.values, float):
-
-        def trace(a, start=state):
-            s = solve_fk(mech, a, start=start, design=design).state
-            return _read(mech, design, targets, s[None])[0]
-
         for _ in range(IK_ITERATIONS):
-            value, jac = trace(motors), jax.jacfwd(trace)(motors)
-            error = _residual(targets.kind, np.asarray(value), target)
-            jac = np.asarray(jac)[: len(error)]
+
+            def trace(a, start=state):
+                s = solve_fk(mech, a, start=start, design=design).state
+                return _read(mech, design, targets, s[None])[0]
+
+            error = _residual(targets.kind, np.asarray(trace(motors)), target)
+            if np.max(np.abs(error)) < IK_TOLERANCE:
+                break
+            jac = np.asarray(jax.jacfwd(trace)(motors))
             step = np.linalg.lstsq(jac, -error, rcond=None)[0]
             motors = motors + np.clip(step, -0.2, 0.2)
             state = np.asarray(solve_fk(mech, motors, start=state, design=design).state)
