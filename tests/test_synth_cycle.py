@@ -82,6 +82,9 @@ def test_targets_in_reverse_order_are_an_order_defect(crank_rocker):
     assert not report.in_order
     assert report.defect.startswith("targets out of order")
     assert report.distances.max() < 1e-3  # every target is on the curve
+    backwards = sweep_cycle(crank_rocker, None, _path(ahead[::-1]), direction=-1)
+    assert backwards.in_order and backwards.defect is None
+    np.testing.assert_allclose(backwards.motors[1, 0], -np.pi / 180)
 
 
 def test_in_order_is_cyclic_only_for_closed_curves():

@@ -86,12 +86,14 @@ def sweep_cycle(
     *,
     steps: int = 360,
     span: tuple[float, float] | None = None,
+    direction: int = 1,
 ) -> CycleReport:
     """Sweep ``design`` (None: the file's) over its cycle and judge it against
     ``targets`` (a :class:`linkopt._synth.targets.Targets`).
 
     The motion: one-DOF closed, the motor through one full turn from its rest value
-    (``steps`` steps, plus one closing step checked against the start); one-DOF open,
+    (``steps`` steps, plus one closing step checked against the start; ``direction``
+    -1 turns it the other way); one-DOF open,
     ``steps`` values over the motor's span (its limits, else the span of
     ``targets.motors``, else ``span``); with timing, the timing values are swept
     exactly (one-DOF: inserted into that grid; multi-motor: piecewise linear through
@@ -101,7 +103,9 @@ def sweep_cycle(
     the mechanism's or the motion cannot be made."""
     design = design_array(mech, design)[: mech.design.size]
     _check(mech, targets, steps)
-    rows = _sweep_rows(mech, design, targets, steps, span)
+    if direction not in (1, -1):
+        raise InputError(f"direction: expected 1 or -1, got {direction!r}")
+    rows = _sweep_rows(mech, design, targets, steps, span, direction)
     solution = solve_fk_path(mech, rows.motors, design=design)
     return _report(mech, design, targets, rows, solution)
 
@@ -160,30 +164,33 @@ class _Rows:
     timed: np.ndarray | None
 
 
-def _sweep_rows(mech, design, targets, steps, span) -> _Rows:
+def _sweep_rows(mech, design, targets, steps, span, direction) -> _Rows:
     rest = np.asarray(motor_values(mech, rest_state(mech), design=design))
     timing = None if targets.motors is None else np.asarray(targets.motors, float)
     if mech.num_motors == 1:
-        return _one_motor_rows(mech, targets, rest[0], timing, steps, span)
+        turn = 2.0 * np.pi * direction
+        return _one_motor_rows(mech, targets, rest[0], timing, steps, span, turn)
     if timing is None:
         timing = _reaching_motors(mech, design, targets, rest)
     rows, timed = _piecewise(timing, steps, targets.closed)
     return _Rows(rows, targets.closed, timed)
 
 
-def _one_motor_rows(mech, targets, rest, timing, steps, span) -> _Rows:
+def _one_motor_rows(mech, targets, rest, timing, steps, span, turn) -> _Rows:
     if targets.closed:
         if mech.motor_linear[0]:
             raise InputError(
                 f"targets.closed: a closed curve needs a rotary motor; "
                 f"{mech.motor_names[0]} of {mech.source} is linear"
             )
-        grid = rest + 2.0 * np.pi * np.arange(steps + 1) / steps
+        grid = rest + turn * np.arange(steps + 1) / steps
         timed = None
         if timing is not None:
-            timed = rest + np.mod(timing[:, 0] - rest, 2.0 * np.pi)
-            grid = np.union1d(grid[:-1], timed)
-            grid = np.append(grid, rest + 2.0 * np.pi)
+            timed = rest + np.sign(turn) * np.mod(
+                np.sign(turn) * (timing[:, 0] - rest), 2.0 * np.pi
+            )
+            grid = np.union1d(grid[:-1], timed)[:: int(np.sign(turn))]
+            grid = np.append(grid, rest + turn)
         return _Rows(grid[:, None], True, _rows_of(grid, timed))
     low, high = _open_span(mech, timing, span)
     grid = np.linspace(low, high, steps)
