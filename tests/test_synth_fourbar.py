@@ -8,6 +8,7 @@ from synth_fourbars import circle_intersection, coupler_curve
 import linkopt
 from linkopt._synth.fourbar import (
     FourBar,
+    PathFit,
     PlacedFourBar,
     fit_path,
     four_bar_design,
@@ -173,3 +174,56 @@ def test_read_four_bar_of_the_shipped_file_and_its_design_round_trip():
     # the crank pin B is no design parameter: a longer crank cannot be written
     longer = PlacedFourBar(moved.A, moved.B * 1.5, moved.C, moved.D, moved.P)
     assert four_bar_design(mech, longer) is None
+
+
+def _known_positions(phis, branches):
+    """Poses of the crank-rocker (20, 70, 50, 60), coupler point (15, 10), at crank
+    angles ``phis`` on the given branches: the points and the coupler, crank and
+    rocker turns from the first pose."""
+    a, b, c, d, u, v = 20.0, 70.0, 50.0, 60.0, 15.0, 10.0
+    phis = np.asarray(phis, dtype=float)
+    pins = a * np.stack([np.cos(phis), np.sin(phis)], axis=1)
+    ground = np.broadcast_to([d, 0.0], pins.shape)
+    rockers = np.vstack(
+        [circle_intersection(p, [d, 0.0], b, c, s)[0] for p, s in zip(pins, branches)]
+    )
+    points = np.vstack(
+        [coupler_curve(a, b, c, d, u, v, [f], s)[0] for f, s in zip(phis, branches)]
+    )
+    coupler = np.unwrap(np.arctan2(*(rockers - pins).T[::-1]))
+    rocker = np.unwrap(np.arctan2(*(rockers - ground).T[::-1]))
+    turns = [coupler[1:] - coupler[0], phis[1:] - phis[0], rocker[1:] - rocker[0]]
+    return points, turns, pins[0], rockers[0]
+
+
+def test_precision_path_recovers_a_known_four_bar_and_its_circuit():
+    points, turns, pin, rocker = _known_positions([0.3, 1.4, 2.6], [1, 1, 1])
+    placed = precision_path(points, *turns)
+    for got, want in zip(
+        (placed.A, placed.B, placed.C, placed.D), ([0, 0], pin, rocker, [60, 0])
+    ):
+        np.testing.assert_allclose(got, want, atol=1e-9)
+    assert PathFit(placed, *turns, 0.0).one_circuit()
+    # the third point taken on the other assembly: the classic branch defect
+    points, turns, _, _ = _known_positions([0.3, 1.4, 2.6], [1, 1, -1])
+    placed = precision_path(points, *turns)
+    np.testing.assert_allclose(placed.four_bar().lengths, [20, 70, 50, 60], atol=1e-9)
+    assert not PathFit(placed, *turns, 0.0).one_circuit()
+
+
+@pytest.mark.parametrize(
+    "crank, closed, expected",
+    [
+        ([0.5, 1.0], False, True),
+        ([1.0, 0.5], False, False),
+        ([3.0, 6.5], False, False),  # more than one turn
+        ([-0.5, -1.0], False, True),
+        ([2.0, 4.0], True, True),
+        ([4.0, 2.0], True, False),
+        ([-1.0, -2.0], True, True),
+    ],
+)
+def test_path_fit_order_follows_the_crank_turns(crank, closed, expected):
+    placed = PlacedFourBar(*np.zeros((5, 2)))
+    fit = PathFit(placed, np.zeros(2), np.array(crank), np.zeros(2), 0.0)
+    assert fit.in_order(closed) == expected

@@ -241,17 +241,51 @@ class PathFit:
     rocker_turns: np.ndarray  # (n - 1,)
     residual: float
 
+    def one_circuit(self) -> bool:
+        """Whether every point is met on the circuit of the first: the triangle
+        ``B C D`` keeps its orientation (a full-turn crank never flattens it), with
+        ``B`` turned about ``A`` by the crank turns and ``C`` about ``D`` by the
+        rocker's. False is the classic branch (circuit) defect."""
+        p = self.placed
+        pins = _turned(p.B - p.A, self.crank_turns) + p.A
+        rockers = _turned(p.C - p.D, self.rocker_turns) + p.D
+        pins, rockers = np.vstack([p.B, pins]), np.vstack([p.C, rockers])
+        side = np.sign(_cross(rockers - pins, p.D - rockers))
+        return bool(np.all(side == side[0]) and side[0] != 0)
 
-def fit_path(points, *, seed: int, starts: int = 8) -> PathFit:
+    def in_order(self, closed: bool) -> bool:
+        """Whether the crank meets the points in their order, turning one way: an
+        open curve within one turn, a closed one once around."""
+        turns = np.r_[0.0, self.crank_turns]
+        sense = np.sign(turns[1])
+        if closed:
+            turns = np.mod(sense * turns, 2 * np.pi)
+            return bool(np.all(np.diff(turns) > 0))
+        steps = np.diff(sense * turns)
+        return bool(np.all(steps > 0) and abs(turns[-1]) < 2 * np.pi)
+
+
+def _turned(v: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """``v`` ``(2,)`` turned by each of ``angles``: ``(n, 2)``."""
+    c, s = np.cos(angles), np.sin(angles)
+    return np.stack([c * v[0] - s * v[1], s * v[0] + c * v[1]], axis=1)
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+
+def fit_path(points, *, seed: int, closed: bool = False, starts: int = 12) -> PathFit:
     """Precision-point path generation for three to five points ``(n, 2)``: the
     coupler, crank and rocker turns of :func:`precision_path` found by nonlinear least
     squares on the dyads' residuals (scipy's ``least_squares``) from ``starts`` random
     turns drawn from ``seed``. Three points are met exactly whatever the turns; four
     and five (Burmester's exact cases) where the fit reaches zero residual, else in
-    the least-squares sense (``residual`` says which). Among the fits, the one with a
-    full-turn crank if any, then the least residual; fits whose two dyads coincide
-    (a coupler or ground shorter than ``DEGENERATE`` of the points' extent) only when
-    every fit is such."""
+    the least-squares sense (``residual`` says which). Degenerate fits (two
+    coinciding dyads: a coupler or ground shorter than ``DEGENERATE`` of the points'
+    extent) are dropped; the others ranked: free of branch and order defects
+    (:meth:`PathFit.one_circuit`, :meth:`PathFit.in_order`), a full-turn crank, the
+    least residual, then the best transmission angle; the first is returned."""
     from scipy.optimize import least_squares
 
     points = np.asarray(points, dtype=float)
@@ -272,18 +306,28 @@ def fit_path(points, *, seed: int, starts: int = 8) -> PathFit:
         fit = PathFit(
             precision_path(points, *np.split(solved, 3)), *np.split(solved, 3), residual
         )
+        if _degenerate(fit.placed, size):
+            continue
+        four_bar = fit.placed.four_bar()
         key = (
-            _degenerate(fit.placed, size),
-            not full_turn_crank(fit.placed.four_bar()),
-            round(residual, 12),
+            not fit.one_circuit(),
+            not fit.in_order(closed),
+            not full_turn_crank(four_bar),
+            round(residual / size, 9),
+            -transmission(four_bar).worst,
         )
         if best is None or key < best[0]:
             best = (key, fit)
+    if best is None:
+        raise InputError(
+            f"points: no four-bar from {starts} starts (every fit degenerate)"
+        )
     return best[1]
 
 
 def _degenerate(placed: PlacedFourBar, size: float) -> bool:
-    lengths = placed.four_bar().lengths
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lengths = placed.four_bar().lengths
     return bool(np.min(np.abs(lengths)) < DEGENERATE * size)
 
 
