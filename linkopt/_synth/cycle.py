@@ -19,10 +19,12 @@ state and corrected, never allowed onto another assembly) and reads off
   passed out of their order (cyclically for a closed curve);
 * a collision: least clearance below the ``[collision]`` band.
 
-Distances: a path target by Euclidean distance (file units); a function target by
+Distances: a path target by Euclidean distance (file units), from the nearest step
+refined to the straight segments on either side of it; a function target by
 ``|output − value|``; a motion target (pose) by ``max(position distance, rotation
-angle)``, the angle ``2 acos |q · q_t|`` in radians, so that one ``tolerance`` bounds
-both (file units for the position, radians for the angle).
+angle)``, the angle ``2 atan2(|v|, |w|)`` of the relative quaternion in radians, so
+that one ``tolerance`` bounds both (file units for the position, radians for the
+angle). A timed target is judged at its own motor values.
 """
 
 from __future__ import annotations
@@ -33,17 +35,12 @@ import numpy as np
 
 from .._design.evaluation import alpha_minus
 from .._engine.collision import clearance, has_collision
-from .._engine.geometry import design_array, rest_state
+from .._engine.geometry import design_array
 from .._engine.kinematics import solve_fk_path
 from .._engine.model import Mechanism
-from .._engine.readout import (
-    motor_values,
-    output_values,
-    point_positions,
-    reported_values,
-)
 from .._engine.singularity import singular_values
 from .._errors import InputError
+from .sweep import SweptRows, swept_rows, traced_quantity
 
 #: A step whose state change exceeds this multiple of the median step's is a jump.
 #: Our choice: a crank-rocker's fastest phase moves about 3x its median rate; a
@@ -51,10 +48,6 @@ from .._errors import InputError
 JUMP_FACTOR = 10.0
 #: Closed sweeps: the state after a full turn matches the first to this (homogenised).
 CLOSURE_TOLERANCE = 1e-6
-#: Rows of a multi-motor sweep without timing: Gauss–Newton iterations per target.
-IK_ITERATIONS = 30
-#: ... and the target's error (file units; quaternion components) that ends them.
-IK_TOLERANCE = 1e-10
 
 
 @dataclass(frozen=True)
@@ -72,8 +65,8 @@ class CycleReport:
     largest_residual: float
     least_sigma: float  # least forward σ_min over the solved steps
     alpha_minus: float
-    passed_at: np.ndarray  # (k,) step index at which each target is nearest
-    distances: np.ndarray  # (k,) nearest distance to each target
+    passed_at: np.ndarray  # (k,) step of each target: its timed step, else the nearest
+    distances: np.ndarray  # (k,) distance to each target there
     in_order: bool
     least_clearance: float | None
     defect: str | None
@@ -93,9 +86,9 @@ def sweep_cycle(
 
     The motion: one-DOF closed, the motor through one full turn from its rest value
     (``steps`` steps, plus one closing step checked against the start; ``direction``
-    -1 turns it the other way); one-DOF open,
-    ``steps`` values over the motor's span (its limits, else the span of
-    ``targets.motors``, else ``span``); with timing, the timing values are swept
+    -1 turns it the other way); one-DOF open, ``steps`` values over the motor's span
+    (its limits, else the span of ``targets.motors``, else ``span``, which may run
+    downwards); with timing, the timing values are swept
     exactly (one-DOF: inserted into that grid; multi-motor: piecewise linear through
     the timing rows, closed back to the first); multi-motor without timing, straight
     segments between the motor values that reach consecutive targets (Gauss–Newton
@@ -105,7 +98,7 @@ def sweep_cycle(
     _check(mech, targets, steps)
     if direction not in (1, -1):
         raise InputError(f"direction: expected 1 or -1, got {direction!r}")
-    rows = _sweep_rows(mech, design, targets, steps, span, direction)
+    rows = swept_rows(mech, design, targets, steps, span, direction)
     solution = solve_fk_path(mech, rows.motors, design=design)
     return _report(mech, design, targets, rows, solution)
 
@@ -151,169 +144,16 @@ def _body_names(mech: Mechanism) -> tuple[str, ...]:
 
 
 # ---------------------------------------------------------------------------------
-# The motor values swept
-
-
-@dataclass(frozen=True)
-class _Rows:
-    """The motor rows swept ``(s, M)`` (file units); whether the last closes a full
-    turn (left out of the report); the row of each timed target, or None."""
-
-    motors: np.ndarray
-    closing: bool
-    timed: np.ndarray | None
-
-
-def _sweep_rows(mech, design, targets, steps, span, direction) -> _Rows:
-    rest = np.asarray(motor_values(mech, rest_state(mech), design=design))
-    timing = None if targets.motors is None else np.asarray(targets.motors, float)
-    if mech.num_motors == 1:
-        turn = 2.0 * np.pi * direction
-        return _one_motor_rows(mech, targets, rest[0], timing, steps, span, turn)
-    if timing is None:
-        timing = _reaching_motors(mech, design, targets, rest)
-    rows, timed = _piecewise(timing, steps, targets.closed)
-    return _Rows(rows, targets.closed, timed)
-
-
-def _one_motor_rows(mech, targets, rest, timing, steps, span, turn) -> _Rows:
-    if targets.closed:
-        if mech.motor_linear[0]:
-            raise InputError(
-                f"targets.closed: a closed curve needs a rotary motor; "
-                f"{mech.motor_names[0]} of {mech.source} is linear"
-            )
-        grid = rest + turn * np.arange(steps + 1) / steps
-        timed = None
-        if timing is not None:
-            timed = rest + np.sign(turn) * np.mod(
-                np.sign(turn) * (timing[:, 0] - rest), 2.0 * np.pi
-            )
-            grid = np.union1d(grid[:-1], timed)[:: int(np.sign(turn))]
-            grid = np.append(grid, rest + turn)
-        return _Rows(grid[:, None], True, _rows_of(grid, timed))
-    low, high = _open_span(mech, timing, span)
-    grid = np.linspace(low, high, steps)
-    if timing is not None:
-        grid = np.union1d(grid, timing[:, 0])
-    return _Rows(grid[:, None], False, _rows_of(grid, timing))
-
-
-def _rows_of(grid: np.ndarray, values) -> np.ndarray | None:
-    if values is None:
-        return None
-    return np.array([int(np.argmin(np.abs(grid - v))) for v in np.ravel(values)])
-
-
-def _open_span(mech, timing, span) -> tuple[float, float]:
-    """The one motor's span for an open sweep (see :func:`sweep_cycle`)."""
-    limits = (mech.motor_min, mech.motor_max)
-    if limits[0] is not None and np.all(np.isfinite([limits[0][0], limits[1][0]])):
-        low, high = float(limits[0][0]), float(limits[1][0])
-    elif timing is not None and np.ptp(timing[:, 0]) > 0:
-        low, high = float(np.min(timing)), float(np.max(timing))
-    elif span is not None:
-        low, high = (float(v) for v in span)
-    else:
-        raise InputError(
-            f"span: an open sweep of {mech.source} needs the motor's limits, timing "
-            "or a span (low, high)"
-        )
-    if timing is not None and (np.min(timing) < low or np.max(timing) > high):
-        raise InputError(
-            f"targets.motors: timing values outside the swept span [{low:g}, {high:g}]"
-        )
-    return low, high
-
-
-def _piecewise(rows: np.ndarray, steps: int, closed: bool):
-    """Piecewise-linear motor rows through ``rows`` (each kept exactly), about
-    ``steps`` in all, spread by segment length; closed: back to the first row. Also
-    the index of each of ``rows`` in them."""
-    corners = np.concatenate([rows, rows[:1]]) if closed else rows
-    lengths = np.linalg.norm(np.diff(corners, axis=0), axis=1)
-    total = max(float(np.sum(lengths)), 1e-300)
-    pieces, timed = [corners[:1]], [0]
-    for start, end, length in zip(corners[:-1], corners[1:], lengths):
-        count = max(1, int(round(steps * length / total)))
-        t = np.arange(1, count + 1)[:, None] / count
-        pieces.append(start + t * (end - start))
-        timed.append(timed[-1] + count)
-    return np.concatenate(pieces), np.array(timed[: len(rows)])
-
-
-def _reaching_motors(mech, design, targets, rest) -> np.ndarray:
-    """Motor values ``(k, M)`` that reach each target in turn (damped Gauss–Newton on
-    the motors, each target started from the last; the Jacobian by the implicit
-    function theorem through :func:`linkopt.solve_fk`)."""
-    import jax
-
-    from .._engine.kinematics import solve_fk
-
-    if targets.kind == "function":
-        raise InputError(
-            f"targets.kind: a function target needs a one-motor mechanism; "
-            f"{mech.source} has {mech.num_motors}"
-        )
-    state = np.asarray(rest_state(mech))
-    motors, found = np.asarray(rest, float), []
-    for target in np.asarray(targets.values, float):
-        for _ in range(IK_ITERATIONS):
-
-            def trace(a, start=state):
-                s = solve_fk(mech, a, start=start, design=design).state
-                return _read(mech, design, targets, s[None])[0]
-
-            error = _residual(targets.kind, np.asarray(trace(motors)), target)
-            if np.max(np.abs(error)) < IK_TOLERANCE:
-                break
-            jac = np.asarray(jax.jacfwd(trace)(motors))
-            step = np.linalg.lstsq(jac, -error, rcond=None)[0]
-            motors = motors + np.clip(step, -0.2, 0.2)
-            state = np.asarray(solve_fk(mech, motors, start=state, design=design).state)
-        found.append(motors.copy())
-    return np.array(found)
-
-
-def _residual(kind: str, value: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """What Gauss–Newton drives to zero: the position error of a path target, the
-    position and quaternion error (sign-aligned) of a motion target."""
-    if kind == "motion":
-        sign = 1.0 if np.dot(value[3:], target[3:]) >= 0 else -1.0
-        return np.concatenate([value[:3] - target[:3], sign * value[3:] - target[3:]])
-    return value - target
-
-
-# ---------------------------------------------------------------------------------
 # What the sweep traced, and the report
 
 
-def _read(mech, design, targets, states):
-    """The traced quantity of states ``(N, S)`` in file units; traceable in the
-    states (the IK's Jacobian), JAX arrays then."""
-    import jax.numpy as jnp
-
-    if targets.kind == "path":
-        index = mech.point_names.index(targets.name)
-        return point_positions(mech, states, design=design)[:, index]
-    if targets.kind == "function" and targets.name in mech.output_names:
-        values = output_values(mech, states, design=design)
-        return values[:, mech.output_names.index(targets.name)]
-    if targets.kind == "function":
-        values = reported_values(mech, states, design=design)
-        return values[:, mech.reported.names.index(targets.name)]
-    body = mech.body_names.index(targets.name)
-    pose = states[:, 7 * body : 7 * body + 7]
-    return jnp.concatenate([pose[:, :3] * mech.length_scale, pose[:, 3:]], axis=1)
-
-
-def _report(mech, design, targets, sweep: _Rows, solution) -> CycleReport:
+def _report(mech, design, targets, sweep: SweptRows, solution) -> CycleReport:
     """:class:`CycleReport` of the swept states (a closing row is left out)."""
     states = np.asarray(solution.state)
     solved = np.asarray(solution.converged, dtype=bool)
     rows, count = sweep.motors, len(sweep.motors) - int(sweep.closing)
     values = np.asarray(targets.values, dtype=float)
-    traced = np.asarray(_read(mech, design, targets, states[:count]))
+    traced = np.asarray(traced_quantity(mech, design, targets, states[:count]))
     traced = np.where(_rows_like(solved[:count], traced), traced, np.nan)
     passed_at, distances = _nearest(targets, traced, values, sweep.timed)
     jumps = np.max(np.abs(np.diff(states, axis=0)), axis=1)
