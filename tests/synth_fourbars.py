@@ -49,10 +49,11 @@ def coupler_curve(a, b, c, d, u, v, crank, branch):
     return pin + u * e + v * normal
 
 
-def four_bar_text(a, b, c, d, u, v, crank0, branch, extra=""):
+def four_bar_text(a, b, c, d, u, v, crank0, branch, extra="", motor=""):
     """A four-bar file (mm): crank ``a`` at ``crank0`` rad, coupler ``b`` with the
     point ``(u, v)`` in its frame (along B->C, left of it), rocker ``c``, ground
-    ``d``; the rocker pin on ``branch``."""
+    ``d``; the rocker pin on ``branch``; ``motor`` more lines of the motor's table
+    (its limits), ``extra`` more tables."""
     pin = a * np.array([np.cos(crank0), np.sin(crank0)])
     rocker = circle_intersection(pin, [d, 0.0], b, c, branch)[0]
     point = coupler_curve(a, b, c, d, u, v, [crank0], branch)[0]
@@ -74,7 +75,7 @@ def four_bar_text(a, b, c, d, u, v, crank0, branch, extra=""):
             f'[[joints]]\nname = "{name}"\ntype = "revolute"\nbodies = ["{i}", "{j}"]\n'
             f"anchor = {xyz(np.asarray(p, float))}\naxis = [0.0, 0.0, 1.0]\n"
         )
-    lines.append('[[motors]]\nname = "crank"\njoint = "A"\n')
+    lines.append('[[motors]]\nname = "crank"\njoint = "A"\n' + motor)
     lines.append(
         f'[[points]]\nname = "tip"\nbody = "coupler"\nposition = {xyz(point)}\n'
         'follow = "anchors"\n'
@@ -87,5 +88,5 @@ def four_bar_text(a, b, c, d, u, v, crank0, branch, extra=""):
     return "\n".join(lines) + extra
 
 
-def four_bar(a, b, c, d, u=0.0, v=0.0, crank0=np.pi / 2, branch=1, extra=""):
-    return linkopt.loads(four_bar_text(a, b, c, d, u, v, crank0, branch, extra))
+def four_bar(a, b, c, d, u=0.0, v=0.0, crank0=np.pi / 2, branch=1, **tables):
+    return linkopt.loads(four_bar_text(a, b, c, d, u, v, crank0, branch, **tables))

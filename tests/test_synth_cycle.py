@@ -188,3 +188,31 @@ def test_two_motor_sweeps_with_timing_and_by_reaching_each_target():
     report = sweep_cycle(mech, None, free, steps=60)
     np.testing.assert_allclose(report.motors[report.passed_at], motors, atol=1e-8)
     assert report.defect is None and report.in_order
+
+
+def test_open_sweep_spans_the_motor_limits():
+    limited = four_bar(*GRASHOF, motor="min = -0.5\nmax = 1.0\n")
+    targets = _path(_curve(GRASHOF, np.array([-0.4, 0.9])), False, tolerance=0.01)
+    report = sweep_cycle(limited, None, targets, steps=50, span=(0.0, 3.0))
+    np.testing.assert_allclose(report.motors[[0, -1], 0], [-0.5, 1.0])
+    assert report.defect is None and report.in_order
+    late = _path(targets.values, closed=False, motors=np.array([[0.0], [2.0]]))
+    with pytest.raises(linkopt.InputError, match="^targets.motors: timing values"):
+        sweep_cycle(limited, None, late)
+
+
+def test_sweeps_that_cannot_be_made_are_refused_naming_the_argument(crank_rocker):
+    point = np.zeros((2, 3))
+    with pytest.raises(linkopt.InputError, match="^span: an open sweep"):
+        sweep_cycle(crank_rocker, None, _path(point, closed=False))
+    with pytest.raises(linkopt.InputError, match="^direction: expected 1 or -1"):
+        sweep_cycle(crank_rocker, None, _path(point), direction=2)
+    with pytest.raises(linkopt.InputError, match="^steps: expected"):
+        sweep_cycle(crank_rocker, None, _path(point), steps=1)
+    slider = linkopt.load("mechanisms/slider_crank_linear.toml")
+    with pytest.raises(linkopt.InputError, match="^targets.closed: .* is linear"):
+        sweep_cycle(slider, None, Targets("path", "crank_pin", point, None, True, 1.0))
+    five_bar = linkopt.load("mechanisms/five_bar.toml")
+    function = Targets("function", "x", np.zeros(2), None, False, 1.0)
+    with pytest.raises(linkopt.InputError, match="^targets.kind: a function target"):
+        sweep_cycle(five_bar, None, function)
