@@ -6,7 +6,7 @@ import pytest
 from synth_fourbars import Targets, coupler_curve, four_bar
 
 import linkopt
-from linkopt._synth.cycle import in_order, rotation_angle, sweep_cycle
+from linkopt._synth.cycle import in_order, jump_steps, rotation_angle, sweep_cycle
 
 # Crank-rocker (Grashof: 20 + 70 <= 50 + 60), coupler point (15, 10) in B->C's frame.
 GRASHOF = (20.0, 70.0, 50.0, 60.0, 15.0, 10.0)
@@ -216,3 +216,17 @@ def test_sweeps_that_cannot_be_made_are_refused_naming_the_argument(crank_rocker
     function = Targets("function", "x", np.zeros(2), None, False, 1.0)
     with pytest.raises(linkopt.InputError, match="^targets.kind: a function target"):
         sweep_cycle(five_bar, None, function)
+
+
+def test_jump_steps_flag_a_spike_in_the_rate_not_a_longer_step():
+    """State change per motor change: one step ten-odd times the median rate is a
+    jump; a step twice as long moving the state twice as far is not; a state
+    change with no motor change is; unsolved neighbours are not judged."""
+    solved = np.ones(7, dtype=bool)
+    moved = np.array([0.1, 0.1, 0.2, 0.1, 0.1, 0.1])
+    jumps = np.array([0.05, 0.05, 0.1, 0.05, 0.8, 0.05])
+    assert list(np.flatnonzero(jump_steps(solved, jumps, moved))) == [5]
+    still = jump_steps(solved, jumps * [1, 1, 1, 1, 0.1, 1], moved * [1, 0, 1, 1, 1, 1])
+    assert list(np.flatnonzero(still)) == [2]
+    solved[4] = False
+    assert not jump_steps(solved, jumps, moved).any()

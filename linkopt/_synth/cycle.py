@@ -7,8 +7,9 @@ state and corrected, never allowed onto another assembly) and reads off
 
 * a lost assembly: a step the branch of the rest pose cannot reach (a crank that
   cannot turn fully stops at its limit angle) -- a branch (circuit) defect;
-* a state jump: a step whose state change exceeds ``JUMP_FACTOR`` times the median
-  step's (homogenised units), or a closed turn that does not end where it began;
+* a state jump: a step whose state changes faster (per unit of motor change,
+  homogenised) than ``JUMP_FACTOR`` times the median step's, or a closed turn that
+  does not end where it began;
 * a singularity: ``σ_min`` of the forward Jacobian ``∂C_FK/∂s`` below ``1/α₋``
   (eq. 3: ``f_sing < α₋`` needs each term below ``α₋``); a dead centre, where the
   motor no longer fixes the state. The backward Jacobian's ``σ_min`` is not judged:
@@ -42,7 +43,8 @@ from .._engine.singularity import singular_values
 from .._errors import InputError
 from .sweep import SweptRows, swept_rows, traced_quantity
 
-#: A step whose state change exceeds this multiple of the median step's is a jump.
+#: A step whose rate of state change (per motor change) exceeds this multiple of the
+#: median step's is a jump.
 #: Our choice: a crank-rocker's fastest phase moves about 3x its median rate; a
 #: jump to the other assembly of a four-bar moves the coupler by its whole span.
 JUMP_FACTOR = 10.0
@@ -215,7 +217,8 @@ def _defects(mech, targets, report: CycleReport, sweep) -> list[tuple]:
     lost assembly (a crank nearing its limit angle) are reported as that loss."""
     rows, states, solved, jumps, sigma, gaps = sweep
     bound = 1.0 / report.alpha_minus
-    jumped = _jumped(solved, jumps)
+    moved = np.max(np.abs(np.diff(rows, axis=0)) / mech.motor_scale, axis=1)
+    jumped = jump_steps(solved, jumps, moved)
     troubled = (sigma < bound) | jumped
     found, lost = [], np.flatnonzero(~solved)
     if len(lost):
@@ -225,7 +228,7 @@ def _defects(mech, targets, report: CycleReport, sweep) -> list[tuple]:
         troubled[first:end] = False
         found.append((first, 0, _lost(rows, first, end)))
     for i in np.flatnonzero(troubled & jumped)[:1]:
-        found.append((int(i), 1, _jump_line(rows, jumps, solved, int(i))))
+        found.append((int(i), 1, _jump_line(rows, jumps, moved, solved, int(i))))
     for i in np.flatnonzero(troubled & (sigma < bound))[:1]:
         found.append(
             (
@@ -250,26 +253,36 @@ def _lost(rows, first: int, end: int) -> str:
     return line
 
 
-def _jumped(solved: np.ndarray, jumps: np.ndarray) -> np.ndarray:
-    """Steps (into which) the state changes by more than ``JUMP_FACTOR`` times the
-    median step, between two solved steps."""
+def jump_steps(solved: np.ndarray, jumps: np.ndarray, moved: np.ndarray) -> np.ndarray:
+    """Steps ``(s,)`` into which the state changes faster than ``JUMP_FACTOR`` times
+    the median rate, between two solved steps: ``jumps (s-1,)`` the state changes,
+    ``moved (s-1,)`` the motor changes (homogenised); a state change with no motor
+    change is a jump."""
+    rate = _rates(jumps, moved)
     both = solved[1:] & solved[:-1]
     out = np.zeros(len(solved), dtype=bool)
     if np.any(both):
-        out[1:] = both & (jumps > _jump_limit(solved, jumps))
+        out[1:] = both & (rate > _rate_limit(rate[both]))
     return out
 
 
-def _jump_limit(solved: np.ndarray, jumps: np.ndarray) -> float:
+def _rates(jumps: np.ndarray, moved: np.ndarray) -> np.ndarray:
+    still = np.where(jumps > CLOSURE_TOLERANCE, np.inf, 0.0)
+    return np.where(moved > 0, jumps / np.maximum(moved, 1e-300), still)
+
+
+def _rate_limit(rates: np.ndarray) -> float:
+    finite = rates[np.isfinite(rates)]
+    return JUMP_FACTOR * float(np.median(finite) if len(finite) else 0.0) + 1e-12
+
+
+def _jump_line(rows, jumps, moved, solved, i: int) -> str:
+    rate = _rates(jumps, moved)
     both = solved[1:] & solved[:-1]
-    return JUMP_FACTOR * float(np.median(jumps[both])) + CLOSURE_TOLERANCE
-
-
-def _jump_line(rows, jumps, solved, i: int) -> str:
-    ratio = jumps[i - 1] / _jump_limit(solved, jumps) * JUMP_FACTOR
+    ratio = rate[i - 1] / (_rate_limit(rate[both]) / JUMP_FACTOR)
     return (
         f"state jump (branch change) of {jumps[i - 1]:.3g} into {_motor(rows, i)}, "
-        f"{ratio:.3g} times the median step"
+        f"{ratio:.3g} times the median rate"
     )
 
 
