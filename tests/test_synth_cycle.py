@@ -230,3 +230,14 @@ def test_jump_steps_flag_a_spike_in_the_rate_not_a_longer_step():
     assert list(np.flatnonzero(still)) == [2]
     solved[4] = False
     assert not jump_steps(solved, jumps, moved).any()
+
+
+def test_timed_targets_on_a_turn_the_other_way(crank_rocker):
+    """direction -1: the timing values are taken modulo a turn, below the rest."""
+    motors = np.array([0.3, 4.5, 2.0])
+    values = _curve(GRASHOF, motors)
+    timed = _path(values, motors=motors[:, None], tolerance=1e-9)
+    report = sweep_cycle(crank_rocker, None, timed, direction=-1)
+    np.testing.assert_allclose(report.motors[report.passed_at, 0], motors - 2 * np.pi)
+    assert np.all(np.diff(report.motors[:, 0]) < 0)
+    assert report.distances.max() < 1e-9 and report.in_order and report.defect is None

@@ -227,3 +227,8 @@ def test_path_fit_order_follows_the_crank_turns(crank, closed, expected):
     placed = PlacedFourBar(*np.zeros((5, 2)))
     fit = PathFit(placed, np.zeros(2), np.array(crank), np.zeros(2), 0.0)
     assert fit.in_order(closed) == expected
+
+
+def test_read_four_bar_refuses_another_linkage():
+    with pytest.raises(linkopt.InputError, match="not a planar four-bar"):
+        read_four_bar(linkopt.load("mechanisms/five_bar.toml"))
