@@ -1,0 +1,304 @@
+"""Path, function and motion synthesis against pylinkage 1.3 (issue 41's targets).
+
+Run: ``nice -n 10 .venv/bin/python benchmarks/bench_synthesis.py [--side S,...]
+[--timeout SECONDS] [--write-cases]``
+
+Sides (comma-separated, default all):
+
+* ``pylinkage``: ``pylinkage.synthesis.path_generation`` (Burmester over sampled
+  coupler orientations, then simulation) on each planar case, in its own process
+  under ``--timeout`` (default 60 s): seconds, number of four-bars, best RMS error at
+  the points (its ``compute_metrics``) and that solution's least transmission angle.
+  pylinkage is an optional dependency (``pip install -e .[bench]``).
+* ``start``: linkopt's closed-form start (``linkopt._synth.fourbar.fit_path``, the
+  precision-point dyads on at most five of the points), written as a four-bar file
+  and swept over its whole cycle (``linkopt._synth.cycle.sweep_cycle``): RMS and
+  largest distance at all the points, the first defect, least σ_min, Grashof class
+  and least transmission angle.
+* ``linkopt``: ``linkopt.synthesis.synthesize(mech, targets, settings)`` on the
+  case's file and targets, timed, and its design swept the same way; the command
+  recorded is the CLI's equivalent (``linkopt synthesize``). Skipped, with the
+  reason, while ``linkopt.synthesis`` is not there.
+
+``--write-cases`` writes each planar case's target points
+(``benchmarks/synthesis/<case>.csv``: ``x,y,z`` rows) and its closed-form start
+(``benchmarks/synthesis/<case>.toml``) first. Cases pylinkage cannot pose (a foot
+path of the Jansen leg, spatial RSSR and spherical four-bars) are listed with the
+reason. Results: ``benchmarks/results/bench_synthesis.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import _results
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+CASES_DIR = ROOT / "benchmarks" / "synthesis"
+#: The issue's targets for each case (what the comparison must show).
+GOALS = {
+    "readme_4": "RMS <= pylinkage's best, least transmission >= 30 deg, defect-free, "
+    "<= 10 s",
+    "arch_5": "RMS <= 1 % of the bounding-box diagonal, defect-free, <= 60 s",
+    "d_curve_8": "RMS <= 1 % of the bounding-box diagonal, defect-free, <= 60 s",
+    "open_20": "RMS <= 1 % of the bounding-box diagonal, defect-free, <= 60 s",
+    "jansen_foot": "from a +-5 % perturbed leg, RMS <= 0.5 % of the stride",
+    "rssr_function": "defect-free, verified, RMS <= 1 % of the range",
+    "spherical_path": "defect-free, verified, RMS <= 1 % of the range",
+}
+#: Cases pylinkage (planar four-bars and six-bars from points) cannot pose.
+NOT_PLANAR = {
+    "jansen_foot": "an eight-link leg driven by one crank: no synthesis of it",
+    "rssr_function": "spatial (revolute-spherical-spherical-revolute): planar only",
+    "spherical_path": "spherical four-bar: planar only",
+}
+
+
+def planar_cases() -> dict[str, tuple[np.ndarray, bool]]:
+    """The planar target curves ``(n, 2)`` and whether each is closed."""
+    arch_x = np.linspace(0.0, 4.0, 5)
+    d_top = np.radians([90.0, 45.0, 0.0, -45.0, -90.0])
+    d_side = np.array([[0.0, -0.5], [0.0, 0.0], [0.0, 0.5]])
+    t = np.linspace(0.0, 3.0, 20)
+    return {
+        # pylinkage's README example
+        "readme_4": (np.array([[0, 0], [1, 1], [2, 1], [3, 0]], dtype=float), False),
+        "arch_5": (np.c_[arch_x, 1.5 * np.sin(np.pi * arch_x / 4.0)], False),
+        # a D: the half circle x = cos, y = sin, then its straight side x = 0
+        "d_curve_8": (np.r_[np.c_[np.cos(d_top), np.sin(d_top)], d_side], True),
+        "open_20": (np.c_[t, 0.6 * np.sin(1.7 * t) + 0.2 * t], False),
+    }
+
+
+def _rms(distances: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(distances))))
+
+
+# ---------------------------------------------------------------------------------
+# pylinkage
+
+
+def pylinkage_case(name: str) -> dict:
+    """One case in this process (the parent runs it under a timeout)."""
+    from pylinkage.synthesis import compute_metrics, path_generation
+
+    points = [tuple(map(float, p)) for p in planar_cases()[name][0]]
+    start = time.perf_counter()
+    result = path_generation(points)
+    seconds = time.perf_counter() - start
+    metrics = [compute_metrics(s, points) for s in result.solutions]
+    best = min(metrics, key=lambda m: m.path_accuracy) if metrics else None
+    return {
+        "pylinkage_seconds": round(seconds, 3),
+        "pylinkage_solutions": len(result.solutions),
+        "pylinkage_best_rms": None if best is None else best.path_accuracy,
+        "pylinkage_best_least_transmission_deg": (
+            None if best is None else best.min_transmission_angle
+        ),
+        "pylinkage_least_transmission_deg_range": [
+            min((m.min_transmission_angle for m in metrics), default=None),
+            max((m.min_transmission_angle for m in metrics), default=None),
+        ],
+        "pylinkage_warning": (result.warnings or [None])[0],
+    }
+
+
+def run_pylinkage(name: str, timeout: float) -> dict:
+    command = [sys.executable, __file__, "--pylinkage-case", name]
+    start = time.perf_counter()
+    try:
+        done = subprocess.run(
+            command, capture_output=True, text=True, timeout=timeout, check=False
+        )
+    except subprocess.TimeoutExpired:
+        return {
+            "pylinkage_seconds": None,
+            "pylinkage_status": f"no answer within {timeout:g} s (stopped)",
+        }
+    if done.returncode != 0:
+        tail = (done.stderr.strip().splitlines() or ["?"])[-1]
+        return {"pylinkage_status": f"failed: {tail}"}
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    out["pylinkage_status"] = "ok"
+    out["pylinkage_process_seconds"] = round(time.perf_counter() - start, 3)
+    return out
+
+
+# ---------------------------------------------------------------------------------
+# linkopt: the closed-form start, and the synthesiser
+
+
+def _toml_point(p) -> str:
+    return f"[{float(p[0])!r}, {float(p[1])!r}, 0.0]"
+
+
+def four_bar_file(placed, extent: float) -> str:
+    """A four-bar file of a placed four-bar (``linkopt._synth.fourbar``): every
+    anchor's x and y and the coupler point free within ``extent`` of it."""
+    joints = [
+        ("A", "ground", "crank", placed.A),
+        ("B", "crank", "coupler", placed.B),
+        ("C", "coupler", "rocker", placed.C),
+        ("D", "ground", "rocker", placed.D),
+    ]
+    out = ['[mechanism]\nname = "four-bar path"\nground = "ground"\nunits = "mm"\n']
+    out += [
+        f'[[bodies]]\nname = "{b}"\n' for b in ("ground", "crank", "coupler", "rocker")
+    ]
+    for name, i, j, p in joints:
+        out.append(
+            f'[[joints]]\nname = "{name}"\ntype = "revolute"\nbodies = ["{i}", "{j}"]'
+            f"\nanchor = {_toml_point(p)}\naxis = [0.0, 0.0, 1.0]\n"
+        )
+    out.append('[[motors]]\nname = "crank"\njoint = "A"\n')
+    out.append(
+        f'[[points]]\nname = "tip"\nbody = "coupler"\nposition = '
+        f'{_toml_point(placed.P)}\nfollow = "anchors"\n'
+    )
+    out.append('[[outputs]]\nname = "rocker"\njoint = "D"\nmin = -0.05\nmax = 0.05\n')
+    for name, _, _, p in joints:
+        for k, axis in enumerate("xy"):
+            out.append(
+                f'[[parameters]]\nname = "{name}_{axis}"\njoint = "{name}"\n'
+                f'coordinate = "{axis}"\nmin = {float(p[k]) - extent!r}\n'
+                f"max = {float(p[k]) + extent!r}\n"
+            )
+    return "\n".join(out)
+
+
+def _spread(points: np.ndarray, count: int) -> np.ndarray:
+    """``count`` of the points, evenly spread along the list (the first kept)."""
+    return points[np.round(np.linspace(0, len(points) - 1, count)).astype(int)]
+
+
+def _targets(points: np.ndarray, closed: bool, tolerance: float):
+    try:
+        from linkopt._synth.targets import Targets
+    except ImportError:  # before the synthesis targets land: the contract's record
+        sys.path.insert(0, str(ROOT / "tests"))
+        from synth_fourbars import Targets
+    values = np.c_[points, np.zeros(len(points))]
+    return Targets("path", "tip", values, None, closed, tolerance)
+
+
+def _judge(mech, design, points, closed, extent, turn=2 * np.pi) -> dict:
+    """Sweep a design over its cycle against the points (see the module docstring):
+    a closed curve over a full turn in the direction of ``turn``, an open one over
+    the motor span ``(0, turn)``."""
+    from linkopt._synth.cycle import sweep_cycle
+    from linkopt._synth.fourbar import grashof_class, read_four_bar, transmission
+
+    targets = _targets(points, closed, 0.01 * extent)
+    direction = 1 if turn >= 0 else -1
+    span = (0.0, float(turn))
+    report = sweep_cycle(mech, design, targets, span=span, direction=direction)
+    four_bar = read_four_bar(mech, design).four_bar()
+    return {
+        "rms": _rms(report.distances),
+        "largest_distance": float(np.max(report.distances)),
+        "defect_free": report.defect is None,
+        "defect": report.defect,
+        "least_sigma": report.least_sigma,
+        "alpha_minus": report.alpha_minus,
+        "grashof": grashof_class(four_bar),
+        "least_transmission_deg": float(np.degrees(transmission(four_bar).worst)),
+    }
+
+
+def start_case(name: str, write: bool) -> dict:
+    """linkopt's closed-form start for one planar case (the ``start`` side)."""
+    import linkopt
+    from linkopt._synth.fourbar import fit_path
+
+    points, closed = planar_cases()[name]
+    extent = float(np.linalg.norm(np.ptp(points, axis=0)))
+    t0 = time.perf_counter()
+    fit = fit_path(_spread(points, min(5, len(points))), seed=0, closed=closed)
+    seconds = time.perf_counter() - t0
+    text = four_bar_file(fit.placed, extent)
+    if write:
+        CASES_DIR.mkdir(parents=True, exist_ok=True)
+        (CASES_DIR / f"{name}.toml").write_text(text)
+        rows = "\n".join(f"{x!r},{y!r},0.0" for x, y in points)
+        (CASES_DIR / f"{name}.csv").write_text("x,y,z\n" + rows + "\n")
+    # the crank's turn from the first point to the last (open) or its sense (closed)
+    turn = float(fit.crank_turns[-1])
+    judged = _judge(linkopt.loads(text), None, points, closed, extent, turn)
+    return {
+        "start_seconds": round(seconds, 3),
+        "start_fit_residual": fit.residual,
+        "start_fit_one_circuit": fit.one_circuit(),
+        "start_fit_in_order": fit.in_order(closed),
+        **{f"start_{k}": v for k, v in judged.items()},
+    }
+
+
+def linkopt_case(name: str) -> dict:
+    """``linkopt.synthesis.synthesize`` on one planar case (the ``linkopt`` side)."""
+    import linkopt
+
+    command = (
+        f"linkopt synthesize benchmarks/synthesis/{name}.toml --targets "
+        f"benchmarks/synthesis/{name}.csv --point tip"
+    )
+    try:
+        from linkopt import synthesis
+    except ImportError as err:
+        return {"linkopt_command": command, "linkopt_status": f"not run: {err}"}
+    points, closed = planar_cases()[name]
+    extent = float(np.linalg.norm(np.ptp(points, axis=0)))
+    mech = linkopt.load(CASES_DIR / f"{name}.toml")
+    targets = _targets(points, closed, 0.01 * extent)
+    t0 = time.perf_counter()
+    result = synthesis.synthesize(mech, targets, None)
+    seconds = time.perf_counter() - t0
+    judged = _judge(mech, result.design, points, closed, extent)
+    return {
+        "linkopt_command": command,
+        "linkopt_seconds": round(seconds, 3),
+        "linkopt_status": "ok",
+        **{f"linkopt_{k}": v for k, v in judged.items()},
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--side", default="pylinkage,start,linkopt")
+    parser.add_argument("--timeout", type=float, default=60.0)
+    parser.add_argument("--write-cases", action="store_true")
+    parser.add_argument("--cases", default=None, help="comma-separated case names")
+    parser.add_argument("--pylinkage-case", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.pylinkage_case:
+        print(json.dumps(pylinkage_case(args.pylinkage_case)))
+        return
+    sides = set(args.side.split(","))
+    chosen = set(args.cases.split(",")) if args.cases else set(GOALS)
+    rows = []
+    for name, (points, closed) in planar_cases().items():
+        if name not in chosen:
+            continue
+        row = {"case": name, "points": len(points), "closed": closed}
+        row["goal"] = GOALS[name]
+        if "pylinkage" in sides:
+            row.update(run_pylinkage(name, args.timeout))
+        if "start" in sides:
+            row.update(start_case(name, args.write_cases))
+        if "linkopt" in sides:
+            row.update(linkopt_case(name))
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    for name, reason in NOT_PLANAR.items():
+        if name in chosen:
+            rows.append({"case": name, "goal": GOALS[name], "pylinkage_status": reason})
+    print(_results.write(__file__, {"timeout_s": args.timeout, "cases": rows}))
+
+
+if __name__ == "__main__":
+    main()
