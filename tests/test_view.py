@@ -21,6 +21,7 @@ from linkopt._design.view_grid import (
     ViewGrid,
     check_view_grid,
     default_resolution,
+    largest_resolution,
     motor_window,
     view_grid,
 )
@@ -133,7 +134,8 @@ def test_too_many_motors_for_the_grid_says_what_it_costs(capsys, tmp_path):
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert "10^6 = 1e+06 configurations" in err and "MB" in err
     stewart = linkopt.load(str(ROOT / "mechanisms" / "stewart.toml"))
-    assert f"--resolution {default_resolution(stewart)} or less" in err
+    assert f"--resolution {largest_resolution(stewart)} or less" in err
+    assert largest_resolution(stewart) == 3
     assert not out.exists()
 
 

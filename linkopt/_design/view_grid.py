@@ -40,8 +40,10 @@ MAX_DATA_BYTES = 4_000_000
 #: Characters a number takes in the page (nine significant digits, sign, exponent,
 #: separator).
 NUMBER_BYTES = 14
-#: The finest default grid, cells per motor axis.
+#: The finest default grid: cells per motor axis, and cells in all (about 10 s of
+#: solving for the five-bar on one loaded core; ``--resolution`` gives more).
 MAX_DEFAULT_RESOLUTION = 101
+MAX_DEFAULT_CELLS = 2000
 
 
 @dataclass(frozen=True)
@@ -76,12 +78,21 @@ def cell_bytes(mech: Mechanism) -> int:
 
 def default_resolution(mech: Mechanism, designs: int = 1) -> int:
     """The finest grid (cells per motor axis, odd so that rest is a cell where the
-    window is symmetric) whose ``designs`` grids fit :data:`MAX_DATA_BYTES`; at
-    least 2, at most :data:`MAX_DEFAULT_RESOLUTION`."""
-    cells = MAX_DATA_BYTES / (designs * cell_bytes(mech))
+    window is symmetric) whose ``designs`` grids fit :data:`MAX_DATA_BYTES`, of at
+    most :data:`MAX_DEFAULT_CELLS` cells; at least 2, at most
+    :data:`MAX_DEFAULT_RESOLUTION` per axis."""
+    cells = min(MAX_DATA_BYTES / (designs * cell_bytes(mech)), MAX_DEFAULT_CELLS)
     n = int(math.floor(cells ** (1 / mech.num_motors) + 1e-9))
     n = min(n, MAX_DEFAULT_RESOLUTION)
     return max(2, n if n % 2 or n <= 2 else n - 1)
+
+
+def largest_resolution(mech: Mechanism, designs: int = 1) -> int:
+    """The most cells per motor axis whose ``designs`` grids fit
+    :data:`MAX_DATA_BYTES` (1: not even 2)."""
+    cells = MAX_DATA_BYTES / (designs * cell_bytes(mech))
+    n = int(math.floor(cells ** (1 / mech.num_motors) + 1e-9))
+    return n + 1 if (n + 1) ** mech.num_motors <= cells else n
 
 
 def check_view_grid(mech: Mechanism, resolution, designs: int = 1) -> int:
@@ -101,7 +112,7 @@ def check_view_grid(mech: Mechanism, resolution, designs: int = 1) -> int:
         f"--resolution {resolution}: {m} motors make {resolution}^{m} = "
         f"{resolution**m:.4g} configurations per design"
     )
-    largest = default_resolution(mech, designs)
+    largest = largest_resolution(mech, designs)
     fits = designs * 2**m * cell_bytes(mech) <= MAX_DATA_BYTES
     advice = (
         f"give --resolution {largest} or less"

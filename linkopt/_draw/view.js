@@ -2,9 +2,9 @@
 const D = JSON.parse(document.getElementById("linkopt-data").textContent);
 const M = D.motors.length;
 const S = { design: 0, index: [], busy: Promise.resolve() };
-const sceneDiv = document.getElementById("scene");
-const mapDiv = document.getElementById("map");
-const clearDiv = document.getElementById("clearance-map");
+const sceneDiv = document.getElementById("linkopt-scene");
+const mapDiv = document.getElementById("linkopt-map");
+const clearDiv = document.getElementById("linkopt-clearance");
 const status = document.getElementById("status");
 
 function design() { return D.designs[S.design]; }

@@ -20,10 +20,10 @@ SCRIPT = (Path(__file__).parent / "view.js").read_text(encoding="utf-8")
 STYLE = """
 body { font-family: sans-serif; margin: 0.5em; }
 #main { display: flex; flex-wrap: wrap; gap: 0.5em; }
-#scene { width: 62vw; min-width: 420px; height: 78vh; }
+#linkopt-scene { width: 62vw; min-width: 420px; height: 78vh; }
 #side { flex: 1; min-width: 320px; }
-#map, #clearance-map { width: 100%; height: 38vh; }
-#clearance-map:empty { display: none; }
+#linkopt-map, #linkopt-clearance { width: 100%; height: 38vh; }
+#linkopt-clearance:empty { display: none; }
 #status { margin: 0.4em 0; padding: 0.3em; }
 #status.failed { background: #300; color: #fff; font-weight: bold; }
 #controls input[type=range] { width: 60%; }
@@ -40,9 +40,9 @@ def page(plotly_js: str, data_json: str, title: str) -> str:
         f"<title>linkopt view: {escape(title)}</title><style>{STYLE}</style>"
         f"<script>{plotly_js}</script></head><body>"
         f"<h3>linkopt view: {escape(title)}</h3>"
-        "<div id='main'><div id='scene'></div><div id='side'>"
-        "<div id='controls'></div><div id='status'></div><div id='map'></div>"
-        "<div id='clearance-map'></div>"
+        "<div id='main'><div id='linkopt-scene'></div><div id='side'>"
+        "<div id='controls'></div><div id='status'></div><div id='linkopt-map'></div>"
+        "<div id='linkopt-clearance'></div>"
         "<p>Drag a slider, or click the map, to move the motors; drag the 3-D view "
         "to turn it, scroll to zoom.</p></div></div>"
         f"<script type='application/json' id='linkopt-data'>{data}</script>"
