@@ -178,3 +178,38 @@ def test_out_in_an_unwritable_folder_is_refused(capsys, tmp_path, monkeypatch):
     )
     code, _, err = _run(capsys, "view", FIVE_BAR, "--out", folder / "v.html")
     assert code == 2 and "not writable" in err and len(err.strip().splitlines()) == 1
+
+
+def test_optimize_writes_the_view_beside_the_figures(tmp_path, monkeypatch, capsys):
+    """``linkopt optimize`` (its search and outputs stubbed: a finished run folder)
+    writes ``view.html`` with both designs and names it with the figures."""
+    import linkopt._design.run as run
+
+    out = tmp_path / "run"
+    mech = linkopt.load(str(FIVE_BAR))
+    initial = mech.design.p0 + 0.2 * (mech.design.upper - mech.design.p0)
+
+    def outputs(*args, **kwargs):
+        out.mkdir(parents=True, exist_ok=True)
+        shutil.copy(FIVE_BAR, out / "optimized.toml")
+        summary = {"initial_design": dict(zip(mech.design.names, initial.tolist()))}
+        (out / "summary.json").write_text(json.dumps(summary))
+        return {
+            **dict.fromkeys(("iterations", "f_design", "regularizer"), 0),
+            **{"verified": True, "initial_verified": True, "at_bounds": {}},
+            **{"verification_rounds": [], "design": {}},
+            "capped_samples": {"ik": 0, "adversarial": 0},
+            "optimized_file": str(out / "optimized.toml"),
+        }
+
+    monkeypatch.setattr(run, "optimize", lambda *args, **kwargs: None)
+    monkeypatch.setattr(run, "write_outputs", outputs)
+    monkeypatch.setattr(view_grid_module, "MAX_DEFAULT_CELLS", 50)  # 5² per design
+    assert main(["optimize", str(FIVE_BAR), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    figures = next(x for x in err.splitlines() if x.startswith("figures:"))
+    assert str(out / "view.html") in figures
+    page = (out / "view.html").read_text()
+    data = json.loads(re.search(r"id='linkopt-data'>(.*?)</script>", page).group(1))
+    assert [d["label"] for d in data["designs"]] == ["initial", "optimised"]
+    assert [len(a) for a in data["designs"][0]["axes"]] == [5, 5]

@@ -78,10 +78,10 @@ def cell_bytes(mech: Mechanism) -> int:
 
 def default_resolution(mech: Mechanism, designs: int = 1) -> int:
     """The finest grid (cells per motor axis, odd so that rest is a cell where the
-    window is symmetric) whose ``designs`` grids fit :data:`MAX_DATA_BYTES`, of at
-    most :data:`MAX_DEFAULT_CELLS` cells; at least 2, at most
+    window is symmetric) whose ``designs`` grids fit :data:`MAX_DATA_BYTES` and
+    :data:`MAX_DEFAULT_CELLS` cells together; at least 2, at most
     :data:`MAX_DEFAULT_RESOLUTION` per axis."""
-    cells = min(MAX_DATA_BYTES / (designs * cell_bytes(mech)), MAX_DEFAULT_CELLS)
+    cells = min(MAX_DATA_BYTES / cell_bytes(mech), MAX_DEFAULT_CELLS) / designs
     n = int(math.floor(cells ** (1 / mech.num_motors) + 1e-9))
     n = min(n, MAX_DEFAULT_RESOLUTION)
     return max(2, n if n % 2 or n <= 2 else n - 1)
