@@ -6,7 +6,8 @@ error. One page for the module (a five-bar run folder).
 
 Skipped, with the reason, when no Chromium executable is found, unless
 ``LINKOPT_REQUIRE_BROWSER=1`` (CI sets it), which makes a missing browser a failure.
-``LINKOPT_DOCS_SCREENSHOT=1`` saves the screenshot as ``docs/images/view.png``.
+``LINKOPT_DOCS_SCREENSHOT=1`` saves the page's screenshot as
+``docs/figures/view_five_bar.png``.
 """
 
 import io
@@ -161,8 +162,7 @@ def test_failed_cells_shown_as_failed_and_a_screenshot_not_blank(page):
     assert state["feasible"] and "FAILED" not in state["status"]
     shot = tab.locator("#linkopt-scene").screenshot()
     if os.environ.get("LINKOPT_DOCS_SCREENSHOT") == "1":
-        (ROOT / "docs" / "images").mkdir(exist_ok=True)
-        tab.screenshot(path=str(ROOT / "docs" / "images" / "view.png"))
+        tab.screenshot(path=str(ROOT / "docs" / "figures" / "view_five_bar.png"))
     from PIL import Image
 
     pixels = np.asarray(Image.open(io.BytesIO(shot)).convert("RGB")).reshape(-1, 3)
