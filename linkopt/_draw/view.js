@@ -5,6 +5,7 @@ const S = { design: 0, index: [], busy: Promise.resolve() };
 const sceneDiv = document.getElementById("linkopt-scene");
 const mapDiv = document.getElementById("linkopt-map");
 const clearDiv = document.getElementById("linkopt-clearance");
+if (!D.clearance_scale) clearDiv.style.display = "none";
 const status = document.getElementById("status");
 
 function design() { return D.designs[S.design]; }
@@ -41,8 +42,8 @@ function pointsOf(state, dsg) {
 function motorText(index) {
   const dsg = design();
   return D.motors.map((m, i) => {
-    const v = dsg.axes[i][index[i]];
-    return `${m.name} = ${v.toPrecision(6)} ${m.linear ? D.units : "rad"}`;
+    const v = dsg.axes[i][index[i]], shown = Math.abs(v) < 1e-12 ? 0 : v;
+    return `${m.name} = ${shown.toPrecision(6)} ${m.linear ? D.units : "rad"}`;
   }).join(", ");
 }
 function bodyTraces(state, dsg) {
@@ -131,7 +132,8 @@ function field(name) {
     high: D.f_sing_scale.high, scale: "Viridis", title: "log10 f_sing",
     text: "motor space: f_sing (brighter = closer to a singularity; black = failed)" };
   const c = D.clearance_scale;
-  return { values: dsg.clearance, low: c.low, high: c.high, scale: "RdBu", title: `clearance (${D.units})`,
+  // plotly's RdBu runs blue to red: reversed, red is low as in matplotlib's
+  return { values: dsg.clearance, low: c.low, high: c.high, scale: "RdBu", reverse: true, title: `clearance (${D.units})`,
     text: `motor space: least clearance (red: closer than ${c.band.toPrecision(3)} ${D.units}; black = failed)` };
 }
 function mapTraces(name) {
@@ -144,7 +146,8 @@ function mapTraces(name) {
     here.x = [dsg.axes[0][S.index[0]]]; here.y = [v === null ? f.low : v];
     return [
       { type: "scatter", mode: "lines+markers", name: f.title, x: dsg.axes[0], y: f.values,
-        marker: { size: 5, color: f.values, colorscale: f.scale, cmin: f.low, cmax: f.high } },
+        marker: { size: 5, color: f.values, colorscale: f.scale, cmin: f.low, cmax: f.high,
+                  reversescale: !!f.reverse } },
       { type: "scatter", mode: "markers", name: "failed", x: failed,
         y: failed.map(() => f.low), marker: { symbol: "x", color: "black", size: 8 } },
       here,
@@ -162,13 +165,18 @@ function mapTraces(name) {
   here.x = [dsg.axes[0][S.index[0]]]; here.y = [dsg.axes[1][S.index[1]]];
   here.marker.line.color = "white";
   return [{ type: "heatmap", x: dsg.axes[0], y: dsg.axes[1], z, colorscale: f.scale,
-            zmin: f.low, zmax: f.high, hoverongaps: false,
+            zmin: f.low, zmax: f.high, hoverongaps: false, reversescale: !!f.reverse,
             colorbar: { title: { text: f.title } } }, here];
+}
+// the other motors' values of a map drawn over the first two
+function sliceText() {
+  if (M <= 2) return "";
+  return "<br>at " + motorText(S.index).split(", ").slice(2).join(", ");
 }
 function mapLayout(name) {
   const unit = m => D.motors[m].linear ? D.units : "rad", f = field(name);
   const layout = { margin: { l: 60, r: 10, t: 30, b: 45 }, plot_bgcolor: "black",
-                   title: { text: f.text, font: { size: 12 } },
+                   title: { text: f.text + sliceText(), font: { size: 12 } },
                    xaxis: { title: { text: `${D.motors[0].name} (${unit(0)})` } }, showlegend: false };
   if (M === 1) { layout.yaxis = { title: { text: f.title } }; layout.plot_bgcolor = "#eee"; }
   else layout.yaxis = { title: { text: `${D.motors[1].name} (${unit(1)})` } };

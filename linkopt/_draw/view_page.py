@@ -23,7 +23,6 @@ body { font-family: sans-serif; margin: 0.5em; }
 #linkopt-scene { width: 62vw; min-width: 420px; height: 78vh; }
 #side { flex: 1; min-width: 320px; }
 #linkopt-map, #linkopt-clearance { width: 100%; height: 38vh; }
-#linkopt-clearance:empty { display: none; }
 #status { margin: 0.4em 0; padding: 0.3em; }
 #status.failed { background: #300; color: #fff; font-weight: bold; }
 #controls input[type=range] { width: 60%; }
