@@ -160,6 +160,17 @@ def test_failed_cells_shown_as_failed_and_a_screenshot_not_blank(page):
     rest = RESOLUTION // 2
     state = _move(tab, [rest, rest])
     assert state["feasible"] and "FAILED" not in state["status"]
+    # the end-effector's trace has a dot per reached cell; the target box is the
+    # outputs' range (x in [-40, 40], y in [15, 80])
+    traces = tab.evaluate(
+        """() => document.getElementById("linkopt-scene").data.map(t => [
+               t.name, t.x.filter(v => v !== null), t.y.filter(v => v !== null)])"""
+    )
+    traces = {name: (np.array(x), np.array(y)) for name, x, y in traces}
+    reached = tab.evaluate("linkoptView.data.designs[1].states.filter(s => s).length")
+    assert len(traces["ee trace (colour: log10 f_sing)"][0]) == reached
+    x, y = traces["target range"]
+    assert (x.min(), x.max(), y.min(), y.max()) == (-40, 40, 15, 80)
     shot = tab.locator("#linkopt-scene").screenshot()
     if os.environ.get("LINKOPT_DOCS_SCREENSHOT") == "1":
         tab.screenshot(path=str(ROOT / "docs" / "figures" / "view_five_bar.png"))
