@@ -41,6 +41,11 @@ def _run(capsys, *argv):
 
 
 @pytest.fixture(scope="module")
+def stewart():
+    return linkopt.load(str(ROOT / "mechanisms" / "stewart.toml"))
+
+
+@pytest.fixture(scope="module")
 def five_bar_grid(five_bar):
     return view_grid(five_bar, 9)
 
@@ -88,7 +93,10 @@ def _worst_grid(mech, resolution: int) -> ViewGrid:
     rng = np.random.default_rng(0)
     rest = np.asarray(rest_state(mech))
     states = rest + 1e-3 * rng.uniform(-1, 1, (cells, rest.size)) + 1e-12
-    axes = tuple(np.linspace(lo, hi, resolution) for lo, hi in zip(*motor_window(mech)))
+    axes = tuple(
+        np.linspace(lo, hi, resolution)
+        for lo, hi in zip(*motor_window(mech, resolution))
+    )
     clearance = None if mech.collision is None else rng.uniform(0.1, 1, cells)
     return ViewGrid(
         axes, states, np.ones(cells, bool), rng.uniform(1, 50, cells), clearance, 0
@@ -213,3 +221,18 @@ def test_optimize_writes_the_view_beside_the_figures(tmp_path, monkeypatch, caps
     data = json.loads(re.search(r"id='linkopt-data'>(.*?)</script>", page).group(1))
     assert [d["label"] for d in data["designs"]] == ["initial", "optimised"]
     assert [len(a) for a in data["designs"][0]["axes"]] == [5, 5]
+
+
+@pytest.mark.parametrize("resolution", [3, 5, 11, 43])
+def test_a_coarse_grid_takes_small_steps(resolution, stewart, five_bar):
+    """Without motor limits a grid's steps are at most 0.25 rad and 0.05 reference
+    lengths (the Stewart platform's three cells per leg reached 1 of 729 cells with
+    steps of 0.25 reference lengths), and the window is the full span when the grid
+    is fine enough; rest is a cell of an odd grid."""
+    for mech, span in ((stewart, 0.25 * stewart.length_scale), (five_bar, np.pi / 3)):
+        low, high = motor_window(mech, resolution)
+        step = (high - low) / (resolution - 1)
+        limit = np.where(mech.motor_linear, 0.05 * mech.length_scale, 0.25)
+        assert np.all(step <= limit * (1 + 1e-12))
+        assert np.allclose(high, np.minimum(span, 0.5 * (resolution - 1) * limit))
+        assert np.allclose(low, -high)

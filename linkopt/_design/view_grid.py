@@ -7,7 +7,8 @@ is not kept, and a page shows it as failed, never a neighbour's or an interpolat
 one). The grid spans each motor's limits where the file gives them, else
 ``±ANGLE_SPAN`` rad about rest for a revolute motor (``±π`` for a mechanism of one
 motor: a whole turn of a crank) and ``±LINEAR_SPAN`` reference lengths for a linear
-one.
+one, narrower where the grid is coarse (:data:`MAX_ANGLE_STEP`,
+:data:`MAX_LINEAR_STEP`).
 
 Budget: the page holds every reached state, so its size, not the solve, bounds the
 grid: :data:`MAX_DATA_BYTES` of numbers over all the designs of a page
@@ -34,6 +35,12 @@ from .maps import check_count, grid_cost, least_clearance, solve_grid
 #: (reference lengths).
 ANGLE_SPAN = math.pi / 3
 LINEAR_SPAN = 0.25
+#: The largest step between two cells without motor limits: a revolute motor's (rad),
+#: a linear one's (reference lengths). A coarse grid spans less (the Stewart
+#: platform's three cells per leg: ±0.05 reference lengths), so that neighbouring
+#: cells stay on one branch (:data:`linkopt._design.maps.MAX_JUMP`).
+MAX_ANGLE_STEP = 0.25
+MAX_LINEAR_STEP = 0.05
 #: Bytes of page data the grids of one page may hold (plotly.js adds 4.8 MB): under
 #: 10 MB in all.
 MAX_DATA_BYTES = 4_000_000
@@ -59,10 +66,14 @@ class ViewGrid:
     rest_cell: int  # the cell the continuation started from
 
 
-def motor_window(mech: Mechanism) -> tuple[np.ndarray, np.ndarray]:
-    """Low and high motor values of the grid (module docstring)."""
+def motor_window(mech: Mechanism, resolution: int) -> tuple[np.ndarray, np.ndarray]:
+    """Low and high motor values of a grid of ``resolution`` cells per motor (module
+    docstring)."""
     angle = math.pi if mech.num_motors == 1 else ANGLE_SPAN
-    span = np.where(mech.motor_linear, LINEAR_SPAN * mech.length_scale, angle)
+    steps = 0.5 * (resolution - 1)
+    angle = min(angle, steps * MAX_ANGLE_STEP)
+    linear = min(LINEAR_SPAN, steps * MAX_LINEAR_STEP) * mech.length_scale
+    span = np.where(mech.motor_linear, linear, angle)
     low, high = -span, span
     if mech.motor_limited:
         low = np.where(np.isfinite(mech.motor_min), mech.motor_min, low)
@@ -138,7 +149,7 @@ def view_grid(
 ) -> ViewGrid:
     """FK of ``design`` (None: the file's) over the motor grid (module docstring),
     by continuation from the rest pose; ``progress(visited, cells)`` per wave."""
-    low, high = motor_window(mech)
+    low, high = motor_window(mech, resolution)
     axes = tuple(np.linspace(lo, hi, resolution) for lo, hi in zip(low, high))
     zero = np.zeros(mech.num_motors)
     states, feasible = solve_grid(
