@@ -372,14 +372,19 @@ def _summary(kind: str, drawing: Sheet, path: Path) -> dict:
 
 
 def export_dxf(mech: Mechanism, path, design=None, *, thickness=None) -> dict:
-    """Write the sheet drawing of ``design`` as DXF to ``path``; returns a summary."""
+    """Write the sheet drawing of a planar mechanism at ``design`` (None: the file's)
+    as DXF to ``path`` (module docstring: a layer per link, outlines, holes, names and
+    centre distances, file units); ``thickness``: the link diameter (None: the
+    ``[collision]`` radii, else 4 % of the reference length). Returns a summary;
+    :class:`~linkopt.MechanismFileError` for a spatial mechanism."""
     drawing = sheet(mech, design, thickness=thickness)
     write_dxf(drawing, Path(path))
     return _summary("dxf", drawing, Path(path))
 
 
 def export_svg(mech: Mechanism, path, design=None, *, thickness=None) -> dict:
-    """Write the sheet drawing of ``design`` as SVG to ``path``; returns a summary."""
+    """As :func:`export_dxf`, as SVG (one group per link; ``y`` negated, SVG's
+    ``y`` pointing down)."""
     drawing = sheet(mech, design, thickness=thickness)
     write_atomic(Path(path), svg_text(drawing))
     return _summary("svg", drawing, Path(path))
