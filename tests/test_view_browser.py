@@ -146,6 +146,37 @@ def test_sliders_put_the_end_effector_where_fk_does(page, run_folder, capsys):
     assert errors == []
 
 
+def test_a_click_on_the_motor_map_moves_both_motors(page):
+    """The motor-space map is a 2-D pad: a click on a cell sets both sliders."""
+    tab, errors = page
+    tab.select_option("#design", "0")
+    rest = RESOLUTION // 2
+    _move(tab, [rest, rest])
+    want = [rest + 3, rest - 2]
+    x, y = tab.evaluate(
+        """([a, b]) => {
+            const div = document.getElementById("linkopt-map"), L = div._fullLayout;
+            const box = div.getBoundingClientRect();
+            const axes = linkoptView.data.designs[0].axes;
+            return [box.left + L.xaxis._offset + L.xaxis.l2p(axes[0][a]),
+                    box.top + L.yaxis._offset + L.yaxis.l2p(axes[1][b])];
+        }""",
+        want,
+    )
+    tab.mouse.move(x - 2, y - 2)  # plotly's click takes the cell hovered last
+    tab.mouse.move(x, y)
+    tab.mouse.click(x, y)
+    tab.wait_for_function(
+        "([a, b]) => linkoptView.state().index.join() === [a, b].join()", arg=want
+    )
+    state = _state(tab)
+    assert state["index"] == want
+    assert [tab.locator(f"#motor-{m}").input_value() for m in (0, 1)] == [
+        str(v) for v in want
+    ]
+    assert errors == []
+
+
 def test_failed_cells_shown_as_failed_and_a_screenshot_not_blank(page):
     tab, errors = page
     tab.select_option("#design", "1")

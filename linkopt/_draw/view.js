@@ -138,7 +138,8 @@ function field(name) {
 }
 function mapTraces(name) {
   const dsg = design(), f = field(name);
-  const here = { type: "scatter", mode: "markers", name: "this configuration",
+  // the marker takes no hover, so a click picks the map's cell under it
+  const here = { type: "scatter", mode: "markers", name: "this configuration", hoverinfo: "skip",
                  marker: { size: 12, color: "rgba(0,0,0,0)", line: { color: "#ff00ff", width: 2 } } };
   if (M === 1) {
     const failed = dsg.axes[0].filter((_, i) => dsg.states[i] === null);
@@ -165,7 +166,7 @@ function mapTraces(name) {
   here.x = [dsg.axes[0][S.index[0]]]; here.y = [dsg.axes[1][S.index[1]]];
   here.marker.line.color = "white";
   return [{ type: "heatmap", x: dsg.axes[0], y: dsg.axes[1], z, colorscale: f.scale,
-            zmin: f.low, zmax: f.high, hoverongaps: false, reversescale: !!f.reverse,
+            zmin: f.low, zmax: f.high, hoverongaps: true, reversescale: !!f.reverse,
             colorbar: { title: { text: f.title } } }, here];
 }
 // the other motors' values of a map drawn over the first two
