@@ -306,12 +306,12 @@ def _flip(p) -> str:
 def _path(link: Link) -> str:
     arcs = outline(link)
     r = f"{link.radius:.17g}"
-    parts = [f"M {_flip(arcs[0][0])}"]
+    commands = [f"M {_flip(arcs[0][0])}"]
     for i, (_, end, turn) in enumerate(arcs):
         large = 1 if turn > math.pi + 1e-12 else 0
-        parts.append(f"A {r} {r} 0 {large} 0 {_flip(end)}")  # y flipped: clockwise
-        parts.append(f"L {_flip(arcs[(i + 1) % len(arcs)][0])}")
-    return " ".join(parts) + " Z"
+        commands.append(f"A {r} {r} 0 {large} 0 {_flip(end)}")  # y flipped: clockwise
+        commands.append(f"L {_flip(arcs[(i + 1) % len(arcs)][0])}")
+    return " ".join(commands) + " Z"
 
 
 def svg_text(drawing: Sheet) -> str:
