@@ -202,6 +202,8 @@ def test_failed_cells_shown_as_failed_and_a_screenshot_not_blank(page):
     assert len(traces["ee trace (colour: log10 f_sing)"][0]) == reached
     x, y = traces["target range"]
     assert (x.min(), x.max(), y.min(), y.max()) == (-40, 40, 15, 80)
+    tab.mouse.move(1, 1)  # no hover label left by another test
+    tab.wait_for_timeout(300)
     shot = tab.locator("#linkopt-scene").screenshot()
     if os.environ.get("LINKOPT_DOCS_SCREENSHOT") == "1":
         tab.screenshot(path=str(ROOT / "docs" / "figures" / "view_five_bar.png"))
