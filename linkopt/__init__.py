@@ -103,6 +103,8 @@ _EXPORTS = {
     "export_urdf": ("_export.urdf", "export_urdf"),
     "export_stl": ("_export.meshes", "export_stl"),
     "export_glb": ("_export.meshes", "export_glb"),
+    "export_dxf": ("_export.sheet", "export_dxf"),
+    "export_svg": ("_export.sheet", "export_svg"),
 }
 
 
@@ -210,6 +212,7 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._errors import InputError, LinkoptError, MechanismFileError
     from ._export.meshes import export_glb, export_stl
     from ._export.mjcf import export_mjcf
+    from ._export.sheet import export_dxf, export_svg
     from ._export.urdf import export_urdf
     from ._files.loader import load, loads
     from ._files.writer import write_design

@@ -1,9 +1,11 @@
 """Designs out of linkopt, one function per format: MuJoCo MJCF and URDF (the
-kinematic formats) and STL and GLB (the solids).
+kinematic formats), STL and GLB (the solids), DXF and SVG (sheet drawings of a planar
+mechanism's links).
 
 Each name is also a top-level name of :mod:`linkopt`, the same object: ``mjcf`` is
 ``linkopt.export_mjcf``, ``urdf`` ``linkopt.export_urdf``, ``stl``
-``linkopt.export_stl`` and ``glb`` ``linkopt.export_glb``.
+``linkopt.export_stl``, ``glb`` ``linkopt.export_glb``, ``dxf``
+``linkopt.export_dxf`` and ``svg`` ``linkopt.export_svg``.
 """
 
 from typing import TYPE_CHECKING
@@ -16,6 +18,8 @@ _TOP_LEVEL = {
     "urdf": "export_urdf",
     "stl": "export_stl",
     "glb": "export_glb",
+    "dxf": "export_dxf",
+    "svg": "export_svg",
 }
 
 __getattr__, __dir__ = _namespace(__name__, _TOP_LEVEL)
@@ -24,6 +28,8 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._export.meshes import export_glb as glb
     from ._export.meshes import export_stl as stl
     from ._export.mjcf import export_mjcf as mjcf
+    from ._export.sheet import export_dxf as dxf
+    from ._export.sheet import export_svg as svg
     from ._export.urdf import export_urdf as urdf
 
 __all__ = sorted(_TOP_LEVEL)

@@ -25,6 +25,7 @@ COMMANDS = {
     "verify": [],
     "animate": ["--out", "{tmp}/a.gif"],
     "export": ["--format", "mjcf", "--out", "{tmp}/a.xml"],
+    "view": ["--out", "{tmp}/v.html"],
 }
 
 

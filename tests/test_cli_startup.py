@@ -43,6 +43,7 @@ MECHANISM_COMMANDS = {
     "export": ["--format", "mjcf", "--out", "{tmp}/five_bar.xml"],
     "animate": ["--out", "{tmp}/motion.gif"],
     "assemble": ["--out", "{tmp}/assembled.toml"],
+    "view": ["--out", "{tmp}/view.html"],
 }
 
 #: Runs ``linkopt`` (its ``main``, as ``python -m linkopt`` does) on each command line

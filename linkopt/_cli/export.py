@@ -1,9 +1,9 @@
-"""``linkopt export FILE --format mjcf|urdf|stl|glb --out PATH``: a design in the file
-formats of other tools (:mod:`linkopt._export`).
+"""``linkopt export FILE --format mjcf|urdf|stl|glb|dxf|svg --out PATH``: a design in
+the file formats of other tools (:mod:`linkopt._export`).
 
 Everything the user can get wrong is checked before anything is written: the design,
-the file's units, a closed-loop file asked for as URDF, ``--thickness``, and ``--out``
-(its folder is created; an unwritable one exits 2).
+the file's units, a closed-loop file asked for as URDF, a spatial one as DXF or SVG,
+``--thickness``, and ``--out`` (its folder is created; an unwritable one exits 2).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from .._errors import InputError, MechanismFileError
 from .._folders import output_folder
 from .values import design_arg, load
 
-FORMATS = ("mjcf", "urdf", "stl", "glb")
+FORMATS = ("mjcf", "urdf", "stl", "glb", "dxf", "svg")
 
 
 def _check_out(fmt: str, out: str) -> Path:
@@ -52,8 +52,9 @@ def _check_stl_names(mech) -> None:
             )
 
 
-def _check(args, mech):
+def _check(args, mech, design):
     from .._export.meshes import check_thickness
+    from .._export.sheet import check_planar, require_ezdxf
     from .._export.tree import metres_per_unit
     from .._export.urdf import check_open_chain
 
@@ -66,15 +67,22 @@ def _check(args, mech):
         check_thickness(mech, args.thickness)
     if args.format == "stl":
         _check_stl_names(mech)
+    if args.format in ("dxf", "svg"):
+        check_planar(mech, design)
+    if args.format == "dxf":
+        require_ezdxf()
 
 
 def _export(args, mech, design, out: Path) -> dict:
-    from .._export import meshes, mjcf, urdf
+    from .._export import meshes, mjcf, sheet, urdf
 
     if args.format == "mjcf":
         return mjcf.export_mjcf(mech, out, design, thickness=args.thickness)
     if args.format == "urdf":
         return urdf.export_urdf(mech, out, design)
+    if args.format in ("dxf", "svg"):
+        write = sheet.export_dxf if args.format == "dxf" else sheet.export_svg
+        return write(mech, out, design, thickness=args.thickness)
     write = meshes.export_stl if args.format == "stl" else meshes.export_glb
     return write(mech, out, design, thickness=args.thickness)
 
@@ -82,7 +90,7 @@ def _export(args, mech, design, out: Path) -> dict:
 def run_export(args) -> int:
     mech = load(args.file)
     design = design_arg(mech, args.design)
-    _check(args, mech)
+    _check(args, mech, design)
     out = _check_out(args.format, args.out)
     start = time.perf_counter()
     summary = _export(args, mech, design, out)
@@ -103,7 +111,8 @@ def run_export(args) -> int:
 def register(subparsers) -> None:
     """Add ``export`` to the ``linkopt`` sub-commands."""
     cmd = subparsers.add_parser(
-        "export", help="the design as MuJoCo MJCF, URDF, STL or GLB"
+        "export",
+        help="the design as MuJoCo MJCF, URDF, STL, GLB, or a DXF/SVG sheet drawing",
     )
     cmd.add_argument("file")
     cmd.add_argument("--format", required=True, choices=FORMATS)
@@ -123,8 +132,8 @@ def register(subparsers) -> None:
         "--thickness",
         type=float,
         help=(
-            "link diameter in file units (mjcf, stl, glb; default 4%% of the "
-            "reference length)"
+            "link diameter in file units (mjcf, stl, glb, dxf, svg; default 4%% of "
+            "the reference length)"
         ),
     )
     cmd.add_argument("--json", action="store_true", help="machine-readable summary")

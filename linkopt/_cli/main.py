@@ -38,6 +38,7 @@ from . import mechanism as mechanism_commands
 from . import optimize as optimize_commands
 from . import sweep as sweep_commands
 from . import trace as trace_commands
+from . import view as view_commands
 
 # options whose values may start with "-" (negative numbers)
 _VALUE_OPTIONS = ("--motors", "--outputs", "--design")
@@ -85,6 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
         optimize_commands,
         sweep_commands,
         export_commands,
+        view_commands,
         animate_commands,
         cache_commands,
     ):

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from .._design import ahead
 from .._design.settings import OptimizerSettings
-from .._errors import InputError
+from .._errors import InputError, LinkoptError
 from .._machine import default_workers
 from .evaluation import map_progress
 from .values import load
@@ -212,9 +212,10 @@ def _run_optimize(args) -> int:
             workers=args.workers,
             progress=map_progress(),
         )
+        write_run_view(Path(args.out))
     print(json.dumps({k: summary[k] for k in _SUMMARY_KEYS}, indent=2))
     out = Path(args.out)
-    names = ("spaces_optimized.png", "convergence.png", "mechanism.png")
+    names = ("spaces_optimized.png", "convergence.png", "mechanism.png", "view.html")
     figures = [str(out / name) for name in names if (out / name).is_file()]
     print(f"figures: {', '.join(figures)}", file=sys.stderr)
     from .._design.on_bounds import bounds_line
@@ -231,6 +232,21 @@ def _run_optimize(args) -> int:
         )
         return 1
     return 0
+
+
+def write_run_view(out: Path) -> None:
+    """``view.html`` beside the figures (issue 42): the browser view of the run's
+    initial and optimised designs (:mod:`linkopt._cli.view`), at the default
+    resolution. One it cannot write is a warning: the run's results stand."""
+    from .view import VIEW_FILE, run_designs, write_page
+
+    try:
+        mech, designs = run_designs(out)
+        write_page(mech, designs, out / VIEW_FILE, None)
+    except (LinkoptError, ImportError) as err:
+        print(
+            f"linkopt: warning: {out / VIEW_FILE} not written: {err}", file=sys.stderr
+        )
 
 
 def _optimize(args, mech, settings):
