@@ -12,9 +12,10 @@ from .._errors import InputError, MechanismFileError
 from . import programs
 from .constraints import homogenised_motor_values, passive_residual
 from .geometry import geometry, rest_state
+from .jacobian import state_jacobian
 from .lifting import padded_design
 from .model import Mechanism
-from .singularity import sigma_min_pair, stacked_jacobians
+from .singularity import sigmas_of, stacked_jacobians
 
 RANK_TOL = 1e-9  # relative to the largest singular value
 SINGULAR_TOL = (
@@ -35,16 +36,17 @@ class RestJacobians:
 
 
 def _rest_program(mech: Mechanism) -> tuple:
+    """The passive rows are the top rows of the closed-form FK Jacobian (passive rows,
+    then one row per motor: :mod:`.jacobian`), which σ_min needs anyway; they equal
+    ``jax.jacfwd`` of :func:`~.constraints.passive_residual` up to rounding."""
     geom = geometry(mech)
     state = rest_state(mech)
-    passive = jax.jacfwd(lambda s: passive_residual(mech, geom, s))(state)
     if mech.num_motors != mech.num_outputs:
-        return passive, None, None
-    return (
-        passive,
-        sigma_min_pair(mech, geom, state),
-        stacked_jacobians(mech, geom, state),
-    )
+        fk = state_jacobian(mech, geom, "fk", state)
+        return fk[: fk.shape[0] - mech.num_motors], None, None
+    stacked = stacked_jacobians(mech, geom, state)
+    passive = stacked[0, : stacked.shape[1] - mech.num_motors]
+    return passive, sigmas_of(stacked), stacked
 
 
 def rest_jacobians(mech: Mechanism) -> RestJacobians:
