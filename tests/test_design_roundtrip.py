@@ -133,7 +133,10 @@ def test_a_written_design_reads_back_as_the_same_design(name, fractions, later):
 #: an ascent on a neighbouring local maximum (seen on the delta: one of 27 samples at
 #: 41.08 for 40.43); the singularity term they give agrees.
 FIELDS = ("f_design", "reach", "singularity", "ik_motors", "ik_reach", "ik_f_sing")
-EVALUATED = ["five_bar", "spherical_five_bar", "delta_axes"]
+#: A planar file and the one whose axes are written unnormalised (each a structure
+#: whose evaluation compiles for about a minute from an empty cache); the twists'
+#: geometry reads back to 1e-12 above, hence their evaluation.
+EVALUATED = ["five_bar", "delta_axes"]
 
 
 @pytest.mark.parametrize("name", EVALUATED)
