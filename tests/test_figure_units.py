@@ -11,22 +11,30 @@ from linkopt import _figures
 from linkopt._design import labels
 from linkopt._design.evaluation import evaluate
 from linkopt._design.space_plots import plot_spaces
+from linkopt._engine.fields import parse_toml
+from linkopt._files.loader import build
 
 BIGLIDE = Path(__file__).with_name("biglide.toml")
 
 
+def parsed(text: str) -> linkopt.Mechanism:
+    """The mechanism as read from its file, without the load-time checks (labels
+    depend on the file's tables only; no program compiles)."""
+    return build(parse_toml(text, "<test>"), "<test>", check=False)
+
+
 def test_labels_follow_each_motor_and_output_kind():
-    stewart = linkopt.load(MECHANISMS / "stewart.toml")
+    stewart = parsed((MECHANISMS / "stewart.toml").read_text())
     assert set(labels.motor_labels(stewart)) == {
         f"motor {n} (mm)" for n in stewart.motor_names
     }
-    slider = linkopt.load(MECHANISMS / "slider_crank_linear.toml")
+    slider = parsed((MECHANISMS / "slider_crank_linear.toml").read_text())
     assert labels.motor_labels(slider) == ["motor slide (mm)"]
     assert labels.output_labels(slider) == ["output crank_angle (rad)"]
-    five_bar = linkopt.load(MECHANISMS / "five_bar.toml")
+    five_bar = parsed((MECHANISMS / "five_bar.toml").read_text())
     assert labels.motor_labels(five_bar) == ["motor left (rad)", "motor right (rad)"]
     assert labels.output_labels(five_bar) == ["output x (mm)", "output y (mm)"]
-    unnamed = linkopt.loads(BIGLIDE.read_text().replace('units = "mm"\n', ""))
+    unnamed = parsed(BIGLIDE.read_text().replace('units = "mm"\n', ""))
     assert labels.motor_unit(unnamed, 0) == "length units"
 
 
