@@ -25,7 +25,8 @@ from linkopt import InputError
 from linkopt._arms.codesign import nlp
 from linkopt._cli.main import main
 from linkopt._design.optimizer import OptimizerSettings, start
-from linkopt._design.run import CHECKPOINT, write_outputs
+from linkopt._design.run import CHECKPOINT
+from linkopt._draw.run_folder import write_outputs
 from linkopt._folders import LOCK, STAGING_PREFIX, locked, staged, write_atomic
 
 FIVE_BAR = str(MECHANISMS / "five_bar.toml")
