@@ -23,6 +23,7 @@ from .._engine.model import Mechanism
 
 
 def has_space_plots(mech: Mechanism) -> bool:
+    """Whether a run folder holds space plots: 2 or 3 motors and as many outputs."""
     return mech.num_motors == mech.num_outputs and mech.num_motors in (2, 3)
 
 
