@@ -23,8 +23,8 @@ import numpy as np
 
 import linkopt  # noqa: F401  (float64, cache)
 from linkopt._arms.codesign import nlp
-from linkopt._arms.codesign.plots import plot_solution
 from linkopt._arms.codesign.task import load_task
+from linkopt._draw.arms.codesign import plot_solution
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The paper's mean minutes per solve over 8 random seeds (paper 000).

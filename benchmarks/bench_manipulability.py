@@ -50,8 +50,8 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 import linkopt  # noqa: E402,F401  (float64 and the compilation cache first)
 from linkopt._arms.dh import synthesis as syn  # noqa: E402
 from linkopt._arms.dh import table as dh  # noqa: E402
-from linkopt._arms.dh.drawing import draw  # noqa: E402
 from linkopt._arms.dh.points import read_points  # noqa: E402
+from linkopt._draw.arms.dh import draw  # noqa: E402
 
 TASK = ROOT / "tasks/curve_cos5t_sin3t_sint.csv"
 FIGURE = ROOT / "figures/manipulability_sample_run.png"

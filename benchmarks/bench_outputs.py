@@ -14,7 +14,8 @@ shared machine) of
 * with ``--old``, the alternative to the sections: a fine 3-D continuation grid
   (60² x 13 cells) per space, to cut the sections from;
 * with ``--optimize``, a 4-particle, 2-iteration optimisation and its
-  :func:`linkopt._design.run.write_outputs` (both designs' verification, the figures);
+  :func:`linkopt._draw.run_folder.write_outputs` (both designs' verification, the
+  figures);
 * with ``--defaults``, ``optimize`` at its default settings (20 particles, verification
   rounds, two workers, as the command line runs it) and its ``write_outputs``;
 * with ``--run DIR``, ``write_outputs`` (two workers) on a copy of the finished run in
@@ -30,7 +31,7 @@ idle machine. Baseline: ``BASELINE_PLOT_CPU_S``, ``linkopt plot`` of the neck wi
 The choices behind these figures are documented where they are made: sections solved
 in their planes (:func:`linkopt._design.maps.sections`); the optimised design's space
 plot solved with the file's mechanism, so it shares the initial design's programs, and
-the last round's verification reused (:func:`linkopt._design.run.write_outputs`);
+the last round's verification reused (:func:`linkopt._draw.run_folder.write_outputs`);
 verification's singular values as one batch of the grid's shape
 (:mod:`linkopt._design.verify`).
 """
@@ -77,7 +78,7 @@ def timed(label: str):
 def bench_plot(mech, out: Path) -> None:
     from linkopt._design.evaluation import evaluate
     from linkopt._design.maps import plot_cost, plot_resolution
-    from linkopt._design.space_plots import plot_spaces
+    from linkopt._draw.space_plots import plot_spaces
 
     with timed("evaluate (for the plot)"):
         ev = evaluate(mech)
@@ -90,11 +91,11 @@ def bench_plot(mech, out: Path) -> None:
 
 def bench_old_grids(mech, resolution: int = 60) -> None:
     """The fine 3-D grid of each space that the old sections were cut from (the
-    windows of :func:`linkopt._design.plot_maps.section_maps`)."""
+    windows of :func:`linkopt._draw.plot_maps.section_maps`)."""
     import linkopt
     from linkopt._design import maps
     from linkopt._design.evaluation import evaluate
-    from linkopt._design.plot_maps import plot_windows
+    from linkopt._draw.plot_maps import plot_windows
 
     ev = evaluate(mech)
     rest = linkopt.rest_state(mech)
@@ -121,7 +122,8 @@ def bench_old_grids(mech, resolution: int = 60) -> None:
 
 def bench_optimize(mech, out: Path) -> None:
     from linkopt._design.optimizer import OptimizerSettings
-    from linkopt._design.run import optimize, write_outputs
+    from linkopt._design.run import optimize
+    from linkopt._draw.run_folder import write_outputs
 
     settings = OptimizerSettings(particles=4, iterations=2, seed=0, verify_rounds=0)
     with timed("optimize, 4 particles x 2 iterations"):
@@ -133,7 +135,8 @@ def bench_optimize(mech, out: Path) -> None:
 def bench_defaults(mech, out: Path) -> None:
     """``linkopt optimize FILE`` at its default settings, then its outputs."""
     from linkopt._design.optimizer import OptimizerSettings
-    from linkopt._design.run import optimize, write_outputs
+    from linkopt._design.run import optimize
+    from linkopt._draw.run_folder import write_outputs
 
     settings = OptimizerSettings(seed=0)
     with timed("optimize, default settings, 2 workers"):
@@ -149,7 +152,8 @@ def bench_run(mech, folder: Path, out: Path) -> None:
 
     from linkopt._design.checkpoint import CHECKPOINT
     from linkopt._design.optimizer import OptimizerSettings
-    from linkopt._design.run import load_checkpoint, write_outputs
+    from linkopt._design.run import load_checkpoint
+    from linkopt._draw.run_folder import write_outputs
 
     data = json.loads((folder / CHECKPOINT).read_text())
     settings = OptimizerSettings(**data["settings"])

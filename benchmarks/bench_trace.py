@@ -78,7 +78,7 @@ def _synthesised(name: str, task, seed: int) -> tuple[dict, object]:
 def _figures(name: str, task_name: str, task, found) -> None:
     import matplotlib.pyplot as plt
 
-    from linkopt._arms.trace import plots as tp
+    from linkopt._draw.arms import trace as tp
 
     fig_dir = f"{ROOT}/figures"
     if name == "rose_discretised":

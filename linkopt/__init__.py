@@ -60,8 +60,8 @@ _EXPORTS = {
     "named_points": ("_engine.readout", "named_points"),
     "reported_values": ("_engine.readout", "reported_values"),
     "optimize": ("_design.run", "optimize"),
-    "write_outputs": ("_design.run", "write_outputs"),
-    "animate": ("_design.animation", "animate"),
+    "write_outputs": ("_draw.run_folder", "write_outputs"),
+    "animate": ("_draw.animation", "animate"),
     "motion": ("_design.motion", "motion"),
     "Motion": ("_design.motion", "Motion"),
     "PathNotReached": ("_design.motion", "PathNotReached"),
@@ -178,13 +178,14 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     )
     from ._arms.trace.verify import PlanarArm, TraceVerification
     from ._arms.trace.verify import verify as verify_trace
-    from ._design.animation import animate
     from ._design.evaluation import Evaluation, evaluate
     from ._design.motion import Motion, PathNotReached, motion
     from ._design.partial import partial_gradient
-    from ._design.run import optimize, write_outputs
+    from ._design.run import optimize
     from ._design.settings import OptimizerSettings
     from ._design.verify import Verification, verify
+    from ._draw.animation import animate
+    from ._draw.run_folder import write_outputs
     from ._engine.collision import Clearance, clearance
     from ._engine.constraints import constraint_rows
     from ._engine.geometry import geometry, rest_state

@@ -5,8 +5,9 @@ design."""
 import jax.numpy as jnp
 import numpy as np
 
-from linkopt._arms.codesign.model import chain, rotation_matrix
+from linkopt._arms.codesign.model import chain
 from linkopt._arms.codesign.task import loads_task
+from linkopt._engine.rotations import matrix
 
 TINY_ARM = """
 [task]
@@ -51,7 +52,5 @@ def reached_targets(text: str, design, poses, *, axis: bool = False) -> str:
         q, p = ends[-1]
         tables += f"[[targets]]\nposition = {[float(v) for v in p]}\n"
         if axis:
-            tables += (
-                f"axis = {[float(v) for v in np.asarray(rotation_matrix(q))[:, 2]]}\n"
-            )
+            tables += f"axis = {[float(v) for v in np.asarray(matrix(q))[:, 2]]}\n"
     return tables

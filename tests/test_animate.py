@@ -12,7 +12,6 @@ from PIL import Image
 
 import linkopt
 from linkopt._cli.main import main
-from linkopt._design.animation import plane_basis, quantised, write_run_motions
 from linkopt._design.motion import (
     MAX_FRAMES,
     PULL_IN,
@@ -21,6 +20,7 @@ from linkopt._design.motion import (
     tour,
     traced_points,
 )
+from linkopt._draw.animation import plane_basis, quantised, write_run_motions
 
 FRAMES = 8
 
@@ -426,7 +426,7 @@ def test_target_rectangle_is_drawn_for_two_positions_beside_an_angle(text):
     positions; a planar platform's x, y and heading got none."""
     import matplotlib.pyplot as plt
 
-    from linkopt._design.animation import target_box
+    from linkopt._draw.animation import target_box
 
     mech = linkopt.load(MECHANISMS / "five_bar.toml") if text == "five_bar" else None
     mech = mech or linkopt.loads(text)
@@ -444,7 +444,7 @@ def test_target_rectangle_is_drawn_for_two_positions_beside_an_angle(text):
 def test_a_plate_is_drawn_as_its_hull_without_its_interior_point():
     """Regression: a platform with three joints and a centre point was drawn as a
     four-sided ring through the centre; a bar's collinear members are one segment."""
-    from linkopt._design.animation import body_outline
+    from linkopt._draw.animation import body_outline
 
     corners = np.array([[1.0, 0.0, 0.0], [-0.5, 0.8, 0.0], [-0.5, -0.8, 0.0]])
     coords = np.vstack([corners[:2], [0.0, 0.0, 0.0], corners[2:]])  # centre third

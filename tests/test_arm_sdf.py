@@ -158,7 +158,7 @@ def test_rotated_box_is_drawn_with_its_turned_edges():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from linkopt._arms.codesign.plots import draw_obstacle
+    from linkopt._draw.arms.codesign import draw_obstacle
 
     quarter = ((0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0))  # 90° about z
     box = Obstacle(

@@ -331,7 +331,7 @@ def test_write_design_refuses_non_finite_values(five_bar, tmp_path):
 
 
 def test_space_maps_need_two_motors_and_two_outputs():
-    from linkopt._design.plot_maps import space_maps
+    from linkopt._draw.plot_maps import space_maps
 
     one = linkopt.load(MECHANISMS / "jansen_1dof.toml")
     with pytest.raises(linkopt.InputError, match="space maps need 2 motors"):

@@ -16,7 +16,7 @@ from PIL import Image
 
 import linkopt
 from linkopt._design.maps import finish_map, grid_axes, motor_map, solve_grid
-from linkopt._design.space_plots import plot_spaces
+from linkopt._draw.space_plots import plot_spaces
 from linkopt._engine.geometry import rest_state
 from linkopt._engine.readout import joint_positions
 
@@ -127,7 +127,7 @@ def test_the_plot_draws_clearance_maps_below_the_f_sing_maps(
 def test_the_drawing_of_a_collision_file_adds_a_side_view(tmp_path):
     """A planar mechanism with ``[collision]`` is drawn in its plane and from the side,
     where a lift out of the plane shows; one without it in its plane only."""
-    from linkopt._design.plots import plot_mechanism
+    from linkopt._draw.plots import plot_mechanism
 
     lifted = linkopt.load(ROOT / "mechanisms" / "four_bar_collision.toml")
     designs = {"initial": None, "lifted": np.array([-5.0])}

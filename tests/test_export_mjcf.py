@@ -191,7 +191,7 @@ def test_optimize_writes_the_mjcf_beside_the_toml(tmp_path, five_bar, monkeypatc
     import dataclasses
 
     from linkopt._design.optimizer import OptimizerSettings, start
-    from linkopt._design.run import write_outputs
+    from linkopt._draw.run_folder import write_outputs
 
     settings = OptimizerSettings(particles=2, iterations=1)
     design = five_bar.design.p0 + 0.1 * (five_bar.design.upper - five_bar.design.p0)

@@ -7,10 +7,10 @@ import pytest
 from conftest import MECHANISMS
 
 import linkopt
-from linkopt import _figures
-from linkopt._design import labels
 from linkopt._design.evaluation import evaluate
-from linkopt._design.space_plots import plot_spaces
+from linkopt._draw import figures as _figures
+from linkopt._draw import labels
+from linkopt._draw.space_plots import plot_spaces
 from linkopt._engine.fields import parse_toml
 from linkopt._files.loader import build
 
@@ -60,7 +60,7 @@ def test_a_linear_motors_map_axis_is_in_the_files_unit(tmp_path, monkeypatch):
 
 
 def test_the_mechanism_figures_axes_are_in_the_files_unit(tmp_path, monkeypatch):
-    from linkopt._design.plots import plot_mechanism
+    from linkopt._draw.plots import plot_mechanism
 
     made = []
     original = _figures.subplots

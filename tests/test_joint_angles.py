@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from linkopt._engine import joints as _joints
-from linkopt._engine.quaternion import from_axis_angle, multiply
+from linkopt._engine.rotations import from_axis_angle, multiply
 
 
 def _frame(rng):

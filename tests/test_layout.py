@@ -172,3 +172,32 @@ def test_no_code_reads_another_modules_private_attributes(path):
                 f"{path.relative_to(ROOT)}:{node.lineno} reads "
                 f"{node.value.id}.{node.attr}"
             )
+
+
+#: Folders that may draw: the drawing layer and the command line.
+DRAWING = {"_draw", "_cli"}
+
+
+def _absolute_imports(path: Path):
+    """The top-level package of every absolute import in ``path``."""
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            yield from (alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            yield node.module.split(".")[0]
+
+
+@pytest.mark.parametrize("path", SOURCES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_only_the_drawing_layer_and_the_cli_import_matplotlib(path):
+    if _folder(_module_of(path)) in DRAWING:
+        return
+    drawing = {"matplotlib", "mpl_toolkits"} & set(_absolute_imports(path))
+    assert not drawing, f"{path.relative_to(ROOT)} imports {', '.join(drawing)}"
+
+
+def test_the_matplotlib_check_sees_a_drawing_module():
+    """The check above reads the imports that the drawing layer's modules make."""
+    assert "matplotlib" in set(_absolute_imports(PACKAGE / "_draw" / "figures.py"))
+    assert "matplotlib" in set(
+        _absolute_imports(PACKAGE / "_draw" / "arms" / "trace.py")
+    )

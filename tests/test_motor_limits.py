@@ -224,8 +224,8 @@ def test_the_written_file_keeps_the_limits(tmp_path):
 def test_the_maps_draw_the_limits():
     from matplotlib import pyplot as plt
 
-    from linkopt._design.plot_maps import plot_windows
-    from linkopt._design.space_plots import limit_lines
+    from linkopt._draw.plot_maps import plot_windows
+    from linkopt._draw.space_plots import limit_lines
 
     text = (MECHANISMS / "five_bar.toml").read_text()
     for name, joint, limits in (

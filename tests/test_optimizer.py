@@ -26,9 +26,10 @@ from linkopt._design.optimizer import (
     swarm_moves,
 )
 from linkopt._design.partial import frozen_objective, partial_gradient
-from linkopt._design.run import CHECKPOINT, optimize, prepare, write_outputs
+from linkopt._design.run import CHECKPOINT, optimize, prepare
 from linkopt._design.verify import verify
 from linkopt._design.workers import Workers
+from linkopt._draw.run_folder import write_outputs
 
 # Seed 0: with 4 particles, 3 iterations lower the swarm's best by more than 5 % for
 # seeds 0-6 and not for seed 7 (measured), which the resume test below relies on.

@@ -15,7 +15,7 @@ import linkopt
 from linkopt._design import maps
 from linkopt._design.checkpoint import decode, encode
 from linkopt._design.optimizer import OptimizerSettings, reopen, score, start
-from linkopt._design.plots import plot_mechanism
+from linkopt._draw.plots import plot_mechanism
 
 ARM = ROOT / "tests/data/arm_3r.toml"
 #: An output window reaching past the arm's reach (60 mm from the shoulder), so that

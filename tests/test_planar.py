@@ -10,9 +10,9 @@ import pytest
 from conftest import MECHANISMS
 
 import linkopt
-from linkopt._design.animation import plane_basis
-from linkopt._design.planar import plane_normal
-from linkopt._design.plots import mechanism_views
+from linkopt._draw.animation import plane_basis
+from linkopt._draw.planar import plane_normal
+from linkopt._draw.plots import mechanism_views
 
 SLIDER = (MECHANISMS / "slider_crank_linear.toml").read_text()
 

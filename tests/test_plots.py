@@ -38,8 +38,8 @@ def test_three_output_sections_match_direct_solves(tmp_path):
     section's map agrees with a direct backward solve and f_sing at a probed cell."""
     from conftest import ROOT
 
-    from linkopt._design.plot_maps import section_maps
-    from linkopt._design.space_plots import plot_spaces
+    from linkopt._draw.plot_maps import section_maps
+    from linkopt._draw.space_plots import plot_spaces
 
     arm = linkopt.load(ROOT / "tests/data/arm_3r.toml")
     ev = linkopt.evaluate(arm)
@@ -74,7 +74,7 @@ def test_maps_read_reported_outputs_over_their_cells(five_bar, tmp_path):
     from conftest import MECHANISMS
 
     from linkopt._design.evaluation import evaluate
-    from linkopt._design.space_plots import plot_spaces
+    from linkopt._draw.space_plots import plot_spaces
 
     text = (MECHANISMS / "five_bar.toml").read_text()
     extra = (
@@ -121,9 +121,9 @@ def test_plotting_leaves_the_users_backend_and_pyplot_alone(tmp_path):
         "import matplotlib\n"
         "matplotlib.use('svg')\n"
         "import matplotlib.pyplot as plt\n"
-        "import linkopt._design.plots as plots, linkopt._design.animation\n"
-        "import linkopt._arms.trace.plots, linkopt._arms.codesign.plots\n"
-        "import linkopt._arms.dh.drawing\n"
+        "import linkopt._draw.plots as plots, linkopt._draw.animation\n"
+        "import linkopt._draw.arms.trace, linkopt._draw.arms.codesign\n"
+        "import linkopt._draw.arms.dh\n"
         "keys = ('best_total', 'best_f_design', 'reach', 'singularity', "
         "'regularizer')\n"
         "history = [{'iteration': k, **{key: 1.0 / (k + 1) for key in keys}} "

@@ -180,8 +180,8 @@ def test_evaluate_reports_the_moved_point(tmp_path, capsys):
 
 
 def test_the_design_figure_marks_the_moved_point(mechs):
-    from linkopt import _figures as figures
-    from linkopt._design.plots import mark_moves
+    from linkopt._draw import figures
+    from linkopt._draw.plots import mark_moves
 
     fig, ax = figures.subplots()
     assert mark_moves(ax, mechs["anchors"], PIN_X, "tab:blue", (0, 1)) == 1

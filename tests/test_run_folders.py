@@ -25,7 +25,8 @@ from linkopt import InputError
 from linkopt._arms.codesign import nlp
 from linkopt._cli.main import main
 from linkopt._design.optimizer import OptimizerSettings, start
-from linkopt._design.run import CHECKPOINT, write_outputs
+from linkopt._design.run import CHECKPOINT
+from linkopt._draw.run_folder import write_outputs
 from linkopt._folders import LOCK, STAGING_PREFIX, locked, staged, write_atomic
 
 FIVE_BAR = str(MECHANISMS / "five_bar.toml")
@@ -222,6 +223,48 @@ def test_a_failing_write_outputs_leaves_the_earlier_outputs(
         "optimized.toml": "earlier run",
         "summary.json": "earlier run",
     }
+
+
+def test_the_run_folder_asks_the_drawing_layer_once_per_design(
+    tmp_path, five_bar, monkeypatch
+):
+    """The design layer draws nothing itself: ``write_outputs`` hands each design's
+    numbers to its ``figures`` in one call (the file's design unevaluated, the
+    optimised one with its evaluation and the history), and with ``figures=None``
+    the folder gets no figure. (Verification is stood in for: not this test's
+    subject.)"""
+    from linkopt._design import run as run_folder
+
+    settings = OptimizerSettings(particles=2, iterations=1)
+    record = dict.fromkeys(
+        ["iteration", "best_total", "best_f_design", "regularizer", "reach"], 0.0
+    )
+    design = five_bar.design.p0 + 0.1 * (five_bar.design.upper - five_bar.design.p0)
+    run = dataclasses.replace(
+        start(five_bar, settings),
+        iteration=1,
+        finished=True,
+        result_pos=design,
+        history=({**record, "singularity": 0.0, "evaluations": 2, "wall_time": 0},),
+    )
+    monkeypatch.setattr(run_folder, "_verification", lambda *_: {"passed": True})
+    calls = []
+    run_folder.write_outputs(
+        five_bar, tmp_path / "a", run, settings, figures=calls.append
+    )
+    assert sorted(job.design is None for job in calls) == [False, True]
+    initial, optimised = sorted(calls, key=lambda job: job.design is not None)
+    assert initial.evaluation is None and initial.mech is five_bar
+    np.testing.assert_array_equal(optimised.design, design)
+    assert optimised.history == run.history and optimised.mech is five_bar
+    assert float(optimised.evaluation.f_design) == pytest.approx(
+        float(linkopt.evaluate(five_bar, design).f_design), rel=1e-9, abs=1e-30
+    )
+    assert initial.rows == optimised.rows > 0
+    run_folder.write_outputs(five_bar, tmp_path / "b", run, settings, figures=None)
+    written = {p.suffix for p in (tmp_path / "b").iterdir()}
+    assert ".png" not in written and ".gif" not in written
+    assert (tmp_path / "b" / "summary.json").is_file()
 
 
 def _spoil(data: dict, case: str):

@@ -198,7 +198,7 @@ def test_exports_and_the_figure_show_the_parts(tmp_path):
     welded to (a child body without a joint); the MJCF
     joint values of a merged state are those of the file without the part; the
     design figure draws it."""
-    from linkopt._design.plots import plot_mechanism
+    from linkopt._draw.plots import plot_mechanism
     from linkopt._export.meshes import body_meshes
     from linkopt._export.mjcf import joint_values, mjcf_text
 

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._engine import quaternion as quat
+from .._engine import rotations as rot
 from .._files.bounds import diameter
 
 #: One named point: ``(name, body index, position at rest (3,))``.
@@ -125,8 +125,8 @@ def chain_definition(
 def _moved(rotation, position, rest_rotation, offset):
     """``(origin, quaternion)`` now of the bodies carrying these frames (any leading
     shape)."""
-    q = quat.multiply(rotation, quat.conjugate(rest_rotation))
-    x = position if offset is None else position + quat.rotate(q, offset)
+    q = rot.multiply(rotation, rot.conjugate(rest_rotation))
+    x = position if offset is None else position + rot.rotate(q, offset)
     return x, q
 
 

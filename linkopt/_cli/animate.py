@@ -1,5 +1,5 @@
 """``linkopt animate FILE --out motion.gif [--design …] [--frames N] [--path CSV]``:
-a GIF of the mechanism moving along a path (:mod:`linkopt._design.animation`, frames by
+a GIF of the mechanism moving along a path (:mod:`linkopt._draw.animation`, frames by
 :mod:`linkopt._design.motion`).
 
 ``--path`` is a CSV file whose header names the motors (the rows are solved by forward
@@ -100,12 +100,12 @@ def run_animate(args) -> int:
     if args.path is not None and args.frames is not None:
         raise InputError("--frames: not with --path (each row of the CSV is a frame)")
     mech = load(args.file)
-    from .._design.animation import draw
     from .._design.motion import (
         check_frames,
         motion,
         unreached_message,
     )
+    from .._draw.animation import draw
 
     design = design_arg(mech, args.design)
     frames = check_frames(

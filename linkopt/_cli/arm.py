@@ -70,7 +70,7 @@ def write_solution(
 ) -> dict:
     """Write one solved arm (module docstring); returns its summary dictionary."""
     from .._arms.codesign import nlp
-    from .._arms.codesign.plots import plot_solution
+    from .._draw.arms.codesign import plot_solution
 
     arm = problem.arm
     z = np.concatenate([solution.theta.ravel(), solution.design])
@@ -334,7 +334,7 @@ def stage_files(folder: Path) -> list[str]:
 
 def _write_simplified(args, stages, final: int, runs, out: Path) -> None:
     """Every stage's files, ``elimination.png`` and ``summary.json``."""
-    from .._arms.codesign.plots import plot_stages
+    from .._draw.arms.codesign import plot_stages
 
     summaries = _write_stages(stages, out)
     plot_stages(stages, out / "elimination.png")

@@ -222,7 +222,7 @@ def run_plot(args) -> int:
     label = _label(args.label, args.design)
     mech = load(args.file)
     from .._design.maps import check_count, check_plot_resolution
-    from .._design.plots import plot_mechanism
+    from .._draw.plots import plot_mechanism
 
     design = design_arg(mech, args.design)
     max_cells = check_count(args.max_cells, "--max-cells", 1)
@@ -272,7 +272,7 @@ def _plot_spaces(
 ) -> None:
     """Evaluate the design and draw its motor- and end-effector-space maps (and their
     clearance, with ``clearance`` and ``[collision]`` enabled)."""
-    from .._design.space_plots import plot_spaces
+    from .._draw.space_plots import plot_spaces
 
     print(f"evaluating {mech.name} ...", file=sys.stderr)
     ev = evaluate(mech, design)

@@ -204,8 +204,8 @@ def _write_files(
 ) -> tuple[dict, dict]:
     """``arm.toml``, ``dh.json`` and ``manipulability.png``; returns the engine
     report and the ``dh.json`` payload."""
-    from .._arms.dh.drawing import draw
     from .._arms.dh.synthesis import engine_report, rest_configuration
+    from .._draw.arms.dh import draw
 
     _, text, report = engine_report(best, name=f"{best.types} arm from {source}")
     header = (

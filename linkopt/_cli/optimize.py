@@ -193,6 +193,7 @@ def run_optimize(args) -> int:
 def _run_optimize(args) -> int:
     mech = load(args.file)
     from .._design.run import locked_run_folder, write_outputs
+    from .._draw.run_folder import draw_run_figures
 
     check_mechanism(args, mech)
     settings = settings_from_args(args, args.seed)
@@ -208,6 +209,7 @@ def _run_optimize(args) -> int:
             args.out,
             run,
             settings,
+            figures=draw_run_figures,
             resolution=args.resolution,
             workers=args.workers,
             progress=map_progress(),

@@ -37,6 +37,7 @@ def _seed_line(row: dict, done: int, total: int, began: float) -> str:
 
 def _local(args, mech, seeds, report) -> list[dict]:
     from .._design.sweep import run_seed
+    from .._draw.run_folder import draw_run_figures
 
     return [
         report(
@@ -44,6 +45,7 @@ def _local(args, mech, seeds, report) -> list[dict]:
                 mech,
                 args.out,
                 optimize_cli.settings_from_args(args, seed),
+                figures=draw_run_figures,
                 workers=args.workers,
                 resolution=args.resolution,
             )
@@ -54,6 +56,7 @@ def _local(args, mech, seeds, report) -> list[dict]:
 
 def _on_cluster(args, mech, seeds, report) -> list[dict]:
     from .._design.sweep import finished_row, run_seed
+    from .._draw.run_folder import draw_run_figures
 
     cluster = optimize_cli.cluster_module()
     from distributed import as_completed
@@ -69,7 +72,11 @@ def _on_cluster(args, mech, seeds, report) -> list[dict]:
     with cluster.connect(args.scheduler, args.connect_timeout) as client:
         # run_seed's own keywords bound first: submit's "workers" is Dask's own
         task = functools.partial(
-            run_seed, workers=args.workers, resolution=args.resolution, in_process=True
+            run_seed,
+            figures=draw_run_figures,
+            workers=args.workers,
+            resolution=args.resolution,
+            in_process=True,
         )
         futures = [
             client.submit(

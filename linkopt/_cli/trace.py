@@ -145,8 +145,8 @@ def _figures(task, result, out: Path, gif: bool) -> list[str]:
     """The task figure always; the solution, swept-area figures and GIF with a
     design."""
 
-    from .._arms.trace import plots as tp
-    from .._figures import subplots
+    from .._draw.arms import trace as tp
+    from .._draw.figures import subplots
 
     stem, names = file_stem(task.name), []
     fig, ax = subplots(figsize=(6, 6))
@@ -179,9 +179,9 @@ def _figures(task, result, out: Path, gif: bool) -> list[str]:
 
 def _discretised(task, args, out: Path, figures: list[str]) -> dict:
 
-    from .._arms.trace import plots as tp
     from .._arms.trace.discrete import compare, discretised_design
     from .._arms.trace.export import design_dict
+    from .._draw.arms import trace as tp
 
     _say(f"discretised approach: {args.discretised} equidistant points")
     design = discretised_design(

@@ -177,7 +177,7 @@ def check_plot_resolution(
     max_bytes: int = MAX_BYTES,
     raise_with: str = "max_cells",
 ) -> int:
-    """The plots' maps (:func:`linkopt._design.space_plots.plot_spaces`) at
+    """The plots' maps (:func:`linkopt._draw.space_plots.plot_spaces`) at
     ``resolution`` cells per axis (``None``: :func:`plot_resolution`'s default):
     :class:`InputError` before any work when it is not a whole number ≥ 2 or a grid is
     over budget (:func:`check_budget`, :func:`plot_cost`)."""

@@ -1,5 +1,5 @@
 """The frames of an animation: a mechanism along a path, solved by continuation (beyond
-the paper; :mod:`linkopt._design.animation` draws them as a GIF).
+the paper; :mod:`linkopt._draw.animation` draws them as a GIF).
 
 Path. A path is a sequence of motor rows (solved by forward kinematics) or of output
 rows (backward kinematics), one row per frame, solved as one continuation path from the

@@ -24,14 +24,13 @@ a resumed run evaluates the same targets.
 Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.csv``
 (with ``[collision]`` enabled, also the collision columns: :mod:`.collision`),
 ``verification.json`` (``linkopt verify`` on the initial and optimised designs),
-``summary.json``, and the figures ``spaces_initial.png``, ``spaces_optimized.png``,
-``convergence.png``, ``mechanism.png`` (initial and optimised overlaid),
-``optimized.xml`` (the optimised design for MuJoCo, :mod:`linkopt._export.mjcf`) and
-``motion_initial.gif`` / ``motion_optimized.gif`` (:mod:`linkopt._design.animation`,
-mechanisms with 1-3 motors). The initial
-design's verification and space plot do not depend on the run, so with ``workers`` > 1 a
-spawned process makes them while this one makes the optimised design's and the motion
-GIFs.
+``summary.json``, ``optimized.xml`` (the optimised design for MuJoCo,
+:mod:`linkopt._export.mjcf`), and the figures that :func:`write_outputs`'s ``figures``
+draws from a :class:`RunFigures` per design. This layer draws nothing: the drawing layer
+sits above it (:mod:`linkopt._draw.run_folder`, whose ``write_outputs`` is the public
+one). The initial design's verification and figures do not depend on the run, so with
+``workers`` > 1 a spawned process makes them while this one makes the optimised
+design's.
 """
 
 from __future__ import annotations
@@ -45,6 +44,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -183,14 +183,36 @@ def optimize(
                 progress(run.rounds[-1])
 
 
+@dataclass(frozen=True)
+class RunFigures:
+    """What one design's figures in a run folder are drawn from: ``mech`` is the file's
+    mechanism, ``current`` the run's (with the verification rounds' targets),
+    ``design`` the optimised design or None for the file's, ``evaluation`` that
+    design's with ``current`` (None for the file's design: evaluate it with
+    :func:`~linkopt._design.evaluation.evaluate_in_batch` in blocks of ``rows``, the
+    swarm program's shape, if a figure needs it), ``history`` the run's records."""
+
+    mech: Mechanism
+    current: Mechanism
+    out: Path
+    design: np.ndarray | None
+    evaluation: Evaluation | None
+    rows: int
+    history: tuple[dict, ...] = ()
+    resolution: int | None = None
+    progress: Callable[[dict], None] | None = None
+
+
+#: The drawing of a run folder's figures (:mod:`linkopt._draw.run_folder`), called
+#: once per design; it must pickle (a module-level function) to run in a spawned
+#: process.
+Figures = Callable[[RunFigures], None]
+
+
 def _verification(mech: Mechanism, design, resolution: int | None) -> dict:
     from .verify import verify
 
     return verify(mech, design, resolution).as_json()
-
-
-def _has_space_plots(mech: Mechanism) -> bool:
-    return mech.num_motors == mech.num_outputs and mech.num_motors in (2, 3)
 
 
 def _initial_outputs(
@@ -199,24 +221,16 @@ def _initial_outputs(
     resolution: int | None,
     verify_resolution: int | None,
     rows: int,
+    figures: Figures | None,
     progress: Callable[[dict], None] | None = None,
 ) -> dict:
-    """The initial design's verification (returned) and space plot (written);
+    """The initial design's verification (returned) and figures (written);
     ``rows``: the optimiser's chunk size (:func:`.evaluation.evaluate_in_batch`)."""
-    from . import space_plots
-
     with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._config
         _announce(progress, "verifying the initial design")
         check = _verification(mech, None, verify_resolution)
-        if _has_space_plots(mech):
-            space_plots.plot_spaces(
-                mech,
-                evaluate_in_batch(mech, None, rows),
-                out / "spaces_initial.png",
-                resolution=resolution,
-                title=f"{mech.name}, initial design",
-                progress=_prefixed(progress, "initial design, "),
-            )
+    if figures is not None:
+        figures(RunFigures(mech, mech, out, None, None, rows, (), resolution, progress))
     return check
 
 
@@ -224,13 +238,6 @@ def _announce(progress, stage: str) -> None:
     """A stage of the final outputs, as a ``{"stage"}`` progress record."""
     if progress is not None:
         progress({"stage": stage})
-
-
-def _prefixed(progress, prefix: str):
-    """``progress`` with ``prefix`` before each record's stage."""
-    if progress is None:
-        return None
-    return lambda record: progress({**record, "stage": prefix + record["stage"]})
 
 
 def _optimized_outputs(
@@ -241,43 +248,23 @@ def _optimized_outputs(
     resolution: int | None,
     verify_resolution: int | None,
     rows: int,
+    figures: Figures | None,
     progress: Callable[[dict], None] | None = None,
     file_mech: Mechanism | None = None,
 ) -> tuple[dict, Evaluation]:
-    """The optimised design's verification and evaluation (returned), its space plot,
-    the convergence plot and the drawing of both designs (written); ``mech`` has the
-    targets of the run's verification rounds, whose last verification serves when it
-    was of ``design`` at the same resolution. The space plot solves with ``file_mech``
-    (the file's mechanism, the same linkage without the rounds' targets, which the
-    figure does not use): the targets are part of the fingerprint that keys every
-    compiled program, so it shares the initial design's plot's programs."""
-    from . import plots, space_plots
-
-    file_mech = file_mech or mech
+    """The optimised design's verification and evaluation (returned) and figures
+    (written); ``mech`` has the targets of the run's verification rounds, whose last
+    verification serves when it was of ``design`` at the same resolution, and
+    ``file_mech`` is the file's mechanism (the same linkage without those targets)."""
     with one_blas_thread():
         checked = last_round_verification(mech, run, design, verify_resolution)
         if checked is None:
             _announce(progress, "verifying the optimised design")
             checked = _verification(mech, design, verify_resolution)
         final = evaluate_in_batch(mech, design, rows)
-        if _has_space_plots(mech):
-            space_plots.plot_spaces(
-                file_mech,
-                final,
-                out / "spaces_optimized.png",
-                resolution=resolution,
-                design=design,
-                title=f"{mech.name}, optimised design",
-                progress=_prefixed(progress, "optimised design, "),
-            )
-        plots.plot_convergence(
-            run.history, out / "convergence.png", title=f"{mech.name}: optimisation"
-        )
-        plots.plot_mechanism(
-            mech,
-            out / "mechanism.png",
-            designs={"initial": None, "optimised": design},
-        )
+    if figures is not None:
+        job = RunFigures(file_mech or mech, mech, out, design, final, rows, run.history)
+        figures(dataclasses.replace(job, resolution=resolution, progress=progress))
     return checked, final
 
 
@@ -307,14 +294,13 @@ def _design_outputs(
     resolution: int | None,
     verify_resolution: int | None,
     workers: int,
-    motions: Callable[[], None],
+    figures: Figures | None,
     progress: Callable[[dict], None] | None = None,
 ) -> tuple[dict, Evaluation]:
     """Both designs' verifications (``{"initial": ..., "optimized": ...}``), the
     optimised design's evaluation (with the targets of ``current``: the file's and the
     run's rounds'), and the figures; with ``workers`` > 1 the initial design's in a
-    spawned process (module docstring). ``motions()`` writes the motion GIFs, after the
-    optimised design's outputs and before waiting for the spawned process's."""
+    spawned process (module docstring)."""
     side = (
         ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
         if workers > 1
@@ -322,7 +308,7 @@ def _design_outputs(
     )
     first = chunk_slices(len(run.position), workers)[0]  # the swarm's program's shape
     rows = first.stop - first.start
-    args = (mech, out, resolution, verify_resolution, rows)
+    args = (mech, out, resolution, verify_resolution, rows, figures)
     try:
         initial = side.submit(_initial_outputs, *args) if side is not None else None
         checked, final = _optimized_outputs(
@@ -333,10 +319,10 @@ def _design_outputs(
             resolution,
             verify_resolution,
             rows,
+            figures,
             progress,
             mech,
         )
-        motions()  # while the spawned process is still at the initial design
         checks = {
             "initial": _side_result(initial, args, progress),
             "optimized": checked,
@@ -403,22 +389,25 @@ def write_outputs(
     run: SwarmRun,
     settings: OptimizerSettings,
     *,
+    figures: Figures | None,
     resolution: int | None = None,
     verify_resolution: int | None = None,
     workers: int = 1,
     progress: Callable[[dict], None] | None = None,
 ) -> dict:
-    """Optimised file, verification, summary and figures for a finished run.
+    """Optimised file, verification, summary and, drawn by ``figures`` (None: no
+    figures), the figures of a finished run; the public
+    :func:`linkopt.write_outputs` passes the drawing layer's
+    (:func:`linkopt._draw.run_folder.draw_run_figures`).
 
-    With ``workers`` > 1 a spawned process verifies and plots the initial design while
+    With ``workers`` > 1 a spawned process verifies and draws the initial design while
     this one does the optimised design (module docstring). ``out`` is locked for the
     call, and the files are staged: they replace the folder's earlier ones only once
     all are written, ``summary.json`` last (:func:`linkopt._folders.staged`), so a
     failure leaves no ``optimized.toml`` that looks like this run's result.
-    ``resolution``: the space plots' (default by the number of outputs,
-    :func:`linkopt._design.maps.plot_resolution`); ``progress`` gets ``{"stage"}``
-    records as each verification starts and the maps' wave records (not those of the
-    spawned process)."""
+    ``resolution`` and ``progress`` are handed to ``figures``; ``progress`` also gets
+    ``{"stage"}`` records as each verification starts (not those of the spawned
+    process)."""
     out = Path(out)
     design = best_design(run)
     if design is None:
@@ -438,8 +427,6 @@ def write_outputs(
         from .._export.mjcf import export_mjcf  # the design for MuJoCo (issue 18)
 
         export_mjcf(current, stage / "optimized.xml", design)
-        from .animation import write_run_motions  # motion_*.gif (issue 18)
-
         checks, final = _design_outputs(
             mech,
             current,
@@ -449,7 +436,7 @@ def write_outputs(
             resolution,
             verify_resolution,
             workers,
-            lambda: write_run_motions(mech, current, stage, design),
+            figures,
             progress,
         )
         (stage / "verification.json").write_text(json.dumps(checks, indent=2))

@@ -1,7 +1,7 @@
 """A design run's settings and the limits of the design commands, without JAX: the
 command line shows and checks them before it imports the engine
 (:mod:`linkopt._design.optimizer` runs the swarm, :mod:`linkopt._design.maps` and
-:mod:`linkopt._design.animation` apply the limits).
+:mod:`linkopt._draw.animation` apply the limits).
 """
 
 from __future__ import annotations

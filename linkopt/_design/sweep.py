@@ -44,7 +44,7 @@ from .._folders import write_atomic
 from .checkpoint import CHECKPOINT
 from .evaluation import Evaluation, evaluate
 from .optimizer import OptimizerSettings, SwarmRun
-from .run import locked_run_folder, optimize, write_outputs
+from .run import Figures, locked_run_folder, optimize, write_outputs
 from .workers import Workers, concatenate
 
 SUMMARY_FIELDS = (
@@ -137,14 +137,16 @@ def run_seed(
     out: str | Path,
     settings: OptimizerSettings,
     *,
+    figures: Figures | None,
     workers: int = 1,
     resolution: int | None = None,
     in_process: bool = False,
 ) -> dict:
     """One seed's run (``settings.seed``) in ``out/seed_NNN``, finished, resumed or
     started (module docstring), its ``workers`` chunks in as many processes or, with
-    ``in_process``, all in this one; its summary row, with ``"computed"`` False when
-    the folder was already complete."""
+    ``in_process``, all in this one, its figures drawn by ``figures``
+    (:func:`linkopt._design.run.write_outputs`); its summary row, with ``"computed"``
+    False when the folder was already complete."""
     out = Path(out)
     seed = settings.seed
     done = finished_row(out, seed)
@@ -168,6 +170,7 @@ def run_seed(
             folder,
             run,
             settings,
+            figures=figures,
             resolution=resolution,
             workers=1 if in_process else workers,
         )

@@ -46,7 +46,7 @@ from .blocks import in_blocks
 from .constraints import body_frames
 from .geometry import Geometry, design_array, design_vector, geometry
 from .model import Mechanism
-from .quaternion import rotate
+from .rotations import rotate
 
 #: Squared lengths below this (homogenised²) count as a zero-length segment.
 TINY = 1e-30

@@ -27,7 +27,7 @@ from .._config import jit
 from . import joints as joint_types
 from .geometry import Geometry
 from .model import JOINT_ROWS, Mechanism
-from .quaternion import rotate
+from .rotations import rotate
 
 
 def body_frames(

@@ -9,6 +9,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .attachment import LINE, PLANE, Attachment
+from .rotations import turn_onto, unit
 
 
 def follow(
@@ -45,25 +46,18 @@ def _directions(xp, spans: np.ndarray, anchors) -> Float[Array, "N 2 3"]:
     return xp.einsum("nkj,jc->nkc", xp.asarray(spans), anchors)
 
 
-def _unit(xp, v: Float[Array, "N 3"]) -> Float[Array, "N 3"]:
-    return v / xp.linalg.norm(v, axis=-1, keepdims=True)
-
-
 def _line(xp, spans, offsets, anchors0, anchors):
     """The offsets turned by the smallest rotation taking the line's direction at the
     initial design to its direction at this one (Rodrigues)."""
-    u = _unit(xp, _directions(xp, spans, xp.asarray(anchors0))[:, 0])
-    v = _unit(xp, _directions(xp, spans, anchors)[:, 0])
-    d = xp.asarray(offsets)
-    k, c = xp.cross(u, v), xp.sum(u * v, axis=-1, keepdims=True)
-    kd = xp.sum(k * d, axis=-1, keepdims=True)
-    return c * d + xp.cross(k, d) + k * kd / (1.0 + c)
+    u = unit(xp, _directions(xp, spans, xp.asarray(anchors0))[:, 0])
+    v = unit(xp, _directions(xp, spans, anchors)[:, 0])
+    return turn_onto(xp, u, v, xp.asarray(offsets))
 
 
 def _plane(xp, spans, offsets, anchors0, anchors):
     """The offsets (along the plane's normal) along the normal at this design."""
     e0 = _directions(xp, spans, xp.asarray(anchors0))
     e = _directions(xp, spans, anchors)
-    n0 = _unit(xp, xp.cross(e0[:, 0], e0[:, 1]))
-    n = _unit(xp, xp.cross(e[:, 0], e[:, 1]))
+    n0 = unit(xp, xp.cross(e0[:, 0], e0[:, 1]))
+    n = unit(xp, xp.cross(e[:, 0], e[:, 1]))
     return xp.sum(xp.asarray(offsets) * n0, axis=-1, keepdims=True) * n

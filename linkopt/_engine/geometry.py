@@ -13,6 +13,7 @@ from jaxtyping import Array, Float
 from .following import follow
 from .lifting import padded_design
 from .model import Mechanism
+from .rotations import axis_angle_matrix, unit
 
 
 @jax.tree_util.register_dataclass
@@ -32,20 +33,10 @@ class Geometry:
     origins: Float[Array, "B 3"]
 
 
-def _unit(v: Float[Array, "... 3"]) -> Float[Array, "... 3"]:
-    """``v / |v|``, and ``v`` (zero) where ``|v| = 0``: an unused axis, e.g. the second
-    axis of a joint that has none. The square root never sees that zero, so its
-    derivative holds no ``0 · inf`` and a zero cotangent gives a zero gradient, not
-    NaN (:mod:`linkopt._design.partial` pulls every field of the geometry back)."""
-    square = jnp.sum(v * v, axis=-1, keepdims=True)
-    positive = square > 0.0
-    return v / jnp.sqrt(jnp.where(positive, square, 1.0))
-
-
 def _perpendicular(
     v: Float[Array, "J 3"], n: Float[Array, "J 3"]
 ) -> Float[Array, "J 3"]:
-    return _unit(v - jnp.sum(v * n, axis=-1, keepdims=True) * n)
+    return unit(jnp, v - jnp.sum(v * n, axis=-1, keepdims=True) * n)
 
 
 def design_vector(mech: Mechanism, design=None) -> Float[Array, " n_p"]:
@@ -81,7 +72,9 @@ def moved_joints(
     if turns is None:
         return anchors, axes
     for t in range(turns.select.shape[0]):  # downstream first (Turns)
-        rotation = _rotation(turns.normals[t], jnp.asarray(turns.select[t]) @ change)
+        rotation = axis_angle_matrix(
+            turns.normals[t], jnp.asarray(turns.select[t]) @ change
+        )
         center = jnp.asarray(turns.centers[t])
         on = jnp.asarray(turns.joints[t])[:, None] > 0.5
         anchors = jnp.where(on, center + (anchors - center) @ rotation.T, anchors)
@@ -89,21 +82,12 @@ def moved_joints(
     return anchors, axes
 
 
-def _rotation(normal: Float[Array, " 3"], angle) -> Float[Array, "3 3"]:
-    """Rodrigues' matrix of the turn by ``angle`` about the unit ``normal``."""
-    n = jnp.asarray(normal)
-    k = jnp.array(
-        [[0.0, -n[2], n[1]], [n[2], 0.0, -n[0]], [-n[1], n[0], 0.0]], dtype=n.dtype
-    )
-    return jnp.eye(3) + jnp.sin(angle) * k + (1.0 - jnp.cos(angle)) * (k @ k)
-
-
 def geometry(mech: Mechanism, design=None) -> Geometry:
     """Homogenised rest geometry of the design ``p`` (file units), traceable in
     ``p``."""
     anchors, raw_axes = moved_joints(mech, design)
     has_axis = mech.axis_present[:, None]
-    axes = jnp.where(has_axis, _unit(raw_axes), 0.0)
+    axes = jnp.where(has_axis, unit(jnp, raw_axes), 0.0)
     helpers = _perpendicular(jnp.asarray(np.eye(3)[mech.helper_index]), axes)
     axes2 = _perpendicular(jnp.asarray(mech.axes2), axes)
     points = follow(mech.point_attachment, mech.point_positions, mech.anchors, anchors)

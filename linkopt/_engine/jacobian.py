@@ -48,7 +48,7 @@ from . import joints as joint_types
 from .constraints import gauge_rows
 from .geometry import Geometry
 from .model import JOINT_ROWS, Mechanism
-from .quaternion import rotate
+from .rotations import rotate
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .quaternion import rotate
+from .rotations import rotate
 
 Vec = Float[Array, "3"]
 Quat = Float[Array, "4"]

@@ -35,7 +35,7 @@ from .constraints import body_frames
 from .geometry import Geometry, design_vector, geometry
 from .jacobian import state_jacobian
 from .model import Mechanism
-from .quaternion import rotate
+from .rotations import rotate
 
 
 def load_potential(

@@ -14,6 +14,7 @@ import numpy as np
 from jaxtyping import Float
 
 from .fields import Reader, shown
+from .rotations import np_axis_angle_matrix
 
 #: Coincidence tolerance: of anchors, times the reference length; of unit axes.
 MIRROR_TOL = 1e-9
@@ -49,7 +50,7 @@ class Symmetry:
         """The orthogonal map of element ``k``."""
         if self.kind == "mirror":
             return _reflection(self.direction)
-        rotation = _rotation(
+        rotation = np_axis_angle_matrix(
             self.direction, 2.0 * np.pi * (k % self.order) / self.order
         )
         return rotation if k < self.order else _reflection(self.mirror) @ rotation
@@ -67,16 +68,6 @@ class Symmetry:
 
 def _reflection(n: Float[np.ndarray, " 3"]) -> Float[np.ndarray, "3 3"]:
     return np.eye(3) - 2.0 * np.outer(n, n)
-
-
-def _rotation(n: Float[np.ndarray, " 3"], angle: float) -> Float[np.ndarray, "3 3"]:
-    """Rodrigues' rotation by ``angle`` about the unit ``n``."""
-    cross = np.array([[0, -n[2], n[1]], [n[2], 0, -n[0]], [-n[1], n[0], 0]])
-    return (
-        np.cos(angle) * np.eye(3)
-        + np.sin(angle) * cross
-        + (1.0 - np.cos(angle)) * np.outer(n, n)
-    )
 
 
 def read_symmetry(

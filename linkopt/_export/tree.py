@@ -23,6 +23,7 @@ from .._engine import links
 from .._engine.geometry import geometry
 from .._engine.links import body_places, segments
 from .._engine.model import Mechanism
+from .._engine.rotations import np_axis_angle_matrix, np_from_matrix, np_matrix
 from .._errors import MechanismFileError
 
 #: Metres per file unit, by the ``[mechanism] units`` strings an export understands.
@@ -268,57 +269,13 @@ def default_thickness(mech: Mechanism) -> float:
 # ---- joint coordinates of a state -------------------------------------------------
 
 
-def _matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a unit quaternion ``wxyz``."""
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def _quaternion(r: np.ndarray) -> np.ndarray:
-    """Unit quaternion ``wxyz`` (w ≥ 0) of a rotation matrix (Shepperd's method)."""
-    trace = np.trace(r)
-    k = int(np.argmax([trace, r[0, 0], r[1, 1], r[2, 2]]))
-    if k == 0:
-        s = 2.0 * np.sqrt(1.0 + trace)
-        q = [
-            s / 4,
-            (r[2, 1] - r[1, 2]) / s,
-            (r[0, 2] - r[2, 0]) / s,
-            (r[1, 0] - r[0, 1]) / s,
-        ]
-    else:
-        i, j, m = k - 1, k % 3, (k + 1) % 3
-        s = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[m, m])
-        q = [0.0] * 4
-        q[0] = (r[m, j] - r[j, m]) / s
-        q[1 + i] = s / 4
-        q[1 + j] = (r[j, i] + r[i, j]) / s
-        q[1 + m] = (r[m, i] + r[i, m]) / s
-    q = np.array(q)
-    return q if q[0] >= 0 else -q
-
-
-def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    """Rotation matrix about the unit ``axis`` by ``angle`` (Rodrigues)."""
-    k = np.array(
-        [[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]]
-    )
-    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
-
-
 def _hinge_angles(axes: list[np.ndarray], relative: np.ndarray) -> list[float]:
     """Angles ``θ_k`` with ``relative = Π_k Rot(a_k, θ_k)`` for 1-3 mutually
     perpendicular axes (the first two of three, or one of one, are exact for any
     rotation the joint allows; three are the Tait–Bryan angles, |θ2| < π/2)."""
     if len(axes) == 1:
         a = axes[0]
-        q = _quaternion(relative)
+        q = np_from_matrix(relative)
         return [2.0 * np.arctan2(q[1:] @ a, q[0])]
     if len(axes) == 3:
         e = np.stack(axes, axis=1)
@@ -331,7 +288,7 @@ def _hinge_angles(axes: list[np.ndarray], relative: np.ndarray) -> list[float]:
     a1, a2 = axes
     turned = relative @ a2
     first = np.arctan2(a1 @ np.cross(a2, turned), a2 @ turned)
-    rest_of = _rotation(a1, -first) @ relative
+    rest_of = np_axis_angle_matrix(a1, -first) @ relative
     turned = rest_of @ a1
     return [first, np.arctan2(a2 @ np.cross(a1, turned), a1 @ turned)]
 
@@ -341,7 +298,7 @@ def body_poses(mech: Mechanism, state) -> tuple[np.ndarray, np.ndarray]:
     a homogenised state."""
     bodies = np.asarray(state, dtype=float).reshape(-1, 7)
     origins = bodies[:, :3] * mech.length_scale
-    return origins, np.stack([_matrix(q) for q in bodies[:, 3:]])
+    return origins, np_matrix(bodies[:, 3:])
 
 
 def edge_values(
@@ -352,7 +309,7 @@ def edge_values(
     p, c = edge.parent, edge.child
     relative = rotations[p].T @ rotations[c]
     if edge.dofs and edge.dofs[0].kind == "ball":
-        return [_quaternion(relative)]
+        return [np_from_matrix(relative)]
     hinges = [d.axis for d in edge.dofs if d.kind == "hinge"]
     angles = iter(_hinge_angles(hinges, relative) if hinges else [])
     anchor = rest_pose.anchors[edge.joint]

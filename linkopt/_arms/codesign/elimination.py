@@ -34,6 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._config import jit
+from ..._engine import rotations as rot
 from . import nlp
 from .model import (
     Arm,
@@ -41,7 +42,6 @@ from .model import (
     compose,
     make_arm,
     module_transform,
-    rotation_matrix,
     tool_pose,
 )
 
@@ -73,17 +73,6 @@ class Elimination:
     delta: float
     segment: float
     iterations: int
-
-
-def _rotation_to_rpy(r: np.ndarray) -> np.ndarray:
-    """Roll, pitch, yaw of ``R = Rot_z(yaw) Rot_y(pitch) Rot_x(roll)``."""
-    return np.array(
-        [
-            np.arctan2(r[2, 1], r[2, 2]),
-            np.arctan2(-r[2, 0], np.hypot(r[2, 1], r[2, 2])),
-            np.arctan2(r[1, 0], r[0, 0]),
-        ]
-    )
 
 
 def _between(arm: Arm, k: int) -> range:
@@ -141,7 +130,7 @@ def segment_arm(arm: Arm, k: int, d: np.ndarray) -> tuple[Arm, np.ndarray, np.nd
     for i in inside:
         frame = compose(frame, module_transform(arm.modules[i], jnp.asarray(d)))
     d_j = np.concatenate(
-        [np.asarray(frame[1]), _rotation_to_rpy(np.asarray(rotation_matrix(frame[0])))]
+        [np.asarray(frame[1]), rot.np_rpy(np.asarray(rot.matrix(frame[0])))]
     )
     used = {i for m in (arm.modules[i] for i in inside) for i, _ in m.slots if i >= 0}
     keep = np.array([i for i in range(arm.num_design) if i not in used], dtype=int)

@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ..._engine import quaternion as quat
+from ..._engine import rotations as rot
 from ..._engine.constraints import homogenised_point_positions
 from ..._engine.geometry import Geometry
 from ..._engine.kinematics import implicit_state
@@ -107,11 +107,11 @@ Frame = tuple[Float[Array, "4"], Float[Array, "3"]]  # (quaternion wxyz, positio
 
 
 def compose(a: Frame, b: Frame) -> Frame:
-    return quat.multiply(a[0], b[0]), a[1] + quat.rotate(a[0], b[1])
+    return rot.multiply(a[0], b[0]), a[1] + rot.rotate(a[0], b[1])
 
 
 def _rot(axis: int, angle) -> Frame:
-    return quat.from_axis_angle(jnp.eye(3)[axis], angle), jnp.zeros(3)
+    return rot.from_axis_angle(jnp.eye(3)[axis], angle), jnp.zeros(3)
 
 
 def _trans(vector) -> Frame:
@@ -171,14 +171,10 @@ def module_bodies(arm_modules: tuple[Module, ...]) -> np.ndarray:
     return np.cumsum([m.kind == "joint" for m in arm_modules]).astype(int)
 
 
-def rotation_matrix(q) -> Float[Array, "3 3"]:
-    return quat.rotate(q[None, :], jnp.eye(3)).T
-
-
 def tool_rotation(arm: Arm, theta, d) -> Float[Array, "3 3"]:
     """End-effector orientation ``R_fk`` (columns: tool x, y, z = tip axis)."""
     ends, _ = chain(arm.modules, theta, d)
-    return rotation_matrix(ends[-1][0])
+    return rot.matrix(ends[-1][0])
 
 
 # ---------------------------------------------------------------------------------
@@ -216,7 +212,7 @@ def _definition(
     )
     ends = [np.asarray(p) for _, p in ends]
     anchors = [np.asarray(p) for _, p in joints]
-    axes = [np.asarray(rotation_matrix(q))[:, 2] for q, _ in joints]
+    axes = [np.asarray(rot.matrix(q))[:, 2] for q, _ in joints]
     n = len(joints)
     if length_scale is None:
         length_scale = span(np.array(anchors + ends))
@@ -293,7 +289,7 @@ def arm_geometry(arm: Arm, d: Float[Array, " m"]) -> Geometry:
     mech = arm.mechanism
     n = arm.num_joints
     ends, joints = chain(arm.modules, jnp.zeros(n), d)
-    rotations = jnp.stack([rotation_matrix(q) for q, _ in joints])
+    rotations = jnp.stack([rot.matrix(q) for q, _ in joints])
     points = jnp.stack([p for _, p in ends] + [ends[-1][1]])
     scale = mech.length_scale
     return Geometry(
@@ -323,7 +319,7 @@ def direct_state(
     origins = jnp.asarray(mech.body_origins)
     z = jnp.array([0.0, 0.0, 1.0])
     rotations = [
-        quat.multiply(q, quat.from_axis_angle(z, theta[k]))
+        rot.multiply(q, rot.from_axis_angle(z, theta[k]))
         for k, (q, _) in enumerate(moved)
     ]
     offsets = [origins[k + 1] - p for k, (_, p) in enumerate(rest)]
@@ -377,4 +373,4 @@ def tool_pose(
     tip = homogenised_point_positions(mech, geom, state)[-1] * mech.length_scale
     q_last = state.reshape(-1, 7)[-1, 3:]
     rest = tool_rotation(arm, jnp.zeros_like(theta), d)
-    return tip, rotation_matrix(q_last) @ rest, geom, state
+    return tip, rot.matrix(q_last) @ rest, geom, state

@@ -37,7 +37,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ..._config import jit
-from ..._engine import quaternion
+from ..._engine import rotations as rot
 from ..._errors import InputError
 from ..chain import chain_definition, chain_state, coordinate_output, joint_output, span
 
@@ -151,11 +151,11 @@ def _orientations(types: str, table: DHTable, q) -> Float[Array, "N+1 4"]:
     theta, _ = joint_parameters(types, table, q)
     quats = [jnp.array([1.0, 0.0, 0.0, 0.0])]
     for i in range(len(types)):
-        step = quaternion.multiply(
-            quaternion.from_axis_angle(jnp.asarray(_Z), theta[i]),
-            quaternion.from_axis_angle(jnp.asarray(_X), table.alpha[i]),
+        step = rot.multiply(
+            rot.from_axis_angle(jnp.asarray(_Z), theta[i]),
+            rot.from_axis_angle(jnp.asarray(_X), table.alpha[i]),
         )
-        quats.append(quaternion.multiply(quats[-1], step))
+        quats.append(rot.multiply(quats[-1], step))
     return jnp.stack(quats)
 
 

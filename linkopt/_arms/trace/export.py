@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ..._engine import quaternion as quat
+from ..._engine import rotations as rot
 from ..._engine.model import Mechanism
 from ..._files.writer import dumps
 from ..chain import chain_definition, chain_state, coordinate_output, joint_output
@@ -156,7 +156,7 @@ def _body_frames(
     ground, for link ``k`` its direction about z at its proximal joint."""
     links = states[1:] - states[:-1]
     angles = jnp.arctan2(links[:, 1], links[:, 0])
-    rotations = quat.from_axis_angle(jnp.array([0.0, 0.0, 1.0]), angles)
+    rotations = rot.from_axis_angle(jnp.array([0.0, 0.0, 1.0]), angles)
     identity = jnp.array([[1.0, 0.0, 0.0, 0.0]])
     positions = jnp.concatenate([states[:-1], jnp.zeros((len(links), 1))], axis=1)
     return (

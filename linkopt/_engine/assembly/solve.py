@@ -17,6 +17,7 @@ import importlib
 
 import numpy as np
 
+from ..rotations import matrix_exp
 from .problem import Problem, Rows
 
 #: Frame variables (position and rotation vector) weigh this in the movement norm,
@@ -80,21 +81,6 @@ def without_motors(rows: Rows) -> Rows:
     return dataclasses.replace(rows, **{k: getattr(rows, k)[:0] for k in motors})
 
 
-def rotation(omega):
-    """Rotation matrices of rotation vectors ``(F, 3)`` (Rodrigues, finite at 0)."""
-    import jax.numpy as jnp
-
-    theta = jnp.sqrt(jnp.sum(omega**2, axis=-1) + 1e-300)[:, None, None]
-    k = jnp.zeros(omega.shape[:-1] + (3, 3))
-    k = k.at[:, 0, 1].set(-omega[:, 2]).at[:, 0, 2].set(omega[:, 1])
-    k = k.at[:, 1, 0].set(omega[:, 2]).at[:, 1, 2].set(-omega[:, 0])
-    k = k.at[:, 2, 0].set(-omega[:, 1]).at[:, 2, 1].set(omega[:, 0])
-    a = jnp.sin(theta) / theta
-    b = (1.0 - jnp.cos(theta)) / theta**2
-    b = jnp.where(theta < 1e-8, 0.5, b)
-    return jnp.eye(3) + a * k + b * (k @ k)
-
-
 def _residual(sizes: tuple[int, int], rows: Rows, x):
     """Length rows, local-anchor rows (3 each), slide-line rows (2 each), axis rows,
     motor rows; homogenised (rad for axes and rotary motors)."""
@@ -105,7 +91,7 @@ def _residual(sizes: tuple[int, int], rows: Rows, x):
     pose = x[3 * joints :].reshape(frames, 6)
     d = a[rows.pairs[:, 0]] - a[rows.pairs[:, 1]]
     lengths = jnp.sqrt(jnp.sum(d * d, axis=-1) + 1e-300) - rows.lengths
-    turn = rotation(pose[:, 3:])
+    turn = matrix_exp(pose[:, 3:])
     rot = jnp.einsum("fij,fjk->fik", turn, rows.rotation0)
     image = pose[rows.local_frame, :3] + jnp.einsum(
         "rij,rj->ri", rot[rows.local_frame], rows.local_at

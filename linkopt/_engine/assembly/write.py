@@ -9,9 +9,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fields import is_number_list
+from ..rotations import matrix_exp, turn_onto
 from .axes import any_normal
 from .problem import BODY_KEYS, Problem
-from .solve import residual_np, rotation, start
+from .solve import residual_np, start
 
 
 @dataclass(frozen=True)
@@ -123,7 +124,7 @@ def _frame_rotations(problem: Problem, poses: np.ndarray) -> np.ndarray:
 
     if not len(poses):
         return np.zeros((0, 3, 3))
-    turn = np.asarray(rotation(jnp.asarray(poses[:, 3:])))
+    turn = np.asarray(matrix_exp(jnp.asarray(poses[:, 3:])))
     return np.einsum("fij,fjk->fik", turn, problem.rows.rotation0)
 
 
@@ -179,15 +180,12 @@ def fit(before: np.ndarray, after: np.ndarray):
 
 
 def _aligning(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """The smallest rotation taking unit ``u`` to unit ``v``."""
-    axis, c = np.cross(u, v), float(u @ v)
-    if c < -1 + 1e-12:
+    """The smallest rotation taking unit ``u`` to unit ``v`` (a half turn about a
+    normal of ``u`` for ``v = -u``)."""
+    if float(u @ v) < -1 + 1e-12:
         n = any_normal(u)
         return 2.0 * np.outer(n, n) - np.eye(3)
-    k = np.array(
-        [[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]]
-    )
-    return np.eye(3) + k + k @ k / (1.0 + c)
+    return turn_onto(np, u, v, np.eye(3)).T  # its columns: the turned unit vectors
 
 
 def report(problem: Problem, x: np.ndarray, residual: float, iterations: int) -> Report:
@@ -234,7 +232,7 @@ def slide_values(problem: Problem, x: np.ndarray):
     anchors = x[: 3 * count].reshape(count, 3)
     poses = x[3 * count :].reshape(-1, 6)
     rows = problem.rows
-    turn = np.asarray(rotation(jnp.asarray(poses[:, 3:]))) if len(poses) else poses
+    turn = np.asarray(matrix_exp(jnp.asarray(poses[:, 3:]))) if len(poses) else poses
     out = []
     for slide in problem.slides:
         f, j = rows.line_frame[slide.row], rows.line_joint[slide.row]

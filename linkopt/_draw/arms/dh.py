@@ -8,9 +8,9 @@ from pathlib import Path
 import matplotlib
 import numpy as np
 
-from ... import _figures as figures
-from . import table as dh
-from .synthesis import DHSynthesis
+from ..._arms.dh import table as dh
+from ..._arms.dh.synthesis import DHSynthesis
+from .. import figures
 
 
 def draw(

@@ -2,14 +2,14 @@
 ``linkopt animate`` and an optimisation run's ``motion_*.gif``). The frames, the path
 and the default loop are :mod:`linkopt._design.motion`'s.
 
-A planar mechanism (:func:`linkopt._design.planar.plane_normal`, the test the
+A planar mechanism (:func:`linkopt._draw.planar.plane_normal`, the test the
 mechanism figure uses too: a prismatic axis in the plane keeps it planar) is drawn in
 its plane (the world axes' names when the plane is a coordinate plane),
 others in a fixed 3-D view. Each moving body is the outline of the convex hull of its
 joint anchors and named points in their best-fit plane (a segment when they are
 collinear; members inside the hull are not on it), all bodies coloured by the
 frame's ``f_sing`` on the maps' scale (viridis, log, brighter = closer to a
-singularity; :func:`linkopt._design.space_plots._colour_norm`'s bounds over the
+singularity; :func:`linkopt._draw.space_plots._colour_norm`'s bounds over the
 frames unless ``f_sing_range`` is given); the ground's joints are triangles, the
 motors' joints squares, and the traced points' paths grow frame by frame. The
 traced points are the points of the position outputs (reported ones too), or every
@@ -28,15 +28,15 @@ from jaxtyping import Float
 from matplotlib.collections import LineCollection
 from matplotlib.colors import LogNorm
 
-from .. import _figures as figures
-from .._engine.model import Mechanism
-from .motion import (
+from .._design.motion import (
     DEFAULT_FRAMES,
     Motion,
     PathNotReached,
     motion,
     unreached_message,
 )
+from .._engine.model import Mechanism
+from . import figures
 from .planar import plane_basis
 
 #: Frames per second of the GIF.
@@ -45,7 +45,7 @@ MAGENTA = "#ff00ff"
 
 
 def colour_norm(values: Float[np.ndarray, " T"], f_sing_range=None) -> LogNorm:
-    """The maps' log scale (:func:`linkopt._design.space_plots._colour_norm`) over
+    """The maps' log scale (:func:`linkopt._draw.space_plots._colour_norm`) over
     ``values``, or over ``f_sing_range`` ``(low, high)`` when given."""
     if f_sing_range is not None:
         low, high = (float(v) for v in f_sing_range)

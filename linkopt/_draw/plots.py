@@ -1,6 +1,6 @@
 """Headless figures (matplotlib Agg) of a mechanism and a run: the mechanism at rest
 (several designs overlaid) and the optimisation's convergence. The space maps are
-:mod:`linkopt._design.space_plots`'.
+:mod:`linkopt._draw.space_plots`'.
 
 Depends on the core, never the reverse.
 """
@@ -13,14 +13,13 @@ from pathlib import Path
 import numpy as np
 from matplotlib.patches import Polygon
 
-from .. import _figures as figures
 from .._engine.collision import capsule_ends, has_collision
 from .._engine.geometry import design_vector, geometry, rest_state
 from .._engine.model import Mechanism
 from .._engine.point_moves import point_moves
 from .._engine.readout import joint_positions, point_positions
 from .._engine.welding import parts
-from . import labels
+from . import figures, labels
 from .planar import plane_normal
 
 MAGENTA = "#ff00ff"
@@ -28,7 +27,7 @@ MAGENTA = "#ff00ff"
 
 def mechanism_views(mech: Mechanism) -> list[tuple[int, int]]:
     """The views of :func:`plot_mechanism`: for a planar mechanism
-    (:func:`linkopt._design.planar.plane_normal`, the test the animations use) the two
+    (:func:`linkopt._draw.planar.plane_normal`, the test the animations use) the two
     world axes with the largest spread of its joint anchors and points at rest (a top
     view), and with ``[collision]`` enabled also a side view, the first of them and the
     third axis (where layers and lifts show); else the three orthographic views xy,

@@ -1,4 +1,4 @@
-"""The maps a space plot draws (:mod:`linkopt._design.space_plots`): their windows
+"""The maps a space plot draws (:mod:`linkopt._draw.space_plots`): their windows
 around the target range and the design's samples, the motor- and end-effector-space
 maps of two motors and outputs, and the 2-D sections of three (solved by
 :mod:`linkopt._design.maps`)."""
@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._design.evaluation import Evaluation
+from .._design.maps import Map2D, motor_map, output_map, sections
 from .._engine.geometry import rest_state
 from .._engine.model import Mechanism
 from .._engine.readout import output_values
 from .._errors import InputError
-from .evaluation import Evaluation
-from .maps import Map2D, motor_map, output_map, sections
 
 PADDING = 0.35
 

@@ -12,11 +12,11 @@ import jax.numpy as jnp
 import matplotlib
 import numpy as np
 
-from ... import _figures as figures
+from ..._arms.codesign.model import Arm, arm_state
+from ..._arms.codesign.sdf import Obstacle
 from ..._config import jit
 from ..._engine.constraints import homogenised_point_positions
-from .model import Arm, arm_state
-from .sdf import Obstacle
+from .. import figures
 
 COLOURS = matplotlib.colormaps["rainbow"]
 

@@ -6,7 +6,7 @@ a singularity (``f_sing``, log scale, colour bar), black = infeasible or off the
 branch, magenta contour = the target range in end-effector space and its preimage in
 motor space, white circles = IK samples, magenta crosses = adversarial samples, orange
 dashed lines = the motor limits (a file that has them). The
-maps themselves are :mod:`linkopt._design.plot_maps`'.
+maps themselves are :mod:`linkopt._draw.plot_maps`'.
 """
 
 from __future__ import annotations
@@ -21,14 +21,13 @@ import numpy as np
 from jaxtyping import Bool, Float
 from matplotlib.colors import LogNorm, Normalize
 
-from .. import _figures as figures
+from .._design.evaluation import Evaluation
+from .._design.maps import MAX_BYTES, MAX_CELLS, Map2D, check_plot_resolution
 from .._engine.collision import has_collision
 from .._engine.kinematics import check_design
 from .._engine.model import Mechanism
 from .._engine.readout import output_values
-from . import labels
-from .evaluation import Evaluation
-from .maps import MAX_BYTES, MAX_CELLS, Map2D, check_plot_resolution
+from . import figures, labels
 from .plot_maps import check_spaces, section_maps, space_maps
 
 MAGENTA = "#ff00ff"

@@ -14,12 +14,12 @@ import numpy as np
 from matplotlib.animation import FuncAnimation, PillowWriter
 from matplotlib.patches import Circle, Rectangle, Wedge
 
-from ... import _figures as figures
-from . import geometry as geo
-from .discrete import DiscreteComparison
-from .swept import outline, swept_support
-from .task import TraceTask
-from .verify import PlanarArm, TraceVerification, critical_states
+from ..._arms.trace import geometry as geo
+from ..._arms.trace.discrete import DiscreteComparison
+from ..._arms.trace.swept import outline, swept_support
+from ..._arms.trace.task import TraceTask
+from ..._arms.trace.verify import PlanarArm, TraceVerification, critical_states
+from .. import figures
 
 PATH = dict(color="0.45", lw=2.0, zorder=3)
 
