@@ -39,6 +39,7 @@ JAX_FREE = frozenset(
         "arms.dh",
         "arms.trace",
         "export",
+        "synthesis",
         "_arms",
         "_arms.checks",
         "_arms.dh",

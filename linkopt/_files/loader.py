@@ -55,6 +55,7 @@ TOP_LEVEL = {
     "solver",
     "evaluation",
     "collision",
+    "synthesis",  # read by linkopt._files.synthesis (issue 41)
 }
 
 
