@@ -22,7 +22,7 @@ rows.
   length for positions, the output's scale for a function. A motion target's distance
   is ``√(|Δx|² + (ρ θ)²)``, ``θ`` the angle between the orientations: one radian
   counts as one reference length.
-* ``singularity = mean_s f_sing^c(s)`` over every ``stride``-th row: ``f_sing^c`` of
+* ``singularity = mean_s f_sing^c(s)`` over every row: ``f_sing^c`` of
   eq. 7 (zero below ``α₋``, the culled term of ``f_design``'s adversarial samples),
   taken on the cycle itself instead of on adversarial samples of a target box, of
   ``f = 2 / σ_min^FK``. Only the forward singularity counts: the motor drives the
@@ -31,7 +31,8 @@ rows.
   compares with ``α₋``, a multiple of the rest pose's ``1/σ_FK + 1/σ_BK``, as that
   sum would for equal ``σ``;
 * ``failure = FAILURE_WEIGHT · (unsolved rows / S)``;
-* ``collision = weight · mean_s c(s)`` over the same rows, where ``[collision]`` is on.
+* ``collision = weight · mean_s c(s)`` over every ``stride``-th row, where
+  ``[collision]`` is on.
 
 ``total`` is their sum; the file's regulariser (the pull towards the file's design)
 is left out: a synthesis moves a design as far as its target asks.
@@ -75,9 +76,13 @@ from .targets import FULL_TURN, Targets
 FAILURE_WEIGHT = 10.0
 #: Gauss–Newton corrections after each row's prediction (:func:`step_to`): from a
 #: prediction off by ``O(h²)`` (``h`` the row's step, 1° on a 360-row turn) two
-#: quadratic steps reach the solver tolerance.
+#: quadratic steps reach the solver tolerance; a coarser sweep takes up to
+#: ``MORE_CORRECTIONS`` more on the rows that need them.
 CORRECTIONS = 2
-#: Rows between the singularity (and collision) samples of the score.
+MORE_CORRECTIONS = 6
+#: Inverse iterations for ``σ_min`` at the first row (:func:`sweep`).
+FIRST_ITERATIONS = 8
+#: Rows between the collision samples of the score.
 STRIDE = 4
 
 
@@ -160,10 +165,10 @@ class Score:
     distances: Float[Array, "D k"]
     rows: Int[Array, "D k"]  # the row each target is scored at
     solved: Bool[Array, "D S"]
-    least_sigma: Float[Array, " D"]  # least σ_min^FK over the sampled rows
+    least_sigma: Float[Array, " D"]  # least σ_min^FK over the solved rows
     traced: Float[Array, "D S d"]  # file units
     states: Float[Array, "D S n"]
-    worst: Int[Array, " D"]  # the sampled row of largest f_sing
+    worst: Int[Array, " D"]  # the row of largest f_sing
 
 
 def _static(targets: Targets, mech: Mechanism) -> tuple[str, int]:
@@ -212,64 +217,120 @@ def forward_sigma(mech: Mechanism, geom, state):
 
 def _newton(mech: Mechanism, geom, values, state):
     """One Gauss–Newton step on ``C_FK(values, s) = 0`` from ``state`` (the engine's
-    first-order prediction, :func:`linkopt._engine.kinematics.predict`), and the
-    largest residual before it."""
+    first-order prediction, :func:`linkopt._engine.kinematics.predict`), the largest
+    residual before it and ``JᵀJ`` there."""
     residual, hessian, gradient = normal_equations(mech, geom, "fk", values, state)
-    return state - dense.damped_solve(hessian, 1e-12, gradient), jnp.max(
-        jnp.abs(residual)
-    )
+    new = state - dense.damped_solve(hessian, 1e-12, gradient)
+    return new, jnp.max(jnp.abs(residual)), hessian
 
 
-def step_to(mech: Mechanism, geom, state, values):
-    """The state at motor ``values`` from ``state`` solved at nearby values: the
-    prediction then :data:`CORRECTIONS` Gauss–Newton corrections, a fixed count so
-    that a batch runs in lockstep with no inner loop. Accepted (``ok``) when the
-    residual is within the solver tolerance and the corrections moved the
-    prediction by at most half the predicted move (plus ``PREDICTION_SLACK``): the
-    engine's continuation test (:mod:`linkopt._engine.kinematics`) that tells the
-    branch from a jump to another assembly."""
-    predicted, _ = _newton(mech, geom, values, state)
+def _corrected(mech: Mechanism, geom, values, predicted, count: int):
+    """``count`` (at least one) Gauss–Newton corrections of a prediction, fewer
+    where the residual is already within the solver tolerance; and the last
+    ``JᵀJ``."""
     current = predicted
-    for _ in range(CORRECTIONS):
-        current, _ = _newton(mech, geom, values, current)
+    for _ in range(count):
+        new, residual, hessian = _newton(mech, geom, values, current)
+        current = jnp.where(residual > mech.solver.tolerance, new, current)
+    return current, hessian
+
+
+def _verdict(mech: Mechanism, geom, values, state, predicted, current):
+    """Whether ``current`` is accepted (:func:`step_to`)."""
     residual = jnp.max(jnp.abs(fk_residual(mech, geom, values, current)))
     correction = jnp.max(jnp.abs(current - predicted))
     move = jnp.max(jnp.abs(predicted - state))
-    ok = (residual <= mech.solver.tolerance) & (
+    return (residual <= mech.solver.tolerance) & (
         correction <= PREDICTION_RATIO * move + PREDICTION_SLACK
     )
-    return current, ok
 
 
-def sweep(mech: Mechanism, geom, rows):
-    """States ``(S, n)`` and solved flags ``(S,)`` along the homogenised motor rows
-    ``(S, M)`` (module docstring): the first row by the engine's continuation from
-    the rest pose, each next one by :func:`step_to` from the last; after a row that
-    fails, none is solved."""
-    rest = jax.lax.stop_gradient(rest_state(mech))
-    geom = jax.lax.stop_gradient(geom)
-    first = continue_to(
-        mech, "fk", geom, homogenised_motor_values(mech, geom, rest), rest, rows[0]
+def step_to(mech: Mechanism, geoms, states, values):
+    """Every design's state at motor ``values`` from its state solved at nearby
+    values (leading axis ``D`` on ``geoms`` and ``states``): the prediction, then
+    :data:`CORRECTIONS` Gauss–Newton corrections, and for a batch where some design
+    is not yet accepted :data:`MORE_CORRECTIONS` more for all (a branch taken once
+    for the batch, so the usual step costs the fixed count alone). Accepted (``ok``)
+    when the residual is within the solver tolerance and the corrections moved the
+    prediction by at most half the predicted move (plus ``PREDICTION_SLACK``): the
+    engine's continuation test (:mod:`linkopt._engine.kinematics`) that tells the
+    branch from a jump to another assembly. Also each design's last ``JᵀJ``."""
+    batch = jax.vmap
+    predicted = batch(lambda g, s: _newton(mech, g, values, s)[0])(geoms, states)
+    current = batch(lambda g, p: _corrected(mech, g, values, p, CORRECTIONS))(
+        geoms, predicted
     )
 
+    def verdict(now):
+        return batch(lambda g, s, p, c: _verdict(mech, g, values, s, p, c))(
+            geoms, states, predicted, now
+        )
+
+    ok = verdict(current[0])
+    current = jax.lax.cond(
+        jnp.all(ok),
+        lambda c: c,
+        lambda c: batch(lambda g, x: _corrected(mech, g, values, x, MORE_CORRECTIONS))(
+            geoms, c[0]
+        ),
+        current,
+    )
+    return current[0], verdict(current[0]), current[1]
+
+
+def _smallest(hessian, vector, count: int = 1):
+    """``count`` inverse iterations of ``vector`` on ``JᵀJ`` and the Rayleigh
+    estimate of ``σ_min(J) = √λ_min(JᵀJ)``."""
+    for _ in range(count):
+        vector = dense.damped_solve(hessian, 1e-14, vector)
+        vector = vector / jnp.linalg.norm(vector)
+    return vector, jnp.sqrt(jnp.maximum(vector @ hessian @ vector, 0.0) + 1e-300)
+
+
+def sweep(mech: Mechanism, geoms, rows):
+    """States ``(D, S, n)``, solved flags ``(D, S)`` and ``σ_min^FK`` ``(D, S)`` of
+    designs ``geoms`` (leading axis ``D``) along the homogenised motor rows ``(S, M)``
+    (module docstring): the first row by the engine's continuation from the rest
+    pose, each next one by :func:`step_to` from the last; after a row that fails,
+    none is solved. ``σ_min`` by inverse iteration on each row's ``JᵀJ``, its vector
+    carried from row to row (:data:`FIRST_ITERATIONS` at the first): the smallest
+    singular direction turns slowly along the cycle, so one iteration a row
+    follows it (the dense sweep, :func:`linkopt._synth.cycle.sweep_cycle`, computes
+    it afresh)."""
+    rest = jax.lax.stop_gradient(rest_state(mech))
+    geoms = jax.lax.stop_gradient(geoms)
+    n = mech.state_size
+    seed = jnp.asarray(np.random.default_rng(0).standard_normal(n))
+
+    def first(geom):
+        start = homogenised_motor_values(mech, geom, rest)
+        solution = continue_to(mech, "fk", geom, start, rest, rows[0])
+        _, hessian, _ = normal_equations(mech, geom, "fk", rows[0], solution.state)
+        vector, sigma = _smallest(hessian, seed, FIRST_ITERATIONS)
+        return solution.state, solution.converged, vector, sigma
+
+    states, alive, vectors, sigma = jax.vmap(first)(geoms)
+
     def advance(carry, v):
-        state, alive = carry
-        new, ok = step_to(mech, geom, state, v)
+        states, alive, vectors = carry
+        new, ok, hessians = step_to(mech, geoms, states, v)
         ok = alive & ok
-        new = jnp.where(ok, new, state)
-        return (new, ok), (new, ok)
+        new = jnp.where(ok[:, None], new, states)
+        vectors, sigmas = jax.vmap(_smallest)(hessians, vectors)
+        return (new, ok, vectors), (new, ok, sigmas)
 
-    start = (first.state, first.converged)
-    _, (states, solved) = jax.lax.scan(advance, start, rows[1:])
-    states = jnp.concatenate([first.state[None], states])
-    return states, jnp.concatenate([first.converged[None], solved])
+    start = (states, alive, vectors)
+    _, (path, solved, sigmas) = jax.lax.scan(advance, start, rows[1:])
+    path = jnp.concatenate([states[None], path])  # (S, D, n)
+    solved = jnp.concatenate([alive[None], solved])
+    sigmas = jnp.concatenate([sigma[None], sigmas])
+    return jnp.swapaxes(path, 0, 1), solved.T, sigmas.T
 
 
-def _one(mech, design, rows, goals, at, alpha, static):
-    """One design's score parts (module docstring)."""
+def _one(mech, design, states, solved, sigmas, goals, at, alpha, static):
+    """One design's score parts from its swept states (module docstring)."""
     kind, index, stride, timed = static
     geom = geometry(mech, design)
-    states, solved = sweep(mech, geom, rows)
     traced = jax.vmap(lambda s: quantity(mech, geom, s, kind, index))(states)
     gaps = jax.vmap(lambda g: jax.vmap(lambda t: distance(t, g, kind))(traced))(
         goals
@@ -278,11 +339,9 @@ def _one(mech, design, rows, goals, at, alpha, static):
     rows_at = at if timed else jnp.argmin(gaps, axis=1)
     picked = jnp.take_along_axis(gaps, rows_at[:, None], axis=1)[:, 0]
     finite = jnp.where(jnp.isfinite(picked), picked, 10.0)
-    sampled = states[::stride]
-    sigmas = jax.vmap(lambda s: forward_sigma(mech, geom, s))(sampled)
     f_sing = 2.0 / sigmas
-    live = solved[::stride]
-    culled_sing = jnp.where(live, culled(f_sing, thresholds(alpha)), 0.0)
+    culled_sing = jnp.where(solved, culled(f_sing, thresholds(alpha)), 0.0)
+    sampled, live = states[::stride], solved[::stride]
     collision = jnp.zeros(())
     if has_collision(mech):  # static
         values = jax.vmap(lambda s: collision_value(mech, geom, s))(sampled)
@@ -300,15 +359,19 @@ def _one(mech, design, rows, goals, at, alpha, static):
         "distances": picked * (mech.length_scale if kind != "function" else scale[0]),
         "rows": rows_at,
         "solved": solved,
-        "least_sigma": jnp.min(jnp.where(live, sigmas, jnp.inf)),
+        "least_sigma": jnp.min(jnp.where(solved, sigmas, jnp.inf)),
         "traced": traced * scale,
         "states": states,
-        "worst": jnp.argmax(jnp.where(live, f_sing, -jnp.inf)) * stride,
+        "worst": jnp.argmax(jnp.where(solved, f_sing, -jnp.inf)),
     }
 
 
 def _score_batch(mech, designs, rows, goals, at, alpha, static):
-    parts = jax.vmap(lambda p: _one(mech, p, rows, goals, at, alpha, static))(designs)
+    geoms = jax.vmap(lambda p: geometry(mech, p))(designs)
+    states, solved, sigmas = sweep(mech, geoms, rows)
+    parts = jax.vmap(
+        lambda p, s, ok, sg: _one(mech, p, s, ok, sg, goals, at, alpha, static)
+    )(designs, states, solved, sigmas)
     return Score(**parts)
 
 
@@ -399,7 +462,7 @@ def gradients(
         rows[worst],
         np.asarray(result.states)[np.arange(len(designs)), worst],
     )
-    samples = -(-problem.plan.steps // problem.plan.stride)
+    samples = problem.plan.steps
 
     def fn(m, p, fr, g, al):
         grad = jax.grad(lambda q, f: _lagrangian(m, q, f, g, al, static, samples))
