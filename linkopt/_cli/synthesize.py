@@ -135,6 +135,8 @@ def _verify_only(args, mech) -> int:
     design = design_arg(mech, args.design)
     result = score_design(mech, targets, design, steps=args.steps)
     summary = {**result.summary(), **_verdict(mech, result)}
+    if summary["verified"] is None:
+        raise InputError("--verify: this installation has no cycle sweep to run")
     print(json.dumps(summary, indent=2))
     if summary["defect"] is not None:
         print(f"linkopt: verify: {summary['defect']}", file=sys.stderr)
