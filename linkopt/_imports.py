@@ -76,6 +76,7 @@ JAX_FREE = frozenset(
         "_files.outputs",
         "_files.points",
         "_files.settings",
+        "_files.synthesis",
         "_files.topology",
         "_kernels",
         "_kernels._dense",

@@ -86,6 +86,16 @@ class Names:
         }[kind]
 
 
+def synthesis_names(mech) -> Names:
+    """The names a target of the mechanism ``mech`` may refer to."""
+    return Names(
+        motors=tuple(mech.motor_names),
+        points=tuple(mech.point_names),
+        outputs=tuple(mech.output_names),
+        bodies=tuple(mech.body_names),
+    )
+
+
 def read_synthesis(source: str, table, names: Names) -> Targets:
     """The targets of a file's ``[synthesis]`` table (module docstring)."""
     rd, where = Reader(source), "[synthesis]"

@@ -27,7 +27,13 @@ import numpy as np
 from .._engine.following import follow
 from .._engine.model import Mechanism
 from .._errors import MechanismFileError
-from .._files.synthesis import Names, Targets, build, read_rows, read_synthesis
+from .._files.synthesis import (
+    Targets,
+    build,
+    read_rows,
+    read_synthesis,
+    synthesis_names,
+)
 
 __all__ = ["Targets", "check_targets", "load_targets", "reach_bound", "targets_of"]
 
@@ -37,16 +43,6 @@ ALL_CORNERS = 12
 FULL_TURN = 2.0 * np.pi
 
 
-def names(mech: Mechanism) -> Names:
-    """The names a target of ``mech`` may refer to."""
-    return Names(
-        motors=tuple(mech.motor_names),
-        points=tuple(mech.point_names),
-        outputs=tuple(mech.output_names),
-        bodies=tuple(mech.body_names),
-    )
-
-
 def targets_of(mech: Mechanism) -> Targets:
     """The targets of the file's ``[synthesis]`` table, checked
     (:func:`check_targets`)."""
@@ -54,7 +50,7 @@ def targets_of(mech: Mechanism) -> Targets:
         raise MechanismFileError(
             mech.source, "[synthesis]", "missing table; the file has no target to meet"
         )
-    targets = read_synthesis(mech.source, mech.raw["synthesis"], names(mech))
+    targets = read_synthesis(mech.source, mech.raw["synthesis"], synthesis_names(mech))
     return check_targets(mech, targets)
 
 
@@ -63,8 +59,8 @@ def load_targets(mech: Mechanism, csv: str | Path | None = None) -> Targets:
     the rows of that CSV file with the table's kind, name, closed and tolerance."""
     if csv is None:
         return targets_of(mech)
-    table = read_synthesis(mech.source, _without_rows(mech), names(mech))
-    rows, motors = read_rows(Path(csv), table.kind, table.name, names(mech))
+    table = read_synthesis(mech.source, _without_rows(mech), synthesis_names(mech))
+    rows, motors = read_rows(Path(csv), table.kind, table.name, synthesis_names(mech))
     targets = build(
         str(csv), str(csv), table.kind, table.name, rows, motors,
         table.closed, table.tolerance,
