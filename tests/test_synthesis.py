@@ -166,5 +166,6 @@ def test_a_short_synthesis_lowers_the_rms_and_keeps_the_cycle_clear(mech):
     assert again.rms == pytest.approx(result.rms, rel=1e-12)
     if HAS_CYCLE:
         report = verify(mech, result)
-        assert report.solved.all()
-        assert report.least_sigma >= result.least_sigma * (1 - 1e-6)
+        assert report.solved.all() and report.defect is None  # defect-free
+        # the objective's σ_min is a Rayleigh estimate, within 1e-3 above the exact
+        assert report.least_sigma >= result.least_sigma * (1 - 1e-3)
