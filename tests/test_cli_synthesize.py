@@ -65,6 +65,7 @@ def test_the_run_folder_holds_the_design_history_summary_and_figure(tmp_path, ca
     )
     if HAS_CYCLE:
         assert summary["verified"] in (True, False)
+        assert summary["four_bar"]["grashof"] in ("crank-rocker", "double-crank")
         code = main(
             ["synthesize", str(FILE), "--verify", "--steps", "72", "--design",
              str(out / "optimized.toml")]

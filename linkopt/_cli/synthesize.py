@@ -6,8 +6,10 @@ generation (issue 41) on the file's ``[synthesis]`` table.
 ``summary.json`` (the numbers below, also printed on stdout) and ``synthesis.png``
 (the traced curve over the targets, the file's design behind). The summary holds the
 RMS and largest distance to the targets, whether every one is within the tolerance,
-the least forward ``σ_min`` over the cycle and its margin over ``α₋``, and the dense
-cycle sweep's verdict (``verified``, ``defect``: the first defect it met).
+the least forward ``σ_min`` over the cycle and its margin over ``α₋``, for a planar
+four-bar its Grashof class, link ratio and worst transmission angle (``four_bar``),
+and the dense cycle sweep's verdict (``verified``, ``defect``: the first defect it
+met).
 
 ``linkopt synthesize FILE --verify [--design D]`` only sweeps one design (the file's,
 or ``D``: values or a file with the same parameters, e.g. ``RUN/optimized.toml``)
@@ -157,9 +159,12 @@ def run(args) -> int:
     result = synthesize(
         mech, targets, _settings(args), steps=args.steps, progress=_progress
     )
+    from .._synth.run import four_bar_summary
+
     summary = {
         **result.summary(),
         "initial_rms": initial.rms,
+        "four_bar": four_bar_summary(mech, result.design),
         **_verdict(mech, result),
         **_write(mech, result, initial, out),
     }

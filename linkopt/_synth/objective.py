@@ -245,12 +245,13 @@ def _verdict(mech: Mechanism, geom, values, state, predicted, current):
     )
 
 
-def step_to(mech: Mechanism, geoms, states, values):
+def step_to(mech: Mechanism, geoms, states, values, alive):
     """Every design's state at motor ``values`` from its state solved at nearby
     values (leading axis ``D`` on ``geoms`` and ``states``): the prediction, then
     :data:`CORRECTIONS` Gauss–Newton corrections, and for a batch where some design
     is not yet accepted :data:`MORE_CORRECTIONS` more for all (a branch taken once
-    for the batch, so the usual step costs the fixed count alone). Accepted (``ok``)
+    for the batch, so the usual step costs the fixed count alone; designs no longer
+    ``alive``, whose sweep has ended, do not count). Accepted (``ok``)
     when the residual is within the solver tolerance and the corrections moved the
     prediction by at most half the predicted move (plus ``PREDICTION_SLACK``): the
     engine's continuation test (:mod:`linkopt._engine.kinematics`) that tells the
@@ -267,15 +268,17 @@ def step_to(mech: Mechanism, geoms, states, values):
         )
 
     ok = verdict(current[0])
-    current = jax.lax.cond(
-        jnp.all(ok),
-        lambda c: c,
-        lambda c: batch(lambda g, x: _corrected(mech, g, values, x, MORE_CORRECTIONS))(
-            geoms, c[0]
-        ),
-        current,
+
+    def more(_):
+        fixed = batch(lambda g, x: _corrected(mech, g, values, x, MORE_CORRECTIONS))(
+            geoms, current[0]
+        )
+        return fixed, verdict(fixed[0])
+
+    (state, hessian), ok = jax.lax.cond(
+        jnp.all(ok | ~alive), lambda _: (current, ok), more, None
     )
-    return current[0], verdict(current[0]), current[1]
+    return state, ok, hessian
 
 
 def _smallest(hessian, vector, count: int = 1):
@@ -313,7 +316,7 @@ def sweep(mech: Mechanism, geoms, rows):
 
     def advance(carry, v):
         states, alive, vectors = carry
-        new, ok, hessians = step_to(mech, geoms, states, v)
+        new, ok, hessians = step_to(mech, geoms, states, v, alive)
         ok = alive & ok
         new = jnp.where(ok[:, None], new, states)
         vectors, sigmas = jax.vmap(_smallest)(hessians, vectors)

@@ -256,6 +256,29 @@ def score_design(
     return finish(mech, problem, design, alpha_minus(mech))
 
 
+def four_bar_summary(mech: Mechanism, design) -> dict | None:
+    """Grashof class, link ratio and the transmission angle's worst distance from a
+    straight line over a full crank turn (degrees) of a planar four-bar's ``design``
+    (the closed forms of :mod:`linkopt._synth.fourbar`); None for another mechanism,
+    or where this installation lacks that module."""
+    try:
+        from . import fourbar
+    except ImportError:
+        return None
+    from .._errors import InputError
+
+    try:
+        placed = fourbar.read_four_bar(mech, design)
+    except InputError:
+        return None
+    shape = placed.four_bar()
+    return {
+        "grashof": fourbar.grashof_class(shape),
+        "link_ratio": fourbar.link_ratio(shape),
+        "transmission_worst_deg": float(np.degrees(fourbar.transmission(shape).worst)),
+    }
+
+
 def verify(mech: Mechanism, result: SynthesisResult, *, steps: int | None = None):
     """The dense cycle sweep (:func:`linkopt._synth.cycle.sweep_cycle`) of a result's
     design over the same motion; its report's ``defect`` names the first defect met,
