@@ -169,3 +169,26 @@ def test_a_short_synthesis_lowers_the_rms_and_keeps_the_cycle_clear(mech):
         assert report.solved.all() and report.defect is None  # defect-free
         # the objective's σ_min is a Rayleigh estimate, within 1e-3 above the exact
         assert report.least_sigma >= result.least_sigma * (1 - 1e-3)
+
+
+def test_a_short_function_synthesis_lowers_the_miss(mech):
+    turn = np.linspace(0.0, 2 * np.pi, 6)[:-1]
+    _, swing, _ = _coupler_curve(mech, np.array([61.5, 65.0, 50.0]), turn)
+    targets = _targets(mech, "function", "rocker", swing, turn[:, None], tolerance=0.01)
+    start = score(mech, targets, steps=STEPS)
+    settings = linkopt.OptimizerSettings(particles=6, iterations=2, spread=0.1, seed=0)
+    result = synthesize(mech, targets, settings, steps=STEPS)
+    assert result.rms < start.rms
+    assert result.solved.all() and result.parts["singularity"] == 0.0
+    np.testing.assert_array_equal(result.rows, objective.plan(mech, targets, STEPS).at)
+
+
+def test_a_closed_timed_crank_curve_goes_round_not_back(mech):
+    rows = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    timing = np.array([[0.5], [2.0], [4.0]])
+    targets = _targets(mech, "path", "coupler_point", rows, timing, closed=True)
+    plan = objective.plan(mech, targets, 120)
+    turn = plan.motors[:, 0]
+    assert np.all(np.diff(turn) > 0)  # one way round
+    assert turn[-1] == pytest.approx(turn[0] + 2 * np.pi)
+    np.testing.assert_allclose(turn[plan.at], timing[:, 0])

@@ -133,11 +133,21 @@ def _span(mech: Mechanism, span) -> tuple[float, float]:
     )
 
 
+def _wrap(mech: Mechanism, rows: np.ndarray) -> np.ndarray:
+    """What a closed timed curve adds to its first row to end its cycle: a full turn
+    onwards, in the direction the timing turns, for one rotary motor (the crank goes
+    round, it does not turn back); nothing otherwise (back to the first row)."""
+    if mech.num_motors != 1 or bool(mech.motor_linear[0]):
+        return np.zeros(rows.shape[1])
+    return np.array([FULL_TURN * np.sign(rows[-1, 0] - rows[0, 0])])
+
+
 def _timed(mech: Mechanism, targets: Targets, steps: int):
-    """Straight segments through the timing rows (a closed curve back to the first),
+    """Straight segments through the timing rows (a closed curve back to the first,
+    :func:`_wrap`),
     ``steps`` rows in all, shared by the segments in proportion to their length."""
     rows = targets.motors
-    ends = np.vstack([rows, rows[:1]]) if targets.closed else rows
+    ends = np.vstack([rows, rows[:1] + _wrap(mech, rows)]) if targets.closed else rows
     scale = np.asarray(mech.motor_scale)
     lengths = np.max(np.abs(np.diff(ends, axis=0)) / scale, axis=1)
     share = lengths / max(lengths.sum(), 1e-300)
