@@ -192,3 +192,25 @@ def test_a_closed_timed_crank_curve_goes_round_not_back(mech):
     assert np.all(np.diff(turn) > 0)  # one way round
     assert turn[-1] == pytest.approx(turn[0] + 2 * np.pi)
     np.testing.assert_allclose(turn[plan.at], timing[:, 0])
+
+
+def test_the_collision_part_is_the_weighted_term_over_every_fourth_row():
+    from linkopt._engine.collision import collision_value
+
+    mech = linkopt.load(ROOT / "mechanisms" / "four_bar_collision.toml")
+    body = mech.body_names.index("coupler")
+    rest = np.asarray(linkopt.rest_state(mech))[7 * body : 7 * body + 7].copy()
+    rest[:3] *= mech.length_scale
+    poses = np.array([rest, rest + [1.0, 0, 0, 0, 0, 0, 0]])
+    targets = _targets(mech, "motion", "coupler", poses, tolerance=0.5)
+    problem = objective.Problem(targets, objective.plan(mech, targets, STEPS))
+    from linkopt._design.evaluation import alpha_minus
+
+    design = mech.design.p0
+    scored = objective.score(mech, problem, design[None], alpha_minus(mech))
+    assert np.asarray(scored.solved).all()
+    geom = linkopt.geometry(mech, design)
+    states = np.asarray(scored.states)[0][:: objective.STRIDE]
+    values = [float(collision_value(mech, geom, s)) for s in states]
+    expected = mech.collision.weight * np.mean(values)
+    assert float(scored.collision[0]) == pytest.approx(expected, rel=1e-9, abs=1e-15)
