@@ -29,7 +29,7 @@ configure_before_jax()
 # rest (jax, pyswarms and scipy.spatial are most of the import time). The folders, in
 # pipeline order: ``_engine`` (the constraint engine), ``_files`` (mechanism files),
 # ``_export``, ``_design`` (design optimisation), ``_arms`` (serial arms: ``codesign``,
-# ``dh``, ``trace``), ``_cli``.
+# ``dh``, ``trace``), ``_synth`` (synthesis), ``_cli``.
 _EXPORTS = {
     "constraint_rows": ("_engine.constraints", "constraint_rows"),
     "Clearance": ("_engine.collision", "Clearance"),
@@ -105,11 +105,17 @@ _EXPORTS = {
     "export_glb": ("_export.meshes", "export_glb"),
     "export_dxf": ("_export.sheet", "export_dxf"),
     "export_svg": ("_export.sheet", "export_svg"),
+    "SynthesisTargets": ("_synth.targets", "Targets"),
+    "load_synthesis_targets": ("_synth.targets", "load_targets"),
+    "SynthesisResult": ("_synth.run", "SynthesisResult"),
+    "synthesize": ("_synth.run", "synthesize"),
+    "score_synthesis": ("_synth.run", "score_design"),
+    "verify_synthesis": ("_synth.run", "verify"),
 }
 
 
 #: The public namespaces, imported on first use (:mod:`linkopt._imports`).
-_NAMESPACES = ("arms", "export")
+_NAMESPACES = ("arms", "export", "synthesis")
 
 
 def __getattr__(name: str):
@@ -217,5 +223,10 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._export.urdf import export_urdf
     from ._files.loader import load, loads
     from ._files.writer import write_design
+    from ._synth.run import SynthesisResult, synthesize
+    from ._synth.run import score_design as score_synthesis
+    from ._synth.run import verify as verify_synthesis
+    from ._synth.targets import Targets as SynthesisTargets
+    from ._synth.targets import load_targets as load_synthesis_targets
 
 __all__ = sorted(_EXPORTS)

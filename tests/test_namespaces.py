@@ -25,6 +25,7 @@ NAMESPACES = [
     "linkopt.arms.dh",
     "linkopt.arms.trace",
     "linkopt.export",
+    "linkopt.synthesis",
 ]
 #: A row of a namespace's table: its name, and the top-level name linked to its entry.
 ROW = re.compile(
@@ -82,6 +83,8 @@ def test_every_arm_and_export_name_has_its_family_namespace():
             expected[f"linkopt.arms.{parts[1]}"].add(name)
         elif parts[0] == "_export":
             expected["linkopt.export"].add(name)
+        elif parts[0] == "_synth":
+            expected["linkopt.synthesis"].add(name)
     tables = _documented()
     assert {module: set(tables[module].values()) for module in NAMESPACES} == expected
 

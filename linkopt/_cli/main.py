@@ -1,11 +1,11 @@
 """Command line: ``linkopt check | fk | bk | evaluate | plot | verify | optimize |
-sweep | arm | cache``; a thin layer over the public API.
+sweep | synthesize | arm | cache``; a thin layer over the public API.
 
 Each command family lives in its own module with a ``register(subparsers)``:
 :mod:`.mechanism` (check, fk, bk), :mod:`.evaluation` (evaluate, plot, verify),
-:mod:`.optimize`, :mod:`.sweep`, and under ``arm`` :mod:`.arm` (design, simplify),
-:mod:`.manipulability` and :mod:`.trace`. This module assembles the parser and handles
-what every command shares.
+:mod:`.optimize`, :mod:`.sweep`, :mod:`.synthesize`, and under ``arm`` :mod:`.arm`
+(design, simplify), :mod:`.manipulability` and :mod:`.trace`. This module assembles
+the parser and handles what every command shares.
 
 Building the parser imports no part of the engine (nor JAX): the command modules import
 it inside their handlers, and the defaults and limits the help shows come from the
@@ -37,6 +37,7 @@ from . import manipulability as manipulability_commands
 from . import mechanism as mechanism_commands
 from . import optimize as optimize_commands
 from . import sweep as sweep_commands
+from . import synthesize as synthesize_commands
 from . import trace as trace_commands
 from . import view as view_commands
 
@@ -85,6 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
         evaluation_commands,
         optimize_commands,
         sweep_commands,
+        synthesize_commands,
         export_commands,
         view_commands,
         animate_commands,

@@ -135,7 +135,7 @@ def reopen(run: SwarmRun, settings: OptimizerSettings) -> SwarmRun:
     )
 
 
-def _swarm(run: SwarmRun, settings: OptimizerSettings, inertia: float):
+def swarm_of(run: SwarmRun, settings: OptimizerSettings, inertia: float):
     swarm = create_swarm(
         n_particles=run.position.shape[0],
         dimensions=run.position.shape[1],
@@ -150,7 +150,7 @@ def _swarm(run: SwarmRun, settings: OptimizerSettings, inertia: float):
     return swarm
 
 
-def _gradient_moves(
+def gradient_moves(
     mech: Mechanism, gradients: np.ndarray, settings: OptimizerSettings
 ) -> np.ndarray:
     scale = np.where(mech.design.is_length, mech.length_scale, 1.0)
@@ -168,7 +168,7 @@ def _costs(ev: Evaluation) -> Float[np.ndarray, " N"]:
     return np.where(np.isfinite(costs), costs, np.inf)
 
 
-def _update_bests(run: SwarmRun, swarm, costs: np.ndarray) -> SwarmRun:
+def update_bests(run: SwarmRun, swarm, costs: np.ndarray) -> SwarmRun:
     """Personal and global bests after this iteration's evaluation (pyswarms' rules);
     ``swarm`` takes them too."""
     swarm.current_cost = costs
@@ -184,7 +184,7 @@ def _update_bests(run: SwarmRun, swarm, costs: np.ndarray) -> SwarmRun:
     )
 
 
-def _update_result(
+def update_result(
     run: SwarmRun,
     feasible: np.ndarray,
     costs: np.ndarray,
@@ -255,7 +255,7 @@ def _returned_parts(
     returns (:func:`best_design`; feasible first, then by total), so that the progress
     line, ``history.csv``, ``summary.json`` and the convergence plot give one design's
     numbers. ``chosen``: the particle of this iteration that is that design
-    (:func:`_update_result`), else the design is an earlier one and its numbers carry
+    (:func:`update_result`), else the design is an earlier one and its numbers carry
     over from the previous record. A verification round adds IK targets, which changes
     every cost (:func:`reopen` forgets the returned design's for the same reason), so
     the numbers restart with the round; the record's ``round`` says which round it
@@ -313,11 +313,11 @@ def score(
     if refused is not None:
         costs = np.where(refused, np.inf, costs)
         feasible = feasible & ~refused
-    swarm = _swarm(run, settings, settings.inertia(run.iteration))
+    swarm = swarm_of(run, settings, settings.inertia(run.iteration))
     previous_best = run.best_cost
-    run = _update_bests(run, swarm, costs)
+    run = update_bests(run, swarm, costs)
     improved = run.best_cost < previous_best
-    run, chosen = _update_result(run, feasible, costs, settings, improved)
+    run, chosen = update_result(run, feasible, costs, settings, improved)
     position = run.position
     run = record_iteration(
         run, ev, costs, chosen, lambda k: history_columns(mech, ev, position, k)
@@ -325,7 +325,7 @@ def score(
     return run, swarm
 
 
-def _converged(run: SwarmRun, settings: OptimizerSettings) -> bool:
+def converged(run: SwarmRun, settings: OptimizerSettings) -> bool:
     """Whether the run stops after this iteration (module docstring)."""
     return (
         run.result_feasible and run.stalled >= settings.patience
@@ -354,7 +354,7 @@ def _move(
         gradients = workers.partial_gradient(run.position, ev, alpha_minus(mech))
         gradients = np.where(np.isfinite(gradients), gradients, 0.0)
         stepped = np.clip(
-            run.position + _gradient_moves(mech, gradients, settings), *bounds
+            run.position + gradient_moves(mech, gradients, settings), *bounds
         )
         moved = np.where(use_gradient[:, None], stepped, moved)
     return dataclasses.replace(
@@ -384,7 +384,7 @@ def step(
     if refused.columns:  # this iteration's, not the returned design's
         *before, record = run.history
         run = dataclasses.replace(run, history=(*before, {**record, **refused.columns}))
-    if _converged(run, settings):
+    if converged(run, settings):
         return dataclasses.replace(run, finished=True, iteration=run.iteration + 1)
     return _move(mech, run, swarm, ev, settings, workers)
 

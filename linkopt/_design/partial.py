@@ -10,7 +10,7 @@ We never differentiate through a solve. For a sample term ``g(s, p)`` the chain 
 (one small linear solve per sample). The samples' states are already solved at the
 evaluated design, so no forward solve is needed at all; :func:`frozen_lagrangian` is
 the scalar whose ``p``-gradient is the partial gradient (each sample's ``∂g/∂p``
-enters through the geometry as ``⟨∂g/∂x, x(p)⟩``, :func:`_adjoint_term`). This keeps
+enters through the geometry as ``⟨∂g/∂x, x(p)⟩``, :func:`adjoint_term`). This keeps
 the batched gradient a straight-line program, quick to compile, where reverse mode
 through the LM while-loops of :func:`frozen_objective` under ``vmap`` compiled far
 too slowly. :func:`frozen_objective` (which re-solves) stays as the reference for the
@@ -106,7 +106,7 @@ def frozen_objective(
     return jnp.mean(f_reach + f_sing) + regularizer(mech, design)
 
 
-def _adjoint_term(mech: Mechanism, term, design, motors, state):
+def adjoint_term(mech: Mechanism, term, design, motors, state):
     """A scalar whose ``p``-gradient is that of ``g(s, p) - μᵀ C_FK(s, p; a)`` with
     ``μ`` held fixed (module docstring): ``⟨∂g/∂x, x(p)⟩ - μᵀ C_FK(s, x(p); a)``, where
     ``x(p)`` is the design's geometry and ``∂g/∂x`` is taken once, in the same reverse
@@ -134,16 +134,16 @@ def frozen_lagrangian(
     th = thresholds(alpha)
     goals = jnp.asarray(targets(mech) / mech.output_scale)
     reach = jax.vmap(
-        lambda g, a, s: _adjoint_term(mech, _reach_term(mech, g), design, a, s)
+        lambda g, a, s: adjoint_term(mech, _reach_term(mech, g), design, a, s)
     )
     sing = jax.vmap(
-        lambda a, s: _adjoint_term(mech, _singular_term(mech, th), design, a, s)
+        lambda a, s: adjoint_term(mech, _singular_term(mech, th), design, a, s)
     )
     f_reach = reach(goals, evaluation.ik_motors, evaluation.ik_states)
     f_sing = sing(evaluation.adv_motors, evaluation.adv_states)
     if has_collision(mech):  # static
         term = functools.partial(_collision_term, mech)
-        closest = jax.vmap(lambda a, s: _adjoint_term(mech, term, design, a, s))
+        closest = jax.vmap(lambda a, s: adjoint_term(mech, term, design, a, s))
         f_sing = f_sing + closest(evaluation.col_motors, evaluation.col_states)
     return jnp.mean(f_reach + f_sing) + regularizer(mech, design)
 

@@ -15,7 +15,9 @@ points and motors (:mod:`.points`), the outputs (:mod:`.outputs`), the symmetry 
 design parameters (:mod:`linkopt._engine.design_space`) and the settings
 (:mod:`.settings`); ``[collision]`` (:mod:`linkopt._engine.links`) is read last, from
 the mechanism. Bodies joined by ``fixed`` joints are then merged into one body
-(:mod:`linkopt._engine.welding`), before the mobility check.
+(:mod:`linkopt._engine.welding`), before the mobility check. A ``[synthesis]`` table
+is read by :mod:`.synthesis` (the checks that need no geometry; the targets are
+built again where a synthesis asks for them).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from .bounds import check_position, position, reference_length
 from .outputs import output_fields, read_outputs
 from .points import idle_spins, motor_fields, point_fields, read_motors, read_points
 from .settings import read_evaluation, read_solver
+from .synthesis import read_synthesis, synthesis_names
 from .topology import (
     body_fields,
     body_origins,
@@ -55,6 +58,7 @@ TOP_LEVEL = {
     "solver",
     "evaluation",
     "collision",
+    "synthesis",  # read by linkopt._files.synthesis (issue 41)
 }
 
 
@@ -83,6 +87,8 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
     if collision is not None:
         mech = dataclasses.replace(mech, collision=collision)
     mech = weld(mech)  # bodies joined by fixed joints: one body
+    if "synthesis" in data:  # checked here too, so that `linkopt check` sees it
+        read_synthesis(source, data["synthesis"], synthesis_names(mech))
     if check:
         from .._engine.mobility import check_mobility  # needs JAX; not for parsing
 

@@ -1,0 +1,293 @@
+"""A synthesis run: the hybrid swarm + partial gradient of
+:mod:`linkopt._design.optimizer` on the synthesis objective (:mod:`.objective`), then
+the dense cycle sweep of the design it returns
+(:func:`linkopt._synth.cycle.sweep_cycle`).
+
+Per iteration every particle is scored in one batched call (the whole cycle of every
+design, :func:`.objective.score`); personal and global bests follow pyswarms' rules;
+each particle then takes, with probability ``gradient_probability``, a capped
+partial-gradient step (:func:`.objective.gradients`), otherwise a swarm step, exactly
+as an ``optimize`` run moves its particles. The returned design is the best one
+scored, feasible first: a design is feasible when every target is within the
+tolerance, the whole cycle was solved, no sampled row has ``f_sing`` above ``α₋`` and
+no collision term is left. The run stops when a feasible design has not improved by
+``improvement`` (relative) for ``patience`` iterations, or at ``iterations``.
+
+The particles start around the file's design, spread by ``spread`` of each
+parameter's range (wider than ``optimize``'s default: a synthesis starts from a
+design that does not yet meet its target).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._design import optimizer as swarm_run
+from .._design.evaluation import alpha_minus
+from .._design.settings import OptimizerSettings
+from .._design.swarm import BoundaryHandler, compute_position
+from .._engine.kinematics import check_design
+from .._engine.model import Mechanism
+from .objective import Plan, Problem, Score, gradients, plan, score
+from .targets import Targets, check_targets
+
+#: Defaults of a synthesis run (the swarm's meaning: :mod:`linkopt._design.optimizer`).
+DEFAULT = OptimizerSettings(particles=32, iterations=40, spread=0.25, patience=5)
+
+
+@dataclass(frozen=True)
+class SynthesisResult:
+    """What a synthesis returns: the design (file units) and its numbers. Distances
+    in file units (rad for an angle output); ``traced`` and ``motors`` the swept
+    cycle of the design (``(S, d)``, ``(S, M)``)."""
+
+    design: np.ndarray
+    targets: Targets
+    plan: Plan
+    distances: np.ndarray  # (k,)
+    rows: np.ndarray  # (k,) the row of the cycle each target is met at
+    traced: np.ndarray  # (S, d)
+    solved: np.ndarray  # (S,)
+    least_sigma: float  # least forward σ_min over the sampled rows
+    alpha_minus: float
+    parts: dict  # total, path, singularity, failure, collision (homogenised)
+    feasible: bool
+    history: tuple[dict, ...]
+    seconds: float
+
+    @property
+    def rms(self) -> float:
+        return float(np.sqrt(np.mean(self.distances**2)))
+
+    @property
+    def max_distance(self) -> float:
+        return float(np.max(self.distances))
+
+    @property
+    def motors(self) -> np.ndarray:
+        return self.plan.motors
+
+    def summary(self) -> dict:
+        """The JSON summary of the result (no arrays but the design)."""
+        return {
+            "kind": self.targets.kind,
+            "name": self.targets.name,
+            "targets": self.targets.count,
+            "rms": self.rms,
+            "max_distance": self.max_distance,
+            "tolerance": self.targets.tolerance,
+            "within_tolerance": bool(self.max_distance <= self.targets.tolerance),
+            "cycle_solved": bool(np.all(self.solved)),
+            "least_sigma_fk": self.least_sigma,
+            "sigma_margin": self.least_sigma * self.alpha_minus / 2.0,
+            "alpha_minus": self.alpha_minus,
+            "feasible": self.feasible,
+            "iterations": len(self.history),
+            "seconds": self.seconds,
+            "parts": {k: float(v) for k, v in self.parts.items()},
+            "design": [float(v) for v in self.design],
+            "distances": [float(v) for v in self.distances],
+        }
+
+
+def _feasible(result: Score, tolerance: float) -> np.ndarray:
+    return (
+        np.all(np.asarray(result.distances) <= tolerance, axis=1)
+        & np.all(np.asarray(result.solved), axis=1)
+        & (np.asarray(result.singularity) <= 0.0)
+        & (np.asarray(result.collision) <= 0.0)
+    )
+
+
+def _costs(result: Score) -> np.ndarray:
+    total = np.asarray(result.total)
+    return np.where(np.isfinite(total), total, np.inf)
+
+
+PARTS = ("path", "singularity", "failure", "collision", "rms")
+
+
+def _record(run, result: Score, costs, chosen, seconds: float) -> dict:
+    """The iteration's history row: the returned design's total and parts (carried
+    over from the last row when the design is an earlier one) and this iteration's
+    best total."""
+    best = int(np.argmin(costs))
+    head = {
+        "iteration": run.iteration,
+        "best_total": float(run.result_total),
+        "feasible": bool(run.result_feasible),
+        "iteration_total": float(costs[best]),
+        "wall_time": seconds,
+        "best_design": [float(v) for v in run.result_pos],
+    }
+    if chosen is None and run.history:
+        return {**head, **{k: run.history[-1][k] for k in PARTS}}
+    return {**head, **_parts(result, best if chosen is None else chosen)}
+
+
+def _parts(result: Score, k: int) -> dict:
+    return {
+        "path": float(result.path[k]),
+        "singularity": float(result.singularity[k]),
+        "failure": float(result.failure[k]),
+        "collision": float(result.collision[k]),
+        "rms": float(np.sqrt(np.mean(np.asarray(result.distances[k]) ** 2))),
+    }
+
+
+def _score_step(mech, run, result: Score, settings, tolerance: float):
+    """Bests and the returned design after scoring the positions (the optimiser's
+    rules); the run and pyswarms' swarm for the move."""
+    costs = _costs(result)
+    feasible = _feasible(result, tolerance)
+    swarm = swarm_run.swarm_of(run, settings, settings.inertia(run.iteration))
+    previous = run.best_cost
+    run = swarm_run.update_bests(run, swarm, costs)
+    improved = run.best_cost < previous
+    run, chosen = swarm_run.update_result(run, feasible, costs, settings, improved)
+    return run, swarm, costs, chosen
+
+
+def _move(mech, problem, run, swarm, result, settings, alpha):
+    rng = np.random.default_rng()
+    rng.bit_generator.state = run.rng_state
+    use_gradient, velocity = swarm_run.swarm_moves(rng, run, settings)
+    swarm.velocity = np.where(
+        use_gradient[:, None], run.velocity, settings.learning_rate * velocity
+    )
+    bounds = (mech.design.lower, mech.design.upper)
+    moved = compute_position(swarm, bounds, BoundaryHandler(strategy="nearest"))
+    if use_gradient.any():
+        grads = gradients(mech, problem, run.position, result, alpha)
+        grads = np.where(np.isfinite(grads), grads, 0.0)
+        step = swarm_run.gradient_moves(mech, grads, settings)
+        stepped = np.clip(run.position + step, *bounds)
+        moved = np.where(use_gradient[:, None], stepped, moved)
+    return dataclasses.replace(
+        run,
+        position=np.asarray(moved),
+        velocity=np.where(use_gradient[:, None], run.velocity, swarm.velocity),
+        rng_state=rng.bit_generator.state,
+        iteration=run.iteration + 1,
+    )
+
+
+def synthesize(
+    mech: Mechanism,
+    targets: Targets,
+    settings: OptimizerSettings | None = None,
+    *,
+    steps: int = 360,
+    span: tuple[float, float] | None = None,
+    progress: Callable[[dict], None] | None = None,
+) -> SynthesisResult:
+    """A design of ``mech`` whose cycle meets ``targets`` (module docstring).
+    ``steps``: rows of the swept cycle; ``span``: the motor range of an open
+    one-motor target without timing whose motor has no limits (default a full turn
+    for a rotary motor); ``progress`` receives each iteration's history row."""
+    settings = settings or DEFAULT
+    targets = check_targets(mech, targets)
+    problem = Problem(targets, plan(mech, targets, steps, span))
+    alpha = alpha_minus(mech)
+    run = swarm_run.start(mech, settings)
+    began = time.perf_counter()
+    while True:
+        result = score(mech, problem, run.position, alpha)
+        run, swarm, costs, chosen = _score_step(
+            mech, run, result, settings, targets.tolerance
+        )
+        record = _record(run, result, costs, chosen, time.perf_counter() - began)
+        run = dataclasses.replace(run, history=(*run.history, record))
+        if progress is not None:
+            progress(record)
+        if swarm_run.converged(run, settings):
+            break
+        run = _move(mech, problem, run, swarm, result, settings, alpha)
+    return finish(mech, problem, run.result_pos, alpha, run.history, began)
+
+
+def finish(mech, problem: Problem, design, alpha, history=(), began=None):
+    """The :class:`SynthesisResult` of ``design`` (scored alone)."""
+    design = np.asarray(design, dtype=float)
+    check_design(mech, design)
+    result = score(mech, problem, design[None], alpha)
+    one = {
+        f.name: np.asarray(getattr(result, f.name))[0]
+        for f in dataclasses.fields(result)
+    }
+    parts = {
+        k: float(one[k])
+        for k in ("total", "path", "singularity", "failure", "collision")
+    }
+    feasible = bool(_feasible(result, problem.targets.tolerance)[0])
+    traced = one["traced"]
+    if problem.targets.kind == "function":
+        traced = traced[:, 0]
+    return SynthesisResult(
+        design=design,
+        targets=problem.targets,
+        plan=problem.plan,
+        distances=one["distances"],
+        rows=one["rows"],
+        traced=traced,
+        solved=one["solved"],
+        least_sigma=float(one["least_sigma"]),
+        alpha_minus=float(alpha),
+        parts=parts,
+        feasible=feasible,
+        history=tuple(history),
+        seconds=0.0 if began is None else time.perf_counter() - began,
+    )
+
+
+def score_design(
+    mech: Mechanism, targets: Targets, design=None, *, steps: int = 360, span=None
+) -> SynthesisResult:
+    """The :class:`SynthesisResult` numbers of one design (None: the file's) without
+    optimising: its cycle, distances and terms."""
+    targets = check_targets(mech, targets)
+    problem = Problem(targets, plan(mech, targets, steps, span))
+    design = mech.design.p0 if design is None else design
+    return finish(mech, problem, design, alpha_minus(mech))
+
+
+def four_bar_summary(mech: Mechanism, design) -> dict | None:
+    """Grashof class, link ratio and the transmission angle's worst distance from a
+    straight line over a full crank turn (degrees) of a planar four-bar's ``design``
+    (the closed forms of :mod:`linkopt._synth.fourbar`); None for another mechanism,
+    or where this installation lacks that module."""
+    try:
+        from . import fourbar
+    except ImportError:
+        return None
+    from .._errors import InputError
+
+    try:
+        placed = fourbar.read_four_bar(mech, design)
+    except InputError:
+        return None
+    shape = placed.four_bar()
+    return {
+        "grashof": fourbar.grashof_class(shape),
+        "link_ratio": fourbar.link_ratio(shape),
+        "transmission_worst_deg": float(np.degrees(fourbar.transmission(shape).worst)),
+    }
+
+
+def verify(mech: Mechanism, result: SynthesisResult, *, steps: int | None = None):
+    """The dense cycle sweep (:func:`linkopt._synth.cycle.sweep_cycle`) of a result's
+    design over the same motion; its report's ``defect`` names the first defect met,
+    None when there is none."""
+    from .cycle import sweep_cycle  # the cycle engineer's module (the contract)
+
+    steps = steps or result.plan.steps
+    if result.targets.closed or result.targets.motors is not None:
+        return sweep_cycle(mech, result.design, result.targets, steps=steps)
+    motors = result.plan.motors[:, 0]
+    span = (float(motors.min()), float(motors.max()))
+    return sweep_cycle(mech, result.design, result.targets, steps=steps, span=span)
