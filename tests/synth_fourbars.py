@@ -1,26 +1,11 @@
-"""Four-bar files of given link lengths, their closed-form coupler curves, and the
-contract's Targets record (tests of linkopt._synth)."""
+"""Four-bar files of given link lengths and their closed-form coupler curves (tests
+of linkopt._synth)."""
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
 import linkopt
-
-try:  # the synthesis engineer's record, once merged
-    from linkopt._synth.targets import Targets
-except ImportError:  # pragma: no cover - the contract's dataclass, field for field
-
-    @dataclass(frozen=True)
-    class Targets:
-        kind: str
-        name: str
-        values: np.ndarray
-        motors: np.ndarray | None
-        closed: bool
-        tolerance: float
 
 
 def circle_intersection(b, d, r_b, r_d, branch):

@@ -3,10 +3,11 @@ closed-form coupler curve, and each defect on a four-bar built to have it."""
 
 import numpy as np
 import pytest
-from synth_fourbars import Targets, coupler_curve, four_bar
+from synth_fourbars import coupler_curve, four_bar
 
 import linkopt
 from linkopt._synth.cycle import in_order, jump_steps, rotation_angle, sweep_cycle
+from linkopt._synth.targets import Targets
 
 # Crank-rocker (Grashof: 20 + 70 <= 50 + 60), coupler point (15, 10) in B->C's frame.
 GRASHOF = (20.0, 70.0, 50.0, 60.0, 15.0, 10.0)

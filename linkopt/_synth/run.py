@@ -33,6 +33,9 @@ from .._design.settings import OptimizerSettings
 from .._design.swarm import BoundaryHandler, compute_position
 from .._engine.kinematics import check_design
 from .._engine.model import Mechanism
+from .._errors import InputError
+from . import fourbar
+from .cycle import sweep_cycle
 from .objective import Plan, Problem, Score, gradients, plan, score
 from .targets import Targets, check_targets
 
@@ -259,14 +262,8 @@ def score_design(
 def four_bar_summary(mech: Mechanism, design) -> dict | None:
     """Grashof class, link ratio and the transmission angle's worst distance from a
     straight line over a full crank turn (degrees) of a planar four-bar's ``design``
-    (the closed forms of :mod:`linkopt._synth.fourbar`); None for another mechanism,
-    or where this installation lacks that module."""
-    try:
-        from . import fourbar
-    except ImportError:
-        return None
-    from .._errors import InputError
-
+    (the closed forms of :mod:`linkopt._synth.fourbar`); None for another
+    mechanism."""
     try:
         placed = fourbar.read_four_bar(mech, design)
     except InputError:
@@ -283,8 +280,6 @@ def verify(mech: Mechanism, result: SynthesisResult, *, steps: int | None = None
     """The dense cycle sweep (:func:`linkopt._synth.cycle.sweep_cycle`) of a result's
     design over the same motion; its report's ``defect`` names the first defect met,
     None when there is none."""
-    from .cycle import sweep_cycle  # the cycle engineer's module (the contract)
-
     steps = steps or result.plan.steps
     if result.targets.closed or result.targets.motors is not None:
         return sweep_cycle(mech, result.design, result.targets, steps=steps)
