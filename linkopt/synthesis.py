@@ -1,4 +1,4 @@
-"""Linkage synthesis (issue 41): a design whose whole cycle traces a path, drives a
+"""Linkage synthesis: a design whose whole cycle traces a path, drives a
 function or guides a body through target poses, free of forward singularities.
 
 Each name is also a top-level name of :mod:`linkopt`, the same object: ``synthesize``

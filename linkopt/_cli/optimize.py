@@ -237,7 +237,7 @@ def _run_optimize(args) -> int:
 
 
 def write_run_view(out: Path) -> None:
-    """``view.html`` beside the figures (issue 42): the browser view of the run's
+    """``view.html`` beside the figures: the browser view of the run's
     initial and optimised designs (:mod:`linkopt._cli.view`), at the default
     resolution. One it cannot write is a warning: the run's results stand."""
     from .view import VIEW_FILE, run_designs, write_page

@@ -1,5 +1,5 @@
 """``linkopt synthesize FILE [--targets CSV] --out RUN``: path, function or motion
-generation (issue 41) on the file's ``[synthesis]`` table.
+generation on the file's ``[synthesis]`` table.
 
 ``RUN`` receives ``optimized.toml`` (the file with the synthesised design, written by
 :func:`linkopt.write_design`), ``history.csv`` (one row per iteration),

@@ -1,4 +1,4 @@
-"""Link clearance in an optimisation's record (issue 30): the collision columns of
+"""Link clearance in an optimisation's record: the collision columns of
 ``history.csv`` and the ``collision`` entry of ``summary.json``.
 
 Both exist only for a file with ``[collision]`` enabled (decided in Python from the

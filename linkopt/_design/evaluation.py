@@ -7,7 +7,7 @@ target was reached, its second (*singularity*) is zero iff no adversarial sample
 ``f_sing > α₋``. The regulariser ``w ½|p - p₀|²`` (lengths divided by the reference
 length) is reported separately; the optimiser minimises their sum.
 
-A file with ``[collision]`` enabled adds a third part (issue 30): ``weight`` times the
+A file with ``[collision]`` enabled adds a third part: ``weight`` times the
 collision term (:func:`linkopt._engine.collision.collision_value`) averaged over the
 IK and the collision sample states, i.e. ``weight · ½ (c(s_IK^t) + c(s_col^t))`` in
 each target's summand. The IK samples are the poses the design must reach (a

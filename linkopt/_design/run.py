@@ -424,7 +424,7 @@ def write_outputs(
                 f"(seed {settings.seed}, {run.iteration} iterations)."
             ),
         )
-        from .._export.mjcf import export_mjcf  # the design for MuJoCo (issue 18)
+        from .._export.mjcf import export_mjcf  # the design for MuJoCo
 
         export_mjcf(current, stage / "optimized.xml", design)
         checks, final = _design_outputs(

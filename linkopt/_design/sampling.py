@@ -502,7 +502,7 @@ def adversarial_objective(
 def clearance_objective(
     mech: Mechanism, geom: Geometry, anchor_motors, low, high
 ) -> Objective:
-    """The collision samples' search (issue 30, :mod:`linkopt._design.evaluation`):
+    """The collision samples' search (:mod:`linkopt._design.evaluation`):
     eq. 5 with the soft minimum of the checked capsule pairs' clearances ``g_i`` in
     place of ``f_sing^a``, ``-c log Σ exp(-g_i / c)`` with ``c`` the clearance band,
     plus ``w₁ ½|a - a_IK|² + w₂ R₂(s)``. Its minimum is a pose near the IK sample, in

@@ -1,5 +1,5 @@
-"""The figure of a synthesis: the traced curve of the design's cycle over the targets
-(issue 41). A path or a motion is drawn in the two world axes of its largest spread
+"""The figure of a synthesis: the traced curve of the design's cycle over the targets.
+A path or a motion is drawn in the two world axes of its largest spread
 (the targets and the traced positions), each target numbered in its order and joined
 to the row of the cycle it is met at; a function is the output over the motor value.
 The initial design's curve, when given, is drawn behind in grey."""

@@ -1,4 +1,4 @@
-"""Designs out of linkopt: MuJoCo MJCF, URDF, STL and GLB files (issue 18).
+"""Designs out of linkopt: MuJoCo MJCF, URDF, STL and GLB files.
 
 :mod:`.tree` holds what the formats share: the rest geometry of one design in file
 units, the unit scale, the spanning tree of the bodies from the ground and the joint

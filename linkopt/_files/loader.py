@@ -58,7 +58,7 @@ TOP_LEVEL = {
     "solver",
     "evaluation",
     "collision",
-    "synthesis",  # read by linkopt._files.synthesis (issue 41)
+    "synthesis",  # read by linkopt._files.synthesis
 }
 
 

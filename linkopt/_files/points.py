@@ -208,7 +208,7 @@ def idle_spins(
     scale: float,
 ) -> dict:
     """The ``idle_bodies`` / ``idle_joints`` fields: bodies whose spin about their own
-    axis moves no other body and no output (issue 20, part 4).
+    axis moves no other body and no output.
 
     Structural test, at load: a body other than the ground is idle when it has exactly
     two joints, both spherical, at distinct anchors (a rod between two ball joints, as

@@ -1,4 +1,4 @@
-"""The ``[synthesis]`` table of a mechanism file and target CSV files (issue 41).
+"""The ``[synthesis]`` table of a mechanism file and target CSV files.
 
 A synthesis target is a path of a named point, a function of a named output or the
 poses of a named body (:class:`Targets`). It is read here, as every table of a file

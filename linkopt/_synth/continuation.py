@@ -1,4 +1,4 @@
-"""The cycle swept by continuation for a batch of designs in lockstep (issue 41):
+"""The cycle swept by continuation for a batch of designs in lockstep:
 each row's state from the last by the engine's prediction and Gauss–Newton
 corrections, and ``σ_min^FK`` tracked by inverse iteration along the way. The score
 built on it is :mod:`.objective`'s.

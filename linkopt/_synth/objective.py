@@ -1,5 +1,5 @@
 """The synthesis objective: a design's whole cycle swept, its traced curve scored
-against the targets, plus ``f_design``'s singularity and collision terms (issue 41).
+against the targets, plus ``f_design``'s singularity and collision terms.
 
 **The sweep** (:func:`plan`, :func:`.continuation.sweep`). The motors pass through
 ``S`` rows in order (``(S, M)``, file units): for a closed curve one full turn of the

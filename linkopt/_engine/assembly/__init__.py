@@ -1,7 +1,7 @@
 """Assembly: a mechanism file from approximate anchors and declared dimensions.
 
 A file may describe its mechanism the way a drawing does, and let linkopt solve the
-loop closures (issue 20, part 1):
+loop closures:
 
 * ``[[lengths]]``: ``joints = ["a", "b"]`` and ``length = 40.0``, the distance between
   two joint anchors (file units), held exactly;
