@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from jaxtyping import Float
 
-from .._engine import links
-from .._engine.geometry import geometry
+from .._engine import links, programs
+from .._engine.geometry import design_array, geometry
 from .._engine.links import body_places, segments
 from .._engine.model import Mechanism
 from .._engine.rotations import np_axis_angle_matrix, np_from_matrix, np_matrix
@@ -55,15 +55,25 @@ class Rest:
     origins: Float[np.ndarray, "B 3"]
 
 
-def rest(mech: Mechanism, design=None) -> Rest:
-    """The rest geometry of ``design`` (None: the file's) in file units."""
+def _rest_program(mech: Mechanism, design) -> tuple:
     geom = geometry(mech, design)
+    return geom.anchors, geom.axes, geom.axes2, geom.points
+
+
+def rest(mech: Mechanism, design=None) -> Rest:
+    """The rest geometry of ``design`` (None: the file's) in file units: one compiled
+    program per structure (:mod:`linkopt._engine.programs`), where the operations run
+    one by one compiled a few dozen small programs per call."""
+    padded = design_array(mech, design)
+    anchors, axes, axes2, points = programs.call(
+        "rest_geometry", mech, _rest_program, padded
+    )
     scale = mech.length_scale
     return Rest(
-        anchors=np.asarray(geom.anchors) * scale,
-        axes=np.asarray(geom.axes),
-        axes2=np.asarray(geom.axes2),
-        points=np.asarray(geom.points) * scale,
+        anchors=np.asarray(anchors) * scale,
+        axes=np.asarray(axes),
+        axes2=np.asarray(axes2),
+        points=np.asarray(points) * scale,
         origins=np.asarray(mech.body_origins, dtype=float),
     )
 
