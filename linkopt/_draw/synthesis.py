@@ -10,9 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import _figures as figures
-from .._design import labels
 from .._engine.model import Mechanism
+from . import figures, labels
 
 
 def _plane(points: np.ndarray) -> tuple[int, int]:
