@@ -17,8 +17,7 @@ Sides (comma-separated, default all):
   and least transmission angle.
 * ``linkopt``: ``linkopt.synthesis.synthesize(mech, targets, settings)`` on the
   case's file and targets, timed, and its design swept the same way; the command
-  recorded is the CLI's equivalent (``linkopt synthesize``). Skipped, with the
-  reason, while ``linkopt.synthesis`` is not there.
+  recorded is the CLI's equivalent (``linkopt synthesize``).
 
 ``--write-cases`` writes each planar case's target points
 (``benchmarks/synthesis/<case>.csv``: ``x,y,z`` rows) and its closed-form start
@@ -138,9 +137,11 @@ def _toml_point(p) -> str:
     return f"[{float(p[0])!r}, {float(p[1])!r}, 0.0]"
 
 
-def four_bar_file(placed, extent: float) -> str:
+def four_bar_file(placed, extent: float, name: str, closed: bool) -> str:
     """A four-bar file of a placed four-bar (``linkopt._synth.fourbar``): every
-    anchor's x and y and the coupler point free within ``extent`` of it."""
+    anchor's x and y and the coupler point free within ``extent`` of it, and a
+    ``[synthesis]`` table: the point ``tip`` through the rows of ``NAME.csv``
+    beside it, to 1 % of the points' extent."""
     joints = [
         ("A", "ground", "crank", placed.A),
         ("B", "crank", "coupler", placed.B),
@@ -169,6 +170,10 @@ def four_bar_file(placed, extent: float) -> str:
                 f'coordinate = "{axis}"\nmin = {float(p[k]) - extent!r}\n'
                 f"max = {float(p[k]) + extent!r}\n"
             )
+    out.append(
+        f'[synthesis]\nkind = "path"\nname = "tip"\nfile = "{name}.csv"\n'
+        f"closed = {str(closed).lower()}\ntolerance = {0.01 * extent!r}\n"
+    )
     return "\n".join(out)
 
 
@@ -178,11 +183,8 @@ def _spread(points: np.ndarray, count: int) -> np.ndarray:
 
 
 def _targets(points: np.ndarray, closed: bool, tolerance: float):
-    try:
-        from linkopt._synth.targets import Targets
-    except ImportError:  # before the synthesis targets land: the contract's record
-        sys.path.insert(0, str(ROOT / "tests"))
-        from synth_fourbars import Targets
+    from linkopt._synth.targets import Targets
+
     values = np.c_[points, np.zeros(len(points))]
     return Targets("path", "tip", values, None, closed, tolerance)
 
@@ -211,6 +213,12 @@ def _judge(mech, design, points, closed, extent, turn=2 * np.pi) -> dict:
     }
 
 
+def points_csv(points: np.ndarray) -> str:
+    """``x,y,z`` rows of planar points (z = 0)."""
+    rows = "".join(f"{float(x)!r},{float(y)!r},0.0\n" for x, y in points)
+    return "x,y,z\n" + rows
+
+
 def start_case(name: str, write: bool) -> dict:
     """linkopt's closed-form start for one planar case (the ``start`` side)."""
     import linkopt
@@ -221,12 +229,11 @@ def start_case(name: str, write: bool) -> dict:
     t0 = time.perf_counter()
     fit = fit_path(_spread(points, min(5, len(points))), seed=0, closed=closed)
     seconds = time.perf_counter() - t0
-    text = four_bar_file(fit.placed, extent)
+    text = four_bar_file(fit.placed, extent, name, closed)
     if write:
         CASES_DIR.mkdir(parents=True, exist_ok=True)
         (CASES_DIR / f"{name}.toml").write_text(text)
-        rows = "\n".join(f"{x!r},{y!r},0.0" for x, y in points)
-        (CASES_DIR / f"{name}.csv").write_text("x,y,z\n" + rows + "\n")
+        (CASES_DIR / f"{name}.csv").write_text(points_csv(points))
     # the crank's turn from the first point to the last (open) or its sense (closed)
     turn = float(fit.crank_turns[-1])
     judged = _judge(linkopt.loads(text), None, points, closed, extent, turn)
@@ -242,19 +249,13 @@ def start_case(name: str, write: bool) -> dict:
 def linkopt_case(name: str) -> dict:
     """``linkopt.synthesis.synthesize`` on one planar case (the ``linkopt`` side)."""
     import linkopt
+    from linkopt import synthesis
 
-    command = (
-        f"linkopt synthesize benchmarks/synthesis/{name}.toml --targets "
-        f"benchmarks/synthesis/{name}.csv --point tip"
-    )
-    try:
-        from linkopt import synthesis
-    except ImportError as err:
-        return {"linkopt_command": command, "linkopt_status": f"not run: {err}"}
+    command = f"linkopt synthesize benchmarks/synthesis/{name}.toml --seed 0"
     points, closed = planar_cases()[name]
     extent = float(np.linalg.norm(np.ptp(points, axis=0)))
     mech = linkopt.load(CASES_DIR / f"{name}.toml")
-    targets = _targets(points, closed, 0.01 * extent)
+    targets = synthesis.load_targets(mech)
     t0 = time.perf_counter()
     result = synthesis.synthesize(mech, targets, None)
     seconds = time.perf_counter() - t0

@@ -236,3 +236,32 @@ def test_a_coarse_grid_takes_small_steps(resolution, stewart, five_bar):
         assert np.all(step <= limit * (1 + 1e-12))
         assert np.allclose(high, np.minimum(span, 0.5 * (resolution - 1) * limit))
         assert np.allclose(low, -high)
+
+
+def test_a_synthesis_files_page_holds_its_targets_and_traced_curve():
+    """A file with a ``[synthesis]`` path: each design's curve is the cycle the engine
+    traces (the named point's FK at the swept motor values, to 1e-9 of the reference
+    length) and the targets are the file's, in order; a file without one has none."""
+    from linkopt._synth.cycle import sweep_cycle
+    from linkopt._synth.targets import load_targets
+
+    mech = linkopt.load(ROOT / "mechanisms" / "four_bar_path.toml")
+    design = mech.design.p0
+    shown = [Shown("file's design", None, view_grid(mech, 5, None))]
+    (data,) = view_data(mech, shown)["designs"]
+    curve = data["curve"]
+    targets = load_targets(mech)
+    assert curve["kind"] == "path" and curve["name"] == targets.name
+    np.testing.assert_allclose(curve["targets"], targets.values[:, :3], atol=1e-8)
+    report = sweep_cycle(mech, design, targets)
+    assert len(curve["traced"]) == len(report.motors)
+    steps = np.flatnonzero(report.solved)[:: max(1, report.solved.size // 12)]
+    solved = linkopt.solve_fk(mech, report.motors[steps])
+    assert np.all(np.asarray(solved.converged))
+    k = mech.point_names.index(targets.name)
+    fk = np.asarray(linkopt.point_positions(mech, solved.state))[:, k]
+    traced = np.array([curve["traced"][s] for s in steps], dtype=float)
+    assert np.abs(traced - fk).max() <= 1e-9 * mech.length_scale + 1e-8
+    five = linkopt.load(FIVE_BAR)
+    (plain,) = view_data(five, [Shown("x", None, view_grid(five, 3, None))])["designs"]
+    assert plain["curve"] is None

@@ -216,3 +216,51 @@ def test_failed_cells_shown_as_failed_and_a_screenshot_not_blank(page):
         near = np.count_nonzero(np.max(np.abs(pixels.astype(int) - rgb), axis=1) < 40)
         assert near > 50, colour  # each link's capsule is drawn
     assert errors == []
+
+
+@pytest.fixture(scope="module")
+def curve_page(tmp_path_factory):
+    """The page of a file with a ``[synthesis]`` path (the shipped four-bar)."""
+    executable = _chromium()
+    if executable is None:
+        _missing("no chromium executable on PATH (apt-get install chromium)")
+    from playwright.sync_api import sync_playwright
+
+    out = tmp_path_factory.mktemp("curve") / "view.html"
+    path = ROOT / "mechanisms" / "four_bar_path.toml"
+    assert main(["view", str(path), "--resolution", "9", "--out", str(out)]) == 0
+    with sync_playwright() as play:
+        browser = play.chromium.launch(executable_path=executable, args=ARGS)
+        tab = browser.new_page(viewport={"width": 1280, "height": 800})
+        errors = []
+        tab.on("console", lambda m: errors.append(m.text) if m.type == "error" else 0)
+        tab.on("pageerror", lambda e: errors.append(str(e)))
+        tab.goto(out.as_uri())
+        tab.wait_for_selector("body[data-ready='1']", timeout=120_000)
+        yield tab, errors
+        browser.close()
+
+
+def test_the_target_points_and_the_traced_curve_are_drawn(curve_page):
+    """The drawn targets and traced curve are the page data's, which
+    ``tests/test_view.py`` checks against the engine."""
+    tab, errors = curve_page
+    drawn = tab.evaluate(
+        "async () => { await linkoptView.idle(); const d = linkoptView.data.designs[0];"
+        " const t = document.getElementById('linkopt-scene').data;"
+        " return { curve: d.curve, traces: t.filter(x => x.name.includes(d.curve.name"
+        " + ':')).map(x => ({ name: x.name, x: x.x, y: x.y, z: x.z })) }; }"
+    )
+    curve = drawn["curve"]
+    by_name = {t["name"].split(": ")[1]: t for t in drawn["traces"]}
+    assert set(by_name) == {"traced over the cycle", "targets (in order)"}
+    targets = by_name["targets (in order)"]
+    np.testing.assert_allclose(
+        np.c_[targets["x"], targets["y"], targets["z"]], curve["targets"], atol=0
+    )
+    traced = by_name["traced over the cycle"]
+    want = [p if p is not None else [None] * 3 for p in curve["traced"]]
+    assert [list(p) for p in zip(traced["x"], traced["y"], traced["z"])] == want
+    assert len(curve["traced"]) >= 360
+    assert "cycle" in tab.locator("#status").inner_text()
+    assert errors == []

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from .._design import ahead
 from .._design.settings import OptimizerSettings
-from .._errors import InputError, LinkoptError
+from .._errors import InputError
 from .._machine import default_workers
 from .evaluation import map_progress
 from .values import load
@@ -214,6 +214,8 @@ def _run_optimize(args) -> int:
             workers=args.workers,
             progress=map_progress(),
         )
+        from .view import write_run_view
+
         write_run_view(Path(args.out))
     print(json.dumps({k: summary[k] for k in _SUMMARY_KEYS}, indent=2))
     out = Path(args.out)
@@ -234,21 +236,6 @@ def _run_optimize(args) -> int:
         )
         return 1
     return 0
-
-
-def write_run_view(out: Path) -> None:
-    """``view.html`` beside the figures: the browser view of the run's
-    initial and optimised designs (:mod:`linkopt._cli.view`), at the default
-    resolution. One it cannot write is a warning: the run's results stand."""
-    from .view import VIEW_FILE, run_designs, write_page
-
-    try:
-        mech, designs = run_designs(out)
-        write_page(mech, designs, out / VIEW_FILE, None)
-    except (LinkoptError, ImportError) as err:
-        print(
-            f"linkopt: warning: {out / VIEW_FILE} not written: {err}", file=sys.stderr
-        )
 
 
 def _optimize(args, mech, settings):

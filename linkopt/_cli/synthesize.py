@@ -132,8 +132,6 @@ def _verify_only(args, mech) -> int:
     design = design_arg(mech, args.design)
     result = score_design(mech, targets, design, steps=args.steps)
     summary = {**result.summary(), **_verdict(mech, result)}
-    if summary["verified"] is None:
-        raise InputError("--verify: this installation has no cycle sweep to run")
     print(json.dumps(summary, indent=2))
     if summary["defect"] is not None:
         print(f"linkopt: verify: {summary['defect']}", file=sys.stderr)
@@ -158,12 +156,16 @@ def run(args) -> int:
 
     summary = {
         **result.summary(),
+        "initial_design": dict(zip(mech.design.names, map(float, mech.design.p0))),
         "initial_rms": initial.rms,
         "four_bar": four_bar_summary(mech, result.design),
         **_verdict(mech, result),
         **_write(mech, result, initial, out),
     }
     write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    from .view import write_run_view
+
+    write_run_view(out)
     print(json.dumps(summary, indent=2))
     return 0
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._errors import InputError
+from .._errors import InputError, LinkoptError
 from .values import design_arg, load
 
 #: The page's name in a run folder (``linkopt optimize`` writes it there too).
@@ -54,7 +54,8 @@ def _same_mechanism(mech, text: str) -> None:
 
 def run_designs(folder: Path):
     """The mechanism of a run folder (its ``optimized.toml``) and its designs:
-    ``[("initial", p0), ("optimised", p)]`` (``summary.json``'s initial design)."""
+    ``[("initial", p0), ("optimised", p)]`` (``summary.json``'s initial design; a
+    ``synthesize`` folder's too)."""
     optimized, summary = folder / "optimized.toml", folder / "summary.json"
     if not optimized.is_file() or not summary.is_file():
         raise InputError(
@@ -108,6 +109,19 @@ def write_page(mech, designs, out: Path, resolution, progress=None) -> dict:
         "cells": int(len(shown[0].grid.feasible)),
         "reached": {s.label: int(np.count_nonzero(s.grid.feasible)) for s in shown},
     }
+
+
+def write_run_view(out: Path) -> None:
+    """``view.html`` in a run folder (``optimize``, ``synthesize``), beside the
+    figures: the run's initial and final designs, at the default resolution. One it
+    cannot write is a warning: the run's results stand."""
+    try:
+        mech, designs = run_designs(out)
+        write_page(mech, designs, out / VIEW_FILE, None)
+    except (LinkoptError, ImportError) as err:
+        print(
+            f"linkopt: warning: {out / VIEW_FILE} not written: {err}", file=sys.stderr
+        )
 
 
 def run_view(args) -> int:

@@ -110,6 +110,20 @@ function targetTrace(dsg, cloud) {
   return [{ type: "scatter3d", mode: "lines", name: "target range", x, y, z,
             line: { color: "#ff00ff", width: 3 }, hoverinfo: "skip" }];
 }
+// a synthesis target's points (numbered in order) and the curve the cycle traces
+function curveTraces(dsg) {
+  const c = dsg.curve;
+  if (!c) return [];
+  const col = i => c.traced.map(p => (p === null ? null : p[i]));
+  return [
+    { type: "scatter3d", mode: "lines", name: `${c.name}: traced over the cycle`,
+      x: col(0), y: col(1), z: col(2), line: { color: "#111", width: 4 }, hoverinfo: "skip" },
+    { type: "scatter3d", mode: "markers+text", name: `${c.name}: targets (in order)`,
+      x: c.targets.map(p => p[0]), y: c.targets.map(p => p[1]), z: c.targets.map(p => p[2]),
+      text: c.targets.map((_, i) => String(i + 1)), textposition: "top center",
+      marker: { size: 6, color: "#e6550d", symbol: "x" } },
+  ];
+}
 function sceneTraces() {
   const dsg = design(), k = flat(S.index), state = dsg.states[k];
   const traces = bodyTraces(state, dsg).map((t, b) => ({
@@ -123,7 +137,7 @@ function sceneTraces() {
   traces.push({ type: "scatter3d", mode: "markers+text", name: "points", ...p,
                 marker: { size: 5, color: "#ff00ff", symbol: "diamond" } });
   const cloud = cloudTraces(dsg);
-  return traces.concat(cloud, targetTrace(dsg, cloud));
+  return traces.concat(cloud, targetTrace(dsg, cloud), curveTraces(dsg));
 }
 // the map of one field: f_sing (viridis, log10) or the clearance (RdBu, white at the band)
 function field(name) {
@@ -188,6 +202,7 @@ function statusText() {
   let text = `${dsg.label}: ${motorText(S.index)}. `;
   if (!ok) return text + "FAILED: the continuation from rest did not reach this configuration on the rest assembly branch; nothing is drawn (failed cells are never interpolated).";
   text += `f_sing = ${dsg.f_sing[k].toPrecision(4)}`;
+  if (dsg.curve) text += dsg.curve.defect ? `. Cycle: ${dsg.curve.defect}` : ". The cycle has no defect";
   if (dsg.clearance) text += `, least clearance = ${dsg.clearance[k] === null ? "-" : dsg.clearance[k].toPrecision(4)} ${D.units}`;
   return text;
 }
@@ -201,6 +216,7 @@ function sceneBox() {
       add(place(s, k, c.slice(0, 3))); add(place(s, k, c.slice(3)));
     }));
   });
+  for (const dsg of D.designs) if (dsg.curve) dsg.curve.targets.forEach(add);
   if (D.target) D.target.box.forEach((b, i) => { if (b) { low[i] = Math.min(low[i], b[0]); high[i] = Math.max(high[i], b[1]); } });
   if (!isFinite(low[0])) return { scene: { aspectmode: "data", uirevision: "keep" } };
   const span = Math.max(...high.map((h, i) => h - low[i])) * 1.15 || D.length_scale;

@@ -16,7 +16,8 @@ of the design layer): ``f_sing`` viridis on a log scale from its least value (at
 1e-3) to its 99th percentile, failed cells black; the clearance red-white-blue,
 white at the file's ``[collision] clearance``. The target range of the outputs that
 are a point's coordinates is a magenta box (coordinates that no output bounds span the
-point's trace).
+point's trace). A file with a ``[synthesis]`` path or motion also shows, per design,
+the target positions (numbered in order) and the curve its whole cycle traces.
 """
 
 from __future__ import annotations
@@ -108,6 +109,34 @@ def _points(mech: Mechanism, design) -> list[dict]:
     ]
 
 
+def _curve(mech: Mechanism, design) -> dict | None:
+    """A file with a ``[synthesis]`` path or motion: its target positions, numbered in
+    order, and the curve the design's whole cycle traces (the dense cycle sweep of
+    :mod:`linkopt._synth.cycle`; an unsolved step is a gap). None for another file, and
+    for a function target (an output against a motor value, drawn by
+    ``linkopt synthesize``'s figure, not in space)."""
+    if "synthesis" not in mech.raw:
+        return None
+    from .._synth.cycle import sweep_cycle
+    from .._synth.targets import load_targets
+
+    targets = load_targets(mech)
+    if targets.kind not in ("path", "motion"):
+        return None
+    design = mech.design.p0 if design is None else np.asarray(design)
+    report = sweep_cycle(mech, design, targets)
+    return {
+        "kind": targets.kind,
+        "name": targets.name,
+        "targets": [_numbers(v[:3]) for v in targets.values],
+        "traced": [
+            _numbers(row[:3]) if ok else None
+            for row, ok in zip(report.traced, report.solved)
+        ],
+        "defect": report.defect,
+    }
+
+
 def _design_data(mech: Mechanism, shown: Shown) -> dict:
     grid = shown.grid
     states = part_state(mech, grid.states)
@@ -120,6 +149,7 @@ def _design_data(mech: Mechanism, shown: Shown) -> dict:
         "clearance": None if grid.clearance is None else _numbers(grid.clearance),
         "bodies": _bodies(mech, shown.design),
         "points": _points(mech, shown.design),
+        "curve": _curve(mech, shown.design),
     }
 
 
