@@ -65,7 +65,9 @@ def run_folder(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def page(run_folder):
+def browser():
+    """One headless Chromium for the module (Playwright's sync API allows one loop
+    per thread, so the pages share it)."""
     executable = _chromium()
     if executable is None:
         _missing("no chromium executable on PATH (apt-get install chromium)")
@@ -75,17 +77,29 @@ def page(run_folder):
         _missing(
             "playwright's Python package is not installed (pip install playwright)"
         )
-    folder, _ = run_folder
     with sync_playwright() as play:
-        browser = play.chromium.launch(executable_path=executable, args=ARGS)
-        tab = browser.new_page(viewport={"width": 1280, "height": 800})
-        errors = []
-        tab.on("console", lambda m: errors.append(m.text) if m.type == "error" else 0)
-        tab.on("pageerror", lambda e: errors.append(str(e)))
-        tab.goto((folder / "view.html").as_uri())
-        tab.wait_for_selector("body[data-ready='1']", timeout=120_000)
-        yield tab, errors
-        browser.close()
+        chromium = play.chromium.launch(executable_path=executable, args=ARGS)
+        yield chromium
+        chromium.close()
+
+
+def _open(browser, path: Path):
+    """A tab on the page at ``path``, once drawn, and the list its errors go to."""
+    tab = browser.new_page(viewport={"width": 1280, "height": 800})
+    errors = []
+    tab.on("console", lambda m: errors.append(m.text) if m.type == "error" else 0)
+    tab.on("pageerror", lambda e: errors.append(str(e)))
+    tab.goto(path.as_uri())
+    tab.wait_for_selector("body[data-ready='1']", timeout=120_000)
+    return tab, errors
+
+
+@pytest.fixture(scope="module")
+def page(browser, run_folder):
+    folder, _ = run_folder
+    tab, errors = _open(browser, folder / "view.html")
+    yield tab, errors
+    tab.close()
 
 
 def _state(tab) -> dict:
@@ -219,26 +233,14 @@ def test_failed_cells_shown_as_failed_and_a_screenshot_not_blank(page):
 
 
 @pytest.fixture(scope="module")
-def curve_page(tmp_path_factory):
+def curve_page(browser, tmp_path_factory):
     """The page of a file with a ``[synthesis]`` path (the shipped four-bar)."""
-    executable = _chromium()
-    if executable is None:
-        _missing("no chromium executable on PATH (apt-get install chromium)")
-    from playwright.sync_api import sync_playwright
-
     out = tmp_path_factory.mktemp("curve") / "view.html"
     path = ROOT / "mechanisms" / "four_bar_path.toml"
     assert main(["view", str(path), "--resolution", "9", "--out", str(out)]) == 0
-    with sync_playwright() as play:
-        browser = play.chromium.launch(executable_path=executable, args=ARGS)
-        tab = browser.new_page(viewport={"width": 1280, "height": 800})
-        errors = []
-        tab.on("console", lambda m: errors.append(m.text) if m.type == "error" else 0)
-        tab.on("pageerror", lambda e: errors.append(str(e)))
-        tab.goto(out.as_uri())
-        tab.wait_for_selector("body[data-ready='1']", timeout=120_000)
-        yield tab, errors
-        browser.close()
+    tab, errors = _open(browser, out)
+    yield tab, errors
+    tab.close()
 
 
 def test_the_target_points_and_the_traced_curve_are_drawn(curve_page):
@@ -262,5 +264,7 @@ def test_the_target_points_and_the_traced_curve_are_drawn(curve_page):
     want = [p if p is not None else [None] * 3 for p in curve["traced"]]
     assert [list(p) for p in zip(traced["x"], traced["y"], traced["z"])] == want
     assert len(curve["traced"]) >= 360
-    assert "cycle" in tab.locator("#status").inner_text()
+    status = tab.locator("#status").inner_text()
+    assert curve["defect"] is not None  # the file's design misses its targets
+    assert status.endswith(f"Cycle: {curve['defect']}")
     assert errors == []
