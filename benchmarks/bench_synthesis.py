@@ -137,10 +137,10 @@ def _toml_point(p) -> str:
     return f"[{float(p[0])!r}, {float(p[1])!r}, 0.0]"
 
 
-def four_bar_file(placed, extent: float, name: str, closed: bool) -> str:
+def four_bar_file(placed, extent: float, case: str, closed: bool) -> str:
     """A four-bar file of a placed four-bar (``linkopt._synth.fourbar``): every
     anchor's x and y and the coupler point free within ``extent`` of it, and a
-    ``[synthesis]`` table: the point ``tip`` through the rows of ``NAME.csv``
+    ``[synthesis]`` table: the point ``tip`` through the rows of ``CASE.csv``
     beside it, to 1 % of the points' extent."""
     joints = [
         ("A", "ground", "crank", placed.A),
@@ -171,7 +171,7 @@ def four_bar_file(placed, extent: float, name: str, closed: bool) -> str:
                 f"max = {float(p[k]) + extent!r}\n"
             )
     out.append(
-        f'[synthesis]\nkind = "path"\nname = "tip"\nfile = "{name}.csv"\n'
+        f'[synthesis]\nkind = "path"\nname = "tip"\nfile = "{case}.csv"\n'
         f"closed = {str(closed).lower()}\ntolerance = {0.01 * extent!r}\n"
     )
     return "\n".join(out)
@@ -236,7 +236,8 @@ def start_case(name: str, write: bool) -> dict:
         (CASES_DIR / f"{name}.csv").write_text(points_csv(points))
     # the crank's turn from the first point to the last (open) or its sense (closed)
     turn = float(fit.crank_turns[-1])
-    judged = _judge(linkopt.loads(text), None, points, closed, extent, turn)
+    source = str(CASES_DIR / f"{name}.toml")  # its [synthesis] file lies beside it
+    judged = _judge(linkopt.loads(text, source), None, points, closed, extent, turn)
     return {
         "start_seconds": round(seconds, 3),
         "start_fit_residual": fit.residual,

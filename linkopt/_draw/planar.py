@@ -17,6 +17,7 @@ from jaxtyping import Float
 
 from .._engine.geometry import design_vector, geometry
 from .._engine.model import AXIAL_JOINTS, Mechanism
+from .._export.sheet import basis
 
 #: Out-of-plane spread of the anchors and axes, relative to the reference length, below
 #: which a mechanism is planar.
@@ -71,11 +72,4 @@ def plane_basis(mech: Mechanism, design=None) -> Float[np.ndarray, "2 3"] | None
     """``(2, 3)`` orthonormal in-plane axes of a planar mechanism, world axes where the
     plane is a coordinate plane; None for a spatial one."""
     normal = plane_normal(mech, design)
-    if normal is None:
-        return None
-    k = int(np.argmax(np.abs(normal)))
-    if abs(normal[k]) >= 1.0 - 1e-12:
-        return np.eye(3)[[i for i in range(3) if i != k]]
-    first = np.cross(normal, np.eye(3)[int(np.argmin(np.abs(normal)))])
-    first /= np.linalg.norm(first)
-    return np.stack([first, np.cross(normal, first)])
+    return None if normal is None else basis(normal)
