@@ -332,16 +332,18 @@ def converged(run: SwarmRun, settings: OptimizerSettings) -> bool:
     ) or run.iteration + 1 >= run.limit
 
 
-def _move(
+def move_particles(
     mech: Mechanism,
     run: SwarmRun,
     swarm,
-    ev: Evaluation,
     settings: OptimizerSettings,
-    workers: Workers,
+    partial_gradient: Callable[[np.ndarray], np.ndarray],
 ) -> SwarmRun:
     """Every particle's move: a partial-gradient step or a swarm step (module
-    docstring), drawn from the run's RNG; the next iteration's run."""
+    docstring), drawn from the run's RNG; the next iteration's run.
+    ``partial_gradient(positions)`` gives the partial gradients ``(N, n_p)`` at the
+    run's positions (called only when some particle takes a gradient step). Shared
+    by ``optimize`` and the synthesis run (:mod:`linkopt._synth.run`)."""
     rng = np.random.default_rng()
     rng.bit_generator.state = run.rng_state
     use_gradient, velocity = swarm_moves(rng, run, settings)
@@ -351,7 +353,7 @@ def _move(
     bounds = (mech.design.lower, mech.design.upper)
     moved = compute_position(swarm, bounds, BoundaryHandler(strategy="nearest"))
     if use_gradient.any():
-        gradients = workers.partial_gradient(run.position, ev, alpha_minus(mech))
+        gradients = partial_gradient(run.position)
         gradients = np.where(np.isfinite(gradients), gradients, 0.0)
         stepped = np.clip(
             run.position + gradient_moves(mech, gradients, settings), *bounds
@@ -363,6 +365,24 @@ def _move(
         velocity=np.where(use_gradient[:, None], run.velocity, swarm.velocity),
         rng_state=rng.bit_generator.state,
         iteration=run.iteration + 1,
+    )
+
+
+def _move(
+    mech: Mechanism,
+    run: SwarmRun,
+    swarm,
+    ev: Evaluation,
+    settings: OptimizerSettings,
+    workers: Workers,
+) -> SwarmRun:
+    """:func:`move_particles` with the workers' partial gradient."""
+    return move_particles(
+        mech,
+        run,
+        swarm,
+        settings,
+        lambda position: workers.partial_gradient(position, ev, alpha_minus(mech)),
     )
 
 
