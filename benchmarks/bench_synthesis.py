@@ -137,6 +137,14 @@ def _toml_point(p) -> str:
     return f"[{float(p[0])!r}, {float(p[1])!r}, 0.0]"
 
 
+#: The least transmission angle each case asks (``[synthesis].min_transmission_deg``):
+#: the issue's 30 degrees for pylinkage's README example; 20 for the others, whose
+#: goals ask none (at the default 30, no design of arch_5's box meets its points to
+#: 1 %: the best of 512 closed-form starts misses by 0.055, see the json's notes).
+LEAST_TRANSMISSION = {"readme_4": 30.0, "arch_5": 20.0, "d_curve_8": 20.0,
+                      "open_20": 20.0}  # fmt: skip
+
+
 def four_bar_file(placed, extent: float, case: str, closed: bool) -> str:
     """A four-bar file of a placed four-bar (``linkopt._synth.fourbar``): every
     anchor's x and y and the coupler point free within ``extent`` of it, and a
@@ -173,6 +181,7 @@ def four_bar_file(placed, extent: float, case: str, closed: bool) -> str:
     out.append(
         f'[synthesis]\nkind = "path"\nname = "tip"\nfile = "{case}.csv"\n'
         f"closed = {str(closed).lower()}\ntolerance = {0.01 * extent!r}\n"
+        f"min_transmission_deg = {LEAST_TRANSMISSION.get(case, 30.0)!r}\n"
     )
     return "\n".join(out)
 
@@ -247,25 +256,48 @@ def start_case(name: str, write: bool) -> dict:
     }
 
 
-def linkopt_case(name: str) -> dict:
-    """``linkopt.synthesis.synthesize`` on one planar case (the ``linkopt`` side)."""
+def linkopt_case(name: str, repeat: int = 2) -> dict:
+    """``linkopt.synthesis.synthesize`` on one planar case (the ``linkopt`` side),
+    run ``repeat`` times in this process: the first compiles (or loads the
+    compiled programs from the disk cache), the last is timed warm; its design
+    verified by ``linkopt.synthesis.verify`` (the dense sweep over the same motion:
+    an open curve of a crank without limits over its full turn)."""
     import linkopt
     from linkopt import synthesis
+    from linkopt._synth.fourbar import grashof_class, read_four_bar, transmission
 
     command = f"linkopt synthesize benchmarks/synthesis/{name}.toml --seed 0"
-    points, closed = planar_cases()[name]
-    extent = float(np.linalg.norm(np.ptp(points, axis=0)))
+    points, _ = planar_cases()[name]
     mech = linkopt.load(CASES_DIR / f"{name}.toml")
     targets = synthesis.load_targets(mech)
-    t0 = time.perf_counter()
-    result = synthesis.synthesize(mech, targets, None)
-    seconds = time.perf_counter() - t0
-    judged = _judge(mech, result.design, points, closed, extent)
+    seconds = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        result = synthesis.synthesize(mech, targets, None)
+        seconds.append(round(time.perf_counter() - t0, 3))
+    report = synthesis.verify(mech, result)
+    four_bar = read_four_bar(mech, result.design).four_bar()
+    extent = float(np.linalg.norm(np.ptp(points, axis=0)))
+    rms = _rms(report.distances)
     return {
         "linkopt_command": command,
-        "linkopt_seconds": round(seconds, 3),
+        "linkopt_seconds": seconds[-1],
+        "linkopt_seconds_first": seconds[0],
+        "linkopt_iterations": len(result.history),
         "linkopt_status": "ok",
-        **{f"linkopt_{k}": v for k, v in judged.items()},
+        "linkopt_rms": rms,
+        "linkopt_rms_over_diagonal": rms / extent,
+        "linkopt_largest_distance": float(np.max(report.distances)),
+        "linkopt_tolerance": targets.tolerance,
+        "linkopt_defect_free": report.defect is None,
+        "linkopt_defect": report.defect,
+        "linkopt_least_sigma": report.least_sigma,
+        "linkopt_alpha_minus": report.alpha_minus,
+        "linkopt_grashof": grashof_class(four_bar),
+        "linkopt_least_transmission_deg": float(
+            np.degrees(transmission(four_bar).worst)
+        ),
+        "linkopt_asked_transmission_deg": targets.min_transmission_deg,
     }
 
 

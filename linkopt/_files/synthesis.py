@@ -17,6 +17,8 @@ motor ranges) are :func:`linkopt._synth.targets.check_targets`.
     motors = [[a], ...]        # optional timing: motor values at each row
     closed = false             # optional: one full motor turn returns to the start
     tolerance = 0.5            # largest allowed distance to each target
+    min_transmission_deg = 30  # optional: least transmission angle of a planar
+                               # four-bar over its cycle (0: not asked)
 
 A CSV has a header row naming its columns: ``x, y[, z]`` for a path, the motor's and
 the output's names for a function, ``x, y, z, qw, qx, qy, qz`` for a motion; a column
@@ -35,7 +37,19 @@ from .._engine.fields import Reader, is_finite_number, shown
 from .._errors import MechanismFileError
 
 KINDS = ("path", "function", "motion")
-FIELDS = {"kind", "name", "points", "file", "motors", "closed", "tolerance"}
+FIELDS = {
+    "kind",
+    "name",
+    "points",
+    "file",
+    "motors",
+    "closed",
+    "tolerance",
+    "min_transmission_deg",
+}
+#: The least transmission angle a planar four-bar's cycle keeps unless the table
+#: says otherwise (degrees; a common design rule asks 40).
+MIN_TRANSMISSION_DEG = 30.0
 POSE_COLUMNS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 #: Fewest rows of each kind (a closed path needs three to enclose anything).
 FEWEST = {"path": 2, "function": 2, "motion": 2}
@@ -53,7 +67,9 @@ class Targets:
     position then unit quaternion ``(w, x, y, z)``. ``motors``: ``(k, M)`` motor
     values at each target (timing), or None (free). ``closed``: one full motor turn
     returns to the start. ``tolerance``: largest allowed distance to each target
-    (file units; rad for angles)."""
+    (file units; rad for angles). ``min_transmission_deg``: the least transmission
+    angle over the cycle of a planar four-bar (degrees; 0: not asked; other
+    mechanisms ignore it)."""
 
     kind: str
     name: str
@@ -62,6 +78,7 @@ class Targets:
     closed: bool
     tolerance: float
     source: str = ""  # the file (and field) the targets were read from, for messages
+    min_transmission_deg: float = MIN_TRANSMISSION_DEG
 
     @property
     def count(self) -> int:
@@ -118,7 +135,20 @@ def read_synthesis(source: str, table, names: Names) -> Targets:
         _width(rd, f"{where}.motors", motors, len(names.motors), "motor values")
     closed = rd.boolean(table, "closed", where) if "closed" in table else False
     tolerance = rd.positive(table, "tolerance", where)
-    return build(source, at, kind, name, rows, motors, closed, tolerance)
+    least = _least_transmission(rd, table, where)
+    return build(source, at, kind, name, rows, motors, closed, tolerance, least)
+
+
+def _least_transmission(rd: Reader, table: dict, where: str) -> float:
+    if "min_transmission_deg" not in table:
+        return MIN_TRANSMISSION_DEG
+    value = table["min_transmission_deg"]
+    if not is_finite_number(value) or not 0.0 <= float(value) < 90.0:
+        raise rd.fail(
+            f"{where}.min_transmission_deg",
+            f"expected a number of degrees in [0, 90), got {shown(value)}",
+        )
+    return float(value)
 
 
 def _kind(rd: Reader, table: dict, where: str) -> str:
@@ -244,6 +274,7 @@ def build(
     motors: np.ndarray | None,
     closed: bool,
     tolerance: float,
+    min_transmission_deg: float = MIN_TRANSMISSION_DEG,
 ) -> Targets:
     """:class:`Targets` from rows in the layout of ``[synthesis].points``, checked for
     what needs no geometry (module docstring); ``at`` names the field or file of the
@@ -264,7 +295,16 @@ def build(
             )
         if not np.all(np.isfinite(motors)):
             raise rd.fail(at, "the motor timing has a value that is not finite")
-    return Targets(kind, name, rows, motors, bool(closed), float(tolerance), at)
+    return Targets(
+        kind,
+        name,
+        rows,
+        motors,
+        bool(closed),
+        float(tolerance),
+        at,
+        float(min_transmission_deg),
+    )
 
 
 def _check_rows(rd: Reader, at: str, kind: str, rows: np.ndarray, closed) -> None:

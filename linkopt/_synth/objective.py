@@ -57,6 +57,7 @@ from .._design.partial import adjoint_term
 from .._engine import programs
 from .._engine.collision import collision_value, has_collision
 from .._engine.constraints import (
+    homogenised_joint_positions,
     homogenised_output_values,
     homogenised_point_positions,
 )
@@ -65,6 +66,7 @@ from .._engine.jacobian import state_jacobian
 from .._engine.lifting import padded_design
 from .._engine.model import Mechanism
 from .._engine.singularity import sigmas_of
+from .._errors import InputError
 from .continuation import sweep
 from .targets import FULL_TURN, Targets
 
@@ -73,6 +75,12 @@ from .targets import FULL_TURN, Targets
 FAILURE_WEIGHT = 10.0
 #: Rows between the collision samples of the score.
 STRIDE = 4
+#: Weight of the order penalty (module docstring): a target passed a tenth of the
+#: cycle out of its place costs ``0.1``.
+ORDER_WEIGHT = 10.0
+#: Weight of the transmission penalty: a degree short on every row costs ``3e-4``,
+#: a path miss of about 2.5 % of the reference length.
+TRANSMISSION_WEIGHT = 1.0
 
 
 @dataclass(frozen=True)
@@ -84,6 +92,7 @@ class Plan:
     at: np.ndarray | None
     closed: bool
     stride: int = STRIDE
+    cyclic: bool = False  # the rows are one full turn (the targets' order cyclic)
 
     @property
     def steps(self) -> int:
@@ -99,20 +108,26 @@ def plan(
     if targets.motors is not None:
         motors, at = _timed(mech, targets, steps)
         return Plan(motors, at, targets.closed, stride)
+    turn = np.linspace(0.0, FULL_TURN, steps, endpoint=False)[:, None]
     if targets.closed:
-        turn = np.linspace(0.0, FULL_TURN, steps, endpoint=False)
-        return Plan(turn[:, None], None, True, stride)
-    low, high = _span(mech, span)
+        return Plan(turn, None, True, stride, cyclic=True)
+    low_high = _span(mech, span)
+    if low_high is None:  # a crank without limits: its full turn, cyclic order
+        return Plan(turn, None, False, stride, cyclic=True)
+    low, high = low_high
     return Plan(np.linspace(low, high, steps)[:, None], None, False, stride)
 
 
-def _span(mech: Mechanism, span) -> tuple[float, float]:
+def _span(mech: Mechanism, span) -> tuple[float, float] | None:
+    """The open sweep's motor span; None for a rotary motor without limits (its
+    full turn from rest: a crank meets an open curve's targets somewhere along its
+    turn, in their order from the first)."""
     if mech.motor_limited and np.all(np.isfinite([mech.motor_min, mech.motor_max])):
         return float(mech.motor_min[0]), float(mech.motor_max[0])
     if span is not None:
         return float(span[0]), float(span[1])
     if not bool(mech.motor_linear[0]):
-        return -np.pi, np.pi
+        return None
     from .._errors import MechanismFileError
 
     raise MechanismFileError(
@@ -168,6 +183,9 @@ class Score:
     traced: Float[Array, "D S d"]  # file units
     states: Float[Array, "D S n"]
     worst: Int[Array, " D"]  # the row of largest f_sing
+    order: Float[Array, " D"]  # the order penalty (zero: targets met in order)
+    transmission: Float[Array, " D"]  # the transmission penalty (planar four-bars)
+    least_transmission: Float[Array, " D"]  # rad; π/2 where not a four-bar
 
 
 def _static(targets: Targets, mech: Mechanism) -> tuple[str, int]:
@@ -214,9 +232,64 @@ def forward_sigma(mech: Mechanism, geom, state):
     return sigmas_of(state_jacobian(mech, geom, "fk", state)[None])[0]
 
 
-def _one(mech, design, states, solved, sigmas, goals, at, alpha, static):
-    """One design's score parts from its swept states (module docstring)."""
-    kind, index, stride, timed = static
+def _to_segments(traced, goal, row, solved, cyclic: bool):
+    """Distance from ``goal`` to the traced polyline's two segments at ``row`` (the
+    nearest row) and the fractional row of the nearest point: a target between two
+    rows is not charged the chord's sampling, and its place along the cycle moves
+    continuously with the design."""
+    count = traced.shape[0]
+    best, place = distance(traced[row], goal, "path"), row.astype(jnp.float64)
+    for side in (-1, 1):
+        other = (row + side) % count if cyclic else jnp.clip(row + side, 0, count - 1)
+        span = traced[other] - traced[row]
+        length = jnp.sum(span * span)
+        t = jnp.clip(jnp.dot(goal - traced[row], span) / (length + 1e-300), 0.0, 1.0)
+        gap = jnp.sqrt(jnp.sum((traced[row] + t * span - goal) ** 2) + 1e-300)
+        better = solved[other] & (other != row) & (gap < best)
+        best = jnp.where(better, gap, best)
+        place = jnp.where(better, row + side * t, place)
+    return best, place
+
+
+def _descents(places, cyclic: bool, count: int):
+    """Sum of squared descents of the targets' places (fractions of the cycle),
+    the better of the two senses: zero when the targets are met in order."""
+    if cyclic:
+        ahead = jnp.mod(places - places[0], count)
+        behind = jnp.mod(places[0] - places, count)
+    else:
+        ahead, behind = places, -places
+    down = [jnp.maximum(seq[:-1] - seq[1:], 0.0) for seq in (ahead, behind)]
+    return jnp.minimum(*[jnp.sum((d / count) ** 2) for d in down])
+
+
+def _transmission(mech, geom, states, solved, four: tuple, need):
+    """The transmission penalty and the least transmission angle (rad) over the
+    solved rows of a planar four-bar: ``μ`` at ``C`` between ``C → B`` and
+    ``C → D``, its distance from a straight line ``asin |sin μ|``."""
+    if not four:  # static
+        return jnp.zeros(()), jnp.asarray(jnp.pi / 2)
+    b, c, d = four
+
+    def worst(state):
+        x = homogenised_joint_positions(mech, geom, state)
+        u, v = x[b] - x[c], x[d] - x[c]
+        sine = jnp.linalg.norm(jnp.cross(u, v)) / (
+            jnp.linalg.norm(u) * jnp.linalg.norm(v) + 1e-300
+        )
+        return jnp.arcsin(jnp.clip(sine, 0.0, 1.0))
+
+    angles = jax.vmap(worst)(states)
+    short = jnp.where(solved, jnp.maximum(need - angles, 0.0), 0.0)
+    least = jnp.min(jnp.where(solved, angles, jnp.pi / 2))
+    return TRANSMISSION_WEIGHT * jnp.mean(short**2), least
+
+
+def _one(mech, design, states, solved, sigmas, goals, at, limits, static):
+    """One design's score parts from its swept states (module docstring);
+    ``limits`` ``(α₋, μ_req)``."""
+    kind, index, stride, timed, cyclic, four = static
+    alpha, need = limits[0], limits[1]
     geom = geometry(mech, design)
     traced = jax.vmap(lambda s: quantity(mech, geom, s, kind, index))(states)
     gaps = jax.vmap(lambda g: jax.vmap(lambda t: distance(t, g, kind))(traced))(
@@ -225,6 +298,12 @@ def _one(mech, design, states, solved, sigmas, goals, at, alpha, static):
     gaps = jnp.where(solved[None], gaps, jnp.inf)
     rows_at = at if timed else jnp.argmin(gaps, axis=1)
     picked = jnp.take_along_axis(gaps, rows_at[:, None], axis=1)[:, 0]
+    places = rows_at.astype(jnp.float64)
+    if kind == "path" and not timed:  # static
+        picked, places = jax.vmap(
+            lambda g, r: _to_segments(traced, g, r, solved, cyclic)
+        )(goals, rows_at)
+        picked = jnp.where(solved[rows_at], picked, jnp.inf)
     finite = jnp.where(jnp.isfinite(picked), picked, 10.0)
     f_sing = 2.0 / sigmas
     culled_sing = jnp.where(solved, culled(f_sing, thresholds(alpha)), 0.0)
@@ -233,11 +312,17 @@ def _one(mech, design, states, solved, sigmas, goals, at, alpha, static):
     if has_collision(mech):  # static
         values = jax.vmap(lambda s: collision_value(mech, geom, s))(sampled)
         collision = mech.collision.weight * jnp.mean(jnp.where(live, values, 0.0))
+    order = jnp.zeros(())
+    if not timed and goals.shape[0] > 1:  # static
+        order = ORDER_WEIGHT * _descents(places, cyclic, states.shape[0])
+    transmission, least = _transmission(mech, geom, states, solved, four, need)
     parts = {
         "path": 0.5 * jnp.mean(finite**2),
         "singularity": jnp.mean(culled_sing),
         "failure": FAILURE_WEIGHT * jnp.mean((~solved).astype(jnp.float64)),
         "collision": collision,
+        "order": order,
+        "transmission": transmission,
     }
     scale = to_file(mech, kind, index)
     return {
@@ -250,14 +335,15 @@ def _one(mech, design, states, solved, sigmas, goals, at, alpha, static):
         "traced": traced * scale,
         "states": states,
         "worst": jnp.argmax(jnp.where(solved, f_sing, -jnp.inf)),
+        "least_transmission": least,
     }
 
 
-def _score_batch(mech, designs, rows, goals, at, alpha, static):
+def _score_batch(mech, designs, rows, goals, at, limits, static):
     geoms = jax.vmap(lambda p: geometry(mech, p))(designs)
     states, solved, sigmas = sweep(mech, geoms, rows)
     parts = jax.vmap(
-        lambda p, s, ok, sg: _one(mech, p, s, ok, sg, goals, at, alpha, static)
+        lambda p, s, ok, sg: _one(mech, p, s, ok, sg, goals, at, limits, static)
     )(designs, states, solved, sigmas)
     return Score(**parts)
 
@@ -272,7 +358,13 @@ class Problem:
 
     def static(self, mech: Mechanism) -> tuple:
         kind, index = _static(self.targets, mech)
-        return kind, index, self.plan.stride, self.plan.at is not None
+        timed = self.plan.at is not None
+        four, _ = four_bar_transmission(mech, self.targets)
+        return kind, index, self.plan.stride, timed, self.plan.cyclic, four
+
+    def need(self, mech: Mechanism) -> float:
+        """The transmission bound (rad; 0: none)."""
+        return four_bar_transmission(mech, self.targets)[1]
 
     def arguments(self, mech: Mechanism) -> tuple:
         """The homogenised motor rows, targets and target rows."""
@@ -284,8 +376,29 @@ class Problem:
         return rows, goals, at.astype(np.int32)
 
 
+def four_bar_transmission(mech: Mechanism, targets: Targets) -> tuple[tuple, float]:
+    """The joints ``(B, C, D)`` whose transmission angle a planar four-bar's score
+    bounds, and the bound (rad): ``((), 0.0)`` where the mechanism is not a planar
+    four-bar or the targets ask none (``min_transmission_deg`` 0)."""
+    from .fourbar import four_bar_joints
+
+    need = float(getattr(targets, "min_transmission_deg", 0.0))
+    if need <= 0.0:
+        return (), 0.0
+    try:
+        joints = four_bar_joints(mech)
+    except InputError:
+        return (), 0.0
+    return (joints.B, joints.C, joints.D), float(np.radians(need))
+
+
 def _name(base: str, static: tuple) -> str:
-    return f"{base}_" + "_".join(str(v) for v in static)
+    flat = [
+        v for item in static for v in (item if isinstance(item, tuple) else (item,))
+    ]
+    return f"{base}_" + "_".join(
+        f"{v:.6g}" if isinstance(v, float) else str(v) for v in flat
+    )
 
 
 def score(mech: Mechanism, problem: Problem, designs, alpha: float) -> Score:
@@ -304,14 +417,14 @@ def score(mech: Mechanism, problem: Problem, designs, alpha: float) -> Score:
         rows,
         goals,
         at,
-        jnp.asarray(alpha, dtype=jnp.float64),
+        jnp.asarray([alpha, problem.need(mech)], dtype=jnp.float64),
     )
 
 
 def _lagrangian(mech, design, frozen, goals, alpha, static, samples: int):
     """Scalar whose design gradient is the partial gradient of one design's ``path +
     singularity`` (module docstring)."""
-    kind, index, _, _ = static
+    kind, index = static[:2]
     motors, states, worst_motors, worst_state = frozen
 
     def path_term(goal):

@@ -30,15 +30,20 @@ import numpy as np
 from .._design import optimizer as swarm_run
 from .._design.evaluation import alpha_minus
 from .._design.settings import OptimizerSettings
-from .._design.swarm import BoundaryHandler, compute_position
 from .._engine.kinematics import check_design
 from .._engine.model import Mechanism
 from .._errors import InputError
-from . import fourbar
+from . import fourbar, starts
 from .cycle import sweep_cycle
 from .objective import Plan, Problem, Score, gradients, plan, score
 from .targets import Targets, check_targets
 
+#: Closed-form starts scored before the swarm (at least the swarm's size), the best
+#: kept exactly, and the spread of the other particles around them (a fraction of
+#: each parameter's range).
+CANDIDATES = 128
+SEEDS = 4
+SEED_SPREAD = 0.02
 #: Defaults of a synthesis run (the swarm's meaning: :mod:`linkopt._design.optimizer`).
 DEFAULT = OptimizerSettings(particles=32, iterations=40, spread=0.25, patience=5)
 
@@ -62,6 +67,7 @@ class SynthesisResult:
     feasible: bool
     history: tuple[dict, ...]
     seconds: float
+    least_transmission_deg: float | None = None  # planar four-bars with a bound
 
     @property
     def rms(self) -> float:
@@ -89,6 +95,7 @@ class SynthesisResult:
             "least_sigma_fk": self.least_sigma,
             "sigma_margin": self.least_sigma * self.alpha_minus / 2.0,
             "alpha_minus": self.alpha_minus,
+            "least_transmission_deg": self.least_transmission_deg,
             "feasible": self.feasible,
             "iterations": len(self.history),
             "seconds": self.seconds,
@@ -104,6 +111,8 @@ def _feasible(result: Score, tolerance: float) -> np.ndarray:
         & np.all(np.asarray(result.solved), axis=1)
         & (np.asarray(result.singularity) <= 0.0)
         & (np.asarray(result.collision) <= 0.0)
+        & (np.asarray(result.order) <= 0.0)
+        & (np.asarray(result.transmission) <= 0.0)
     )
 
 
@@ -112,7 +121,8 @@ def _costs(result: Score) -> np.ndarray:
     return np.where(np.isfinite(total), total, np.inf)
 
 
-PARTS = ("path", "singularity", "failure", "collision", "rms")
+TERMS = ("path", "singularity", "failure", "collision", "order", "transmission")
+PARTS = (*TERMS, "rms")
 
 
 def _record(run, result: Score, costs, chosen, seconds: float) -> dict:
@@ -135,10 +145,7 @@ def _record(run, result: Score, costs, chosen, seconds: float) -> dict:
 
 def _parts(result: Score, k: int) -> dict:
     return {
-        "path": float(result.path[k]),
-        "singularity": float(result.singularity[k]),
-        "failure": float(result.failure[k]),
-        "collision": float(result.collision[k]),
+        **{name: float(getattr(result, name)[k]) for name in TERMS},
         "rms": float(np.sqrt(np.mean(np.asarray(result.distances[k]) ** 2))),
     }
 
@@ -157,27 +164,13 @@ def _score_step(mech, run, result: Score, settings, tolerance: float):
 
 
 def _move(mech, problem, run, swarm, result, settings, alpha):
-    rng = np.random.default_rng()
-    rng.bit_generator.state = run.rng_state
-    use_gradient, velocity = swarm_run.swarm_moves(rng, run, settings)
-    swarm.velocity = np.where(
-        use_gradient[:, None], run.velocity, settings.learning_rate * velocity
-    )
-    bounds = (mech.design.lower, mech.design.upper)
-    moved = compute_position(swarm, bounds, BoundaryHandler(strategy="nearest"))
-    if use_gradient.any():
-        grads = gradients(mech, problem, run.position, result, alpha)
-        grads = np.where(np.isfinite(grads), grads, 0.0)
-        step = swarm_run.gradient_moves(mech, grads, settings)
-        stepped = np.clip(run.position + step, *bounds)
-        moved = np.where(use_gradient[:, None], stepped, moved)
-    return dataclasses.replace(
-        run,
-        position=np.asarray(moved),
-        velocity=np.where(use_gradient[:, None], run.velocity, swarm.velocity),
-        rng_state=rng.bit_generator.state,
-        iteration=run.iteration + 1,
-    )
+    """The optimiser's move (:func:`linkopt._design.optimizer.move_particles`) with
+    the synthesis objective's partial gradient."""
+
+    def partial(position):
+        return gradients(mech, problem, position, result, alpha)
+
+    return swarm_run.move_particles(mech, run, swarm, settings, partial)
 
 
 def synthesize(
@@ -197,8 +190,8 @@ def synthesize(
     targets = check_targets(mech, targets)
     problem = Problem(targets, plan(mech, targets, steps, span))
     alpha = alpha_minus(mech)
-    run = swarm_run.start(mech, settings)
     began = time.perf_counter()
+    run = seeded(mech, problem, settings, alpha, swarm_run.start(mech, settings))
     while True:
         result = score(mech, problem, run.position, alpha)
         run, swarm, costs, chosen = _score_step(
@@ -211,7 +204,77 @@ def synthesize(
         if swarm_run.converged(run, settings):
             break
         run = _move(mech, problem, run, swarm, result, settings, alpha)
-    return finish(mech, problem, run.result_pos, alpha, run.history, began)
+    design = polished(mech, problem, run.result_pos, settings, alpha)
+    return finish(mech, problem, design, alpha, run.history, began)
+
+
+def _padded(designs: np.ndarray, size: int) -> np.ndarray:
+    """``designs`` repeated up to ``size`` rows (the swarm's batch: one compiled
+    score for the run)."""
+    reps = -(-size // len(designs))
+    return np.tile(designs, (reps, 1))[: max(size, len(designs))]
+
+
+def _ranked(result: Score, tolerance: float) -> np.ndarray:
+    """Indices of scored designs, feasible first, then by total."""
+    feasible = _feasible(result, tolerance)
+    return np.lexsort((_costs(result), ~feasible))
+
+
+def seeded(mech, problem: Problem, settings, alpha, run):
+    """The swarm's first positions: for a planar four-bar path
+    (:func:`.starts.applies`) ``CANDIDATES`` closed-form starts
+    (:func:`.starts.candidates`), the swarm's size of the best of them scored with
+    the whole cycle in one batch, the best
+    ``SEEDS`` kept exactly (the best first) with the file's design, the other
+    particles spread by ``SEED_SPREAD`` of each range around them; otherwise the
+    optimiser's start around the file's design, unchanged."""
+    targets = problem.targets
+    if not starts.applies(mech, targets):
+        return run
+    found = starts.candidates(
+        mech,
+        targets,
+        seed=settings.seed,
+        count=max(settings.particles, CANDIDATES),
+        min_transmission_deg=targets.min_transmission_deg,
+    )
+    size = settings.particles
+    found = found[:size]  # the refinement's best, scored in one batch
+    result = score(mech, problem, _padded(found, size), alpha)
+    costs = _costs(result)[: len(found)]
+    feasible = _feasible(result, targets.tolerance)[: len(found)]
+    order = np.lexsort((costs, ~feasible))
+    best = found[order[: min(SEEDS, len(found))]]
+    kept = np.vstack([best, mech.design.p0[None]])
+    rng = np.random.default_rng(settings.seed)
+    d = mech.design
+    spread = SEED_SPREAD * (d.upper - d.lower)
+    around = kept[np.arange(size) % len(best)]
+    moved = around + rng.uniform(-1.0, 1.0, around.shape) * spread
+    position = np.clip(np.vstack([kept, moved[len(kept) :]])[:size], d.lower, d.upper)
+    return dataclasses.replace(
+        run,
+        position=position,
+        pbest_pos=position.copy(),
+        best_pos=position[0].copy(),
+    )
+
+
+def polished(mech, problem: Problem, design, settings, alpha) -> np.ndarray:
+    """The run's design, or its least-squares polish where that is better: for a
+    planar four-bar path (:func:`.starts.refine_batch`, the path error with the
+    transmission bound), scored with the whole cycle beside the design and kept
+    only when it is feasible and its total lower (or the design was not
+    feasible)."""
+    targets = problem.targets
+    if not starts.applies(mech, targets):
+        return np.asarray(design, dtype=float)
+    fit = starts.problem_of(mech, targets, targets.min_transmission_deg)
+    fine = starts.refine_batch(mech, fit, np.asarray(design, dtype=float)[None])[0][0]
+    pair = np.stack([np.asarray(design, dtype=float), fine])
+    result = score(mech, problem, _padded(pair, settings.particles), alpha)
+    return pair[int(_ranked(result, targets.tolerance)[0]) % 2]
 
 
 def finish(mech, problem: Problem, design, alpha, history=(), began=None):
@@ -223,10 +286,7 @@ def finish(mech, problem: Problem, design, alpha, history=(), began=None):
         f.name: np.asarray(getattr(result, f.name))[0]
         for f in dataclasses.fields(result)
     }
-    parts = {
-        k: float(one[k])
-        for k in ("total", "path", "singularity", "failure", "collision")
-    }
+    parts = {k: float(one[k]) for k in ("total", *TERMS)}
     feasible = bool(_feasible(result, problem.targets.tolerance)[0])
     traced = one["traced"]
     if problem.targets.kind == "function":
@@ -245,6 +305,11 @@ def finish(mech, problem: Problem, design, alpha, history=(), began=None):
         feasible=feasible,
         history=tuple(history),
         seconds=0.0 if began is None else time.perf_counter() - began,
+        least_transmission_deg=(
+            float(np.degrees(one["least_transmission"]))
+            if problem.static(mech)[5]
+            else None
+        ),
     )
 
 
@@ -279,10 +344,24 @@ def four_bar_summary(mech: Mechanism, design) -> dict | None:
 def verify(mech: Mechanism, result: SynthesisResult, *, steps: int | None = None):
     """The dense cycle sweep (:func:`linkopt._synth.cycle.sweep_cycle`) of a result's
     design over the same motion; its report's ``defect`` names the first defect met,
-    None when there is none."""
+    None when there is none. An open curve of a crank without limits is swept over
+    the crank's full turn, as a closed one (the targets in cyclic order). The motor
+    may run either way: where the targets are out of order one way, the other is
+    swept too, and the report that finds them in order returned."""
     steps = steps or result.plan.steps
-    if result.targets.closed or result.targets.motors is not None:
-        return sweep_cycle(mech, result.design, result.targets, steps=steps)
+    targets = result.targets
+    if result.plan.cyclic and not targets.closed:
+        targets = dataclasses.replace(targets, closed=True)
+    if targets.closed or targets.motors is not None:
+        report = sweep_cycle(mech, result.design, targets, steps=steps)
+        if report.in_order or targets.motors is not None:
+            return report
+        back = sweep_cycle(mech, result.design, targets, steps=steps, direction=-1)
+        return back if back.in_order else report
     motors = result.plan.motors[:, 0]
     span = (float(motors.min()), float(motors.max()))
-    return sweep_cycle(mech, result.design, result.targets, steps=steps, span=span)
+    report = sweep_cycle(mech, result.design, targets, steps=steps, span=span)
+    if report.in_order:
+        return report
+    back = sweep_cycle(mech, result.design, targets, steps=steps, span=span[::-1])
+    return back if back.in_order else report

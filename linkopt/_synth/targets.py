@@ -63,7 +63,7 @@ def load_targets(mech: Mechanism, csv: str | Path | None = None) -> Targets:
     rows, motors = read_rows(Path(csv), table.kind, table.name, synthesis_names(mech))
     targets = build(
         str(csv), str(csv), table.kind, table.name, rows, motors,
-        table.closed, table.tolerance,
+        table.closed, table.tolerance, table.min_transmission_deg,
     )  # fmt: skip
     return check_targets(mech, targets)
 
