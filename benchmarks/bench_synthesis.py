@@ -198,17 +198,21 @@ def _targets(points: np.ndarray, closed: bool, tolerance: float):
     return Targets("path", "tip", values, None, closed, tolerance)
 
 
-def _judge(mech, design, points, closed, extent, turn=2 * np.pi) -> dict:
-    """Sweep a design over its cycle against the points (see the module docstring):
-    a closed curve over a full turn in the direction of ``turn``, an open one over
-    the motor span ``(0, turn)``."""
-    from linkopt._synth.cycle import sweep_cycle
+def _judge(mech, design, points, closed, extent) -> dict:
+    """Sweep a design over its cycle against the points, as
+    ``linkopt.synthesis.verify`` does (a crank without limits turns fully, an open
+    curve's targets met in cyclic order, the motor either way), with the numbers of
+    the planar four-bar."""
+    from linkopt._synth import objective
     from linkopt._synth.fourbar import grashof_class, read_four_bar, transmission
+    from linkopt._synth.run import verify
 
     targets = _targets(points, closed, 0.01 * extent)
-    direction = 1 if turn >= 0 else -1
-    span = (0.0, float(turn))
-    report = sweep_cycle(mech, design, targets, span=span, direction=direction)
+    problem = objective.Problem(targets, objective.plan(mech, targets))
+    result = _Design(
+        design if design is not None else mech.design.p0, targets, problem.plan
+    )
+    report = verify(mech, result)
     four_bar = read_four_bar(mech, design).four_bar()
     return {
         "rms": _rms(report.distances),
@@ -220,6 +224,13 @@ def _judge(mech, design, points, closed, extent, turn=2 * np.pi) -> dict:
         "grashof": grashof_class(four_bar),
         "least_transmission_deg": float(np.degrees(transmission(four_bar).worst)),
     }
+
+
+class _Design:
+    """What ``verify`` reads of a synthesis result: the design, targets, plan."""
+
+    def __init__(self, design, targets, plan):
+        self.design, self.targets, self.plan = np.asarray(design), targets, plan
 
 
 def points_csv(points: np.ndarray) -> str:
@@ -243,10 +254,9 @@ def start_case(name: str, write: bool) -> dict:
         CASES_DIR.mkdir(parents=True, exist_ok=True)
         (CASES_DIR / f"{name}.toml").write_text(text)
         (CASES_DIR / f"{name}.csv").write_text(points_csv(points))
-    # the crank's turn from the first point to the last (open) or its sense (closed)
-    turn = float(fit.crank_turns[-1])
     source = str(CASES_DIR / f"{name}.toml")  # its [synthesis] file lies beside it
-    judged = _judge(linkopt.loads(text, source), None, points, closed, extent, turn)
+    mech = linkopt.loads(text, source)
+    judged = _judge(mech, None, points, closed, extent)
     return {
         "start_seconds": round(seconds, 3),
         "start_fit_residual": fit.residual,

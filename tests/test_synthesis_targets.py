@@ -215,3 +215,17 @@ def test_the_reach_bound_holds_the_file_design_curve():
     # and a point twice the reach away is out of it
     far, reach = reach_bound(mech, np.array([[2.5 * reach, 0.0, 0.0]]))
     assert far[0] > reach
+
+
+def test_the_least_transmission_angle_defaults_to_30_and_is_read(tmp_path):
+    assert _targets(tmp_path, PATH + f"points = {GOOD}\n").min_transmission_deg == 30
+    text = PATH + f"points = {GOOD}\nmin_transmission_deg = 42.5\n"
+    assert _targets(tmp_path, text).min_transmission_deg == 42.5
+    text = PATH + f"points = {GOOD}\nmin_transmission_deg = 0\n"
+    assert _targets(tmp_path, text).min_transmission_deg == 0.0
+
+
+@pytest.mark.parametrize("value", ["90", "-1", "'wide'", "nan"])
+def test_a_least_transmission_angle_outside_0_90_is_refused(tmp_path, value):
+    text = PATH + f"points = {GOOD}\nmin_transmission_deg = {value}\n"
+    _refused(tmp_path, text, "[synthesis].min_transmission_deg", r"\[0, 90\)")

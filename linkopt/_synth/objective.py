@@ -4,7 +4,8 @@ against the targets, plus ``f_design``'s singularity and collision terms.
 **The sweep** (:func:`plan`, :func:`.continuation.sweep`). The motors pass through
 ``S`` rows in order (``(S, M)``, file units): for a closed curve one full turn of the
 one motor from its rest value; for an open one without timing the motor's
-``[[motors]]`` span, else ``span`` (a rotary motor without limits: the full turn);
+``[[motors]]`` span, else ``span``, else (a rotary motor without limits) the same
+full turn as a closed curve, the targets' order then cyclic (``Plan.cyclic``);
 with timing, straight segments through the timing rows, each target at a known row
 (its ``at``). Each row is reached from the last by the engine's predictor-corrector
 step (:func:`.continuation.step_to`; the first row from the rest pose by
@@ -17,7 +18,8 @@ each step vmapped over the designs, with no Python loop over rows.
 **The score** of one design (homogenised; the swarm minimises ``total``):
 
 * ``path = ½ mean_k (d_k / ρ)²``: ``d_k`` the distance from target ``k`` to the traced
-  quantity at its row (timing), else to the nearest traced row; ``ρ`` the reference
+  quantity at its row (timing), else to the nearest traced row (a path's refined to
+  the two segments at that row, :func:`_to_segments`); ``ρ`` the reference
   length for positions, the output's scale for a function. A motion target's distance
   is ``√(|Δx|² + (ρ θ)²)``, ``θ`` the angle between the orientations: one radian
   counts as one reference length.
@@ -31,10 +33,19 @@ each step vmapped over the designs, with no Python loop over rows.
   sum would for equal ``σ``;
 * ``failure = FAILURE_WEIGHT · (unsolved rows / S)``;
 * ``collision = weight · mean_s c(s)`` over every ``stride``-th row, where
-  ``[collision]`` is on.
+  ``[collision]`` is on;
+* ``order = ORDER_WEIGHT · min(Σ_k max(0, t_k − t_{k+1})², reversed) / S²``
+  (:func:`_descents`): ``t_k`` the place (fractional row) where target ``k`` is met,
+  for a full turn from the first target's place modulo ``S``. Zero exactly when the
+  targets are met in order, either sense of the motor; continuous in the design;
+* ``transmission = TRANSMISSION_WEIGHT · mean_s max(0, μ_req − μ_s)²`` for a planar
+  four-bar whose targets ask ``min_transmission_deg`` (:func:`four_bar_transmission`):
+  ``μ_s`` the transmission angle's distance from a straight line at row ``s``.
 
-``total`` is their sum; the file's regulariser (the pull towards the file's design)
-is left out: a synthesis moves a design as far as its target asks.
+Every term but ``path`` is zero for a design without defects, so once the defects
+are gone the path error alone is minimised. ``total`` is their sum; the file's
+regulariser (the pull towards the file's design) is left out: a synthesis moves a
+design as far as its target asks.
 
 **The gradient** (:func:`gradients`) is the optimiser's partial gradient
 (:mod:`linkopt._design.partial`): each target's row and the row of largest ``f_sing``

@@ -15,7 +15,9 @@ no collision term is left. The run stops when a feasible design has not improved
 
 The particles start around the file's design, spread by ``spread`` of each
 parameter's range (wider than ``optimize``'s default: a synthesis starts from a
-design that does not yet meet its target).
+design that does not yet meet its target); for a planar four-bar path, from the best
+closed-form starts instead (:func:`seeded`, :mod:`.starts`). The swarm's design is
+polished by the starts' least squares at the end (:func:`polished`).
 """
 
 from __future__ import annotations
@@ -238,6 +240,7 @@ def seeded(mech, problem: Problem, settings, alpha, run):
         seed=settings.seed,
         count=max(settings.particles, CANDIDATES),
         min_transmission_deg=targets.min_transmission_deg,
+        full_turn=problem.plan.cyclic,
     )
     size = settings.particles
     found = found[:size]  # the refinement's best, scored in one batch
@@ -270,7 +273,9 @@ def polished(mech, problem: Problem, design, settings, alpha) -> np.ndarray:
     targets = problem.targets
     if not starts.applies(mech, targets):
         return np.asarray(design, dtype=float)
-    fit = starts.problem_of(mech, targets, targets.min_transmission_deg)
+    fit = starts.problem_of(
+        mech, targets, targets.min_transmission_deg, problem.plan.cyclic
+    )
     fine = starts.refine_batch(mech, fit, np.asarray(design, dtype=float)[None])[0][0]
     pair = np.stack([np.asarray(design, dtype=float), fine])
     result = score(mech, problem, _padded(pair, settings.particles), alpha)

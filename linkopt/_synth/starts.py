@@ -46,7 +46,7 @@ from . import fourbar
 from .targets import Targets
 
 #: Levenberg–Marquardt iterations of the refinement (all starts together).
-ITERATIONS = 60
+ITERATIONS = 150
 #: Degrees added to the asked transmission angle by the refinement (a margin
 #: against the dense sweep's sampling).
 MARGIN_DEG = 0.5
@@ -310,13 +310,20 @@ def refine_batch(mech: Mechanism, problem: Problem, designs) -> tuple:
     return x[:, :n], np.sqrt(cost)
 
 
-def problem_of(mech: Mechanism, targets: Targets, min_transmission_deg: float):
-    """The :class:`Problem` of refining ``mech``'s designs towards ``targets``."""
+def problem_of(
+    mech: Mechanism,
+    targets: Targets,
+    min_transmission_deg: float,
+    full_turn: bool = True,
+):
+    """The :class:`Problem` of refining ``mech``'s designs towards ``targets``. The
+    transmission bound is over the full crank turn, so it applies where the crank
+    turns fully (``full_turn``: a closed curve, or an open one of a motor without
+    limits); over a limited motor span the cycle's score alone judges it."""
     frame = frame_of(mech, targets)
     goals = _plane_of(frame, targets.values[:, :3])
-    need = (
-        np.radians(min_transmission_deg + MARGIN_DEG) if min_transmission_deg else 0.0
-    )
+    asked = min_transmission_deg > 0 and full_turn
+    need = np.radians(min_transmission_deg + MARGIN_DEG) if asked else 0.0
     weight = SHORTFALL_WEIGHT * float(np.linalg.norm(np.ptp(goals, axis=0)))
     d = mech.design
     return Problem(frame, goals, need, targets.tolerance, weight, d.lower, d.upper)
@@ -364,12 +371,13 @@ def candidates(
     count: int = 32,
     min_transmission_deg: float = 0.0,
     fits: int | None = None,
+    full_turn: bool = True,
 ) -> np.ndarray:
     """``(C, n_p)`` refined start designs (module docstring), those that keep the
     transmission bound first, then by least residual;
     ``count`` seeds: the file's design, ``fits`` precision-point fits (default a
     quarter of ``count``) and designs drawn uniformly in the box (``seed``)."""
-    problem = problem_of(mech, targets, min_transmission_deg)
+    problem = problem_of(mech, targets, min_transmission_deg, full_turn)
     rng = np.random.default_rng(seed)
     fits = count // 4 if fits is None else fits
     seeds = [problem.frame.p0]
