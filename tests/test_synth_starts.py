@@ -92,7 +92,7 @@ def test_the_starts_apply_to_untimed_coupler_paths_of_a_four_bar_only(mech):
 def test_the_order_penalty_is_zero_exactly_for_targets_in_order(
     places, cyclic, in_order
 ):
-    value = float(objective._descents(jnp.asarray(places), cyclic, 72))
+    value = float(objective.descents(jnp.asarray(places), cyclic, 72))
     assert (value == 0.0) == in_order
     if not in_order:
         assert value > 1e-3

@@ -35,7 +35,7 @@ each step vmapped over the designs, with no Python loop over rows.
 * ``collision = weight · mean_s c(s)`` over every ``stride``-th row, where
   ``[collision]`` is on;
 * ``order = ORDER_WEIGHT · min(Σ_k max(0, t_k − t_{k+1})², reversed) / S²``
-  (:func:`_descents`): ``t_k`` the place (fractional row) where target ``k`` is met,
+  (:func:`descents`): ``t_k`` the place (fractional row) where target ``k`` is met,
   for a full turn from the first target's place modulo ``S``. Zero exactly when the
   targets are met in order, either sense of the motor; continuous in the design;
 * ``transmission = TRANSMISSION_WEIGHT · mean_s max(0, μ_req − μ_s)²`` for a planar
@@ -262,7 +262,7 @@ def _to_segments(traced, goal, row, solved, cyclic: bool):
     return best, place
 
 
-def _descents(places, cyclic: bool, count: int):
+def descents(places, cyclic: bool, count: int):
     """Sum of squared descents of the targets' places (fractions of the cycle),
     the better of the two senses: zero when the targets are met in order."""
     if cyclic:
@@ -325,7 +325,7 @@ def _one(mech, design, states, solved, sigmas, goals, at, limits, static):
         collision = mech.collision.weight * jnp.mean(jnp.where(live, values, 0.0))
     order = jnp.zeros(())
     if not timed and goals.shape[0] > 1:  # static
-        order = ORDER_WEIGHT * _descents(places, cyclic, states.shape[0])
+        order = ORDER_WEIGHT * descents(places, cyclic, states.shape[0])
     transmission, least = _transmission(mech, geom, states, solved, four, need)
     parts = {
         "path": 0.5 * jnp.mean(finite**2),
