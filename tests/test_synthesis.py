@@ -13,7 +13,7 @@ import pytest
 import linkopt
 from linkopt._files.synthesis import build
 from linkopt._synth import objective
-from linkopt._synth.run import finish
+from linkopt._synth.run import finish, four_bar_summary
 from linkopt.synthesis import load_targets, score, synthesize, verify
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -166,6 +166,12 @@ def test_a_short_synthesis_lowers_the_rms_and_keeps_the_cycle_clear(mech):
     assert report.solved.all() and report.defect is None  # defect-free
     # the objective's σ_min is a Rayleigh estimate, within 1e-3 above the exact
     assert report.least_sigma >= result.least_sigma * (1 - 1e-3)
+    # the transmission angle over the swept rows against the closed form over the
+    # full turn (Norton): never below it, and within the 5° rows' sampling of it
+    worst = four_bar_summary(mech, result.design)["transmission_worst_deg"]
+    assert worst - 1e-9 <= result.least_transmission_deg <= worst + 1.0
+    assert result.least_transmission_deg >= targets.min_transmission_deg
+    assert result.parts["order"] == 0.0 and result.parts["transmission"] == 0.0
 
 
 def test_a_short_function_synthesis_lowers_the_miss(mech):
