@@ -21,7 +21,6 @@ where their numbers come from):
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -161,7 +160,9 @@ def spherical_point(axes) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- Jansen leg
-#: Jansen's 13 "holy numbers" (a, l: the frame; m: the crank).
+#: Jansen's 13 "holy numbers" (a, l: the frame; m: the crank). The foot tip's h and
+#: i are not perturbed: the tip is a point of the foot, not a joint, and follows D
+#: and F (``follow = "anchors"``).
 JANSEN = dict(
     a=38.0, b=41.5, c=39.3, d=40.1, e=55.8, f=39.4, g=36.7,
     h=65.7, i=49.0, j=50.0, k=61.9, l=7.8, m=15.0,
@@ -205,7 +206,7 @@ def jansen_perturbed(seed: int = JANSEN_SEED) -> dict:
     """Each length scaled by a uniform factor in ``1 ± JANSEN_PERTURBATION``."""
     rng = np.random.default_rng(seed)
     factor = rng.uniform(1 - JANSEN_PERTURBATION, 1 + JANSEN_PERTURBATION, len(JANSEN))
-    return {k: v * f for (k, v), f in zip(JANSEN.items(), factor)}
+    return {k: v if k in "hi" else v * f for (k, v), f in zip(JANSEN.items(), factor)}
 
 
 # ---------------------------------------------------------------- the files
@@ -430,13 +431,97 @@ def spherical_text() -> str:
     )  # fmt: skip
 
 
+JANSEN_PARAMETERS = """
+# Design: x and y of the crank pin C, the second frame pivot A and the joints B, D,
+# E, F (joints that share an anchor move together); the foot tip follows D and F.
+"""
+
+JANSEN_SYNTHESIS = """
+# The shipped leg's foot path (mechanisms/jansen_1dof.toml), at {n} crank angles
+# 15 degrees apart from the rest pose: the synthesis goes back to it from this
+# file's perturbed design.
+[synthesis]
+kind = "path"
+name = "foot"
+closed = true
+tolerance = 0.34  # cm: 0.5 % of the stride
+points = [
+{rows}
+]
+"""
+
+#: The file's α₋: the shipped leg's least forward σ_min over its turn is 0.034
+#: (homogenised), so the synthesis objective's 2/σ_min stays below α₋ = 80 on it.
+JANSEN_ALPHA_MINUS = 80.0
+#: The parameters' bounds: each coordinate within this of the shipped leg's.
+JANSEN_BOUND = 8.0
+
+
+def jansen_parameters(joints: dict) -> str:
+    names = {"C": "C_j", "A": "A_triangle", "B": "B", "D": "D_kc", "E": "E", "F": "F"}
+    out = [JANSEN_PARAMETERS]
+    for key in JANSEN_JOINTS:
+        for k, axis in enumerate("xy"):
+            value = float(joints[key][k])
+            out.append(
+                f'\n[[parameters]]\nname = "{key}_{axis}"\njoint = "{names[key]}"\n'
+                f'coordinate = "{axis}"\nmin = {value - JANSEN_BOUND!r}\n'
+                f"max = {value + JANSEN_BOUND!r}\n"
+            )
+    return "".join(out)
+
+
+def jansen_foot_path(mech) -> np.ndarray:
+    """The foot point of ``mech``'s file design at :data:`JANSEN_COUNT` crank angles
+    over one turn from rest, traced by continuation."""
+    import linkopt
+
+    angles = 2.0 * np.pi * np.arange(JANSEN_COUNT + 1) / JANSEN_COUNT
+    sol = linkopt.solve_fk_path(mech, angles[:, None])
+    assert bool(np.all(sol.converged)), "the shipped leg turns fully"
+    return linkopt.named_points(mech, sol.state)["foot"][:JANSEN_COUNT]
+
+
+def jansen_design(joints: dict) -> np.ndarray:
+    return np.concatenate([joints[key] for key in JANSEN_JOINTS])
+
+
+def jansen_text(path: Path) -> str:
+    """The shipped leg with its parameters and the foot-path target."""
+    import linkopt
+
+    text = (MECHANISMS / "jansen_1dof.toml").read_text()
+    text = text.replace(
+        'body = "foot"\nposition', 'body = "foot"\nfollow = "anchors"\nposition'
+    )
+    text += jansen_parameters(jansen_joints(JANSEN))
+    shipped = linkopt.loads(text, source=str(path))
+    rows = jansen_foot_path(shipped)[:, :2]
+    return text + JANSEN_SYNTHESIS.format(n=JANSEN_COUNT, rows=_rows(rows))
+
+
+def jansen_write(path: Path) -> None:
+    """``mechanisms/jansen_foot_path.toml``: :func:`jansen_text` written at the
+    perturbed design."""
+    import linkopt
+
+    mech = linkopt.loads(jansen_text(path), source=str(path))
+    design = jansen_design(jansen_joints(jansen_perturbed()))
+    header = (
+        "Issue 41's Jansen case: mechanisms/jansen_1dof.toml with each of its link\n"
+        f"lengths a..g, j..m scaled by a factor in 1 +- {JANSEN_PERTURBATION:g} (seed "
+        f"{JANSEN_SEED}) and\nreassembled on the same branch; the [synthesis] target "
+        "is the shipped leg's foot path.\nWritten by "
+        "benchmarks/synthesis_spatial/generate.py."
+    )
+    linkopt.write_design(mech, design, JANSEN_ALPHA_MINUS, path, header=header)
+
+
 def main() -> None:
     (MECHANISMS / "rssr.toml").write_text(rssr_text())
     (MECHANISMS / "spherical_four_bar.toml").write_text(spherical_text())
-    print(
-        "wrote mechanisms/rssr.toml, mechanisms/spherical_four_bar.toml",
-        file=sys.stderr,
-    )
+    jansen_write(MECHANISMS / "jansen_foot_path.toml")
+    print("wrote mechanisms/rssr.toml, spherical_four_bar.toml, jansen_foot_path.toml")
 
 
 if __name__ == "__main__":
