@@ -304,7 +304,7 @@ max = {bounds[2][1]}
 [synthesis]
 kind = "function"
 name = "rocker"
-tolerance = 0.004  # rad: under 1 % of the output's swing
+tolerance = 0.0035  # rad: under 1 % of the output's swing (0.398 rad)
 points = [
 {rows}
 ]
@@ -382,7 +382,7 @@ max = 1.15
 kind = "path"
 name = "coupler_point"
 closed = true
-tolerance = 0.3  # mm: under 1 % of the curve's extent
+tolerance = 0.25  # mm: under 1 % of the curve's extent (28.8 mm)
 points = [
 {rows}
 ]
@@ -444,7 +444,7 @@ JANSEN_SYNTHESIS = """
 kind = "path"
 name = "foot"
 closed = true
-tolerance = 0.34  # cm: 0.5 % of the stride
+tolerance = 0.33  # cm: under 0.5 % of the stride (67.8 cm)
 points = [
 {rows}
 ]
