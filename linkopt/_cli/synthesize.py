@@ -105,11 +105,11 @@ def _copy_targets_file(mech, out: Path) -> None:
         shutil.copyfile(source, target)
 
 
-#: ``--export`` formats and the run folder's name for each (stl: a folder).
+#: ``--export`` formats and the run folder's file for each (``linkopt export``'s
+#: formats but stl, whose one file per body ``linkopt export`` writes on its own).
 EXPORT_NAMES = {
     "mjcf": "optimized.xml",
     "urdf": "optimized.urdf",
-    "stl": "optimized_stl",
     "glb": "optimized.glb",
     "dxf": "optimized.dxf",
     "svg": "optimized.svg",
@@ -132,31 +132,38 @@ def export_formats(text: str) -> tuple[str, ...]:
 
 
 def check_exports(mech, formats) -> None:
-    """Each format can be written for ``mech`` (the ``linkopt export`` checks: a
-    closed loop as URDF, a spatial mechanism as DXF or SVG, ezdxf missing ...),
-    before any work."""
-    from argparse import Namespace
+    """Each format can be written for ``mech``, before any work: the checks of
+    ``linkopt export`` (file units, a closed loop as URDF, a spatial mechanism as
+    DXF or SVG, ezdxf installed)."""
+    from .._export.sheet import check_planar, require_ezdxf
+    from .._export.tree import metres_per_unit
+    from .._export.urdf import check_open_chain
 
-    from .export import _check, _check_stl_names
-
-    for fmt in formats:
-        _check(Namespace(format=fmt, thickness=None), mech, mech.design.p0)
-        if fmt == "stl":
-            _check_stl_names(mech)
+    if formats:
+        metres_per_unit(mech)
+    if "urdf" in formats:
+        check_open_chain(mech)
+    if "dxf" in formats or "svg" in formats:
+        check_planar(mech, mech.design.p0)
+    if "dxf" in formats:
+        require_ezdxf()
 
 
 def _exports(mech, design, formats, out: Path) -> dict:
-    from argparse import Namespace
+    """The design in each format (``linkopt export``'s writers, default thickness)."""
+    from .._export import meshes, mjcf, sheet, urdf
 
-    from .export import _export
-
+    writers = {
+        "mjcf": mjcf.export_mjcf,
+        "urdf": urdf.export_urdf,
+        "glb": meshes.export_glb,
+        "dxf": sheet.export_dxf,
+        "svg": sheet.export_svg,
+    }
     written = {}
     for fmt in formats:
-        target = out / EXPORT_NAMES[fmt]
-        if fmt == "stl":
-            target.mkdir(exist_ok=True)
-        _export(Namespace(format=fmt, thickness=None), mech, design, target)
-        written[fmt] = str(target)
+        writers[fmt](mech, out / EXPORT_NAMES[fmt], design)
+        written[fmt] = str(out / EXPORT_NAMES[fmt])
     return written
 
 

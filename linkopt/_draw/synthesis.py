@@ -115,16 +115,16 @@ def _traced_as(mech: Mechanism, item, result):
 
 
 def _targets_on(ax, result, basis) -> None:
-    """The path or motion targets (their positions) as static red dots."""
-    from .animation import _project
-
+    """The path or motion targets (their positions) as static red dots, in the
+    animation's plane (``basis``) or its 3-D view (None)."""
     if result.targets.kind == "function":
         return
-    goals = _project(np.asarray(result.targets.values)[:, :3], basis)
+    goals = np.asarray(result.targets.values)[:, :3]
     label = f"targets (tolerance {result.targets.tolerance:g})"
     if basis is None:
         ax.scatter(*goals.T, color="tab:red", s=14, depthshade=False, label=label)
     else:
+        goals = goals @ np.asarray(basis).T
         ax.scatter(*goals.T, color="tab:red", s=14, zorder=3, label=label)
 
 
@@ -134,36 +134,18 @@ def animate_synthesis(
     """``path`` (a GIF): the synthesised design moving through its cycle
     (:func:`cycle_frames`, solved by continuation from the rest pose), the traced
     point's path growing frame by frame over the targets; bodies coloured by
-    ``f_sing`` as every linkopt animation is (:mod:`linkopt._draw.animation`)."""
+    ``f_sing`` as every linkopt animation is (:func:`linkopt._draw.animation.draw`)."""
     from .._design.motion import motion
-    from . import animation as anim
+    from .animation import draw
 
     design = np.asarray(result.design)
     rows = cycle_frames(result, frames)
     item = _traced_as(mech, motion(mech, design=design, motors=rows), result)
-    basis = anim.plane_basis(mech, design)
-    norm = anim.colour_norm(item.f_sing)
-    rings = anim.body_rings(mech, np.concatenate([item.joints[0], item.points[0]]))
-    title = f"{mech.name}: {result.targets.kind} of {result.targets.name}"
-    fig, ax = anim._figure(mech, item, basis, norm, title, 72)
-    scene = anim._scene(ax, mech, item, basis)
-    _targets_on(ax, result, basis)
-    if basis is not None:
-        ax.legend(loc="best", fontsize=6, framealpha=0.6)
-    images = anim._render(
-        fig,
-        scene,
-        lambda k: anim._update(k, scene, mech, item, rings, basis, norm),
-        len(item.states),
-    )
-    images = anim.quantised(images)
-    path = Path(path)
-    images[0].save(
+    return draw(
+        mech,
+        item,
         path,
-        format="GIF",
-        save_all=True,
-        append_images=images[1:],
-        duration=round(1000 / anim.FPS),
-        loop=0,
+        design=design,
+        title=f"{mech.name}: {result.targets.kind} of {result.targets.name}",
+        decorate=lambda ax, basis: _targets_on(ax, result, basis),
     )
-    return path
