@@ -164,3 +164,19 @@ def test_another_seed_does_not_resume_the_run(tmp_path, capsys):
     flags = ["--iterations", "2", "--export", "none", "--resume", "--seed", "4"]
     assert main(["synthesize", str(FILE), "--out", str(out), *FLAGS[:4], *flags]) == 2
     assert "settings: the checkpoint is of another run" in capsys.readouterr().err
+
+
+def test_a_spatial_cycle_is_animated_in_3d_over_its_targets(tmp_path):
+    from linkopt._draw.synthesis import animate_synthesis
+
+    mech = linkopt.load(MECHANISMS / "spherical_four_bar.toml")
+    targets = linkopt.synthesis.load_targets(mech)
+    result = linkopt.synthesis.score(mech, targets, steps=120)
+    path = animate_synthesis(mech, result, tmp_path / "cycle.gif", frames=24)
+    with Image.open(path) as gif:
+        assert gif.n_frames == 24
+        gif.seek(12)
+        gif.convert("RGB").save(tmp_path / "frame.png")
+        frame = np.asarray(gif.convert("RGB")).astype(int)
+    red = (frame[..., 0] > 180) & (frame[..., 1] < 90) & (frame[..., 2] < 90)
+    assert red.sum() > 12 * 4  # the twelve target dots are drawn
