@@ -292,7 +292,11 @@ def register(subparsers) -> None:
         help="path, function or motion generation on the file's [synthesis] table",
     )
     syn.add_argument("file")
-    syn.add_argument("--out", help="run directory (design, history, summary, figure)")
+    syn.add_argument(
+        "--out",
+        help="run directory (design, history, summary, figure, animation, exports, "
+        "checkpoint)",
+    )
     syn.add_argument(
         "--targets", help="a CSV of target rows instead of the table's (docs)"
     )
