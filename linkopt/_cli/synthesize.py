@@ -1,12 +1,18 @@
 """``linkopt synthesize FILE [--targets CSV] --out RUN``: path, function or motion
 generation on the file's ``[synthesis]`` table.
 
-``RUN`` receives ``optimized.toml`` (the file with the synthesised design, written by
-:func:`linkopt.write_design`), ``history.csv`` (one row per iteration),
-``summary.json`` (the numbers below, also printed on stdout) and ``synthesis.png``
-(the traced curve over the targets, the file's design behind). The summary holds the
-RMS and largest distance to the targets, whether every one is within the tolerance,
-the least forward ``σ_min`` over the cycle and its margin over ``α₋``, for a planar
+``RUN`` receives, as ``linkopt optimize`` writes its run folder: ``optimized.toml``
+(the file with the synthesised design, written by :func:`linkopt.write_design`),
+``history.csv`` (one row per iteration), ``summary.json`` (the numbers below, also
+printed on stdout), ``synthesis.png`` (the traced curve over the targets, the file's
+design behind), ``synthesis.gif`` (the design moving through its cycle, the traced
+point's path growing over the targets), the exports of ``--export`` (default
+``mjcf``: ``optimized.xml``, as ``optimize`` writes; also ``urdf``, ``stl``, ``glb``,
+``dxf``, ``svg``, with ``linkopt export``'s checks made before any work),
+``view.html`` and ``checkpoint.json`` (:mod:`.synth_checkpoint`, replaced after
+every iteration; ``--resume`` continues the run exactly). The summary holds the RMS
+and largest distance to the targets, whether every one is within the tolerance, the
+least forward ``σ_min`` over the cycle and its margin over ``α₋``, for a planar
 four-bar its Grashof class, link ratio and worst transmission angle (``four_bar``),
 and the dense cycle sweep's verdict (``verified``, ``defect``: the first defect it
 met).
@@ -14,7 +20,8 @@ met).
 ``linkopt synthesize FILE --verify [--design D]`` only sweeps one design (the file's,
 or ``D``: values or a file with the same parameters, e.g. ``RUN/optimized.toml``)
 densely over its cycle and exits 1 naming the first defect; 0 when there is none.
-Progress goes to stderr. A run is not checkpointed (no ``--resume``).
+Progress (each iteration, then each stage of the outputs) goes to stderr. The run
+folder is locked while the command runs, as ``optimize``'s is.
 """
 
 from __future__ import annotations
@@ -48,6 +55,8 @@ def _settings(args) -> OptimizerSettings:
 
 
 def _check_flags(args) -> None:
+    if args.resume and args.verify:
+        raise InputError("--resume: not with --verify (nothing to resume)")
     for flag in ("particles", "iterations"):
         if getattr(args, flag) < 1:
             raise InputError(
@@ -96,10 +105,77 @@ def _copy_targets_file(mech, out: Path) -> None:
         shutil.copyfile(source, target)
 
 
-def _write(mech, result, initial, out: Path) -> dict:
-    from .._draw.synthesis import plot_synthesis
+#: ``--export`` formats and the run folder's file for each (``linkopt export``'s
+#: formats but stl, whose one file per body ``linkopt export`` writes on its own).
+EXPORT_NAMES = {
+    "mjcf": "optimized.xml",
+    "urdf": "optimized.urdf",
+    "glb": "optimized.glb",
+    "dxf": "optimized.dxf",
+    "svg": "optimized.svg",
+}
+
+
+def export_formats(text: str) -> tuple[str, ...]:
+    """``--export``: a comma-separated list of :data:`EXPORT_NAMES` formats, or
+    ``none``."""
+    if text.strip().lower() == "none":
+        return ()
+    formats = tuple(f.strip().lower() for f in text.split(",") if f.strip())
+    bad = [f for f in formats if f not in EXPORT_NAMES]
+    if bad or not formats:
+        raise InputError(
+            f"--export: expected formats among {','.join(EXPORT_NAMES)} (comma-"
+            f"separated) or none, got {text!r}"
+        )
+    return tuple(dict.fromkeys(formats))
+
+
+def check_exports(mech, formats) -> None:
+    """Each format can be written for ``mech``, before any work: the checks of
+    ``linkopt export`` (file units, a closed loop as URDF, a spatial mechanism as
+    DXF or SVG, ezdxf installed)."""
+    from .._export.sheet import check_planar, require_ezdxf
+    from .._export.tree import metres_per_unit
+    from .._export.urdf import check_open_chain
+
+    if formats:
+        metres_per_unit(mech)
+    if "urdf" in formats:
+        check_open_chain(mech)
+    if "dxf" in formats or "svg" in formats:
+        check_planar(mech, mech.design.p0)
+    if "dxf" in formats:
+        require_ezdxf()
+
+
+def _exports(mech, design, formats, out: Path) -> dict:
+    """The design in each format (``linkopt export``'s writers, default thickness)."""
+    from .._export import meshes, mjcf, sheet, urdf
+
+    writers = {
+        "mjcf": mjcf.export_mjcf,
+        "urdf": urdf.export_urdf,
+        "glb": meshes.export_glb,
+        "dxf": sheet.export_dxf,
+        "svg": sheet.export_svg,
+    }
+    written = {}
+    for fmt in formats:
+        writers[fmt](mech, out / EXPORT_NAMES[fmt], design)
+        written[fmt] = str(out / EXPORT_NAMES[fmt])
+    return written
+
+
+def _stage(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def _write(mech, result, initial, out: Path, formats=()) -> dict:
+    from .._draw.synthesis import animate_synthesis, plot_synthesis
     from .._files.writer import write_design
 
+    _stage("writing the synthesised file, figure, animation and exports ...")
     _copy_targets_file(mech, out)
     write_design(
         mech, result.design, result.alpha_minus, out / "optimized.toml",
@@ -107,7 +183,12 @@ def _write(mech, result, initial, out: Path) -> dict:
     )  # fmt: skip
     write_atomic(out / "history.csv", _history_csv(result.history))
     plot_synthesis(mech, result, out / "synthesis.png", initial=initial)
-    return {"optimized_file": str(out / "optimized.toml")}
+    animate_synthesis(mech, result, out / "synthesis.gif")
+    return {
+        "optimized_file": str(out / "optimized.toml"),
+        "animation": str(out / "synthesis.gif"),
+        "exports": _exports(mech, result.design, formats, out),
+    }
 
 
 def _progress(record: dict) -> None:
@@ -139,28 +220,62 @@ def _verify_only(args, mech) -> int:
     return 0
 
 
+def _start(args, mech, targets, settings, out: Path):
+    """The run to continue (``--resume``: the checkpoint, checked in full) or None;
+    a folder holding a run is refused without ``--resume``."""
+    from . import synth_checkpoint
+
+    if args.resume:
+        return synth_checkpoint.load(out, mech, settings, args.steps, targets)
+    if (out / synth_checkpoint.CHECKPOINT).exists():
+        raise InputError(
+            f"{out}: already holds a synthesis run; pass --resume to continue it, or "
+            "choose another --out"
+        )
+    return None
+
+
 def run(args) -> int:
     _check_flags(args)
     mech = load(args.file)
     if args.verify:
         return _verify_only(args, mech)
-    out = output_folder(args.out)
+    from .._design.run import locked_run_folder
+
+    with locked_run_folder(args.out, args.resume, "--out") as out:
+        return _synthesize(args, mech, output_folder(out))
+
+
+def _synthesize(args, mech, out: Path) -> int:
+    from . import synth_checkpoint
+
+    formats = export_formats(args.export)
+    check_exports(mech, formats)
     targets = _targets(mech, args)
+    settings = _settings(args)
+    resume = _start(args, mech, targets, settings, out)
     from .._synth.run import score_design, synthesize
 
+    _stage("scoring the file's design over its cycle (compiles once per structure) ...")
     initial = score_design(mech, targets, steps=args.steps)
+    if resume is not None:
+        _stage(f"resuming {out} after {resume.iteration} finished iterations")
     result = synthesize(
-        mech, targets, _settings(args), steps=args.steps, progress=_progress
-    )
+        mech, targets, settings, steps=args.steps, progress=_progress, resume=resume,
+        checkpoint=lambda state: synth_checkpoint.save(
+            out, state, mech, settings, args.steps, targets
+        ),
+    )  # fmt: skip
     from .._synth.run import four_bar_summary
 
+    _stage("sweeping the synthesised design's cycle densely ...")
     summary = {
         **result.summary(),
         "initial_design": dict(zip(mech.design.names, map(float, mech.design.p0))),
         "initial_rms": initial.rms,
         "four_bar": four_bar_summary(mech, result.design),
         **_verdict(mech, result),
-        **_write(mech, result, initial, out),
+        **_write(mech, result, initial, out, formats),
     }
     write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     from .view import write_run_view
@@ -177,7 +292,11 @@ def register(subparsers) -> None:
         help="path, function or motion generation on the file's [synthesis] table",
     )
     syn.add_argument("file")
-    syn.add_argument("--out", help="run directory (design, history, summary, figure)")
+    syn.add_argument(
+        "--out",
+        help="run directory (design, history, summary, figure, animation, exports, "
+        "checkpoint)",
+    )
     syn.add_argument(
         "--targets", help="a CSV of target rows instead of the table's (docs)"
     )
@@ -186,6 +305,20 @@ def register(subparsers) -> None:
     syn.add_argument("--iterations", type=int, default=40)
     syn.add_argument(
         "--steps", type=int, default=360, help="rows of the swept cycle (default 360)"
+    )
+    syn.add_argument(
+        "--export",
+        default="mjcf",
+        help=(
+            "formats of the synthesised design written beside it, comma-separated: "
+            f"{','.join(EXPORT_NAMES)}, or none (default mjcf, optimized.xml, as "
+            "optimize writes)"
+        ),
+    )
+    syn.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the run checkpointed in --out (same file, targets and flags)",
     )
     syn.add_argument(
         "--verify",

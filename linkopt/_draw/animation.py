@@ -289,10 +289,13 @@ def draw(
     f_sing_range=None,
     title: str = "",
     dpi: int = 72,
+    decorate=None,
 ) -> Path:
     """Write ``item``'s frames (all reached, unless it is the default loop) as a
     looping GIF, ``FPS`` frames a second (matplotlib Agg frames, written by Pillow;
-    module docstring)."""
+    module docstring). ``decorate(ax, basis)``, when given, draws static artists
+    (a synthesis's targets) on the axes before the frames; ``basis`` is the plane's
+    ``(2, 3)`` basis, None for a 3-D view."""
     if item.first_unreached is not None and not item.default:
         raise PathNotReached(unreached_message(mech, item), item.first_unreached + 1)
     basis = plane_basis(mech, design)
@@ -300,6 +303,8 @@ def draw(
     rings = body_rings(mech, np.concatenate([item.joints[0], item.points[0]]))
     fig, ax = _figure(mech, item, basis, norm, title, dpi)
     scene = _scene(ax, mech, item, basis)
+    if decorate is not None:
+        decorate(ax, basis)
     if basis is not None:
         ax.legend(loc="best", fontsize=6, framealpha=0.6)
     images = _render(

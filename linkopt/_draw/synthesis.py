@@ -87,3 +87,65 @@ def plot_synthesis(mech: Mechanism, result, path: str | Path, initial=None) -> P
     path = Path(path)
     fig.savefig(path, dpi=100)
     return path
+
+
+#: Frames of the synthesis animation (``synthesis.gif``): the cycle's rows, evenly.
+ANIMATION_FRAMES = 72
+
+
+def cycle_frames(result, frames: int = ANIMATION_FRAMES) -> np.ndarray:
+    """The motor rows ``(T, M)`` of the animation: ``frames`` rows of the result's
+    swept cycle, evenly spaced, the first and last included (all when fewer)."""
+    motors = np.asarray(result.motors)
+    count = min(frames, len(motors))
+    return motors[np.round(np.linspace(0, len(motors) - 1, count)).astype(int)]
+
+
+def _traced_as(mech: Mechanism, item, result):
+    """The motion with the synthesised point as its only trace (a path target); the
+    motion's own traces otherwise."""
+    import dataclasses
+
+    if result.targets.kind != "path":
+        return item
+    k = mech.point_names.index(result.targets.name)
+    return dataclasses.replace(
+        item, trace=item.points[:, [k]], trace_names=(result.targets.name,)
+    )
+
+
+def _targets_on(ax, result, basis) -> None:
+    """The path or motion targets (their positions) as static red dots, in the
+    animation's plane (``basis``) or its 3-D view (None)."""
+    if result.targets.kind == "function":
+        return
+    goals = np.asarray(result.targets.values)[:, :3]
+    label = f"targets (tolerance {result.targets.tolerance:g})"
+    if basis is None:
+        ax.scatter(*goals.T, color="tab:red", s=14, depthshade=False, label=label)
+    else:
+        goals = goals @ np.asarray(basis).T
+        ax.scatter(*goals.T, color="tab:red", s=14, zorder=3, label=label)
+
+
+def animate_synthesis(
+    mech: Mechanism, result, path: str | Path, frames: int = ANIMATION_FRAMES
+) -> Path:
+    """``path`` (a GIF): the synthesised design moving through its cycle
+    (:func:`cycle_frames`, solved by continuation from the rest pose), the traced
+    point's path growing frame by frame over the targets; bodies coloured by
+    ``f_sing`` as every linkopt animation is (:func:`linkopt._draw.animation.draw`)."""
+    from .._design.motion import motion
+    from .animation import draw
+
+    design = np.asarray(result.design)
+    rows = cycle_frames(result, frames)
+    item = _traced_as(mech, motion(mech, design=design, motors=rows), result)
+    return draw(
+        mech,
+        item,
+        path,
+        design=design,
+        title=f"{mech.name}: {result.targets.kind} of {result.targets.name}",
+        decorate=lambda ax, basis: _targets_on(ax, result, basis),
+    )

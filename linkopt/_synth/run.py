@@ -183,17 +183,25 @@ def synthesize(
     steps: int = 360,
     span: tuple[float, float] | None = None,
     progress: Callable[[dict], None] | None = None,
+    resume: swarm_run.SwarmRun | None = None,
+    checkpoint: Callable[[swarm_run.SwarmRun], None] | None = None,
 ) -> SynthesisResult:
     """A design of ``mech`` whose cycle meets ``targets`` (module docstring).
     ``steps``: rows of the swept cycle; ``span``: the motor range of an open
     one-motor target without timing whose motor has no limits (default a full turn
-    for a rotary motor); ``progress`` receives each iteration's history row."""
+    for a rotary motor); ``progress`` receives each iteration's history row;
+    ``checkpoint`` the run after each iteration's move (the state to score next),
+    and ``resume`` such a run to continue instead of a fresh swarm (the same end as
+    an uninterrupted run: every step is deterministic)."""
     settings = settings or DEFAULT
     targets = check_targets(mech, targets)
     problem = Problem(targets, plan(mech, targets, steps, span))
     alpha = alpha_minus(mech)
     began = time.perf_counter()
-    run = seeded(mech, problem, settings, alpha, swarm_run.start(mech, settings))
+    if resume is None:
+        run = seeded(mech, problem, settings, alpha, swarm_run.start(mech, settings))
+    else:
+        run = resume
     while True:
         result = score(mech, problem, run.position, alpha)
         run, swarm, costs, chosen = _score_step(
@@ -206,6 +214,8 @@ def synthesize(
         if swarm_run.converged(run, settings):
             break
         run = _move(mech, problem, run, swarm, result, settings, alpha)
+        if checkpoint is not None:
+            checkpoint(run)
     design = polished(mech, problem, run.result_pos, settings, alpha)
     return finish(mech, problem, design, alpha, run.history, began)
 
