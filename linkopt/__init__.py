@@ -6,10 +6,11 @@ units. Results and settings are frozen dataclasses, read by field name; those th
 traces (``Solution``, ``Evaluation``, ``DHTable``) are registered pytrees (the rule:
 the documentation's Architecture page, Conventions).
 
-linkopt computes in float64 and keeps compiled programs in a bounded on-disk cache
-(:mod:`linkopt._config`). Importing :mod:`linkopt` does not import JAX; JAX is set up
-for linkopt when the first linkopt module that uses it is imported (on first use of a
-public name), or at once when JAX is already imported.
+Importing :mod:`linkopt` imports no JAX and changes nothing: names are imported on
+first use. linkopt computes in float64, the one JAX option it sets itself, when the
+first public name other than an error type is used (:mod:`linkopt._config`); :func:`use_cache` keeps
+compiled programs in a bounded on-disk cache where the user asks (the command line
+does).
 
 The names of the serial-arm families and of the export formats are also grouped, under
 shorter names, in the namespaces :mod:`linkopt.arms.codesign`, :mod:`linkopt.arms.dh`,
@@ -19,10 +20,6 @@ shorter names, in the namespaces :mod:`linkopt.arms.codesign`, :mod:`linkopt.arm
 
 import importlib
 from typing import TYPE_CHECKING
-
-from ._imports import configure_before_jax
-
-configure_before_jax()
 
 # name → (module, attribute). Imported on first use (PEP 562), so that a process that
 # needs one part (a worker evaluating designs, ``linkopt check``) does not pay for the
@@ -70,6 +67,7 @@ _EXPORTS = {
     "Verification": ("_design.verify", "Verification"),
     "verify": ("_design.verify", "verify"),
     "write_design": ("_files.writer", "write_design"),
+    "use_cache": ("_config", "use_cache"),
     "ArmSolution": ("_arms.codesign.nlp", "ArmSolution"),
     "prepare_arm": ("_arms.codesign.nlp", "prepare"),
     "solve_arm": ("_arms.codesign.nlp", "solve"),
@@ -114,7 +112,7 @@ _EXPORTS = {
 }
 
 
-#: The public namespaces, imported on first use (:mod:`linkopt._imports`).
+#: The public namespaces, imported on first use (:mod:`linkopt._namespace`).
 _NAMESPACES = ("arms", "export", "synthesis")
 
 
@@ -125,7 +123,7 @@ def __getattr__(name: str):
         module, attribute = _EXPORTS[name]
     except KeyError:
         raise AttributeError(f"module 'linkopt' has no attribute {name!r}") from None
-    if module != "_errors":  # every name that computes configures JAX first
+    if module != "_errors":  # float64 on before any public name that computes is used
         importlib.import_module("._config", __name__)
     value = getattr(importlib.import_module(f".{module}", __name__), attribute)
     globals()[name] = value
@@ -184,6 +182,7 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     )
     from ._arms.trace.verify import PlanarArm, TraceVerification
     from ._arms.trace.verify import verify as verify_trace
+    from ._config import use_cache
     from ._design.evaluation import Evaluation, evaluate
     from ._design.motion import Motion, PathNotReached, motion
     from ._design.partial import partial_gradient

@@ -10,7 +10,7 @@ Each name is also a top-level name of :mod:`linkopt`, the same object: ``mjcf`` 
 
 from typing import TYPE_CHECKING
 
-from ._imports import namespace as _namespace
+from ._namespace import namespace as _namespace
 
 #: each name here -> its top-level name in :mod:`linkopt`
 _TOP_LEVEL = {

@@ -9,7 +9,7 @@ is ``linkopt.synthesize``, ``Targets`` ``linkopt.SynthesisTargets``, ``load_targ
 
 from typing import TYPE_CHECKING
 
-from ._imports import namespace as _namespace
+from ._namespace import namespace as _namespace
 
 #: each name here -> its top-level name in :mod:`linkopt`
 _TOP_LEVEL = {

@@ -16,6 +16,10 @@ checks first what needs neither the file nor the engine, then reads the file
 imported), and imports the engine only then, so that ``--help``, a usage error and a
 bad flag or file answer at once.
 
+The command line asks for linkopt's on-disk caches (:func:`linkopt.use_cache`), which a
+library user may or may not: :func:`main` records the request without importing JAX,
+and :mod:`linkopt._config` applies it when a command first sets JAX up.
+
 Bad input exits with status 2 and one line on stderr (argparse's own errors too: the
 usage text is left to ``--help``); a failed solve exits with 1.
 """
@@ -26,6 +30,7 @@ import argparse
 import os
 import sys
 
+from .. import _cache
 from .._errors import LinkoptError
 from . import animate as animate_commands
 from . import arm as arm_commands
@@ -118,6 +123,15 @@ def _join_value_options(argv: list[str]) -> list[str]:
     return joined
 
 
+def _use_cache() -> None:
+    """The caches on (module docstring): at once where JAX is set up for linkopt
+    already (``main`` called in a Python process), else when it is."""
+    _cache.request()
+    config = sys.modules.get(f"{__package__.rpartition('.')[0]}._config")
+    if config is not None:
+        config.use_cache()
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     try:
@@ -125,6 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     except _UsageError as err:
         print(err, file=sys.stderr)
         return 2
+    _use_cache()
     try:
         return args.run(args)
     except LinkoptError as err:

@@ -15,14 +15,19 @@ from __future__ import annotations
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 
+from .. import _cache
+
 #: Processes spawned by :func:`start`, not adopted yet, with the ``count`` they serve.
 _AHEAD: tuple[int, ProcessPoolExecutor] | None = None
 
 
-def initialise() -> None:
-    """A worker process's start-up: the imports, and OpenBLAS held to one thread for
-    its lifetime (:mod:`linkopt._config`)."""
-    from .._config import one_blas_thread
+def initialise(caches: _cache.Use | None = None) -> None:
+    """A worker process's start-up: the caches its parent uses (``caches``), the
+    imports, and OpenBLAS held to one thread for its lifetime
+    (:mod:`linkopt._config`)."""
+    from .._config import adopt, one_blas_thread
+
+    adopt(caches)
     from . import evaluation, partial  # noqa: F401  (the imports are the start-up)
 
     one_blas_thread()
@@ -36,7 +41,10 @@ def spawn(count: int) -> ProcessPoolExecutor:
     """A pool of ``count`` worker processes (spawn, not fork: fork would copy JAX's
     threads)."""
     return ProcessPoolExecutor(
-        count, mp_context=multiprocessing.get_context("spawn"), initializer=initialise
+        count,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=initialise,
+        initargs=(_cache.requested(),),
     )
 
 

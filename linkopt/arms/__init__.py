@@ -7,7 +7,7 @@ Each name of a family is also a top-level name of :mod:`linkopt`, the same objec
 nothing until a name is used.
 """
 
-from .._imports import namespace as _namespace
+from .._namespace import namespace as _namespace
 
 __all__ = ["codesign", "dh", "trace"]
 

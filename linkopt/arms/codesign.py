@@ -10,7 +10,7 @@ names.
 
 from typing import TYPE_CHECKING
 
-from .._imports import namespace as _namespace
+from .._namespace import namespace as _namespace
 
 #: each name here -> its top-level name in :mod:`linkopt`
 _TOP_LEVEL = {

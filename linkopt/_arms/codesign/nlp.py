@@ -495,8 +495,14 @@ def solve(
         import concurrent.futures
         import multiprocessing
 
+        from ..._cache import requested
+        from ..._config import adopt
+
         with concurrent.futures.ProcessPoolExecutor(
-            workers, mp_context=multiprocessing.get_context("spawn")
+            workers,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=adopt,
+            initargs=(requested(),),
         ) as pool:
             results = []
             for solution in pool.map(_solve_start, jobs):

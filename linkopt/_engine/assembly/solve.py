@@ -149,9 +149,9 @@ def _min_norm(jac, rhs, damping):
 @functools.cache
 def _programs():
     """The jitted solver stages, built on first use: a file that declares no assembly
-    is read without JAX (:mod:`linkopt._imports`). :mod:`linkopt._config` comes
-    first, so JAX starts in float64; every other JAX use in this package runs after
-    this, inside these programs or on their results."""
+    is read without JAX. :mod:`linkopt._config` comes first, so JAX starts in float64;
+    every other JAX use in this package runs after this, inside these programs or on
+    their results."""
     from ..._config import jit
     from .. import lm as _lm
 
