@@ -21,11 +21,12 @@ from pathlib import Path
 import _results
 import numpy as np
 
-import linkopt  # noqa: F401  (float64, cache)
+import linkopt
 from linkopt._arms.codesign import nlp
 from linkopt._arms.codesign.task import load_task
 from linkopt._draw.arms.codesign import plot_solution
 
+linkopt.use_cache()  # float64, and compiled programs kept on disk
 ROOT = Path(__file__).resolve().parent.parent
 #: The paper's mean minutes per solve over 8 random seeds (paper 000).
 PAPER_MINUTES = {"backpack": 1.8, "rover": 85.0}

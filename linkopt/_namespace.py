@@ -14,19 +14,24 @@ PACKAGE = __name__.rpartition(".")[0]
 
 
 def namespace(
-    module: str, names: Mapping[str, str], submodules: Iterable[str] = ()
+    module: str,
+    names: Mapping[str, tuple[str, str]],
+    submodules: Iterable[str] = (),
 ) -> tuple[Callable[[str], object], Callable[[], list[str]]]:
     """The ``__getattr__`` and ``__dir__`` (PEP 562) of the public namespace
-    ``module``: its name ``name`` is the top-level name ``names[name]`` of
-    :mod:`linkopt`, the same object, looked up on first use (so it configures JAX as
-    the top-level name does); each of ``submodules`` is imported on first use."""
+    ``module``: its name ``name`` is ``names[name] = (private module, attribute)``
+    under :mod:`linkopt`, imported on first use after :mod:`linkopt._config` (float64
+    on, as for the top-level names); each of ``submodules`` is imported on first
+    use."""
     submodules = tuple(submodules)
 
     def __getattr__(name: str):
         if name in submodules:
             value = importlib.import_module(f"{module}.{name}")
         elif name in names:
-            value = getattr(importlib.import_module(PACKAGE), names[name])
+            importlib.import_module(f"{PACKAGE}._config")
+            source, attribute = names[name]
+            value = getattr(importlib.import_module(f"{PACKAGE}.{source}"), attribute)
         else:
             raise AttributeError(f"module {module!r} has no attribute {name!r}")
         setattr(sys.modules[module], name, value)

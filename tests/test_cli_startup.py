@@ -213,9 +213,11 @@ def _command(parser: argparse.ArgumentParser, *path: str) -> argparse.ArgumentPa
 
 def test_the_defaults_shown_are_the_engines():
     """The parser's defaults equal the settings classes' own (imported here)."""
-    from linkopt import DHSynthesisSettings, OptimizerSettings, TraceSettings
+    from linkopt import OptimizerSettings
     from linkopt._arms.dh import synthesis
     from linkopt._design import maps, motion
+    from linkopt.arms.dh import DHSynthesisSettings
+    from linkopt.arms.trace import TraceSettings
 
     parser = build_parser()
     optimizer = OptimizerSettings()
@@ -257,8 +259,8 @@ def test_the_settings_the_command_line_reads_are_the_engines_own():
     from linkopt._design import maps, optimizer
 
     assert optimizer.OptimizerSettings is linkopt.OptimizerSettings
-    assert synthesis.DHSynthesisSettings is linkopt.DHSynthesisSettings
-    assert trace.TraceSettings is linkopt.TraceSettings
+    assert synthesis.DHSynthesisSettings is linkopt.arms.dh.DHSynthesisSettings
+    assert trace.TraceSettings is linkopt.arms.trace.TraceSettings
     assert evaluation.MAX_CELLS is maps.MAX_CELLS
 
 
