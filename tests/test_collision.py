@@ -324,7 +324,7 @@ def test_a_layer_needs_a_plane_normal():
 
 
 def _build(text: str):
-    from linkopt._engine.fields import parse_toml
+    from linkopt._files.fields import parse_toml
     from linkopt._files.loader import build
 
     return build(parse_toml(text, "layer.toml"), "layer.toml", check=False)

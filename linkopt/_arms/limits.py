@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from jaxtyping import Float
 
-from .._engine.fields import Reader, is_finite_number
+from .._files.fields import Reader, is_finite_number
 
 MAX_FILE_BYTES = 16 * 2**20
 MAX_MAGNITUDE = 1e6

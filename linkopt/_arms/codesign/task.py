@@ -65,8 +65,8 @@ from pathlib import Path
 import numpy as np
 from jaxtyping import Float
 
-from ..._engine.fields import Reader, is_number_list, parse_text, parse_toml
 from ..._errors import InputError, MechanismFileError
+from ..._files.fields import Reader, is_number_list, parse_text, parse_toml
 from .. import limits
 from .model import LENGTH_SLOTS, SLOTS, Arm, Module, make_arm
 from .sdf import (

@@ -62,8 +62,8 @@ from pathlib import Path
 import numpy as np
 from jaxtyping import Float
 
-from ..._engine.fields import Reader, parse_text, parse_toml
 from ..._errors import MechanismFileError
+from ..._files.fields import Reader, parse_text, parse_toml
 from .. import limits
 
 KINDS = ("line", "arc", "circle")

@@ -12,9 +12,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .._engine.model import AXIAL_JOINTS, COORDINATES
+from .._engine.symmetry import MIRROR_TOL, Symmetry
 from .fields import Reader, field_name, shown
-from .model import AXIAL_JOINTS, COORDINATES
-from .symmetry import MIRROR_TOL, Symmetry
 
 #: Largest |bound| of an axis-component parameter (the axis is normalised).
 MAX_AXIS_BOUND = 1e6
