@@ -18,7 +18,7 @@ from pathlib import Path
 
 from conftest import MECHANISMS
 
-from linkopt._cli import animate, evaluation, manipulability
+from linkopt._cli import animate, grids, manipulability
 from linkopt._cli.main import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -261,7 +261,7 @@ def test_the_settings_the_command_line_reads_are_the_engines_own():
     assert optimizer.OptimizerSettings is linkopt.OptimizerSettings
     assert synthesis.DHSynthesisSettings is linkopt.arms.dh.DHSynthesisSettings
     assert trace.TraceSettings is linkopt.arms.trace.TraceSettings
-    assert evaluation.MAX_CELLS is maps.MAX_CELLS
+    assert grids.MAX_CELLS is maps.MAX_CELLS
 
 
 def test_import_linkopt_imports_no_jax_and_its_names_turn_float64_on():

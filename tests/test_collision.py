@@ -363,7 +363,7 @@ def test_layers_keep_their_closed_form_clearance():
 
 
 def test_a_coupler_through_the_ground_fails_verify_naming_the_pair():
-    from linkopt._cli.evaluation import verification_payload
+    from linkopt._cli.verify import verification_payload
     from linkopt._design.verify import verify
 
     mech = linkopt.load(COLLIDING)

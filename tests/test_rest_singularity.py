@@ -115,7 +115,7 @@ def test_optimize_refuses_before_any_work(tmp_path):
 
 def test_a_nan_sigma_min_is_refused_not_let_through(five_bar, monkeypatch):
     """Regression: the rest-pose guard compared ``sigma < tol``, which NaN passes."""
-    from linkopt._design.evaluation import RestConditioning
+    from linkopt._design.conditioning import RestConditioning
     from linkopt._engine import mobility
 
     real = mobility.rest_jacobians(five_bar)

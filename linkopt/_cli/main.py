@@ -2,7 +2,7 @@
 sweep | synthesize | arm | cache``; a thin layer over the public API.
 
 Each command family lives in its own module with a ``register(subparsers)``:
-:mod:`.mechanism` (check, fk, bk), :mod:`.evaluation` (evaluate, plot, verify),
+:mod:`.mechanism` (check, fk, bk), :mod:`.evaluation` (evaluate, plot), :mod:`.verify`,
 :mod:`.optimize`, :mod:`.sweep`, :mod:`.synthesize`, and under ``arm`` :mod:`.arm`
 (design, simplify), :mod:`.manipulability` and :mod:`.trace`. This module assembles
 the parser and handles what every command shares.
@@ -44,6 +44,7 @@ from . import optimize as optimize_commands
 from . import sweep as sweep_commands
 from . import synthesize as synthesize_commands
 from . import trace as trace_commands
+from . import verify as verify_commands
 from . import view as view_commands
 
 # options whose values may start with "-" (negative numbers)
@@ -89,6 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
         mechanism_commands,
         assemble_commands,
         evaluation_commands,
+        verify_commands,
         optimize_commands,
         sweep_commands,
         synthesize_commands,

@@ -1,7 +1,7 @@
 """Worker processes spawned before their mechanism exists, without importing JAX here.
 
-A worker's start-up is a Python and JAX import, about a second on a 2-core machine, and
-an optimiser's first iteration waited for it. :func:`start` spawns the ``count - 1``
+A worker's start-up is a Python and JAX import, which an optimiser's first iteration
+would otherwise wait for. :func:`start` spawns the ``count - 1``
 worker processes of a :class:`linkopt._design.workers.Workers` of ``count`` processes
 at once, so that they import while the caller loads and checks the mechanism
 (``linkopt optimize`` calls it before loading the file); the next ``Workers`` of as many

@@ -41,7 +41,8 @@ from jaxtyping import Float
 from .._engine.model import DesignSpace, Turns
 from .._engine.symmetry import MIRROR_TOL, Symmetry
 from .design_angles import turn_joints
-from .design_kinds import ANCHOR, AXIS, Context, Move, read_parameter
+from .design_kinds import read_parameter
+from .design_moves import ANCHOR, AXIS, Context, Move
 from .fields import Reader
 
 __all__ = ["read_design"]

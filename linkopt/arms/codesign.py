@@ -18,9 +18,9 @@ _NAMES = {
     "load_task": ("_arms.codesign.task", "load_task"),
     "loads_task": ("_arms.codesign.task", "loads_task"),
     "Arm": ("_arms.codesign.model", "Arm"),
-    "ArmSolution": ("_arms.codesign.nlp", "ArmSolution"),
+    "ArmSolution": ("_arms.codesign.multistart", "ArmSolution"),
     "prepare": ("_arms.codesign.nlp", "prepare"),
-    "solve": ("_arms.codesign.nlp", "solve"),
+    "solve": ("_arms.codesign.multistart", "solve"),
     "eliminate": ("_arms.codesign.elimination", "eliminate"),
     "simplify": ("_arms.codesign.elimination", "simplify"),
 }
@@ -30,7 +30,8 @@ __getattr__, __dir__ = _namespace(__name__, _NAMES)
 if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from .._arms.codesign.elimination import eliminate, simplify
     from .._arms.codesign.model import Arm
-    from .._arms.codesign.nlp import ArmSolution, prepare, solve
+    from .._arms.codesign.multistart import ArmSolution, solve
+    from .._arms.codesign.nlp import prepare
     from .._arms.codesign.task import Task as ArmTask
     from .._arms.codesign.task import load_task, loads_task
 
