@@ -5,8 +5,8 @@ every linkopt module that computes with JAX does) turns on ``jax_enable_x64``:
 linkopt's Levenberg–Marquardt solves need float64 (in float32 they stall at residuals
 far above the 1e-10 loop-closure tolerance), and the flag must be on before any array
 is made. ``import linkopt`` alone does not import this module; the first public name
-that computes does. Nothing else is changed: no environment variable, no other JAX
-option, no JAX function (``tests/test_import_effects.py``).
+used (other than an error type) does. Nothing else is changed: no environment
+variable, no other JAX option, no JAX function (``tests/test_import_effects.py``).
 
 **The caches, where asked.** :func:`use_cache` points JAX's persistent compilation
 cache at linkopt's folder through JAX's public options, bounded, and turns on the
@@ -20,6 +20,7 @@ from __future__ import annotations
 import functools
 import os
 import warnings
+from pathlib import Path
 
 import jax
 
@@ -30,7 +31,7 @@ from ._errors import InputError
 jax.config.update("jax_enable_x64", True)
 
 
-def use_cache(directory: str | os.PathLike | None = None):
+def use_cache(directory: str | os.PathLike | None = None) -> Path | None:
     """Keep compiled programs on disk, in ``directory`` (default
     ``$LINKOPT_CACHE_DIR``, else ``~/.cache/linkopt/jax``), so a later process reuses
     them instead of compiling: JAX's persistent compilation cache, bounded to its share
@@ -49,7 +50,7 @@ def adopt(use: _cache.Use | None) -> None:
         use_cache(use.directory)
 
 
-def _apply(use: _cache.Use | None):
+def _apply(use: _cache.Use | None) -> Path | None:
     """Set JAX's cache options for ``use``; the folder, or None."""
     if use is None:
         return None
