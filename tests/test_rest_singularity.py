@@ -12,12 +12,12 @@ from five_bar_closed_form import forward
 
 import linkopt
 from linkopt._cli.main import main
-from linkopt._design.evaluation import (
+from linkopt._design.conditioning import (
     NEAR_SINGULAR_SIGMA,
     alpha_minus,
-    evaluate,
     rest_conditioning,
 )
+from linkopt._design.evaluation import evaluate
 from linkopt._errors import MechanismFileError
 
 FIVE_BAR = (MECHANISMS / "five_bar.toml").read_text()

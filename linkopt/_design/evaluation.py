@@ -48,8 +48,8 @@ optimisation verifies its design densely before it stops.
 
 ``α₋`` is ``alpha_factor`` times ``f_sing`` at the rest pose of the file's *initial*
 design, fixed for the whole optimisation so that a design cannot move its own threshold;
-a rest pose near a singularity (:data:`NEAR_SINGULAR_SIGMA`) gives no usable α₋, and
-the file must then set ``alpha_minus`` (:func:`alpha_minus`).
+a rest pose near a singularity (:mod:`.conditioning`) gives no usable α₋, and the file
+must then set ``alpha_minus`` (:func:`alpha_minus`).
 """
 
 from __future__ import annotations
