@@ -5,11 +5,13 @@ asks).
 Two kinds live under :func:`cache_directory` (``$LINKOPT_CACHE_DIR``, else
 ``$XDG_CACHE_HOME/linkopt/jax``, default ``~/.cache/linkopt/jax``):
 
-* **executables**: JAX's persistent compilation cache, files ``<key>-cache`` with
-  their last use in ``<key>-atime``, written, read and evicted by JAX itself
+* **executables**: JAX's persistent compilation cache, files
+  ``executables/<key>-cache`` with their last use in ``<key>-atime``, written, read
+  and evicted by JAX itself
   (``jax_compilation_cache_max_size`` set to this kind's share, which makes JAX
   take a file lock around every read and write, so processes sharing the folder never
-  read a half-written entry);
+  read a half-written entry; a folder of its own, since JAX's eviction fails on an
+  entry without its last-use file, as an older linkopt wrote them beside it);
 * **traces**: the traced programs of :mod:`linkopt._engine.programs`, files
   ``traces/<name>-<key>.jaxexport``, written here.
 
@@ -45,7 +47,7 @@ DEFAULT_MB = 1024
 SHARES = {"executables": 0.75, "traces": 0.25}
 #: File name patterns of each kind's entries, and its folder under the cache directory.
 PATTERNS = {"executables": "*-cache", "traces": "*.jaxexport"}
-FOLDERS = {"executables": ".", "traces": "traces"}
+FOLDERS = {"executables": "executables", "traces": "traces"}
 
 
 def cache_directory() -> Path:
@@ -213,6 +215,9 @@ def clear() -> dict[str, int]:
             stray.unlink(missing_ok=True)
     for stray in folder("executables").glob("*-atime"):  # their entries are gone
         stray.unlink(missing_ok=True)
+    for old in cache_directory().glob(PATTERNS["executables"]):  # an older layout's
+        old.unlink(missing_ok=True)
+        removed["executables"] += 1
     return removed
 
 

@@ -55,14 +55,15 @@ def _apply(use: _cache.Use | None) -> Path | None:
     if use is None:
         return None
     root = use.root()
+    executables = root / _cache.FOLDERS["executables"]
     try:
-        root.mkdir(parents=True, exist_ok=True)
-        _cache.mark_executables(root)
+        executables.mkdir(parents=True, exist_ok=True)
+        _cache.mark_executables(executables)
     except OSError:
         _cache.request_none()
         return None  # read-only home: run without the caches rather than fail
     bound = _executables_bound()
-    jax.config.update("jax_compilation_cache_dir", str(root))
+    jax.config.update("jax_compilation_cache_dir", str(executables))
     jax.config.update("jax_compilation_cache_max_size", bound)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.05)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)

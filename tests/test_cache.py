@@ -83,7 +83,7 @@ def test_a_bad_size_limit_is_named(cache, monkeypatch, capsys):
 
 
 def test_cache_info_and_clear(cache, capsys):
-    fill(cache, ["a-cache", "b-cache"], 1000)
+    fill(cache / "executables", ["a-cache", "b-cache"], 1000)
     fill(cache / "traces", ["p-key.jaxexport"], 500)
     # a killed writer's temporary file: not an entry, and removed by clear
     (cache / "traces" / ".linkopt-tmp-0a1b-q-key.jaxexport.partial").write_bytes(b"x")
@@ -94,8 +94,9 @@ def test_cache_info_and_clear(cache, capsys):
     assert info["kinds"]["traces"]["bytes"] == 500
     limits = sum(row["limit_bytes"] for row in info["kinds"].values())
     assert limits == pytest.approx(_cache.DEFAULT_MB * 2**20, abs=2)
+    fill(cache, ["old-cache"], 10)  # an older layout's executable: cleared too
     assert main(["cache", "clear"]) == 0
-    assert "removed 2 executables, 1 traces" in capsys.readouterr().out
+    assert "removed 3 executables, 1 traces" in capsys.readouterr().out
     left = [p for p in cache.rglob("*") if p.is_file() and p.name != ".lockfile"]
     assert not left  # JAX's lock file stays: another process may hold it
 
@@ -141,7 +142,7 @@ def test_jax_keeps_its_executables_bounded_where_asked(tmp_path, monkeypatch):
 
     assert run("none").split() == ["-1"] and not (tmp_path / "c").exists()
     assert int(run("cache")) == _cache.limit("executables")
-    entries = list((tmp_path / "c").glob("*-cache"))
+    entries = list((tmp_path / "c" / "executables").glob("*-cache"))
     assert entries and all(
         p.with_name(p.name.replace("-cache", "-atime")).exists() for p in entries
     )
@@ -155,11 +156,14 @@ def test_jax_keeps_its_executables_bounded_where_asked(tmp_path, monkeypatch):
 def test_executables_without_a_last_use_are_marked_then_ranked(cache):
     """Entries written before JAX bounded the cache (no ``-atime``) get one from
     their modification time, so JAX's eviction can rank them."""
-    fill(cache, ["a-cache", "b-cache"], 100)
-    assert _cache.mark_executables(cache) == 2
-    assert _cache.mark_executables(cache) == 0
+    fill(cache / "executables", ["a-cache", "b-cache"], 100)
+    assert _cache.mark_executables(cache / "executables") == 2
+    assert _cache.mark_executables(cache / "executables") == 0
     found = _cache.entries("executables")
     assert [e.path.name for e in found] == ["a-cache", "b-cache"]
     assert [e.used for e in found] == pytest.approx([1_000_000.0, 1_000_001.0])
     assert _cache.trim("executables", keep=100) == 1
-    assert sorted(p.name for p in cache.glob("*-*")) == ["b-atime", "b-cache"]
+    assert sorted(p.name for p in (cache / "executables").glob("*-*")) == [
+        "b-atime",
+        "b-cache",
+    ]

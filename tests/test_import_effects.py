@@ -92,7 +92,7 @@ def test_import_changes_nothing_and_computing_only_float64(tmp_path):
     assert "jax_compilation_cache_dir" in steps["use_cache"]["options"]
     assert steps["use_cache"]["environ"] == []
     assert not steps["use_cache"]["functions"] and not steps["use_cache"]["meta_path"]
-    assert steps["cache_dir"] == str(tmp_path / "cache")
+    assert steps["cache_dir"] == str(tmp_path / "cache" / "executables")
 
 
 def _module(path: Path) -> str:
