@@ -40,6 +40,7 @@ TARGET_BATCH_S = 1.0
 FIRST_CALL = """
 import time, numpy as np, jax, linkopt
 from linkopt._design.evaluation import evaluate
+linkopt.use_cache()
 m = linkopt.load({path!r})
 rng = np.random.default_rng(0)
 designs = np.asarray(m.design.p0) + rng.normal(0, 1.0, ({n}, m.design.size))

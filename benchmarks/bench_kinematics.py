@@ -171,6 +171,7 @@ def compile_seconds(path: Path, cache: str) -> float:
     """Wall time of load + first FK solve + first batched solve in a fresh process."""
     code = (
         "import time; t=time.perf_counter(); import numpy as np, linkopt;"
+        "linkopt.use_cache();"
         f"m=linkopt.load({str(path)!r});"
         "linkopt.solve_fk(m, np.zeros(m.num_motors)).state.block_until_ready();"
         "linkopt.solve_fk(m, np.zeros((1000, m.num_motors))).state.block_until_ready();"

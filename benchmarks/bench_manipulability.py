@@ -47,7 +47,9 @@ import jax.numpy as jnp  # noqa: E402
 import scipy.optimize  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
-import linkopt  # noqa: E402,F401  (float64 and the compilation cache first)
+import linkopt  # noqa: E402
+
+linkopt.use_cache()  # float64, and compiled programs kept on disk
 from linkopt._arms.dh import synthesis as syn  # noqa: E402
 from linkopt._arms.dh import table as dh  # noqa: E402
 from linkopt._arms.dh.points import read_points  # noqa: E402

@@ -109,7 +109,9 @@ def _figures(name: str, task_name: str, task, found) -> None:
 def case(name: str, seed: int, figures: bool) -> None:
     """One case, in this (fresh) process: prints ``RESULT {json}``."""
     t0, c0 = time.perf_counter(), time.process_time()
-    import linkopt  # noqa: F401  (float64, cache)
+    import linkopt
+
+    linkopt.use_cache()  # float64, and compiled programs kept on disk
     from linkopt._arms.trace.task import load_task
 
     task_name = "rose" if name.startswith("rose") else name

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ast
 import contextlib
+import importlib
 import io
 import json
 import os
@@ -224,14 +225,19 @@ def public_modules() -> set[str]:
 
 
 def check_api(markdown: str) -> None:
-    """Every public name of linkopt is documented once on the API page, and only
-    those; every public namespace has its block."""
+    """Every public name of linkopt and of its namespaces is documented once on the
+    API page, and only those; every public namespace has its block."""
     import linkopt
 
     blocks = re.findall(r"^::: linkopt\.([\w.]+)\s*$", markdown, re.M)
     modules = public_modules()
     listed = [name for name in blocks if name not in modules]
-    public = set(linkopt.__all__)
+    public = set(linkopt.__all__) | {
+        f"{module}.{name}"
+        for module in modules
+        for name in importlib.import_module(f"linkopt.{module}").__all__
+        if f"{module}.{name}" not in modules
+    }
     missing = sorted(public - set(listed))
     unknown = sorted(set(listed) - public)
     twice = sorted({name for name in blocks if blocks.count(name) > 1})

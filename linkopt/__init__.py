@@ -6,27 +6,27 @@ units. Results and settings are frozen dataclasses, read by field name; those th
 traces (``Solution``, ``Evaluation``, ``DHTable``) are registered pytrees (the rule:
 the documentation's Architecture page, Conventions).
 
-linkopt computes in float64 and keeps compiled programs in a bounded on-disk cache
-(:mod:`linkopt._config`). Importing :mod:`linkopt` does not import JAX; JAX is set up
-for linkopt when the first linkopt module that uses it is imported (on first use of a
-public name), or at once when JAX is already imported.
+Importing :mod:`linkopt` imports no JAX and changes nothing: names are imported on
+first use. linkopt computes in float64, the one JAX option it sets itself, when the
+first public name other than an error type is used (:mod:`linkopt._config`);
+:func:`use_cache` keeps compiled programs in a bounded on-disk cache where the user asks
+(the command line does).
 
-The names of the serial-arm families and of the export formats are also grouped, under
-shorter names, in the namespaces :mod:`linkopt.arms.codesign`, :mod:`linkopt.arms.dh`,
-:mod:`linkopt.arms.trace` and :mod:`linkopt.export` (``linkopt.arms.dh.synthesize`` is
-``linkopt.synthesize_dh``); the top-level names remain.
+The top level keeps the core (mechanisms, kinematics, read-outs, singularities, design
+evaluation, optimisation and verification, motion); the serial-arm families, the export
+formats and synthesis have one home each, the namespaces :mod:`linkopt.arms.codesign`,
+:mod:`linkopt.arms.dh`, :mod:`linkopt.arms.trace`, :mod:`linkopt.export` and
+:mod:`linkopt.synthesis`. Their old top-level names (``linkopt.synthesize_dh``, ...)
+warn until the next release (:data:`_MOVED`).
 """
 
 import importlib
+import warnings
 from typing import TYPE_CHECKING
-
-from ._imports import configure_before_jax
-
-configure_before_jax()
 
 # name → (module, attribute). Imported on first use (PEP 562), so that a process that
 # needs one part (a worker evaluating designs, ``linkopt check``) does not pay for the
-# rest (jax, pyswarms and scipy.spatial are most of the import time). The folders, in
+# rest (jax and scipy.spatial are most of the import time). The folders, in
 # pipeline order: ``_engine`` (the constraint engine), ``_files`` (mechanism files),
 # ``_export``, ``_design`` (design optimisation), ``_arms`` (serial arms: ``codesign``,
 # ``dh``, ``trace``), ``_synth`` (synthesis), ``_cli``.
@@ -70,62 +70,77 @@ _EXPORTS = {
     "Verification": ("_design.verify", "Verification"),
     "verify": ("_design.verify", "verify"),
     "write_design": ("_files.writer", "write_design"),
-    "ArmSolution": ("_arms.codesign.nlp", "ArmSolution"),
-    "prepare_arm": ("_arms.codesign.nlp", "prepare"),
-    "solve_arm": ("_arms.codesign.nlp", "solve"),
-    "Arm": ("_arms.codesign.model", "Arm"),
-    "ArmTask": ("_arms.codesign.task", "Task"),
-    "load_arm_task": ("_arms.codesign.task", "load_task"),
-    "loads_arm_task": ("_arms.codesign.task", "loads_task"),
-    "DHTable": ("_arms.dh.table", "DHTable"),
-    "dh_mechanism": ("_arms.dh.table", "to_mechanism"),
-    "DHSynthesis": ("_arms.dh.synthesis", "DHSynthesis"),
-    "DHSynthesisSettings": ("_arms.dh.settings", "DHSynthesisSettings"),
-    "synthesize_dh": ("_arms.dh.synthesis", "synthesize_dh"),
-    "eliminate": ("_arms.codesign.elimination", "eliminate"),
-    "simplify": ("_arms.codesign.elimination", "simplify"),
+    "use_cache": ("_config", "use_cache"),
     "manipulability": ("_engine.manipulability", "manipulability"),
     "point_jacobian": ("_engine.manipulability", "point_jacobian"),
     "static_torques": ("_engine.statics", "static_torques"),
-    "DiscreteComparison": ("_arms.trace.discrete", "DiscreteComparison"),
-    "compare_discretised": ("_arms.trace.discrete", "compare"),
-    "discretised_design": ("_arms.trace.discrete", "discretised_design"),
-    "TraceResult": ("_arms.trace.synthesis", "TraceResult"),
-    "TraceSettings": ("_arms.trace.settings", "TraceSettings"),
-    "synthesize_trace": ("_arms.trace.synthesis", "synthesize"),
-    "TraceTask": ("_arms.trace.task", "TraceTask"),
-    "load_trace_task": ("_arms.trace.task", "load_task"),
-    "loads_trace_task": ("_arms.trace.task", "loads_task"),
-    "PlanarArm": ("_arms.trace.verify", "PlanarArm"),
-    "TraceVerification": ("_arms.trace.verify", "TraceVerification"),
-    "verify_trace": ("_arms.trace.verify", "verify"),
-    "export_mjcf": ("_export.mjcf", "export_mjcf"),
-    "export_urdf": ("_export.urdf", "export_urdf"),
-    "export_stl": ("_export.meshes", "export_stl"),
-    "export_glb": ("_export.meshes", "export_glb"),
-    "export_dxf": ("_export.sheet", "export_dxf"),
-    "export_svg": ("_export.sheet", "export_svg"),
-    "SynthesisTargets": ("_synth.targets", "Targets"),
-    "load_synthesis_targets": ("_synth.targets", "load_targets"),
-    "SynthesisResult": ("_synth.run", "SynthesisResult"),
-    "synthesize": ("_synth.run", "synthesize"),
-    "score_synthesis": ("_synth.run", "score_design"),
-    "verify_synthesis": ("_synth.run", "verify"),
 }
 
 
-#: The public namespaces, imported on first use (:mod:`linkopt._imports`).
+#: The old top-level names of the namespaces' objects -> (namespace, name); each
+#: warns (``DeprecationWarning``) until the next release.
+_MOVED = {
+    "ArmTask": ("arms.codesign", "ArmTask"),
+    "load_arm_task": ("arms.codesign", "load_task"),
+    "loads_arm_task": ("arms.codesign", "loads_task"),
+    "Arm": ("arms.codesign", "Arm"),
+    "ArmSolution": ("arms.codesign", "ArmSolution"),
+    "prepare_arm": ("arms.codesign", "prepare"),
+    "solve_arm": ("arms.codesign", "solve"),
+    "eliminate": ("arms.codesign", "eliminate"),
+    "simplify": ("arms.codesign", "simplify"),
+    "DHTable": ("arms.dh", "DHTable"),
+    "dh_mechanism": ("arms.dh", "to_mechanism"),
+    "DHSynthesis": ("arms.dh", "DHSynthesis"),
+    "DHSynthesisSettings": ("arms.dh", "DHSynthesisSettings"),
+    "synthesize_dh": ("arms.dh", "synthesize"),
+    "TraceTask": ("arms.trace", "TraceTask"),
+    "load_trace_task": ("arms.trace", "load_task"),
+    "loads_trace_task": ("arms.trace", "loads_task"),
+    "TraceSettings": ("arms.trace", "TraceSettings"),
+    "TraceResult": ("arms.trace", "TraceResult"),
+    "synthesize_trace": ("arms.trace", "synthesize"),
+    "PlanarArm": ("arms.trace", "PlanarArm"),
+    "TraceVerification": ("arms.trace", "TraceVerification"),
+    "verify_trace": ("arms.trace", "verify"),
+    "DiscreteComparison": ("arms.trace", "DiscreteComparison"),
+    "compare_discretised": ("arms.trace", "compare_discretised"),
+    "discretised_design": ("arms.trace", "discretised_design"),
+    "export_mjcf": ("export", "mjcf"),
+    "export_urdf": ("export", "urdf"),
+    "export_stl": ("export", "stl"),
+    "export_glb": ("export", "glb"),
+    "export_dxf": ("export", "dxf"),
+    "export_svg": ("export", "svg"),
+    "SynthesisTargets": ("synthesis", "Targets"),
+    "load_synthesis_targets": ("synthesis", "load_targets"),
+    "SynthesisResult": ("synthesis", "SynthesisResult"),
+    "synthesize": ("synthesis", "synthesize"),
+    "score_synthesis": ("synthesis", "score"),
+    "verify_synthesis": ("synthesis", "verify"),
+}
+
+#: The public namespaces, imported on first use (:mod:`linkopt._namespace`).
 _NAMESPACES = ("arms", "export", "synthesis")
 
 
 def __getattr__(name: str):
     if name in _NAMESPACES:
         return importlib.import_module(f".{name}", __name__)
+    if name in _MOVED:
+        space, new = _MOVED[name]
+        warnings.warn(
+            f"linkopt.{name} is deprecated and goes in the next release; use "
+            f"linkopt.{space}.{new}",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return getattr(importlib.import_module(f".{space}", __name__), new)
     try:
         module, attribute = _EXPORTS[name]
     except KeyError:
         raise AttributeError(f"module 'linkopt' has no attribute {name!r}") from None
-    if module != "_errors":  # every name that computes configures JAX first
+    if module != "_errors":  # float64 on before any public name that computes is used
         importlib.import_module("._config", __name__)
     value = getattr(importlib.import_module(f".{module}", __name__), attribute)
     globals()[name] = value
@@ -137,53 +152,7 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # the eager imports, for type checkers and editors
-    from ._arms.codesign.elimination import eliminate, simplify
-    from ._arms.codesign.model import Arm
-    from ._arms.codesign.nlp import (
-        ArmSolution,
-    )
-    from ._arms.codesign.nlp import (
-        prepare as prepare_arm,
-    )
-    from ._arms.codesign.nlp import (
-        solve as solve_arm,
-    )
-    from ._arms.codesign.task import (
-        Task as ArmTask,
-    )
-    from ._arms.codesign.task import (
-        load_task as load_arm_task,
-    )
-    from ._arms.codesign.task import (
-        loads_task as loads_arm_task,
-    )
-    from ._arms.dh.settings import DHSynthesisSettings
-    from ._arms.dh.synthesis import DHSynthesis, synthesize_dh
-    from ._arms.dh.table import DHTable
-    from ._arms.dh.table import to_mechanism as dh_mechanism
-    from ._arms.trace.discrete import (
-        DiscreteComparison,
-        discretised_design,
-    )
-    from ._arms.trace.discrete import (
-        compare as compare_discretised,
-    )
-    from ._arms.trace.settings import TraceSettings
-    from ._arms.trace.synthesis import TraceResult
-    from ._arms.trace.synthesis import (
-        synthesize as synthesize_trace,
-    )
-    from ._arms.trace.task import (
-        TraceTask,
-    )
-    from ._arms.trace.task import (
-        load_task as load_trace_task,
-    )
-    from ._arms.trace.task import (
-        loads_task as loads_trace_task,
-    )
-    from ._arms.trace.verify import PlanarArm, TraceVerification
-    from ._arms.trace.verify import verify as verify_trace
+    from ._config import use_cache
     from ._design.evaluation import Evaluation, evaluate
     from ._design.motion import Motion, PathNotReached, motion
     from ._design.partial import partial_gradient
@@ -217,16 +186,7 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._engine.singularity import f_sing, singular_values
     from ._engine.statics import static_torques
     from ._errors import InputError, LinkoptError, MechanismFileError
-    from ._export.meshes import export_glb, export_stl
-    from ._export.mjcf import export_mjcf
-    from ._export.sheet import export_dxf, export_svg
-    from ._export.urdf import export_urdf
     from ._files.loader import load, loads
     from ._files.writer import write_design
-    from ._synth.run import SynthesisResult, synthesize
-    from ._synth.run import score_design as score_synthesis
-    from ._synth.run import verify as verify_synthesis
-    from ._synth.targets import Targets as SynthesisTargets
-    from ._synth.targets import load_targets as load_synthesis_targets
 
 __all__ = sorted(_EXPORTS)

@@ -1,36 +1,38 @@
-"""linkopt's on-disk caches, each bounded in size with least-recently-used eviction.
+"""linkopt's on-disk caches, each bounded in size with least-recently-used eviction,
+used where the user asks for them (:func:`linkopt.use_cache`; the command line always
+asks).
 
 Two kinds live under :func:`cache_directory` (``$LINKOPT_CACHE_DIR``, else
 ``$XDG_CACHE_HOME/linkopt/jax``, default ``~/.cache/linkopt/jax``):
 
-* **executables**: JAX's persistent compilation cache, files ``<key>-cache`` in the
-  folder itself (the names JAX's own cache uses, so entries written by either are
-  read by both);
+* **executables**: JAX's persistent compilation cache, files
+  ``executables/<key>-cache`` with their last use in ``<key>-atime``, written, read
+  and evicted by JAX itself
+  (``jax_compilation_cache_max_size`` set to this kind's share, which makes JAX
+  take a file lock around every read and write, so processes sharing the folder never
+  read a half-written entry; a folder of its own, since JAX's eviction fails on an
+  entry without its last-use file, as an older linkopt wrote them beside it);
 * **traces**: the traced programs of :mod:`linkopt._engine.programs`, files
-  ``traces/<name>-<key>.jaxexport``.
+  ``traces/<name>-<key>.jaxexport``, written here.
 
-Every entry is written through :func:`linkopt._folders.write_atomic`, without its fsync
+A trace is written through :func:`linkopt._folders.write_atomic`, without its fsync
 (an entry lost in a power cut is computed again): into a temporary file in its folder,
 named so that no pattern of :data:`PATTERNS` matches it
 (``.linkopt-tmp-…-NAME.partial``: never counted, evicted or read as an entry), then
-renamed into place, so a process never reads another's half-written entry. Each read
-sets the entry's modification time, which is its last use. After a write, the oldest
-entries are removed until the folder holds at most its share of
+renamed into place. Each read sets the entry's modification time, its last use. After
+a write, the oldest entries are removed until the folder holds at most its share of
 ``$LINKOPT_CACHE_SIZE_MB`` megabytes (default :data:`DEFAULT_MB`): :data:`SHARES`. A
-reader that finds its entry gone compiles or traces again; nothing else depends on an
-entry being there.
+reader that finds its entry gone traces or compiles again.
 
-JAX's own file cache (``jax._src.lru_cache.LRUCache``) writes entries in place and
-evicts only when ``jax_compilation_cache_max_size`` is set, which also takes a lock
-around every read and write and refuses entries written without its access-time
-files. :func:`install` gives JAX this module's cache instead, through
-``jax._src.compilation_cache.get_file_cache``, the one place JAX makes its file cache;
-with a JAX that has no such function the executables stay in JAX's own, unbounded
-cache (:func:`info` says so).
+This module imports no JAX: the command line records its request here
+(:func:`request`) before it knows whether it will compute, and
+:mod:`linkopt._config` applies it when JAX is first set up for linkopt.
 """
 
 from __future__ import annotations
 
+import contextlib
+import importlib.util
 import os
 import warnings
 from dataclasses import dataclass
@@ -45,7 +47,7 @@ DEFAULT_MB = 1024
 SHARES = {"executables": 0.75, "traces": 0.25}
 #: File name patterns of each kind's entries, and its folder under the cache directory.
 PATTERNS = {"executables": "*-cache", "traces": "*.jaxexport"}
-FOLDERS = {"executables": ".", "traces": "traces"}
+FOLDERS = {"executables": "executables", "traces": "traces"}
 
 
 def cache_directory() -> Path:
@@ -112,24 +114,60 @@ def entries(kind: str) -> list[Entry]:
             stat = path.stat()
         except FileNotFoundError:
             continue  # removed by another process meanwhile
-        found.append(Entry(path, stat.st_size, stat.st_mtime))
+        found.append(Entry(path, stat.st_size, _last_use(path, stat.st_mtime)))
     return sorted(found, key=lambda e: e.used)
+
+
+def _atime_path(path: Path) -> Path | None:
+    """An executable's last-use file (JAX's), None for a trace."""
+    if not path.name.endswith("-cache"):
+        return None
+    return path.with_name(path.name.removesuffix("-cache") + "-atime")
+
+
+def _last_use(path: Path, modified: float) -> float:
+    """An entry's last use in seconds: JAX's last-use file of an executable, else its
+    modification time."""
+    atime = _atime_path(path)
+    try:
+        return int.from_bytes(atime.read_bytes(), "little") / 1e9 if atime else modified
+    except OSError:
+        return modified
 
 
 def trim(kind: str, keep: int | None = None) -> int:
     """Remove ``kind``'s least recently used entries until it holds at most ``keep``
     bytes (its :func:`limit` by default); the number removed."""
     keep = limit(kind) if keep is None else keep
-    found = entries(kind)
-    total = sum(e.size for e in found)
-    removed = 0
-    for entry in found:
-        if total <= keep:
-            break
-        entry.path.unlink(missing_ok=True)
-        total -= entry.size
-        removed += 1
+    with _locked(kind):
+        found = entries(kind)
+        total = sum(e.size for e in found)
+        removed = 0
+        for entry in found:
+            if total <= keep:
+                break
+            entry.path.unlink(missing_ok=True)
+            if (atime := _atime_path(entry.path)) is not None:
+                atime.unlink(missing_ok=True)
+            total -= entry.size
+            removed += 1
     return removed
+
+
+@contextlib.contextmanager
+def _locked(kind: str):
+    """JAX's lock of the executables' folder (``.lockfile``, taken by JAX around each
+    read and write), held while they are trimmed; nothing for the traces, or without
+    ``filelock``."""
+    try:
+        import filelock
+    except ImportError:
+        filelock = None
+    if kind != "executables" or filelock is None or not folder(kind).is_dir():
+        yield
+        return
+    with filelock.FileLock(folder(kind) / ".lockfile"):
+        yield
 
 
 def store(kind: str, path: Path, blob: bytes) -> None:
@@ -151,11 +189,11 @@ def store(kind: str, path: Path, blob: bytes) -> None:
 
 
 def info() -> dict:
-    """Folder, entries, bytes and limit of each kind, and whether JAX's executables go
-    through this module (:func:`install`)."""
+    """Folder, entries, bytes and limit of each kind, and whether JAX can bound its
+    executables (its eviction needs the ``filelock`` package)."""
     return {
         "directory": str(cache_directory()),
-        "bounded_executables": _bounded(),
+        "bounded_executables": info_bounded(),
         "kinds": {
             kind: {
                 "folder": str(folder(kind)),
@@ -175,65 +213,75 @@ def clear() -> dict[str, int]:
     for kind in SHARES:
         for stray in folder(kind).glob(f"{folders.TEMP_PREFIX}*"):
             stray.unlink(missing_ok=True)
+    for stray in folder("executables").glob("*-atime"):  # their entries are gone
+        stray.unlink(missing_ok=True)
+    for old in cache_directory().glob(PATTERNS["executables"]):  # an older layout's
+        old.unlink(missing_ok=True)
+        removed["executables"] += 1
     return removed
 
 
-# --- JAX's persistent compilation cache ----------------------------------------------
+# --- which caches are in use ---------------------------------------------------------
 
 
-def _executables_class():
-    from jax._src.compilation_cache_interface import CacheInterface
+@dataclass(frozen=True)
+class Use:
+    """The caches asked for: in ``directory``, or where :func:`cache_directory` points
+    at each use (``None``). Pickled into spawned worker processes, which use it too."""
 
-    class Executables(CacheInterface):
-        """JAX's compilation cache in ``path``: atomic writes, reads that mark use,
-        trimmed to :func:`limit` after every write."""
+    directory: str | None = None
 
-        def __init__(self, path: str):
-            self._path = Path(path)
-
-        def get(self, key: str) -> bytes | None:
-            return read_used(self._path / f"{key}-cache")
-
-        def put(self, key: str, value: bytes) -> None:
-            path = self._path / f"{key}-cache"
-            if not path.exists():
-                store("executables", path, value)
-
-    return Executables
+    def root(self) -> Path:
+        return Path(self.directory) if self.directory else cache_directory()
 
 
-def _hook():
-    """JAX's ``compilation_cache`` module and this module's executables class, or None
-    where this JAX has no ``get_file_cache`` to replace."""
-    try:
-        from jax._src import compilation_cache
-
-        executables = _executables_class()
-    except (ImportError, AttributeError):
-        return None
-    if not callable(getattr(compilation_cache, "get_file_cache", None)):
-        return None
-    return compilation_cache, executables
+#: The caches this process was asked to use (:func:`request`), or None.
+_USE: Use | None = None
 
 
-def install() -> bool:
-    """Make JAX's persistent compilation cache this module's bounded one (before JAX
-    first uses its cache); whether this JAX allowed it."""
-    hook = _hook()
-    if hook is None:
-        return False
-    compilation_cache, Executables = hook
-
-    def get_file_cache(path: str):
-        return Executables(path), path
-
-    get_file_cache.linkopt = True
-    compilation_cache.get_file_cache = get_file_cache
-    return True
+def request(directory: str | os.PathLike | None = None) -> Use:
+    """Record that this process uses the caches (in ``directory``, by default
+    :func:`cache_directory`); JAX is configured for them by
+    :func:`linkopt._config.use_cache`, at once or when linkopt first sets JAX up."""
+    global _USE
+    _USE = Use(None if directory is None else str(directory))
+    return _USE
 
 
-def _bounded() -> bool:
-    """Whether JAX's executables go to this module's cache: :func:`install` replaces
-    JAX's hook in every process that configures JAX (``linkopt cache info`` does not
-    configure JAX, so it asks whether the hook is there to replace)."""
-    return _hook() is not None
+def request_none() -> None:
+    """Record that this process uses no caches (their folder cannot be made)."""
+    global _USE
+    _USE = None
+
+
+def info_bounded() -> bool:
+    """Whether JAX can bound the executables (its eviction needs ``filelock``)."""
+    return importlib.util.find_spec("filelock") is not None
+
+
+def requested() -> Use | None:
+    """The caches this process uses, or None where nobody asked."""
+    return _USE
+
+
+def traces_folder() -> Path | None:
+    """The folder of the traced programs, or None where the caches are not in use."""
+    return None if _USE is None else (_USE.root() / FOLDERS["traces"]).resolve()
+
+
+def mark_executables(directory: Path) -> int:
+    """Give each executable without a last-use file one (its modification time), so
+    that JAX's eviction can rank it (JAX fails on an entry without one, e.g. written by
+    a linkopt that predates its eviction); the number marked."""
+    marked = 0
+    for path in directory.glob(PATTERNS["executables"]):
+        atime = path.with_name(path.name.removesuffix("-cache") + "-atime")
+        if atime.exists():
+            continue
+        try:
+            stamp = int(path.stat().st_mtime * 1e9)
+            atime.write_bytes(stamp.to_bytes(8, "little"))
+        except OSError:
+            continue
+        marked += 1
+    return marked

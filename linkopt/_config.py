@@ -1,50 +1,89 @@
-"""Process-wide JAX configuration: 64-bit floats and the persistent compilation cache.
+"""JAX set up for linkopt: float64, the compilation caches where asked, and ``jit``.
 
-Imported first by :mod:`linkopt`. The cache lives in a per-user directory,
-``$LINKOPT_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/linkopt/jax`` (default
-``~/.cache/linkopt/jax``), so a second process reuses compiled kernels instead of
-recompiling them; :mod:`linkopt._cache` bounds it and writes it atomically.
-Float64 is required: a float32 Levenberg–Marquardt solve stalls at residuals of about
-3e-7, far above the 1e-10 loop-closure tolerance we need.
+**Float64, the one change to a process made on import.** Importing this module (which
+every linkopt module that computes with JAX does) turns on ``jax_enable_x64``:
+linkopt's Levenberg–Marquardt solves need float64 (in float32 they stall at residuals
+far above the 1e-10 loop-closure tolerance), and the flag must be on before any array
+is made. ``import linkopt`` alone does not import this module; the first public name
+used (other than an error type) does. Nothing else is changed: no environment
+variable, no other JAX option, no JAX function (``tests/test_import_effects.py``).
 
-XLA's thread pool is left as the user (or XLA) set it. jaxlib's batched LAPACK kernels
-(Cholesky, triangular solve, LU, eigh, SVD) split their batch into tasks on XLA's
-intra-op pool and block until those are done (``jax::ParallelBatchMap``); when every
-pool thread is such a blocked kernel nobody runs the tasks, and on a 2-core machine the
-process hung (jax 0.10.2, e.g. ``jit(vmap(grad(f_sing ∘ FK)))``). linkopt used to set
-``PJRT_NPROC=1`` on import to avoid it, at the cost of one core per process. No longer
-needed: the linear algebra inside linkopt's jitted programs is written in plain JAX
-(:mod:`linkopt._engine.dense`), so those programs contain no LAPACK call.
-``tests/test_no_lapack.py`` guards it: it lowers the hot-path programs and fails on any
-LAPACK custom call, and runs ``jit(vmap(grad(f_sing ∘ FK)))`` in a subprocess without
-``PJRT_NPROC`` under a timeout. numpy/scipy LAPACK outside jit is unaffected.
+**The caches, where asked.** :func:`use_cache` points JAX's persistent compilation
+cache at linkopt's folder through JAX's public options, bounded, and turns on the
+traced programs' cache (:mod:`linkopt._cache`); the command line asks for it, a
+library user may. XLA's thread pool is left as the user set it (no LAPACK call runs
+inside linkopt's programs: :mod:`linkopt._engine.dense`).
 """
 
 from __future__ import annotations
 
 import functools
+import os
+import warnings
+from pathlib import Path
 
 import jax
 
-from ._cache import cache_directory, install
+from . import _cache
+from ._errors import InputError
+
+#: The one JAX option linkopt sets without being asked (module docstring).
+jax.config.update("jax_enable_x64", True)
 
 
-def configure() -> None:
-    """Enable float64 and the persistent compilation cache, bounded
-    (:mod:`linkopt._cache`); idempotent."""
-    jax.config.update("jax_enable_x64", True)
-    install()
-    directory = cache_directory()
+def use_cache(directory: str | os.PathLike | None = None) -> Path | None:
+    """Keep compiled programs on disk, in ``directory`` (default
+    ``$LINKOPT_CACHE_DIR``, else ``~/.cache/linkopt/jax``), so a later process reuses
+    them instead of compiling: JAX's persistent compilation cache, bounded to its share
+    of ``$LINKOPT_CACHE_SIZE_MB``, and linkopt's traced programs. Call it before the
+    first computation; the folder, or None where it cannot be made (then nothing is
+    cached on disk)."""
+    _cache.request(directory)
+    return _apply(_cache.requested())
+
+
+def adopt(use: _cache.Use | None) -> None:
+    """Use the caches another process uses (``use``, from
+    :func:`linkopt._cache.requested`): what a spawned worker or a Dask worker runs
+    first; nothing for None."""
+    if use is not None:
+        use_cache(use.directory)
+
+
+def _apply(use: _cache.Use | None) -> Path | None:
+    """Set JAX's cache options for ``use``; the folder, or None."""
+    if use is None:
+        return None
+    root = use.root()
+    executables = root / _cache.FOLDERS["executables"]
     try:
-        directory.mkdir(parents=True, exist_ok=True)
+        executables.mkdir(parents=True, exist_ok=True)
+        _cache.mark_executables(executables)
     except OSError:
-        return  # read-only home: run without the cache rather than fail
-    jax.config.update("jax_compilation_cache_dir", str(directory))
+        _cache.request_none()
+        return None  # read-only home: run without the caches rather than fail
+    bound = _executables_bound()
+    jax.config.update("jax_compilation_cache_dir", str(executables))
+    jax.config.update("jax_compilation_cache_max_size", bound)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.05)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    return root
 
 
-configure()
+def _executables_bound() -> int:
+    """``jax_compilation_cache_max_size``: the executables' share of the limit, or -1
+    (unbounded) without ``filelock`` or with an invalid ``$LINKOPT_CACHE_SIZE_MB``
+    (a warning names it; ``linkopt cache info`` refuses it)."""
+    if not _cache.info_bounded():
+        return -1
+    try:
+        return _cache.limit("executables")
+    except InputError as err:
+        warnings.warn(f"linkopt cache not bounded: {err}", RuntimeWarning, stacklevel=3)
+        return -1
+
+
+_apply(_cache.requested())  # asked for before JAX was set up (the command line)
 
 
 def one_blas_thread():

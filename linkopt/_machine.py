@@ -2,9 +2,8 @@
 its memory, and the defaults that follow from them (worker processes, a grid's memory
 cap). JAX-free.
 
-The defaults were first sized for a 2-core machine with 24 GiB, and that machine still
-gets what it got then (2 workers, a 12 GiB grid cap); a larger machine gets more, a
-smaller one less. ``docs/performance.md`` says how an iteration's work splits over
+A larger machine gets more workers and a larger grid cap, a smaller one less.
+``docs/performance.md`` says how an iteration's work splits over
 workers and where adding more stops paying.
 """
 

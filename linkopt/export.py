@@ -2,27 +2,26 @@
 kinematic formats), STL and GLB (the solids), DXF and SVG (sheet drawings of a planar
 mechanism's links).
 
-Each name is also a top-level name of :mod:`linkopt`, the same object: ``mjcf`` is
-``linkopt.export_mjcf``, ``urdf`` ``linkopt.export_urdf``, ``stl``
-``linkopt.export_stl``, ``glb`` ``linkopt.export_glb``, ``dxf``
-``linkopt.export_dxf`` and ``svg`` ``linkopt.export_svg``.
+This namespace is the only home of its names. Until the next release the old
+top-level names still work, with a ``DeprecationWarning`` naming the name here
+(``linkopt.export_mjcf``, ``linkopt.export_urdf``, ...).
 """
 
 from typing import TYPE_CHECKING
 
-from ._imports import namespace as _namespace
+from ._namespace import namespace as _namespace
 
-#: each name here -> its top-level name in :mod:`linkopt`
-_TOP_LEVEL = {
-    "mjcf": "export_mjcf",
-    "urdf": "export_urdf",
-    "stl": "export_stl",
-    "glb": "export_glb",
-    "dxf": "export_dxf",
-    "svg": "export_svg",
+#: each name here -> (its module under :mod:`linkopt`, its name there)
+_NAMES = {
+    "mjcf": ("_export.mjcf", "export_mjcf"),
+    "urdf": ("_export.urdf", "export_urdf"),
+    "stl": ("_export.meshes", "export_stl"),
+    "glb": ("_export.meshes", "export_glb"),
+    "dxf": ("_export.sheet", "export_dxf"),
+    "svg": ("_export.sheet", "export_svg"),
 }
 
-__getattr__, __dir__ = _namespace(__name__, _TOP_LEVEL)
+__getattr__, __dir__ = _namespace(__name__, _NAMES)
 
 if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._export.meshes import export_glb as glb
@@ -32,4 +31,4 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from ._export.sheet import export_svg as svg
     from ._export.urdf import export_urdf as urdf
 
-__all__ = sorted(_TOP_LEVEL)
+__all__ = sorted(_NAMES)

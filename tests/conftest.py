@@ -10,6 +10,10 @@ from hypothesis import HealthCheck, settings
 import linkopt
 from linkopt._config import COMPILER_OPTIONS
 
+#: The tests keep compiled programs on disk, as the command line does (a test that
+#: points ``$LINKOPT_CACHE_DIR`` elsewhere moves the traced programs with it).
+linkopt.use_cache()
+
 #: The tests' own ``jax.jit`` programs (references, checks) compile with the options of
 #: linkopt's programs too: they compile faster and agree with them to round-off. Set
 #: before JAX starts its backend, which reads ``XLA_FLAGS`` once; the test processes'

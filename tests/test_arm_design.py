@@ -7,7 +7,7 @@ import pytest
 from arm_tasks import TINY_ARM, reached_targets
 
 import linkopt  # noqa: F401  (float64)
-from linkopt._arms.codesign import nlp
+from linkopt._arms.codesign import multistart, nlp
 from linkopt._arms.codesign.task import loads_task
 
 ARM = (
@@ -54,7 +54,7 @@ def test_waypoint_layout_follows_distances():
 
 
 def test_gradients_match_finite_differences(problem):
-    z = nlp.initial_point(problem, 3)
+    z = multistart.initial_point(problem, 3)
     f, grad, g, jac = nlp.evaluate(problem, z)
     h = 1e-6
     rng = np.random.default_rng(0)
@@ -67,7 +67,7 @@ def test_gradients_match_finite_differences(problem):
 
 
 def test_multistart_reaches_every_target(problem):
-    best, runs = nlp.solve(problem, starts=2, seed=0)
+    best, runs = multistart.solve(problem, starts=2, seed=0)
     assert len(runs) == 2 and best.feasible
     report = nlp.waypoint_report(
         problem, np.concatenate([best.theta.ravel(), best.design])

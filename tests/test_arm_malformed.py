@@ -224,7 +224,7 @@ def no_work(monkeypatch):
 
     for target in (
         "linkopt._arms.codesign.nlp.prepare",
-        "linkopt._arms.codesign.nlp.solve",
+        "linkopt._arms.codesign.multistart.solve",
         "linkopt._cli.manipulability.synthesize_dh",
         "linkopt._arms.trace.synthesis.synthesize",
     ):

@@ -17,8 +17,8 @@ from scipy.optimize import minimize_scalar
 
 import linkopt
 from linkopt._cli.main import main
-from linkopt._engine.assembly import assemble
-from linkopt._engine.fields import parse_text, parse_toml
+from linkopt._files.assembly import assemble
+from linkopt._files.fields import parse_text, parse_toml
 from linkopt._files.loader import build, loads
 
 DATA = Path(__file__).parent / "data"

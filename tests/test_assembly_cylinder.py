@@ -22,9 +22,9 @@ import pytest
 
 import linkopt
 from linkopt._cli.main import main
-from linkopt._engine.assembly import assemble, read_problem, start
-from linkopt._engine.assembly.solve import residual_np
-from linkopt._engine.fields import parse_text
+from linkopt._files.assembly import assemble, read_problem, start
+from linkopt._files.assembly.solve import residual_np
+from linkopt._files.fields import parse_text
 from linkopt._files.loader import build
 from linkopt._files.writer import dumps
 

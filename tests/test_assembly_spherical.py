@@ -13,8 +13,8 @@ from scipy.spatial.transform import Rotation
 
 import linkopt
 from linkopt._cli.main import main
-from linkopt._engine.assembly import assemble
-from linkopt._engine.fields import parse_toml
+from linkopt._files.assembly import assemble
+from linkopt._files.fields import parse_toml
 from linkopt._files.writer import dumps
 
 CENTRE = np.array([10.0, -5.0, 20.0])

@@ -83,7 +83,7 @@ def test_a_bad_size_limit_is_named(cache, monkeypatch, capsys):
 
 
 def test_cache_info_and_clear(cache, capsys):
-    fill(cache, ["a-cache", "b-cache"], 1000)
+    fill(cache / "executables", ["a-cache", "b-cache"], 1000)
     fill(cache / "traces", ["p-key.jaxexport"], 500)
     # a killed writer's temporary file: not an entry, and removed by clear
     (cache / "traces" / ".linkopt-tmp-0a1b-q-key.jaxexport.partial").write_bytes(b"x")
@@ -94,9 +94,11 @@ def test_cache_info_and_clear(cache, capsys):
     assert info["kinds"]["traces"]["bytes"] == 500
     limits = sum(row["limit_bytes"] for row in info["kinds"].values())
     assert limits == pytest.approx(_cache.DEFAULT_MB * 2**20, abs=2)
+    fill(cache, ["old-cache"], 10)  # an older layout's executable: cleared too
     assert main(["cache", "clear"]) == 0
-    assert "removed 2 executables, 1 traces" in capsys.readouterr().out
-    assert not [p for p in cache.rglob("*") if p.is_file()]
+    assert "removed 3 executables, 1 traces" in capsys.readouterr().out
+    left = [p for p in cache.rglob("*") if p.is_file() and p.name != ".lockfile"]
+    assert not left  # JAX's lock file stays: another process may hold it
 
 
 def test_cache_info_says_whether_the_kernels_are_in_use(cache, capsys, monkeypatch):
@@ -116,30 +118,52 @@ def test_cache_info_says_whether_the_kernels_are_in_use(cache, capsys, monkeypat
     assert "not in use, plain JAX (turned off by LINKOPT_KERNELS=0" in out
 
 
-def test_jax_writes_its_executables_through_the_bounded_cache(tmp_path):
-    """In a fresh process: JAX's file cache is linkopt's, a compiled program lands in
-    it as one whole entry, and a second process reads it back."""
+def test_jax_keeps_its_executables_bounded_where_asked(tmp_path, monkeypatch):
+    """In a fresh process: without :func:`linkopt.use_cache` nothing is written;
+    with it JAX's own bounded cache (its public options) writes each compiled program
+    with its last-use file, and a second process reads it back and marks it used."""
     script = (
-        "import jax, jax.numpy as jnp, linkopt\n"
-        "from jax._src import compilation_cache as cc\n"
+        "import sys, jax, jax.numpy as jnp, linkopt\n"
+        "if sys.argv[1] == 'cache':\n"
+        "    linkopt.use_cache()\n"
         "jax.config.update('jax_persistent_cache_min_compile_time_secs', 0)\n"
         "f = jax.jit(lambda x: jnp.sin(x) @ x.T + 1.0)\n"
         "f(jnp.ones((40, 40))).block_until_ready()\n"
-        "print(type(cc._cache).__name__, cc._cache._path)\n"
+        "print(jax.config.values['jax_compilation_cache_max_size'])\n"
     )
     env = dict(os.environ, LINKOPT_CACHE_DIR=str(tmp_path / "c"))
     env.pop("LINKOPT_CACHE_SIZE_MB", None)
-    run = subprocess.run(
-        [sys.executable, "-c", script], env=env, capture_output=True, text=True,
-        timeout=300, check=True,
-    )  # fmt: skip
-    assert run.stdout.split()[0] == "Executables"
-    entries = list((tmp_path / "c").glob("*-cache"))
-    assert entries and not list((tmp_path / "c").glob(".linkopt-tmp-*"))
-    used = {p: p.stat().st_mtime for p in entries}
+
+    def run(mode: str) -> str:
+        return subprocess.run(
+            [sys.executable, "-c", script, mode], env=env, capture_output=True,
+            text=True, timeout=300, check=True,
+        ).stdout  # fmt: skip
+
+    assert run("none").split() == ["-1"] and not (tmp_path / "c").exists()
+    assert int(run("cache")) == _cache.limit("executables")
+    entries = list((tmp_path / "c" / "executables").glob("*-cache"))
+    assert entries and all(
+        p.with_name(p.name.replace("-cache", "-atime")).exists() for p in entries
+    )
+    monkeypatch.setenv("LINKOPT_CACHE_DIR", str(tmp_path / "c"))
+    used = {e.path: e.used for e in _cache.entries("executables")}
     time.sleep(0.05)
-    subprocess.run(
-        [sys.executable, "-c", script], env=env, capture_output=True, text=True,
-        timeout=300, check=True,
-    )  # fmt: skip
-    assert any(p.stat().st_mtime > used[p] for p in entries)  # read, marked used
+    run("cache")
+    assert any(e.used > used[e.path] for e in _cache.entries("executables"))
+
+
+def test_executables_without_a_last_use_are_marked_then_ranked(cache):
+    """Entries written before JAX bounded the cache (no ``-atime``) get one from
+    their modification time, so JAX's eviction can rank them."""
+    fill(cache / "executables", ["a-cache", "b-cache"], 100)
+    assert _cache.mark_executables(cache / "executables") == 2
+    assert _cache.mark_executables(cache / "executables") == 0
+    found = _cache.entries("executables")
+    assert [e.path.name for e in found] == ["a-cache", "b-cache"]
+    assert [e.used for e in found] == pytest.approx([1_000_000.0, 1_000_001.0])
+    assert _cache.trim("executables", keep=100) == 1
+    assert sorted(p.name for p in (cache / "executables").glob("*-*")) == [
+        "b-atime",
+        "b-cache",
+    ]

@@ -63,7 +63,7 @@ not_ints = st.text(max_size=12).filter(lambda t: not _is_int(t))
 def _loaded_once(monkeypatch):
     """The shipped files are loaded once (each load compiles a kernel): the commands'
     ``load`` is memoised for them, so an example costs its checks, not a load."""
-    from linkopt._cli import evaluation, mechanism, values
+    from linkopt._cli import evaluation, mechanism, values, verify
 
     cache = {}
 
@@ -74,7 +74,7 @@ def _loaded_once(monkeypatch):
             cache[str(path)] = linkopt.load(path)
         return cache[str(path)]
 
-    for module in (evaluation, mechanism, values):
+    for module in (evaluation, mechanism, values, verify):
         monkeypatch.setattr(module, "load", load)
 
 

@@ -1,12 +1,11 @@
-"""The command line answers without JAX, and linkopt turns float64 on wherever JAX is
-imported through it (issue 29).
+"""The command line answers without JAX (issue 29), its imports arranged so (no import
+hook: issue 40).
 
 ``--help`` of every command, a usage error, a flag out of range and a file that cannot
 be read or is not TOML answer before the engine (and JAX, most of the start-up) is
 imported; the defaults and limits the parser shows come from JAX-free settings modules
 and are the engine's own objects. Importing :mod:`linkopt` imports
-no JAX; every linkopt module that imports it, imported alone in a fresh process, finds
-float64 on (:mod:`linkopt._config` comes first).
+no JAX (what importing changes: ``tests/test_import_effects.py``).
 """
 
 from __future__ import annotations
@@ -17,10 +16,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
 from conftest import MECHANISMS
 
-from linkopt._cli import animate, evaluation, manipulability
+from linkopt._cli import animate, grids, manipulability
 from linkopt._cli.main import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -215,9 +213,11 @@ def _command(parser: argparse.ArgumentParser, *path: str) -> argparse.ArgumentPa
 
 def test_the_defaults_shown_are_the_engines():
     """The parser's defaults equal the settings classes' own (imported here)."""
-    from linkopt import DHSynthesisSettings, OptimizerSettings, TraceSettings
+    from linkopt import OptimizerSettings
     from linkopt._arms.dh import synthesis
     from linkopt._design import maps, motion
+    from linkopt.arms.dh import DHSynthesisSettings
+    from linkopt.arms.trace import TraceSettings
 
     parser = build_parser()
     optimizer = OptimizerSettings()
@@ -259,9 +259,9 @@ def test_the_settings_the_command_line_reads_are_the_engines_own():
     from linkopt._design import maps, optimizer
 
     assert optimizer.OptimizerSettings is linkopt.OptimizerSettings
-    assert synthesis.DHSynthesisSettings is linkopt.DHSynthesisSettings
-    assert trace.TraceSettings is linkopt.TraceSettings
-    assert evaluation.MAX_CELLS is maps.MAX_CELLS
+    assert synthesis.DHSynthesisSettings is linkopt.arms.dh.DHSynthesisSettings
+    assert trace.TraceSettings is linkopt.arms.trace.TraceSettings
+    assert grids.MAX_CELLS is maps.MAX_CELLS
 
 
 def test_import_linkopt_imports_no_jax_and_its_names_turn_float64_on():
@@ -273,66 +273,5 @@ def test_import_linkopt_imports_no_jax_and_its_names_turn_float64_on():
         "linkopt.Mechanism\n"
         "import jax\n"
         "assert jax.config.jax_enable_x64\n"
-    )
-    _python(code)
-
-
-def _module_name(path: Path) -> str:
-    parts = path.relative_to(ROOT).with_suffix("").parts
-    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
-
-
-MODULES = [
-    _module_name(p) for p in sorted(PACKAGE.rglob("*.py")) if p.stem != "__main__"
-]
-
-
-#: Modules under ``linkopt._cli`` that import the engine, and so JAX, at the top: the
-#: finder then imports ``_config`` on their first engine import.
-CLI_WITH_ENGINE = ("linkopt._cli.payloads",)
-
-
-def _jax_free(module: str) -> bool:
-    from linkopt._imports import JAX_FREE
-
-    if module in ("linkopt._config", *CLI_WITH_ENGINE):
-        return False
-    return module in (*JAX_FREE, "linkopt") or module.startswith("linkopt._cli")
-
-
-def test_the_modules_listed_as_jax_free_import_no_jax():
-    """linkopt imports ``_config`` (float64, the cache) before the first module that
-    is not listed as JAX-free; so no listed module may import JAX itself, or JAX would
-    run unconfigured. One process imports them all and finds no JAX."""
-    free = [m for m in MODULES if _jax_free(m)]
-    assert len(free) > 10
-    code = (
-        "import importlib, sys\n"
-        f"for name in {free!r}:\n"
-        "    importlib.import_module(name)\n"
-        "loaded = sorted(m for m in sys.modules if m.split('.')[0] in "
-        "('jax', 'jaxlib'))\n"
-        "assert not loaded, loaded[:5]\n"
-    )
-    _python(code)
-
-
-@pytest.mark.parametrize(
-    "module",
-    [
-        *CLI_WITH_ENGINE,
-        *[m for m in MODULES if not _jax_free(m)][:: max(1, len(MODULES) // 8)],
-    ],
-)
-def test_a_module_that_imports_jax_finds_float64_on(module):
-    """Imported alone in a fresh process (a sample of the JAX-using modules; the
-    finder treats them all alike): float64 is on and the compilation cache installed
-    before any of it ran."""
-    code = (
-        "import importlib, sys\n"
-        f"importlib.import_module({module!r})\n"
-        "import jax\n"
-        "assert jax.config.jax_enable_x64, 'float64 is off'\n"
-        "assert 'linkopt._config' in sys.modules\n"
     )
     _python(code)

@@ -324,7 +324,7 @@ def test_a_layer_needs_a_plane_normal():
 
 
 def _build(text: str):
-    from linkopt._engine.fields import parse_toml
+    from linkopt._files.fields import parse_toml
     from linkopt._files.loader import build
 
     return build(parse_toml(text, "layer.toml"), "layer.toml", check=False)
@@ -363,7 +363,7 @@ def test_layers_keep_their_closed_form_clearance():
 
 
 def test_a_coupler_through_the_ground_fails_verify_naming_the_pair():
-    from linkopt._cli.evaluation import verification_payload
+    from linkopt._cli.verify import verification_payload
     from linkopt._design.verify import verify
 
     mech = linkopt.load(COLLIDING)

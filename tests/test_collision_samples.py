@@ -1,6 +1,6 @@
 """Collision samples (issue 30): with ``[collision]`` enabled, each target's IK sample
 is followed by a search for the pose of least clearance near it (the adversarial
-sampler with another objective, :func:`linkopt._design.sampling.clearance_objective`).
+sampler with another objective, :func:`linkopt._design.objectives.clearance_objective`).
 
 * each collision sample is no clearer than its IK sample, lies in the target range,
   and the least clearance over them is the least that ``verify``'s dense grid finds;

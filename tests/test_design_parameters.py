@@ -10,8 +10,8 @@ from conftest import MECHANISMS
 
 import linkopt
 from linkopt._engine.constraints import passive_residual
-from linkopt._engine.fields import parse_toml
 from linkopt._engine.geometry import geometry, rest_state
+from linkopt._files.fields import parse_toml
 from linkopt._files.loader import build
 from linkopt._files.writer import design_definition, dumps
 

@@ -17,8 +17,8 @@ from test_design_parameters import TEXTS
 import linkopt
 from linkopt._cli.values import design_arg
 from linkopt._design.evaluation import alpha_minus
-from linkopt._engine.fields import parse_toml
 from linkopt._engine.geometry import moved_joints
+from linkopt._files.fields import parse_toml
 from linkopt._files.loader import build
 from linkopt._files.writer import design_definition, dumps, write_design
 

@@ -46,7 +46,7 @@ import pytest
 
 import linkopt
 from linkopt._cli.main import main
-from linkopt._engine.fields import Reader, parse_toml
+from linkopt._files.fields import Reader, parse_toml
 from linkopt._files.loader import build
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -293,7 +293,7 @@ def _recording(recorded: Recorded, name: str):
 def _body_frame_keys() -> tuple[str, ...]:
     """Keys of a body given in its own frame: assembly recognises such a body by them
     and removes them before the loader reads ``[[bodies]]``."""
-    from linkopt._engine.assembly import BODY_KEYS
+    from linkopt._files.assembly import BODY_KEYS
 
     return BODY_KEYS
 
@@ -502,8 +502,8 @@ def test_joint_types_and_their_rows_are_documented():
 
 
 def test_enumerated_values_are_documented():
-    from linkopt._engine.design_kinds import KINDS
     from linkopt._engine.model import COORDINATES, OUTPUT_KINDS
+    from linkopt._files.design_kinds import KINDS
     from linkopt._files.outputs import ORIENTATION_ANGLES
 
     sections = reference_sections()

@@ -22,14 +22,8 @@ from five_bar_closed_form import (
 import linkopt
 from linkopt._design.evaluation import alpha_minus, evaluate, targets
 from linkopt._design.metrics import thresholds
-from linkopt._design.sampling import (
-    adversarial_objective,
-    either,
-    evaluate_point,
-    ik_objective,
-    minimise,
-    minimise_queue,
-)
+from linkopt._design.objectives import adversarial_objective, either, ik_objective
+from linkopt._design.sampling import evaluate_point, minimise, minimise_queue
 from linkopt._engine.constraints import homogenised_output_values
 from linkopt._engine.geometry import rest_state
 

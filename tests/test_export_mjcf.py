@@ -235,8 +235,8 @@ def _spherical_five_bar() -> linkopt.Mechanism:
     centre), assembled from its drawing."""
     from test_assembly_spherical import drawing
 
-    from linkopt._engine.assembly import assemble
-    from linkopt._engine.fields import parse_toml
+    from linkopt._files.assembly import assemble
+    from linkopt._files.fields import parse_toml
     from linkopt._files.writer import dumps
 
     result = assemble(parse_toml(drawing(), "sph.toml"), "sph.toml")

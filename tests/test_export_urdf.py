@@ -24,12 +24,12 @@ def _arm_3r():
 
 
 def _dh_arm():
-    table = linkopt.DHTable(
+    table = linkopt.arms.dh.DHTable(
         a=np.array([0.3, 0.0, 0.2]),
         alpha=np.array([1.2, -0.5, 0.0]),
         offset=np.array([0.1, 0.4, 0.05]),
     )
-    mech, _ = linkopt.dh_mechanism("RPR", table, np.array([0.2, 0.3, -0.4]))
+    mech, _ = linkopt.arms.dh.to_mechanism("RPR", table, np.array([0.2, 0.3, -0.4]))
     return mech
 
 

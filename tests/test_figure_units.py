@@ -11,7 +11,7 @@ from linkopt._design.evaluation import evaluate
 from linkopt._draw import figures as _figures
 from linkopt._draw import labels
 from linkopt._draw.space_plots import plot_spaces
-from linkopt._engine.fields import parse_toml
+from linkopt._files.fields import parse_toml
 from linkopt._files.loader import build
 
 BIGLIDE = Path(__file__).with_name("biglide.toml")

@@ -132,7 +132,7 @@ def test_particles_start_around_p0_and_stay_in_bounds(five_bar):
     assert np.all(
         np.abs(run.position - d.p0) <= SMALL.spread * (d.upper - d.lower) + 1e-12
     )
-    # a huge swarm step is clipped to the bounds by pyswarms' 'nearest' handler
+    # a huge swarm step is clipped to the bounds by the 'nearest' rule
     far = dataclasses.replace(SMALL, gradient_probability=0.0)
     run = step(five_bar, run, far)
     run = dataclasses.replace(

@@ -21,9 +21,9 @@ from test_outputs_orientation import _matrix, _random_states, _rot
 
 import linkopt
 from linkopt._engine import constraints, jacobian
-from linkopt._engine.assembly import assemble
-from linkopt._engine.fields import parse_toml
 from linkopt._engine.geometry import geometry
+from linkopt._files.assembly import assemble
+from linkopt._files.fields import parse_toml
 from linkopt._files.loader import build
 from linkopt._files.outputs import default_tilt_axis
 from linkopt._files.writer import dumps

@@ -15,8 +15,8 @@ from conftest import MECHANISMS
 import linkopt
 from linkopt._cli.values import read_values
 from linkopt._engine import constraints, jacobian
-from linkopt._engine.fields import parse_toml
 from linkopt._engine.geometry import geometry
+from linkopt._files.fields import parse_toml
 from linkopt._files.loader import build
 
 #: Test geometry (not a mechanism whose mobility matches its outputs: built with

@@ -14,11 +14,11 @@ from hypothesis import example, given
 from hypothesis import strategies as st
 
 import linkopt
-from linkopt._engine.assembly import assemble
 from linkopt._engine.attachment import LINE, PLANE, POINT, SPACE, attach
-from linkopt._engine.fields import parse_toml
 from linkopt._engine.following import follow
 from linkopt._engine.geometry import geometry
+from linkopt._files.assembly import assemble
+from linkopt._files.fields import parse_toml
 from linkopt._files.writer import write_design
 
 DESIGNS = np.array([[80.0, 180.0], [80.0, 210.0], [95.0, 160.0], [70.0, 200.0]])

@@ -12,12 +12,12 @@ from five_bar_closed_form import forward
 
 import linkopt
 from linkopt._cli.main import main
-from linkopt._design.evaluation import (
+from linkopt._design.conditioning import (
     NEAR_SINGULAR_SIGMA,
     alpha_minus,
-    evaluate,
     rest_conditioning,
 )
+from linkopt._design.evaluation import evaluate
 from linkopt._errors import MechanismFileError
 
 FIVE_BAR = (MECHANISMS / "five_bar.toml").read_text()
@@ -115,7 +115,7 @@ def test_optimize_refuses_before_any_work(tmp_path):
 
 def test_a_nan_sigma_min_is_refused_not_let_through(five_bar, monkeypatch):
     """Regression: the rest-pose guard compared ``sigma < tol``, which NaN passes."""
-    from linkopt._design.evaluation import RestConditioning
+    from linkopt._design.conditioning import RestConditioning
     from linkopt._engine import mobility
 
     real = mobility.rest_jacobians(five_bar)

@@ -22,7 +22,7 @@ from conftest import MECHANISMS, ROOT, TINY_OPTIMIZE
 
 import linkopt
 from linkopt import InputError
-from linkopt._arms.codesign import nlp
+from linkopt._arms.codesign import multistart, nlp
 from linkopt._cli.main import main
 from linkopt._design.optimizer import OptimizerSettings, start
 from linkopt._design.run import CHECKPOINT
@@ -158,7 +158,7 @@ def test_a_crashing_arm_design_leaves_no_result(tmp_path, monkeypatch):
 
     def fake_solve(problem, **_):
         arm, n = problem.arm, problem.num_waypoints
-        solution = nlp.ArmSolution(
+        solution = multistart.ArmSolution(
             theta=np.zeros((n, arm.num_joints)),
             design=(arm.lower + arm.upper) / 2,
             objective=1.0,

@@ -11,7 +11,7 @@ import pytest
 from conftest import MECHANISMS
 
 import linkopt
-from linkopt._design.evaluation import alpha_minus, rest_conditioning
+from linkopt._design.conditioning import alpha_minus, rest_conditioning
 from linkopt._engine.geometry import rest_state
 from linkopt._engine.welding import part_state, parts
 from linkopt._files.writer import dumps

@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import linkopt
-from linkopt._engine.fields import parse_toml
+from linkopt._files.fields import parse_toml
 from linkopt._files.writer import dumps, write_design
 
 

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .. import _config  # noqa: F401  (float64 on before any array)
 from .._engine import rotations as rot
 from .._files.bounds import diameter
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from jaxtyping import Float
 
-from .._engine.fields import Reader, is_finite_number
+from .._files.fields import Reader, is_finite_number, is_number_list
 
 MAX_FILE_BYTES = 16 * 2**20
 MAX_MAGNITUDE = 1e6
@@ -128,3 +128,22 @@ def count_limit(rd: Reader, where: str, count: int, limit: int, what: str) -> No
     """At most ``limit`` entries of ``what``."""
     if count > limit:
         raise rd.fail(where, f"{count} {what} exceed the limit of {limit}")
+
+
+def orientation(rd: Reader, value, where: str) -> Float[np.ndarray, "3 3"]:
+    """A rotation matrix given as its three rows."""
+    ok = (
+        isinstance(value, list)
+        and len(value) == 3
+        and all(is_number_list(r, 3) for r in value)
+    )
+    matrix = np.asarray(value, dtype=float) if ok else None
+    if (
+        matrix is None
+        or np.abs(matrix @ matrix.T - np.eye(3)).max() > 1e-6
+        or np.linalg.det(matrix) < 0
+    ):
+        raise rd.fail(
+            where, "expected a 3x3 rotation matrix (rows, orthonormal, det +1)"
+        )
+    return matrix

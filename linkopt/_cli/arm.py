@@ -35,10 +35,10 @@ from .._errors import InputError
 from .._folders import run_folder, staged
 
 if TYPE_CHECKING:
-    from .._arms.codesign import nlp
+    from .._arms.codesign import multistart, nlp
 
 
-def _progress(solution: nlp.ArmSolution) -> None:
+def _progress(solution: multistart.ArmSolution) -> None:
     state = (
         "feasible"
         if solution.feasible
@@ -61,12 +61,12 @@ def _rows_table(header: list[str], rows: np.ndarray) -> str:
     )
 
 
-def _feasible(solution: nlp.ArmSolution) -> str:
+def _feasible(solution: multistart.ArmSolution) -> str:
     return "feasible" if solution.feasible else "infeasible"
 
 
 def write_solution(
-    problem: nlp.Problem, solution: nlp.ArmSolution, out: Path, prefix: str = ""
+    problem: nlp.Problem, solution: multistart.ArmSolution, out: Path, prefix: str = ""
 ) -> dict:
     """Write one solved arm (module docstring); returns its summary dictionary."""
     from .._arms.codesign import nlp
@@ -99,7 +99,7 @@ def write_solution(
     }
 
 
-def _write_design(arm, solution: nlp.ArmSolution, path: Path) -> None:
+def _write_design(arm, solution: multistart.ArmSolution, path: Path) -> None:
     """The arm at its optimised design as a mechanism file, the design in a header."""
     from .._arms.codesign.model import mechanism_definition
     from .._files.writer import dumps
@@ -117,7 +117,7 @@ def _write_design(arm, solution: nlp.ArmSolution, path: Path) -> None:
 
 def _write_tables(
     problem: nlp.Problem,
-    solution: nlp.ArmSolution,
+    solution: multistart.ArmSolution,
     report: dict,
     out: Path,
     prefix: str,
@@ -155,7 +155,7 @@ def _write_tables(
 
 
 def _write_constraints(
-    problem: nlp.Problem, solution: nlp.ArmSolution, z, report: dict, path: Path
+    problem: nlp.Problem, solution: multistart.ArmSolution, z, report: dict, path: Path
 ) -> None:
     from .._arms.codesign import nlp
 
@@ -207,7 +207,7 @@ def _task(args):
 
 
 def _solve(args, task):
-    from .._arms.codesign import nlp
+    from .._arms.codesign import multistart, nlp
 
     problem = nlp.prepare(task)
     print(
@@ -217,7 +217,7 @@ def _solve(args, task):
         flush=True,
     )
     started = time.perf_counter()
-    best, runs = nlp.solve(
+    best, runs = multistart.solve(
         problem,
         starts=args.starts,
         seed=args.seed,

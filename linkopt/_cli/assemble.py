@@ -1,7 +1,7 @@
 """``linkopt assemble FILE --out FILE2``: solve a drawn mechanism's loop closures.
 
 The file gives approximate anchors and declared dimensions (``[[lengths]]``, bodies in
-their own frame; :mod:`linkopt._engine.assembly`); the command writes the assembled
+their own frame; :mod:`linkopt._files.assembly`); the command writes the assembled
 file (world anchors to full precision, an ordinary mechanism file that every command
 reads) and reports how far each anchor moved, the declared lengths as assembled, how
 far each prismatic or cylindrical joint slid, and σ_min at the assembled rest pose,
@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._engine.fields import parse_text
 from .._errors import InputError, LinkoptError
+from .._files.fields import parse_text
 from .._folders import write_atomic
 from .values import parse_row
 
@@ -37,10 +37,10 @@ def run_assemble(args) -> int:
         raise InputError(f"--out: {args.out!r} is a folder; expected a file path")
     data = parse_text(source)
     motors = _motor_values(args.motors, data)
-    from .._engine.assembly import assemble
     from .._engine.geometry import rest_state
     from .._engine.mobility import check_mobility
     from .._engine.singularity import singular_values
+    from .._files.assembly import assemble
     from .._files.loader import build
     from .._files.writer import dumps
 
@@ -92,7 +92,7 @@ def _header(source: Path, report) -> str:
 
 
 def _payload(source: Path, out: Path, report, sigma_fk: float, sigma_bk: float):
-    from .._engine.assembly import NEAR_SINGULAR
+    from .._files.assembly import NEAR_SINGULAR
 
     warnings = []
     if not sigma_fk >= NEAR_SINGULAR:  # NaN too

@@ -55,8 +55,8 @@ def run_info(args) -> int:
     print(kernels_line(payload["kernels"]))
     if not payload["bounded_executables"]:
         print(
-            "  executables are kept by JAX's own cache here, which is not bounded "
-            "(this JAX has no hook for linkopt's)"
+            "  executables are not bounded here: JAX's eviction needs the filelock "
+            "package (pip install filelock)"
         )
     return 0
 

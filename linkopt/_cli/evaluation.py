@@ -1,22 +1,19 @@
-"""``linkopt evaluate | plot | verify``: one design of a mechanism file, the file's own
-or ``--design``, scored (paper Sec. IV), drawn, and checked densely over the target
-range.
-
-``verify`` exits with 1 when the design fails the check.
+"""``linkopt evaluate | plot``: one design of a mechanism file, the file's own or
+``--design``, scored (paper Sec. IV) and drawn (``verify`` checks it densely:
+:mod:`.verify`).
 """
 
 from __future__ import annotations
 
 import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
-from .._design.settings import MAX_BYTES, MAX_CELLS
 from .._errors import InputError
 from .._folders import output_folder
+from .grids import add_max_cells, map_progress
 from .mechanism import moved_points, print_moves
 from .values import design_arg, load
 
@@ -62,7 +59,8 @@ def _sample(mech, ev, t: int, goal, ik_out, adv_out) -> dict:
 def evaluation_payload(mech, ev, design=None) -> dict:
     """What ``linkopt evaluate`` reports (``--json``) for one evaluation of
     ``design`` (file units, None: the file's)."""
-    from .._design.evaluation import alpha_minus, capped, rest_conditioning, targets
+    from .._design.conditioning import rest_conditioning
+    from .._design.evaluation import alpha_minus, capped, targets
     from .._design.on_bounds import on_bounds
     from .._engine.readout import output_values
     from .payloads import held_at_limits
@@ -295,147 +293,8 @@ def _plot_spaces(
     )
 
 
-#: Seconds between two progress lines of the same map (the first wave of each map
-#: is always reported).
-PROGRESS_INTERVAL = 3.0
-
-
-def map_progress(interval: float = PROGRESS_INTERVAL):
-    """A ``progress`` callback for the maps (:mod:`linkopt._design.maps`): one stderr
-    line when a map starts and then at most every ``interval`` seconds, with the
-    elapsed time."""
-    began = time.perf_counter()
-    last = {"stage": None, "at": -float("inf")}
-
-    def report(record: dict) -> None:
-        now = time.perf_counter()
-        if "cells" not in record:  # a stage of its own
-            print(f"  {record['stage']} ...", file=sys.stderr, flush=True)
-            return
-        done = record["cells"] >= record["of"]
-        if record["stage"] == last["stage"] and now - last["at"] < interval:
-            return
-        last.update(stage=record["stage"], at=now)
-        print(
-            f"  {record['stage']}: {record['cells']}/{record['of']} cells visited"
-            f"{' (done)' if done else ''}, {now - began:.0f} s",
-            file=sys.stderr,
-            flush=True,
-        )
-
-    return report
-
-
-def verification_payload(mech, result) -> dict:
-    """What ``linkopt verify`` reports (``--json``) for one verification."""
-    from .payloads import verified_limits
-
-    return {
-        "passed": result.passed,
-        "coverage": result.coverage,
-        "cells": result.cells,
-        "grid": list(result.grid_shape),
-        "threshold_alpha_minus": result.threshold,
-        "max_f_sing": result.max_f_sing,
-        "min_sigma_fk": result.min_sigma_fk,
-        "min_sigma_bk": result.min_sigma_bk,
-        "worst_cell": dict(zip(mech.output_names, map(float, result.worst_outputs))),
-        "unreached_example": None
-        if result.unreached_example is None
-        else dict(zip(mech.output_names, map(float, result.unreached_example))),
-        **_verified_collision(mech, result),
-        **verified_limits(mech, result),
-    }
-
-
-def _verified_collision(mech, result) -> dict:
-    """``verify --json``'s ``collision`` entry, only for a file that checks them."""
-    if result.min_clearance is None:
-        return {}
-    cell = result.collision_outputs
-    return {
-        "collision": {
-            "clearance": mech.collision.clearance,
-            "min_clearance": result.min_clearance,
-            "pair": None
-            if result.collision_pair is None
-            else list(result.collision_pair),
-            "cell": None
-            if cell is None
-            else dict(zip(mech.output_names, map(float, cell))),
-        }
-    }
-
-
-def run_verify(args) -> int:
-    if args.resolution is not None and args.resolution < 2:
-        raise InputError(
-            "--resolution: expected at least 2 points per output, "
-            f"got {args.resolution}"
-        )
-    mech = load(args.file)
-    from .._design.maps import check_count
-    from .._design.verify import check_resolution, verify
-
-    design = design_arg(mech, args.design)
-    max_cells = check_count(args.max_cells, "--max-cells", 1)
-    resolution = check_resolution(
-        mech,
-        args.resolution,
-        max_cells=max_cells,
-        where="--resolution",
-        raise_with="--max-cells",
-    )
-    result = verify(mech, design, resolution, max_cells=max_cells)
-    payload = verification_payload(mech, result)
-    if args.json:
-        print(json.dumps(payload, indent=2))
-    else:
-        _print_verification(mech, payload)
-    return 0 if payload["passed"] else 1
-
-
-def _print_verification(mech, payload: dict) -> None:
-    verdict = "PASS" if payload["passed"] else "FAIL"
-    print(
-        f"{mech.name}: {verdict}: coverage {100 * payload['coverage']:.1f}% of "
-        f"{payload['cells']} cells; max f_sing {payload['max_f_sing']:.4g} "
-        f"(threshold α₋ {payload['threshold_alpha_minus']:.4g}); "
-        f"min σ FK {payload['min_sigma_fk']:.3g}, BK {payload['min_sigma_bk']:.3g}"
-    )
-    print(
-        "  worst cell "
-        + ", ".join(f"{n}={v:.4g}" for n, v in payload["worst_cell"].items())
-    )
-    if payload["unreached_example"]:
-        print(
-            "  e.g. unreached "
-            + ", ".join(f"{n}={v:.4g}" for n, v in payload["unreached_example"].items())
-        )
-    if "collision" in payload:
-        print("  " + _collision_line(payload["collision"]))
-    if "motor_limits" in payload:
-        from .payloads import limits_line
-
-        print("  " + limits_line(payload["motor_limits"]))
-
-
-def _collision_line(entry: dict) -> str:
-    """One line on the least clearance of a verification (file units)."""
-    if entry["pair"] is None:
-        return f"collision: no checked pair in a reached cell ({entry['clearance']:g})"
-    closer = entry["min_clearance"] < entry["clearance"]
-    a, b = entry["pair"]
-    cell = ", ".join(f"{n}={v:.4g}" for n, v in entry["cell"].items())
-    return (
-        f"collision: {'FAIL' if closer else 'clear'}: {a} and {b} "
-        f"{entry['min_clearance']:.4g} apart at {cell} (clearance "
-        f"{entry['clearance']:.4g}{'; closer than it' if closer else ''})"
-    )
-
-
 def register(subparsers) -> None:
-    """Add ``evaluate``, ``plot`` and ``verify`` to the ``linkopt`` sub-commands."""
+    """Add ``evaluate`` and ``plot`` to the ``linkopt`` sub-commands."""
     evaluate_cmd = subparsers.add_parser(
         "evaluate", help="IK and adversarial samples, f_design (paper Sec. IV)"
     )
@@ -446,20 +305,6 @@ def register(subparsers) -> None:
     )
     evaluate_cmd.set_defaults(run=run_evaluate)
     _register_plot(subparsers)
-    _register_verify(subparsers)
-
-
-def _add_max_cells(cmd) -> None:
-    cmd.add_argument(
-        "--max-cells",
-        type=int,
-        default=MAX_CELLS,
-        help=(
-            f"refuse a grid of more cells (default {MAX_CELLS}); the estimated "
-            f"memory is capped too ({MAX_BYTES / 2**30:.3g} GiB here, half of the "
-            "machine's memory)"
-        ),
-    )
 
 
 def _register_plot(subparsers) -> None:
@@ -480,7 +325,7 @@ def _register_plot(subparsers) -> None:
     plot.add_argument(
         "--label", help="file-name label (default 'initial', or 'design' with --design)"
     )
-    _add_max_cells(plot)
+    add_max_cells(plot)
     plot.add_argument(
         "--no-clearance",
         action="store_true",
@@ -490,25 +335,3 @@ def _register_plot(subparsers) -> None:
         ),
     )
     plot.set_defaults(run=run_plot)
-
-
-def _register_verify(subparsers) -> None:
-    verify_cmd = subparsers.add_parser(
-        "verify",
-        help=(
-            "dense check of the whole target range: coverage and singularity "
-            "distance (and link clearance, with [collision])"
-        ),
-    )
-    verify_cmd.add_argument("file")
-    verify_cmd.add_argument("--design", help="as for evaluate")
-    verify_cmd.add_argument(
-        "--resolution",
-        type=int,
-        help="grid points per output (default 41, or 13 for 3 outputs)",
-    )
-    _add_max_cells(verify_cmd)
-    verify_cmd.add_argument(
-        "--json", action="store_true", help="machine-readable output"
-    )
-    verify_cmd.set_defaults(run=run_verify)

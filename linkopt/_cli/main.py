@@ -2,7 +2,7 @@
 sweep | synthesize | arm | cache``; a thin layer over the public API.
 
 Each command family lives in its own module with a ``register(subparsers)``:
-:mod:`.mechanism` (check, fk, bk), :mod:`.evaluation` (evaluate, plot, verify),
+:mod:`.mechanism` (check, fk, bk), :mod:`.evaluation` (evaluate, plot), :mod:`.verify`,
 :mod:`.optimize`, :mod:`.sweep`, :mod:`.synthesize`, and under ``arm`` :mod:`.arm`
 (design, simplify), :mod:`.manipulability` and :mod:`.trace`. This module assembles
 the parser and handles what every command shares.
@@ -16,6 +16,10 @@ checks first what needs neither the file nor the engine, then reads the file
 imported), and imports the engine only then, so that ``--help``, a usage error and a
 bad flag or file answer at once.
 
+The command line asks for linkopt's on-disk caches (:func:`linkopt.use_cache`), which a
+library user may or may not: :func:`main` records the request without importing JAX,
+and :mod:`linkopt._config` applies it when a command first sets JAX up.
+
 Bad input exits with status 2 and one line on stderr (argparse's own errors too: the
 usage text is left to ``--help``); a failed solve exits with 1.
 """
@@ -26,6 +30,7 @@ import argparse
 import os
 import sys
 
+from .. import _cache
 from .._errors import LinkoptError
 from . import animate as animate_commands
 from . import arm as arm_commands
@@ -39,6 +44,7 @@ from . import optimize as optimize_commands
 from . import sweep as sweep_commands
 from . import synthesize as synthesize_commands
 from . import trace as trace_commands
+from . import verify as verify_commands
 from . import view as view_commands
 
 # options whose values may start with "-" (negative numbers)
@@ -84,6 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
         mechanism_commands,
         assemble_commands,
         evaluation_commands,
+        verify_commands,
         optimize_commands,
         sweep_commands,
         synthesize_commands,
@@ -118,6 +125,15 @@ def _join_value_options(argv: list[str]) -> list[str]:
     return joined
 
 
+def _use_cache() -> None:
+    """The caches on (module docstring): at once where JAX is set up for linkopt
+    already (``main`` called in a Python process), else when it is."""
+    _cache.request()
+    config = sys.modules.get(f"{__package__.rpartition('.')[0]}._config")
+    if config is not None:
+        config.use_cache()
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     try:
@@ -125,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     except _UsageError as err:
         print(err, file=sys.stderr)
         return 2
+    _use_cache()
     try:
         return args.run(args)
     except LinkoptError as err:

@@ -36,7 +36,7 @@ from .options import Option, add_options, settings_of
 if TYPE_CHECKING:
     from .._arms.dh.synthesis import DHSynthesis
 
-#: The options that set :class:`~linkopt.DHSynthesisSettings` fields.
+#: The options that set :class:`~linkopt.arms.dh.DHSynthesisSettings` fields.
 OPTIONS = (
     Option("--precision", "precision", "ε of eq. 8-10"),
     Option("--size-damping", "size_damping", "ξ of eq. 9-10"),
@@ -149,7 +149,7 @@ def _progress(types: str, synthesis: DHSynthesis) -> None:
 
 
 def synthesize_dh(points, joints, settings, progress):
-    """:func:`linkopt.synthesize_dh`, its module imported on the first call."""
+    """:func:`linkopt.arms.dh.synthesize`, its module imported on the first call."""
     from .._arms.dh.synthesis import synthesize_dh
 
     return synthesize_dh(points, joints, settings, progress=progress)

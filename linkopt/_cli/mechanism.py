@@ -88,7 +88,7 @@ def print_moves(mech, moves, where: str) -> None:
 def _rest_pose(mech) -> tuple[dict, list[str]]:
     """The rest pose's conditioning (homogenised σ_min and f_sing, and the singular
     values of the textbook Jacobian ∂b/∂a in file units) and the warnings about it."""
-    from .._design.evaluation import near_singular_message, rest_conditioning
+    from .._design.conditioning import near_singular_message, rest_conditioning
 
     rest = rest_conditioning(mech)
     info = rest.as_json()

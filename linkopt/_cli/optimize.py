@@ -26,15 +26,14 @@ from .._design import ahead
 from .._design.settings import OptimizerSettings
 from .._errors import InputError
 from .._machine import default_workers
-from .evaluation import map_progress
+from .grids import map_progress
 from .values import load
 
 #: The default --workers: one per core of this machine, at most one per 3 GiB of its
 #: memory and at most 8 (:func:`linkopt._machine.default_workers`; 2 on 2 cores)
 WORKERS = default_workers()
-#: Most sample lanes (particles x IK targets) one iteration may evaluate: the five-bar's
-#: 20 x 9 = 180 lanes take about 1 s per iteration on 2 cores, so 2e5 lanes are about
-#: 20 minutes per iteration there, and more on a larger mechanism.
+#: Most sample lanes (particles x IK targets) one iteration may evaluate: a thousand
+#: times the five-bar's 180, beyond which an iteration takes minutes.
 MAX_LANES = 200_000
 MAX_WORKERS = 64
 #: seconds ``--scheduler`` waits for the scheduler to answer (``--connect-timeout``)

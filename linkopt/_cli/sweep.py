@@ -55,6 +55,7 @@ def _local(args, mech, seeds, report) -> list[dict]:
 
 
 def _on_cluster(args, mech, seeds, report) -> list[dict]:
+    from .._cache import requested
     from .._design.sweep import finished_row, run_seed
     from .._draw.run_folder import draw_run_figures
 
@@ -77,6 +78,7 @@ def _on_cluster(args, mech, seeds, report) -> list[dict]:
             workers=args.workers,
             resolution=args.resolution,
             in_process=True,
+            caches=requested(),
         )
         futures = [
             client.submit(

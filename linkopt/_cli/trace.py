@@ -31,7 +31,7 @@ from .._errors import InputError
 from .._folders import run_folder, staged
 from .options import Option, add_options, settings_of
 
-#: The options that set :class:`~linkopt.TraceSettings` fields.
+#: The options that set :class:`~linkopt.arms.trace.TraceSettings` fields.
 OPTIONS = (
     Option("--restarts", "restarts", "initial guesses per stage"),
     Option(

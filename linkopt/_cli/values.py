@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._engine.fields import parse_text
 from .._errors import InputError
+from .._files.fields import parse_text
 
 #: Largest CSV file read (bytes): a path of :data:`MAX_ROWS` rows of a few numbers each
 #: is well under it, and a larger file is refused before it is read into memory.

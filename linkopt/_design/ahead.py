@@ -1,7 +1,7 @@
 """Worker processes spawned before their mechanism exists, without importing JAX here.
 
-A worker's start-up is a Python and JAX import, about a second on a 2-core machine, and
-an optimiser's first iteration waited for it. :func:`start` spawns the ``count - 1``
+A worker's start-up is a Python and JAX import, which an optimiser's first iteration
+would otherwise wait for. :func:`start` spawns the ``count - 1``
 worker processes of a :class:`linkopt._design.workers.Workers` of ``count`` processes
 at once, so that they import while the caller loads and checks the mechanism
 (``linkopt optimize`` calls it before loading the file); the next ``Workers`` of as many
@@ -15,14 +15,19 @@ from __future__ import annotations
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 
+from .. import _cache
+
 #: Processes spawned by :func:`start`, not adopted yet, with the ``count`` they serve.
 _AHEAD: tuple[int, ProcessPoolExecutor] | None = None
 
 
-def initialise() -> None:
-    """A worker process's start-up: the imports, and OpenBLAS held to one thread for
-    its lifetime (:mod:`linkopt._config`)."""
-    from .._config import one_blas_thread
+def initialise(caches: _cache.Use | None = None) -> None:
+    """A worker process's start-up: the caches its parent uses (``caches``), the
+    imports, and OpenBLAS held to one thread for its lifetime
+    (:mod:`linkopt._config`)."""
+    from .._config import adopt, one_blas_thread
+
+    adopt(caches)
     from . import evaluation, partial  # noqa: F401  (the imports are the start-up)
 
     one_blas_thread()
@@ -36,7 +41,10 @@ def spawn(count: int) -> ProcessPoolExecutor:
     """A pool of ``count`` worker processes (spawn, not fork: fork would copy JAX's
     threads)."""
     return ProcessPoolExecutor(
-        count, mp_context=multiprocessing.get_context("spawn"), initializer=initialise
+        count,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=initialise,
+        initargs=(_cache.requested(),),
     )
 
 

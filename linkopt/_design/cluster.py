@@ -41,7 +41,8 @@ import numpy as np
 from distributed import Client, KilledWorker, WorkerPlugin
 from jaxtyping import Array, Float
 
-from .._config import one_blas_thread
+from .._cache import requested
+from .._config import adopt, one_blas_thread
 from .._engine.model import Mechanism, fingerprint
 from .._errors import InputError
 from .evaluation import Evaluation, evaluate
@@ -58,8 +59,10 @@ class MechanismPlugin(WorkerPlugin):
     def __init__(self, mech: Mechanism):
         self.mech = mech
         self.key = fingerprint(mech)
+        self.caches = requested()  # the caches the client uses, the worker uses too
 
     def setup(self, worker) -> None:
+        adopt(self.caches)
         MECHANISMS[self.key] = self.mech
         one_blas_thread()  # for the worker's lifetime, as in Workers' processes
 

@@ -50,9 +50,8 @@ from .settings import MAX_BYTES, MAX_CELLS
 
 MAX_JUMP = 0.25
 
-#: Solve time per cell, seconds, at state size 35 (scaled by (size / 35)²): the
-#: five-bar's verify grids at 41² and 81² took 11-14 ms a cell, compilation included,
-#: on a 2-core machine running three such processes; rounded to 5 ms for one.
+#: Solve time per cell, seconds, at state size 35 (scaled by (size / 35)²), for the
+#: estimate a grid is refused on (the measurement: docs/performance.md).
 SECONDS_PER_CELL = 5e-3
 #: Python's overhead per visited cell: a dict entry, its tuple key and a state view.
 CELL_OVERHEAD = 400

@@ -20,6 +20,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .. import _config  # noqa: F401  (float64 on before any array)
+
 ALPHA_PLUS_RATIO = 10.0 / 7.0
 BARRIER_LOW = 0.1  # m
 BARRIER_HIGH = 5.0  # M

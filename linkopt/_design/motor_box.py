@@ -20,6 +20,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
+from .. import _config  # noqa: F401  (float64 on before any array)
 from .._engine.model import Mechanism
 
 #: How close (homogenised) to a motor limit a motor counts as at it: the rounding of

@@ -1,17 +1,17 @@
 """Hybrid particle swarm + partial gradient design optimisation (paper Sec. V).
 
 Per iteration: all particles are evaluated in one batched call; personal and global
-bests are updated (pyswarms' ``compute_pbest`` and star topology); then each particle
+bests are updated (pyswarms' rules: personal bests and the star topology,
+:mod:`linkopt._design.swarm`); then each particle
 independently, with probability ``gradient_probability`` (½ in the paper), takes a
 partial-gradient step (:mod:`linkopt._design.partial`), otherwise a swarm step
 ``v ← w v + c₁ r₁ (p_best - x) + c₂ r₂ (g_best - x)``, ``x ← x + lr · v``, with the
 inertia ``w`` falling linearly from 0.9 to 0.4 over 100 iterations, ``c₁ = c₂ = 2``,
-``lr = 1``. Positions are kept in bounds by pyswarms' ``nearest`` boundary handler; ties
+``lr = 1``. Positions are kept in bounds by the ``nearest`` rule; ties
 (symmetry) hold by construction since ``p`` is the reduced parameter vector.
 
-The swarm state lives in a pyswarms ``Swarm``; the velocity update is written here
-because pyswarms draws ``r₁, r₂`` from numpy's global random state, and every result
-here must follow from an explicit seed (``numpy.random.Generator``).
+The swarm's random numbers ``r₁, r₂`` come from the run's explicit seed
+(``numpy.random.Generator``), never numpy's global random state.
 
 Partial-gradient step: in scaled parameters (lengths divided by the reference length)
 ``Δ = -g · min(gradient_rate, gradient_step / |g|)``, i.e. a gradient step whose length
@@ -20,7 +20,7 @@ is capped at ``gradient_step`` reference lengths; the particle's velocity is unc
 The design a run returns is the best one it evaluated, ranked first by whether its
 ``f_design`` is at most ``tolerance`` (the whole range reached with no singularity, up
 to solver noise) and then by total (``f_design`` + regulariser). The swarm itself
-follows pyswarms' global best by total, which may be a design with a tiny but non-zero
+follows the global best by total, which may be a design with a tiny but non-zero
 ``f_design`` and a smaller regulariser; ranking feasibility first keeps such a design
 from being returned or from holding the run open. ``tolerance`` = 1e-12 is our choice:
 feasible five-bar, finger, neck and Jansen designs score 1e-27 to 1e-18 (reach residuals

@@ -49,7 +49,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._config import one_blas_thread
+from .._cache import requested
+from .._config import adopt, one_blas_thread
 from .._engine.model import Mechanism
 from .._errors import InputError
 from .._files.writer import write_design
@@ -302,7 +303,12 @@ def _design_outputs(
     run's rounds'), and the figures; with ``workers`` > 1 the initial design's in a
     spawned process (module docstring)."""
     side = (
-        ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+        ProcessPoolExecutor(
+            1,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=adopt,
+            initargs=(requested(),),
+        )
         if workers > 1
         else None
     )

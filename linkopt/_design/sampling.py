@@ -21,9 +21,9 @@ the box of allowed motor values by projected Newton steps
 
 The step bound ``r`` is a trust radius: it starts at the file's ``max_step``, doubles
 after an accepted step that it had to shorten (up to ``RADIUS_GROWTH · max_step``) and
-halves after a rejected one (down to ``max_step``). Samples travel up to about 2 rad
-from the rest pose, which at a fixed 0.1 rad took 20 of the 40 iterations before the
-minimisation proper began. Iteration stops when the gradient is below ``GRADIENT_TOL``,
+halves after a rejected one (down to ``max_step``): samples travel far from the rest
+pose, and a fixed small step would spend the iteration cap getting there. Iteration
+stops when the gradient is below ``GRADIENT_TOL``,
 or when an accepted step that the radius did not shorten lowered the value by at most
 ``VALUE_RTOL`` of it (a converged quasi-Newton step: targets out of reach never get a
 zero gradient), or at the iteration cap.
@@ -33,18 +33,15 @@ costs its slowest lane's iterations times its width. :func:`minimise_queue` runs
 lanes through ``width`` slots instead, each lane's IK minimisation and then its
 adversarial one from the IK result: a slot moves on to its lane's second phase, or to
 the next waiting lane, as soon as a phase stops, and each phase takes the steps it takes
-in :func:`minimise` (the flat batch rounds differently from nested ``vmap``: five-bar
-samples agree to about 1e-10, 3-motor neck samples to 1e-6 after 40 BFGS steps).
-Iteration counts are spread: five-bar IK lanes from the rest pose stop after 5-12
-iterations when their target is reachable and run to the cap of 40 when it is not;
-adversarial lanes stop after 14-40.
+in :func:`minimise` (up to the rounding of a flat batch against nested ``vmap``).
+Lanes' iteration counts are spread (an unreachable target runs to the cap), which is
+what the queue saves.
 
 Starting a minimisation is a :func:`_step` of length zero (``fresh``), and both phases
 share the step, choosing objective and Hessian model per slot, so the compiled loop
 holds the expensive evaluation (trial solve, ``ds/da``, ``f_sing`` and its gradient)
-once, where holding it four times (IK start and step, adversarial start and step) made
-the program several times slower to compile and to load from the compilation cache
-(``benchmarks/bench_evaluation.py``).
+once rather than four times (IK start and step, adversarial start and step), which
+keeps the program small to compile and load (``benchmarks/bench_evaluation.py``).
 """
 
 from __future__ import annotations
@@ -58,18 +55,14 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from .._engine import dense
-from .._engine.collision import capsule_gaps
 from .._engine.constraints import (
     fk_residual,
-    homogenised_output_values,
-    output_residual,
 )
 from .._engine.geometry import Geometry
 from .._engine.jacobian import state_jacobian
 from .._engine.kinematics import solve_single
 from .._engine.model import Mechanism
 from .._engine.singularity import sigmas_of, stacked_jacobians
-from .metrics import Thresholds, attractive, barrier, culled
 from .motor_box import held, into_box, motor_box, projected
 
 ARMIJO = 1e-4
@@ -459,83 +452,3 @@ def minimise_queue(
     queue = _start_queue(blank, lanes, motors0, width)
     queue = jax.lax.while_loop(lambda q: jnp.any(q.owner >= 0), body, queue)
     return queue.outs
-
-
-def ik_objective(mech: Mechanism, geom: Geometry, target, th: Thresholds) -> Objective:
-    """Eq. 4: ``f_BK(b^t, s(a)) + f_sing^c(s(a))`` with its Gauss–Newton model."""
-
-    def objective(motors, state, ds_da, f_sing, d_f_sing):
-        residual = output_residual(mech, geom, target, state)
-        # ∂r/∂s · ds/da as M forward tangents along the columns of ds/da
-        jac = jax.jacfwd(
-            lambda d: output_residual(mech, geom, target, state + ds_da @ d)
-        )(jnp.zeros(ds_da.shape[1]))
-        term, slope = jax.value_and_grad(culled)(f_sing, th)
-        return (
-            0.5 * residual @ residual + term,
-            jac.T @ residual + slope * (d_f_sing @ ds_da),
-            jac.T @ jac,
-        )
-
-    return objective
-
-
-def adversarial_objective(
-    mech: Mechanism, geom: Geometry, anchor_motors, low, high, th: Thresholds
-) -> Objective:
-    """Eq. 5: ``f_sing^a(s) + w₁ ½|a - a_IK|² + w₂ R₂(s)``."""
-    w_motion, w_range = mech.evaluation.motion_weight, mech.evaluation.range_weight
-
-    def objective(motors, state, ds_da, f_sing, d_f_sing):
-        term, slope = jax.value_and_grad(attractive)(f_sing, th)
-        wall, d_wall = jax.value_and_grad(
-            lambda s: barrier(homogenised_output_values(mech, geom, s), low, high)
-        )(state)
-        offset = motors - anchor_motors
-        value = term + w_range * wall + 0.5 * w_motion * offset @ offset
-        gradient = (slope * d_f_sing + w_range * d_wall) @ ds_da + w_motion * offset
-        return value, gradient, jnp.zeros((motors.shape[0],) * 2)
-
-    return objective
-
-
-def clearance_objective(
-    mech: Mechanism, geom: Geometry, anchor_motors, low, high
-) -> Objective:
-    """The collision samples' search (:mod:`linkopt._design.evaluation`):
-    eq. 5 with the soft minimum of the checked capsule pairs' clearances ``g_i`` in
-    place of ``f_sing^a``, ``-c log Σ exp(-g_i / c)`` with ``c`` the clearance band,
-    plus ``w₁ ½|a - a_IK|² + w₂ R₂(s)``. Its minimum is a pose near the IK sample, in
-    the target range, where the links come closest; unlike the barrier of the
-    collision term it has a gradient at any distance, so the search also finds the
-    closest pose of a design that is clear. Homogenised lengths."""
-    w_motion, w_range = mech.evaluation.motion_weight, mech.evaluation.range_weight
-    band = mech.collision.clearance / mech.length_scale
-
-    def closest(state):
-        gaps = capsule_gaps(mech, geom, state)
-        return -band * jax.scipy.special.logsumexp(-gaps / band)
-
-    def objective(motors, state, ds_da, f_sing, d_f_sing):
-        gap, d_gap = jax.value_and_grad(closest)(state)
-        wall, d_wall = jax.value_and_grad(
-            lambda s: barrier(homogenised_output_values(mech, geom, s), low, high)
-        )(state)
-        offset = motors - anchor_motors
-        value = gap + w_range * wall + 0.5 * w_motion * offset @ offset
-        gradient = (d_gap + w_range * d_wall) @ ds_da + w_motion * offset
-        return value, gradient, jnp.zeros((motors.shape[0],) * 2)
-
-    return objective
-
-
-def either(first: Objective, second: Objective, use_second) -> Objective:
-    """The objective ``second`` where the traced ``use_second`` holds, else ``first``
-    (both are computed: the shared ``f_sing`` makes the rest cheap)."""
-
-    def objective(*args):
-        return jax.tree_util.tree_map(
-            lambda a, b: jnp.where(use_second, b, a), first(*args), second(*args)
-        )
-
-    return objective

@@ -19,8 +19,8 @@ MAX_CELLS = 100_000
 #: interpreter, jax's compiled code and a second process. It binds before the cell cap
 #: for larger states (σ_min of every cell is one batch: ~120 kB a five-bar cell).
 MAX_BYTES = grid_memory_cap()
-#: Frames of an animation by default, and the most it accepts: 600 frames of the
-#: five-bar take about 20 s to draw and some 3 MB of GIF.
+#: Frames of an animation by default, and the most it accepts (a GIF's drawing time
+#: and size grow with its frames).
 DEFAULT_FRAMES = 60
 MAX_FRAMES = 600
 

@@ -38,7 +38,8 @@ import jax
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._config import one_blas_thread
+from .._cache import Use
+from .._config import adopt, one_blas_thread
 from .._engine.model import Mechanism
 from .._folders import write_atomic
 from .checkpoint import CHECKPOINT
@@ -141,12 +142,15 @@ def run_seed(
     workers: int = 1,
     resolution: int | None = None,
     in_process: bool = False,
+    caches: Use | None = None,
 ) -> dict:
     """One seed's run (``settings.seed``) in ``out/seed_NNN``, finished, resumed or
     started (module docstring), its ``workers`` chunks in as many processes or, with
     ``in_process``, all in this one, its figures drawn by ``figures``
     (:func:`linkopt._design.run.write_outputs`); its summary row, with ``"computed"``
-    False when the folder was already complete."""
+    False when the folder was already complete. ``caches``: those of the process that
+    sent the run (:func:`linkopt._config.adopt`), where it runs on a Dask worker."""
+    adopt(caches)
     out = Path(out)
     seed = settings.seed
     done = finished_row(out, seed)

@@ -1,8 +1,8 @@
 """The constraint engine (paper 001, Sec. II-III).
 
-In pipeline order: a mechanism file is read (``fields`` here, the file layer
-:mod:`linkopt._files`) into one :class:`~linkopt._engine.model.Mechanism`
-(``model``); bodies in maximal coordinates (``quaternion``) are tied by joint residual
+The engine takes built objects: the file layer (:mod:`linkopt._files`) reads a
+mechanism file into one :class:`~linkopt._engine.model.Mechanism` (``model``); bodies
+in maximal coordinates (``rotations``) are tied by joint residual
 rows (``joints``, ``constraints``) whose Jacobians are written out (``jacobian``);
 Levenberg–Marquardt (``lm``) solves forward and backward kinematics and their
 sensitivities (``kinematics``); ``singularity`` gives σ_min and f_sing, ``mobility``

@@ -31,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 import jax
 import numpy as np
 
+from .. import _config  # noqa: F401  (float64 on before any array)
 from .._machine import cores
 
 #: Rows per block. 64 is two of the solver's 32-lane chunks (``kinematics.CHUNK``): a

@@ -51,12 +51,17 @@ are at most 6 × 6).
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
-from .. import _kernels
+from .. import (
+    _config,  # noqa: F401  (float64 on before any array)
+    _kernels,
+)
 
 #: Cyclic Jacobi sweeps of :func:`symmetric_eigh`. Convergence is quadratic once the
 #: off-diagonal part is below the eigenvalue gaps; for 6 × 6 matrices 6 sweeps reach
@@ -238,27 +243,44 @@ def _register() -> dict[str, str] | None:
     return targets
 
 
-#: FFI target names of the compiled kernels, or None where they are not available.
-TARGETS: dict[str, str] | None = _register()
-#: The largest matrix order the kernels take (larger ones run the plain-JAX code).
-KERNEL_MAX_N: int = _kernels.max_n() if TARGETS is not None else 0
-#: The largest order the fused kernel of :func:`damped_solve` takes (larger ones call
-#: the Cholesky and solve kernels in turn).
-DAMPED_MAX_N: int = _kernels.damped_max_n() if TARGETS is not None else 0
-#: The widest start block the kernel of :func:`smallest_right` takes.
-SMALLEST_MAX_K: int = _kernels.smallest_max_k() if TARGETS is not None else 0
+@functools.cache
+def _kernel_state() -> dict:
+    """The kernels registered with XLA on first use (nothing at import), and their
+    limits: the values of :data:`LAZY`."""
+    targets = _register()
+    on = targets is not None
+    return {
+        "TARGETS": targets,
+        "KERNEL_MAX_N": _kernels.max_n() if on else 0,
+        "DAMPED_MAX_N": _kernels.damped_max_n() if on else 0,
+        "SMALLEST_MAX_K": _kernels.smallest_max_k() if on else 0,
+        "EXPORT_CHECKS": tuple(
+            jax.export.DisabledSafetyCheck.custom_call(target)
+            for target in (targets or {}).values()
+        ),
+    }
+
+
+#: Module attributes computed on first use (PEP 562): ``TARGETS``, the FFI target
+#: names of the compiled kernels or None where they are not available;
+#: ``KERNEL_MAX_N``, the largest matrix order the kernels take; ``DAMPED_MAX_N``, the
+#: largest order :func:`damped_solve`'s fused kernel takes; ``SMALLEST_MAX_K``, the
+#: widest start block of :func:`smallest_right`'s kernel; ``EXPORT_CHECKS``, the
 #: ``jax.export`` safety checks to turn off for programs that call the kernels.
-EXPORT_CHECKS = tuple(
-    jax.export.DisabledSafetyCheck.custom_call(target)
-    for target in (TARGETS or {}).values()
-)
+LAZY = ("TARGETS", "KERNEL_MAX_N", "DAMPED_MAX_N", "SMALLEST_MAX_K", "EXPORT_CHECKS")
+
+
+def __getattr__(name: str):
+    if name in LAZY:
+        return _kernel_state()[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _use_kernel(*arrays) -> bool:
     """Whether the kernels serve these arrays (module docstring)."""
     return (
-        TARGETS is not None
-        and arrays[0].shape[-1] <= KERNEL_MAX_N
+        _kernel_state()["TARGETS"] is not None
+        and arrays[0].shape[-1] <= _kernel_state()["KERNEL_MAX_N"]
         and all(a.dtype == jnp.float64 for a in arrays)
         and jax.default_backend() == "cpu"
     )
@@ -266,7 +288,7 @@ def _use_kernel(*arrays) -> bool:
 
 def _call(key: str, result, *args, aliases=None, **attributes):
     return jax.ffi.ffi_call(
-        TARGETS[key],
+        _kernel_state()["TARGETS"][key],
         jax.ShapeDtypeStruct(result.shape, result.dtype),
         vmap_method="broadcast_all",
         input_output_aliases=aliases,
@@ -364,7 +386,11 @@ def damped_solve(
     kernels). Its derivative is the plain-JAX code's, through the factorisation loop
     (:func:`solve_spd` differentiates more cheaply)."""
     damping = jnp.asarray(damping, dtype=a.dtype)
-    if b.ndim == 1 and a.shape[-1] <= DAMPED_MAX_N and _use_kernel(a, damping, b):
+    if (
+        b.ndim == 1
+        and a.shape[-1] <= _kernel_state()["DAMPED_MAX_N"]
+        and _use_kernel(a, damping, b)
+    ):
         return _KERNELS["damped_solve"](a, damping, b)
     return cho_solve(cholesky(_damped(a, damping)), b)
 
@@ -372,7 +398,7 @@ def damped_solve(
 def serves_smallest_right(a: Float[Array, "B n n"], k: int) -> bool:
     """Whether :func:`smallest_right` runs for these Gram matrices and a start block
     of ``k`` columns (the kernels are in use and take the sizes)."""
-    return k <= min(SMALLEST_MAX_K, a.shape[-1]) and _use_kernel(a)
+    return k <= min(_kernel_state()["SMALLEST_MAX_K"], a.shape[-1]) and _use_kernel(a)
 
 
 def smallest_right(

@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .. import _config  # noqa: F401  (float64 on before any array)
 from .attachment import LINE, PLANE, Attachment
 from .rotations import turn_onto, unit
 

@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .. import _config  # noqa: F401  (float64 on before any array)
 from .following import follow
 from .lifting import padded_design
 from .model import Mechanism

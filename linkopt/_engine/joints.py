@@ -17,6 +17,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .. import _config  # noqa: F401  (float64 on before any array)
 from .rotations import rotate
 
 Vec = Float[Array, "3"]

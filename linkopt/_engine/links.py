@@ -9,8 +9,8 @@ tree). The exporters draw the same capsules (:mod:`linkopt._export.tree`), so wh
 anchors followed by the named points (``j`` for joint ``j``, ``J + p`` for point
 ``p``), so a segment follows its body's anchors when a design moves them.
 
-``[collision]`` and the per-body ``radius`` and ``layer`` are read here
-(:func:`read_collision`); the loader calls it once the rest of the file is read.
+``[collision]`` and the per-body ``radius`` and ``layer`` are read by
+:mod:`linkopt._files.collision`, which builds the model with :func:`build_collision`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ from itertools import combinations
 
 import numpy as np
 
-from .fields import Reader, shown
 from .model import Collision, Mechanism
 
 #: Two places of a body closer than this (reference lengths) are one.
@@ -29,24 +28,6 @@ THICKNESS_FRACTION = 0.04
 #: Default clearance band as a fraction of the thickness: half a thickness, so that two
 #: links of the default thickness must stay one link radius apart.
 CLEARANCE_FRACTION = 0.5
-#: Default weight of the collision term in ``f_design``.
-DEFAULT_WEIGHT = 1.0
-#: Keys of ``[collision]``.
-COLLISION_KEYS = {
-    "enable",
-    "thickness",
-    "clearance",
-    "weight",
-    "normal",
-    "include",
-    "exclude",
-}
-#: Largest weight, thickness and clearance, as for the ``[evaluation]`` weights and in
-#: reference lengths.
-MAX_WEIGHT = 1e6
-MAX_SIZE = 1.0
-#: Two joint axes this close to parallel (|sin| of their angle) share a plane normal.
-PARALLEL_TOL = 1e-9
 
 
 def default_thickness(length_scale: float) -> float:
@@ -106,68 +87,6 @@ def body_segments(
     return [(refs[a], refs[b]) for a, b in segments(where[refs])]
 
 
-# ---- reading [collision] ----------------------------------------------------------
-
-
-def _body_sizes(rd: Reader, mech: Mechanism, thickness: float) -> tuple:
-    """Per-body capsule radii and layer offsets (file units) from ``[[bodies]]``."""
-    radii = np.full(mech.num_bodies, 0.5 * thickness)
-    layers = np.zeros(mech.num_bodies)
-    for k, body in enumerate(mech.raw.get("bodies", [])):
-        where = f"bodies[{k}]"
-        if "radius" in body:
-            radii[k] = rd.bounded(
-                body, "radius", where, 1e-9 * mech.length_scale, mech.length_scale
-            )
-        if "layer" in body:
-            layers[k] = rd.bounded(
-                body, "layer", where, -mech.length_scale, mech.length_scale
-            )
-    return radii, layers
-
-
-def _plane_normal(rd: Reader, mech: Mechanism, table: dict) -> np.ndarray | None:
-    """``[collision].normal``, else the common axis of the revolute and cylindrical
-    joints when they are all parallel (a planar mechanism), else None."""
-    if "normal" in table:
-        return rd.direction(table, "normal", "[collision]")
-    axial = [
-        mech.axes[j]
-        for j, kind in enumerate(mech.joint_types)
-        if kind in ("revolute", "cylindrical")
-    ]
-    if not axial:
-        return None
-    first = axial[0]
-    if all(np.linalg.norm(np.cross(first, a)) <= PARALLEL_TOL for a in axial):
-        return np.asarray(first, dtype=float)
-    return None
-
-
-def _pair_list(rd: Reader, table: dict, key: str, mech: Mechanism) -> set:
-    """``include``/``exclude``: a list of ``[body, body]`` pairs of distinct bodies."""
-    where = f"[collision].{key}"
-    value = table.get(key, [])
-    if not isinstance(value, list):
-        raise rd.fail(
-            where, f"expected a list of [body, body] pairs, got {shown(value)}"
-        )
-    index = {name: b for b, name in enumerate(mech.body_names)}
-    pairs = set()
-    for k, pair in enumerate(value):
-        if not isinstance(pair, list) or len(pair) != 2:
-            raise rd.fail(
-                f"{where}[{k}]", f"expected a pair [body, body], got {shown(pair)}"
-            )
-        a, b = (rd.lookup(index, name, f"{where}[{k}]", "body") for name in pair)
-        if a == b:
-            raise rd.fail(
-                f"{where}[{k}]", f"expected two different bodies, got {shown(pair)}"
-            )
-        pairs.add((min(a, b), max(a, b)))
-    return pairs
-
-
 def default_pairs(mech: Mechanism) -> set[tuple[int, int]]:
     """Every pair of bodies that share no joint (bodies in file order)."""
     joined = {tuple(sorted(int(b) for b in pair)) for pair in mech.joint_bodies}
@@ -176,43 +95,6 @@ def default_pairs(mech: Mechanism) -> set[tuple[int, int]]:
         for a, b in combinations(range(mech.num_bodies), 2)
         if (a, b) not in joined
     }
-
-
-def _number(rd: Reader, table: dict, key: str, low: float, high: float, default):
-    return rd.bounded(table, key, "[collision]", low, high) if key in table else default
-
-
-def read_collision(rd: Reader, mech: Mechanism) -> Collision | None:
-    """The :class:`~.model.Collision` of ``[collision]`` (None without the table);
-    the per-body ``radius`` and ``layer`` are checked in any case."""
-    data = mech.raw
-    size = MAX_SIZE * mech.length_scale
-    table = (
-        rd.table(data["collision"], "[collision]", COLLISION_KEYS, set())
-        if "collision" in data
-        else {}
-    )
-    default = default_thickness(mech.length_scale)
-    thickness = _number(rd, table, "thickness", 1e-9 * size, size, default)
-    radii, layers = _body_sizes(rd, mech, thickness)
-    if "collision" not in data:
-        return None
-    enabled = rd.boolean(table, "enable", "[collision]") if "enable" in table else True
-    clearance = _number(rd, table, "clearance", 1e-9 * size, size, None)
-    clearance = CLEARANCE_FRACTION * thickness if clearance is None else clearance
-    weight = _number(rd, table, "weight", 0.0, MAX_WEIGHT, DEFAULT_WEIGHT)
-    normal = _plane_normal(rd, mech, table)
-    if normal is None and np.any(layers != 0.0):
-        k = int(np.flatnonzero(layers != 0.0)[0])
-        raise rd.fail(
-            f"bodies[{k}].layer",
-            "a layer is an offset along the plane's normal, and the revolute joints' "
-            "axes are not all parallel; give [collision].normal",
-        )
-    offsets = np.outer(layers, np.zeros(3) if normal is None else normal)
-    pairs = default_pairs(mech) - _pair_list(rd, table, "exclude", mech)
-    pairs |= _pair_list(rd, table, "include", mech)
-    return build_collision(mech, enabled, clearance, weight, radii, offsets, pairs)
 
 
 def build_collision(

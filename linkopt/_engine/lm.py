@@ -15,7 +15,7 @@ damped step it takes from that linearisation.
 * :class:`NormalEquations` (the FK/BK constraint solves, square or tall ``J`` with
   redundant rows, e.g. a planar loop written in 3-D): ``(JᵀJ + λI) δ = -Jᵀr`` by
   Cholesky (:mod:`linkopt._engine.dense`, no LAPACK call).
-* :class:`MinimumNorm` (the assembly, :mod:`linkopt._engine.assembly.solve`, more
+* :class:`MinimumNorm` (the assembly, :mod:`linkopt._files.assembly.solve`, more
   unknowns than rows, ``JᵀJ`` singular up to λ): the least weighted-norm step
   ``δ = -S Jₛᵀ (Jₛ Jₛᵀ + λI)⁻¹ r`` with ``Jₛ = J S``, ``S = diag(scale)``.
 

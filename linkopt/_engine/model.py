@@ -95,7 +95,7 @@ class EvaluationSettings:
 @dataclass(frozen=True, eq=False)
 class Collision:
     """Link solids and the pairs checked for collision, from ``[collision]`` (static;
-    built by :func:`linkopt._engine.links.read_collision`, distances in
+    built by :func:`linkopt._files.collision.read_collision`, distances in
     :mod:`linkopt._engine.collision`).
 
     ``G`` capsules, ``Q`` checked body pairs, ``C`` capsule pairs.

@@ -40,8 +40,8 @@ import numpy as np
 from jax import export
 
 from .. import _kernels
-from .._cache import read_used, store
-from .._config import cache_directory, jit
+from .._cache import read_used, store, traces_folder
+from .._config import jit
 from . import dense
 from .lifting import lift, numbers, structure_key
 from .model import Mechanism
@@ -136,17 +136,17 @@ def _key(name: str, mech: Mechanism, signature: tuple) -> str:
     return sink.hexdigest()
 
 
-def _directory() -> Path:
-    return cache_directory() / "traces"
+def _trace_path(name: str, mech: Mechanism, signature: tuple) -> Path | None:
+    """Where the trace of program ``name`` for ``mech`` and ``signature`` is kept, or
+    None where the caches are not in use (:func:`linkopt.use_cache`)."""
+    folder = traces_folder()
+    if folder is None:
+        return None
+    return folder / f"{name}-{_key(name, mech, signature)[:32]}.jaxexport"
 
 
-def _trace_path(name: str, mech: Mechanism, signature: tuple) -> Path:
-    """Where the trace of program ``name`` for ``mech`` and ``signature`` is kept."""
-    return _directory() / f"{name}-{_key(name, mech, signature)[:32]}.jaxexport"
-
-
-def _load(path: Path):
-    blob = read_used(path)
+def _load(path: Path | None):
+    blob = None if path is None else read_used(path)
     if blob is None:
         return None
     try:
@@ -155,7 +155,9 @@ def _load(path: Path):
         return None
 
 
-def _store(path: Path, exported) -> None:
+def _store(path: Path | None, exported) -> None:
+    if path is None:
+        return
     try:
         blob = exported.serialize()
     except Exception as err:  # e.g. an unregistered pytree node: kept in memory
@@ -240,7 +242,8 @@ def _program_locked(name: str, mech: Mechanism, fn: Callable, values, args):
 def stored(name: str, mech: Mechanism, *args) -> bool:
     """Whether the trace of ``call(name, mech, fn, *args)`` is on disk, i.e.
     some process has traced (and so, almost always, compiled) that program before."""
-    return _trace_path(name, mech, (_numbers(mech)[1], _signature(args))).exists()
+    path = _trace_path(name, mech, (_numbers(mech)[1], _signature(args)))
+    return path is not None and path.exists()
 
 
 def output_shapes(name: str, mech: Mechanism, fn: Callable, *args):

@@ -13,8 +13,8 @@ derivatives give NaN there.
 
 Two halves, one formula each: the functions without prefix are JAX (traced code); those
 prefixed ``np_`` are numpy, for file-time code (exporters, the loader's symmetry
-reader), which must not import JAX (:data:`linkopt._imports.JAX_FREE`): this module
-imports ``jax.numpy`` inside the JAX functions, not at the top. :func:`unit` and
+reader), which the command line runs without importing JAX: this module imports
+``jax.numpy`` inside the JAX functions, not at the top. :func:`unit` and
 :func:`turn_onto` take the array module as their first argument, for code that runs
 both ways (:mod:`.following`).
 """

@@ -76,21 +76,20 @@ SETPOINT_TIME = 0.05
 #: Every joint's damping as a damping ratio of the reference inertia at the servo's
 #: frequency (``2 ζ ω I``; ``2 ζ ω M`` for slides). Passive modes the servos do not
 #: reach (an idle rod's spin, a mode near a singularity) die out with it; larger values
-#: slow every motion (0.1 took the Stewart platform 2.1 s to settle, 0.03 0.7 s).
+#: slow every motion.
 JOINT_DAMPING = 0.03
 #: Every joint's armature (rotor inertia) as a fraction of the reference inertia (of
 #: ``M`` for slides). It keeps light links (a finger's rods, 0.1 % of the reference
-#: inertia) from being flung by the constraint forces: without it the finger's
-#: phalanx flipped to another assembly branch when driven from rest (measured).
+#: inertia) from being flung onto another assembly branch by the constraint forces.
 ARMATURE = 0.01
-#: Time step (s). MuJoCo's default 2 ms let the 2-motor neck's light rods oscillate
-#: without settling (measured); 0.5 ms settles every shipped mechanism.
+#: Time step (s): small enough that light rods settle (MuJoCo's default 2 ms does not
+#: settle every shipped mechanism; ``tests/test_export_mjcf.py`` checks they settle).
 TIMESTEP = 5e-4
 #: The loop-closing equalities: ``solref`` time constant (s), critically damped:
 #: 4 time steps (MuJoCo asks for at least 2), ten times stiffer than MuJoCo's default
 #: 20 ms; ``solimp`` impedance from 0.95 to 0.99 over a width of 1e-3 reference
-#: lengths (MuJoCo's default width is 1 mm whatever the size, and 0.9-0.95 left
-#: the delta 1e-3 reference lengths off after 5 s, measured).
+#: lengths (MuJoCo's default width is 1 mm whatever the size, and its 0.9-0.95 leaves
+#: the loops visibly open).
 EQUALITY_TIME = 2e-3
 EQUALITY_IMPEDANCE = (0.95, 0.99)
 EQUALITY_WIDTH = 1e-3

@@ -25,8 +25,8 @@ from __future__ import annotations
 import numpy as np
 from jaxtyping import Float
 
-from .._engine.fields import Reader
 from .._engine.model import OUTPUT_KINDS
+from .fields import Reader
 
 #: Largest |cos| between two axes that must be perpendicular.
 ORTHOGONAL_TOL = 1e-9

@@ -2,7 +2,7 @@
 
 Every problem is reported as one :class:`MechanismFileError` naming the file, the
 table/field and what was expected (through the shared
-:class:`~linkopt._engine.fields.Reader`). Nothing missing is silently replaced by a
+:class:`~linkopt._files.fields.Reader`). Nothing missing is silently replaced by a
 default; the only optional fields are those documented in the mechanism-file reference
 with their defaults (``reference_length``, ``[solver]``, ``axis`` of a fixed joint,
 ``[symmetry]``, ``[[parameters]]``, ``mirror``).
@@ -12,7 +12,7 @@ magnitude the solver can work with, before anything is computed from it
 (:mod:`.bounds`). The parts are read in the order they depend on each other: the
 bodies and joints (:mod:`.topology`) give the reference length, which bounds the named
 points and motors (:mod:`.points`), the outputs (:mod:`.outputs`), the symmetry and
-design parameters (:mod:`linkopt._engine.design_space`) and the settings
+design parameters (:mod:`linkopt._files.design_space`) and the settings
 (:mod:`.settings`); ``[collision]`` (:mod:`linkopt._engine.links`) is read last, from
 the mechanism. Bodies joined by ``fixed`` joints are then merged into one body
 (:mod:`linkopt._engine.welding`), before the mobility check. A ``[synthesis]`` table
@@ -27,15 +27,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .._engine.design_space import read_design, read_symmetry
-from .._engine.fields import Reader, parse_text, parse_toml
-from .._engine.links import read_collision
 from .._engine.model import Mechanism
 from .._engine.welding import weld
 from .bounds import check_position, position, reference_length
+from .collision import read_collision
+from .design_space import read_design
+from .fields import Reader, parse_text, parse_toml
 from .outputs import output_fields, read_outputs
 from .points import idle_spins, motor_fields, point_fields, read_motors, read_points
 from .settings import read_evaluation, read_solver
+from .symmetry import read_symmetry
 from .synthesis import read_synthesis, synthesis_names
 from .topology import (
     body_fields,
@@ -77,7 +78,7 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
     """Validate a parsed definition and build the :class:`Mechanism`; ``check=False``
     skips the mobility/rest-singularity check (for test geometry only)."""
     # [mechanism].assemble, [[lengths]], body frames
-    from .._engine.assembly import prepare
+    from .assembly import prepare
 
     rd = Reader(source)
     check_size(rd, data)

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._engine.fields import Reader, field_name, shown
 from .._engine.model import OUTPUT_KINDS, OutputTable
 from .bounds import ORTHOGONAL_TOL, check_value
+from .fields import Reader, field_name, shown
 
 
 def read_outputs(

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 
 from .._engine.attachment import attach
-from .._engine.fields import Reader
 from .._engine.model import MOTOR_JOINTS
 from .bounds import check_position, position
+from .fields import Reader
 from .topology import pins
 
 

@@ -13,9 +13,9 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable
 
-from .._engine.fields import Reader, is_number_list, shown
 from .._engine.model import EvaluationSettings, SolverSettings
 from .bounds import check_value
+from .fields import Reader, is_number_list, shown
 
 #: ``[solver]`` and ``[evaluation]`` numbers: (smallest, largest). The LM tolerance is
 #: on max |C| in homogenised units (float64 resolves ~1e-16 of a reference length); the

@@ -33,8 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._engine.fields import Reader, is_finite_number, shown
 from .._errors import MechanismFileError
+from .fields import Reader, is_finite_number, shown
 
 KINDS = ("path", "function", "motion")
 FIELDS = {

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 from jaxtyping import Float
 
-from .._engine.fields import Reader, shown
 from .._engine.model import AXIAL_JOINTS, JOINT_ROWS
 from .bounds import ORTHOGONAL_TOL, position
+from .fields import Reader, shown
 
 #: Most bodies of a mechanism (:func:`check_size`): the solver works on dense square
 #: matrices of 7 numbers per body, batched 64 at a time (``blocks.BLOCK``) with a few

@@ -160,7 +160,7 @@ def source_header(mech: Mechanism) -> str:
 
 def _length(vector) -> float:
     """The length of an axis as the source file writes it: its axis-component
-    parameters are components of that vector (:mod:`linkopt._engine.design_space`),
+    parameters are components of that vector (:mod:`linkopt._files.design_space`),
     so the written axis keeps it and reads back as the same parameters."""
     vec = np.asarray(vector, dtype=float)
     largest = float(np.max(np.abs(vec)))

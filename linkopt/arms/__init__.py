@@ -2,12 +2,12 @@
 (design and trajectory of an arm, paper 000), :mod:`.dh` (DH synthesis for
 manipulability, paper 004) and :mod:`.trace` (planar arms tracing paths, paper 002).
 
-Each name of a family is also a top-level name of :mod:`linkopt`, the same object
-(``linkopt.arms.dh.synthesize`` is ``linkopt.synthesize_dh``); the namespaces import
+The namespaces are the only home of their names (``linkopt.arms.dh.synthesize``; the
+old top-level ``linkopt.synthesize_dh`` warns until the next release) and import
 nothing until a name is used.
 """
 
-from .._imports import namespace as _namespace
+from .._namespace import namespace as _namespace
 
 __all__ = ["codesign", "dh", "trace"]
 

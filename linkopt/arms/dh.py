@@ -2,25 +2,25 @@
 arm's Denavit–Hartenberg table chosen so that its tip reaches given points far from
 singular configurations, and the table as a linkopt :class:`~linkopt.Mechanism`.
 
-Each name is also a top-level name of :mod:`linkopt`, the same object: functions lose
-the ``dh`` the namespace says (``synthesize`` is ``linkopt.synthesize_dh``,
-``to_mechanism`` is ``linkopt.dh_mechanism``), classes keep their names.
+This namespace is the only home of its names. Until the next release the old
+top-level names still work, with a ``DeprecationWarning`` naming the name here
+(``linkopt.DHTable``, ``linkopt.dh_mechanism``, ...).
 """
 
 from typing import TYPE_CHECKING
 
-from .._imports import namespace as _namespace
+from .._namespace import namespace as _namespace
 
-#: each name here -> its top-level name in :mod:`linkopt`
-_TOP_LEVEL = {
-    "DHTable": "DHTable",
-    "to_mechanism": "dh_mechanism",
-    "DHSynthesis": "DHSynthesis",
-    "DHSynthesisSettings": "DHSynthesisSettings",
-    "synthesize": "synthesize_dh",
+#: each name here -> (its module under :mod:`linkopt`, its name there)
+_NAMES = {
+    "DHTable": ("_arms.dh.table", "DHTable"),
+    "to_mechanism": ("_arms.dh.table", "to_mechanism"),
+    "DHSynthesis": ("_arms.dh.synthesis", "DHSynthesis"),
+    "DHSynthesisSettings": ("_arms.dh.settings", "DHSynthesisSettings"),
+    "synthesize": ("_arms.dh.synthesis", "synthesize_dh"),
 }
 
-__getattr__, __dir__ = _namespace(__name__, _TOP_LEVEL)
+__getattr__, __dir__ = _namespace(__name__, _NAMES)
 
 if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from .._arms.dh.settings import DHSynthesisSettings
@@ -28,4 +28,4 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from .._arms.dh.synthesis import synthesize_dh as synthesize
     from .._arms.dh.table import DHTable, to_mechanism
 
-__all__ = sorted(_TOP_LEVEL)
+__all__ = sorted(_NAMES)

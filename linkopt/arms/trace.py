@@ -3,32 +3,32 @@
 clear of the obstacles, its verification, and the comparison with the discretised
 approach (a design that only reaches points of the path).
 
-Each name is also a top-level name of :mod:`linkopt`, the same object: functions lose
-the ``trace`` the namespace says (``synthesize`` is ``linkopt.synthesize_trace``,
-``verify`` is ``linkopt.verify_trace``), classes keep their names.
+This namespace is the only home of its names. Until the next release the old
+top-level names still work, with a ``DeprecationWarning`` naming the name here
+(``linkopt.TraceTask``, ``linkopt.load_trace_task``, ...).
 """
 
 from typing import TYPE_CHECKING
 
-from .._imports import namespace as _namespace
+from .._namespace import namespace as _namespace
 
-#: each name here -> its top-level name in :mod:`linkopt`
-_TOP_LEVEL = {
-    "TraceTask": "TraceTask",
-    "load_task": "load_trace_task",
-    "loads_task": "loads_trace_task",
-    "TraceSettings": "TraceSettings",
-    "TraceResult": "TraceResult",
-    "synthesize": "synthesize_trace",
-    "PlanarArm": "PlanarArm",
-    "TraceVerification": "TraceVerification",
-    "verify": "verify_trace",
-    "DiscreteComparison": "DiscreteComparison",
-    "compare_discretised": "compare_discretised",
-    "discretised_design": "discretised_design",
+#: each name here -> (its module under :mod:`linkopt`, its name there)
+_NAMES = {
+    "TraceTask": ("_arms.trace.task", "TraceTask"),
+    "load_task": ("_arms.trace.task", "load_task"),
+    "loads_task": ("_arms.trace.task", "loads_task"),
+    "TraceSettings": ("_arms.trace.settings", "TraceSettings"),
+    "TraceResult": ("_arms.trace.synthesis", "TraceResult"),
+    "synthesize": ("_arms.trace.synthesis", "synthesize"),
+    "PlanarArm": ("_arms.trace.verify", "PlanarArm"),
+    "TraceVerification": ("_arms.trace.verify", "TraceVerification"),
+    "verify": ("_arms.trace.verify", "verify"),
+    "DiscreteComparison": ("_arms.trace.discrete", "DiscreteComparison"),
+    "compare_discretised": ("_arms.trace.discrete", "compare"),
+    "discretised_design": ("_arms.trace.discrete", "discretised_design"),
 }
 
-__getattr__, __dir__ = _namespace(__name__, _TOP_LEVEL)
+__getattr__, __dir__ = _namespace(__name__, _NAMES)
 
 if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from .._arms.trace.discrete import DiscreteComparison, discretised_design
@@ -38,4 +38,4 @@ if TYPE_CHECKING:  # the eager imports, for type checkers and editors
     from .._arms.trace.task import TraceTask, load_task, loads_task
     from .._arms.trace.verify import PlanarArm, TraceVerification, verify
 
-__all__ = sorted(_TOP_LEVEL)
+__all__ = sorted(_NAMES)

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..._config import jit
 from ..._engine import rotations as rot
-from . import nlp
+from . import multistart, nlp
 from .model import (
     Arm,
     Module,
@@ -292,7 +292,7 @@ def merge_trajectory(theta: np.ndarray, k: int) -> np.ndarray:
 
 def best_elimination(
     problem: nlp.Problem,
-    solution: nlp.ArmSolution,
+    solution: multistart.ArmSolution,
     settings: EliminationSettings = EliminationSettings(),
 ) -> tuple[Elimination, list[Elimination]]:
     """Algorithm 1 for every candidate joint pair; the one of least ``δ`` first."""
@@ -306,17 +306,17 @@ def best_elimination(
 
 def reoptimise(
     problem: nlp.Problem,
-    solution: nlp.ArmSolution,
+    solution: multistart.ArmSolution,
     elimination: Elimination,
     max_iterations: int | None = None,
-) -> tuple[nlp.Problem, nlp.ArmSolution]:
+) -> tuple[nlp.Problem, multistart.ArmSolution]:
     """Re-solve eq. 1 for the merged arm from ``(θ', d')`` (intermediate waypoints
     merged from the previous solution), which corrects Algorithm 1's drift."""
     reduced = nlp.prepare(problem.task, elimination.arm)
     theta = merge_trajectory(solution.theta, elimination.candidate)
     theta[problem.target_waypoints] = elimination.theta
     z0 = np.concatenate([theta.ravel(), elimination.design])
-    return reduced, nlp.solve_from(reduced, z0, max_iterations=max_iterations)
+    return reduced, multistart.solve_from(reduced, z0, max_iterations=max_iterations)
 
 
 @dataclass(frozen=True)
@@ -325,14 +325,14 @@ class Stage:
     that produced it (None for the first) and the candidates' ``δ``."""
 
     problem: nlp.Problem
-    solution: nlp.ArmSolution
+    solution: multistart.ArmSolution
     elimination: Elimination | None
     deltas: tuple[float, ...] = ()
 
 
 def simplify(
     problem: nlp.Problem,
-    first: nlp.ArmSolution,
+    first: multistart.ArmSolution,
     *,
     min_joints: int = 1,
     settings: EliminationSettings = EliminationSettings(),

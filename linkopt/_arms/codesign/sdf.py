@@ -36,6 +36,7 @@ from jax.scipy.ndimage import map_coordinates
 from jaxtyping import Array, Float
 from scipy.ndimage import distance_transform_edt
 
+from ... import _config  # noqa: F401  (float64 on before any array)
 from ..._errors import InputError
 
 #: Default limit on the voxels of a distance field (and of a mesh's voxelisation).

@@ -45,7 +45,7 @@ Physically meaningless values are refused: a link's or tool's ``length`` (fixed 
 bounds) must be positive; masses, the payload, weights and tolerances >= 0; the torque
 limit, module radius, obstacle sizes and radii, voxel and clearance > 0; an approach
 cone's ``angle_deg`` in (0, 180]. Absurd magnitudes and unbounded work are refused
-before anything is built (limits for a 2-core, 24 GiB machine): lengths and coordinates
+before anything is built: lengths and coordinates
 at most :data:`MAX_LENGTH` (1 km), angles at most :data:`MAX_ANGLE` (4π rad), every
 other number at most 1e6 (weights 1e9); at most :data:`MAX_MODULES` modules;
 ``[solver]`` starts <= 1000, max_iterations <= 100000, waypoints_per_target <= 100, and
@@ -65,17 +65,19 @@ from pathlib import Path
 import numpy as np
 from jaxtyping import Float
 
-from ..._engine.fields import Reader, is_number_list, parse_text, parse_toml
-from ..._errors import InputError, MechanismFileError
+from ..._errors import MechanismFileError
+from ..._files.fields import Reader, parse_text, parse_toml
 from .. import limits
 from .model import LENGTH_SLOTS, SLOTS, Arm, Module, make_arm
+from .obstacles import (
+    MAX_LENGTH,
+    check_grids,
+    read_obstacles,
+    read_workspace,
+)
 from .sdf import (
     MAX_CELLS,
     Obstacle,
-    grid_cells,
-    grid_limit_message,
-    load_mesh,
-    mesh_cells,
 )
 
 TOP_LEVEL = {
@@ -103,16 +105,9 @@ LIMITS = {
     "tolerances": limits.MAX_MAGNITUDE,
     "solver": {"starts": 1000, "max_iterations": 100_000, "waypoints_per_target": 100},
 }
-MAX_LENGTH = 1e3
 MAX_ANGLE = 4 * math.pi
 MAX_MODULES = 200
 MAX_VARIABLES = 2000
-OBSTACLE_FIELDS = {
-    "box": ({"center", "size"}, {"orientation"}),
-    "sphere": ({"center", "radius"}, set()),
-    "capsule": ({"a", "b", "radius"}, set()),
-    "mesh": ({"path"}, {"center", "scale"}),
-}
 
 
 @dataclass(frozen=True)
@@ -239,25 +234,6 @@ def _read_modules(rd: Reader, data: dict) -> tuple[tuple[Module, ...], list, lis
     return tuple(modules), names, bounds
 
 
-def _read_orientation(rd: Reader, value, where: str) -> Float[np.ndarray, "3 3"]:
-    """A rotation matrix given as its three rows."""
-    ok = (
-        isinstance(value, list)
-        and len(value) == 3
-        and all(is_number_list(r, 3) for r in value)
-    )
-    matrix = np.asarray(value, dtype=float) if ok else None
-    if (
-        matrix is None
-        or np.abs(matrix @ matrix.T - np.eye(3)).max() > 1e-6
-        or np.linalg.det(matrix) < 0
-    ):
-        raise rd.fail(
-            where, "expected a 3x3 rotation matrix (rows, orthonormal, det +1)"
-        )
-    return matrix
-
-
 def _read_targets(rd: Reader, data: dict) -> tuple[Target, ...]:
     targets = []
     for k, item in enumerate(rd.entries(data, "targets", required=True)):
@@ -270,7 +246,7 @@ def _read_targets(rd: Reader, data: dict) -> tuple[Target, ...]:
         )
         axis = limits.direction(rd, item, "axis", where) if "axis" in item else None
         orientation = (
-            _read_orientation(rd, item["orientation"], f"{where}.orientation")
+            limits.orientation(rd, item["orientation"], f"{where}.orientation")
             if "orientation" in item
             else None
         )
@@ -308,76 +284,6 @@ def _read_approach(
     )
 
 
-def _read_obstacles(
-    rd: Reader, data: dict, base: Path, meshes: dict
-) -> tuple[Obstacle, ...]:
-    """The obstacles; ``meshes`` receives each mesh obstacle's index -> bounds."""
-    obstacles = []
-    for k, item in enumerate(rd.entries(data, "obstacles", required=False)):
-        where = f"obstacles[{k}]"
-        kind = item.get("type")
-        if not isinstance(kind, str) or kind not in OBSTACLE_FIELDS:
-            raise rd.fail(
-                f"{where}.type",
-                f"unknown obstacle type {kind!r}; expected one of "
-                f"{list(OBSTACLE_FIELDS)}",
-            )
-        required, optional = OBSTACLE_FIELDS[kind]
-        rd.keys(item, where, {"type"} | required | optional, {"type"} | required)
-        args = _obstacle_args(rd, item, where, kind, base)
-        if kind == "mesh":
-            args["path"], meshes[k] = args["path"]
-        obstacles.append(Obstacle(**args))
-    return tuple(obstacles)
-
-
-def _obstacle_args(rd: Reader, item: dict, where: str, kind: str, base: Path) -> dict:
-    """The :class:`Obstacle` fields of one ``[[obstacles]]`` entry."""
-    args = {"kind": kind}
-    for key in ("center", "size", "a", "b"):
-        if key in item:
-            args[key] = tuple(limits.vector(rd, item, key, where, MAX_LENGTH))
-    if "size" in args and min(args["size"]) <= 0:
-        raise rd.fail(
-            f"{where}.size",
-            f"expected positive edge lengths, got {list(args['size'])}",
-        )
-    if "radius" in item:
-        args["radius"] = limits.positive(rd, item, "radius", where, MAX_LENGTH)
-    if "scale" in item:
-        args["scale"] = limits.positive(rd, item, "scale", where)
-    if "orientation" in item:
-        args["orientation"] = tuple(
-            tuple(float(v) for v in row)
-            for row in _read_orientation(
-                rd, item["orientation"], f"{where}.orientation"
-            )
-        )
-    if kind == "mesh":
-        args["path"] = _mesh_path(rd, item, where, base)
-    return args
-
-
-def _mesh_path(rd: Reader, item: dict, where: str, base: Path) -> tuple:
-    """The mesh file, relative to the task file's folder, checked to load (a closed
-    surface, finite); returns ``(path, bounds (2, 3))``."""
-    path = base / rd.string(item, "path", where)
-    if not path.is_file():
-        raise rd.fail(f"{where}.path", f"mesh file {str(path)!r} not found")
-    limits.file_size(path, lambda m: rd.fail(f"{where}.path", m), "mesh file")
-    try:
-        mesh = load_mesh(str(path))
-    except InputError as err:
-        raise rd.fail(f"{where}.path", str(err)) from None
-    bounds = np.asarray(mesh.bounds, dtype=float)
-    if np.abs(bounds).max() * item.get("scale", 1.0) > MAX_LENGTH:
-        raise rd.fail(
-            f"{where}.path",
-            f"mesh extends beyond {MAX_LENGTH:g} m from the origin (after scale)",
-        )
-    return str(path), bounds
-
-
 def _options(
     rd: Reader, data: dict, key: str, defaults: dict, integer: bool = False
 ) -> dict:
@@ -412,80 +318,6 @@ def _option_limit(rd: Reader, table: dict, key: str, name: str) -> None:
             f"[{key}].{name}",
             f"{table[name]!r} exceeds the limit of {limit:g}",
         )
-
-
-def _read_workspace(rd: Reader, data: dict, obstacles) -> tuple:
-    if "workspace" not in data:
-        if obstacles:
-            raise rd.fail(
-                "[workspace]",
-                "missing table; obstacles need the voxel grid's lower and upper "
-                "corners",
-            )
-        return None, 0.02, 0.04, MAX_CELLS
-    if not isinstance(data["workspace"], dict):
-        raise rd.fail(
-            "[workspace]",
-            "expected a table {lower, upper, voxel?, clearance?}, "
-            f"got {data['workspace']!r}",
-        )
-    table = rd.keys(
-        data["workspace"],
-        "[workspace]",
-        {"lower", "upper", "voxel", "clearance", "max_cells"},
-        {"lower", "upper"},
-    )
-    lower, upper = (
-        limits.vector(rd, table, "lower", "[workspace]", MAX_LENGTH),
-        limits.vector(rd, table, "upper", "[workspace]", MAX_LENGTH),
-    )
-    if np.any(lower >= upper):
-        raise rd.fail(
-            "[workspace].upper",
-            "must exceed lower in every coordinate, "
-            f"got lower={list(lower)} upper={list(upper)}",
-        )
-    voxel = (
-        limits.positive(rd, table, "voxel", "[workspace]", MAX_LENGTH)
-        if "voxel" in table
-        else 0.02
-    )
-    clearance = (
-        limits.positive(rd, table, "clearance", "[workspace]", MAX_LENGTH)
-        if "clearance" in table
-        else 2.0 * voxel
-    )
-    max_cells = (
-        rd.positive_integer(table, "max_cells", "[workspace]")
-        if "max_cells" in table
-        else MAX_CELLS
-    )
-    return (lower, upper), voxel, clearance, max_cells
-
-
-def _check_grids(rd: Reader, task: dict, meshes: dict) -> None:
-    """The SDF's voxel grid and every mesh's voxelisation within ``max_cells``
-    (``task``: the :class:`Task` fields read so far)."""
-    if not task["obstacles"]:
-        return
-    lower, upper = task["workspace"]
-    voxel, max_cells = task["voxel"], task["max_cells"]
-    message = grid_limit_message(grid_cells(lower, upper, voxel), max_cells)
-    if message:
-        raise rd.fail(
-            "[workspace].voxel",
-            f"{message}; use a larger voxel or a smaller workspace, or raise "
-            "[workspace].max_cells",
-        )
-    for k, bounds in meshes.items():
-        cells = mesh_cells(bounds, task["obstacles"][k].scale, voxel)
-        message = grid_limit_message(cells, max_cells)
-        if message:
-            raise rd.fail(
-                f"obstacles[{k}].path",
-                f"the mesh's {message}; use a larger voxel or scale, or raise "
-                "[workspace].max_cells",
-            )
 
 
 def _check_size(rd: Reader, task: dict, modules: tuple, design: int) -> None:
@@ -543,8 +375,8 @@ def parse_task(data: dict, source: str, base: Path = Path(".")) -> Task:
 def _read_rest(rd: Reader, data: dict, head: dict, base: Path) -> dict:
     """Every :class:`Task` field but the arm, checked (before the arm is built)."""
     meshes: dict = {}
-    obstacles = _read_obstacles(rd, data, base, meshes)
-    workspace, voxel, clearance, max_cells = _read_workspace(rd, data, obstacles)
+    obstacles = read_obstacles(rd, data, base, meshes)
+    workspace, voxel, clearance, max_cells = read_workspace(rd, data, obstacles)
     fields = {
         "targets": _read_targets(rd, data),
         "obstacles": obstacles,
@@ -562,7 +394,7 @@ def _read_rest(rd: Reader, data: dict, head: dict, base: Path) -> dict:
         "clearance": clearance,
         "max_cells": max_cells,
     }
-    _check_grids(rd, fields, meshes)
+    check_grids(rd, fields, meshes)
     return fields
 
 

@@ -20,8 +20,8 @@ Choices where the paper is vague (stated here, as the project asks):
   continuous; the reported size uses the exact ``|x|``.
 * The optimiser: the paper used steepest descent in Mathematica; we use L-BFGS-B (scipy,
   30 correction pairs) with exact JAX gradients of the cost, jitted and vmapped over
-  targets. optimistix's LBFGS, vmapped over the starts, was tried: on the sample run it
-  stopped early on three of eight starts (eq. 10 value 161 vs 55) and was slower.
+  targets, rather than optimistix's LBFGS vmapped over the starts, which stopped early
+  on some starts of the sample run (``benchmarks/bench_manipulability.py``).
 * For speed the cost uses the closed-form DH map
   (:func:`linkopt._arms.dh.table.tip_position`) and its Jacobian. The numbers we
   *report* (residual, manipulability) are recomputed on the engine's

@@ -13,6 +13,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ... import _config  # noqa: F401  (float64 on before any array)
 from .task import Primitive
 
 TINY = 1e-30  # keeps sqrt differentiable at 0 without biasing lengths >= 1e-15

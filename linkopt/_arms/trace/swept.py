@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ... import _config  # noqa: F401  (float64 on before any array)
 from ..._errors import InputError
 from . import geometry as geo
 from .task import Primitive

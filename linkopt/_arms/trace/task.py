@@ -44,7 +44,7 @@ Consecutive primitives must meet (end of one = start of the next, within 1e-6 of
 task size); as the paper assumes, no obstacle may lie inside a circle or the circle of
 an arc of the path.
 
-Limits (checked before any work, for a 2-core, 24 GiB machine): every coordinate, radius
+Limits (checked before any work): every coordinate, radius
 and length at most 1e6 in magnitude (:data:`~linkopt._arms.limits.MAX_MAGNITUDE`), the
 link diameter at least :data:`MIN_DIAMETER_FRACTION` of the task size (the verifier
 samples the path every Δ/16), at most :data:`MAX_PRIMITIVES` primitives,
@@ -62,8 +62,8 @@ from pathlib import Path
 import numpy as np
 from jaxtyping import Float
 
-from ..._engine.fields import Reader, parse_text, parse_toml
 from ..._errors import MechanismFileError
+from ..._files.fields import Reader, parse_text, parse_toml
 from .. import limits
 
 KINDS = ("line", "arc", "circle")

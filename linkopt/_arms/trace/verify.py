@@ -29,6 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Float
 
+from ... import _config  # noqa: F401  (float64 on before any array)
 from . import geometry as geo
 from .task import TraceTask
 

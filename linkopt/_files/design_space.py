@@ -38,13 +38,14 @@ from collections.abc import Callable
 import numpy as np
 from jaxtyping import Float
 
+from .._engine.model import DesignSpace, Turns
+from .._engine.symmetry import MIRROR_TOL, Symmetry
 from .design_angles import turn_joints
-from .design_kinds import ANCHOR, AXIS, Context, Move, read_parameter
+from .design_kinds import read_parameter
+from .design_moves import ANCHOR, AXIS, Context, Move
 from .fields import Reader
-from .model import DesignSpace, Turns
-from .symmetry import MIRROR_TOL, Symmetry, read_symmetry
 
-__all__ = ["read_design", "read_symmetry"]
+__all__ = ["read_design"]
 
 
 def read_design(

@@ -17,7 +17,7 @@ import importlib
 
 import numpy as np
 
-from ..rotations import matrix_exp
+from ..._engine.rotations import matrix_exp
 from .problem import Problem, Rows
 
 #: Frame variables (position and rotation vector) weigh this in the movement norm,
@@ -139,7 +139,7 @@ def _min_norm(jac, rhs, damping):
     """``Jᵀ (J Jᵀ + μ I)⁻¹ rhs``: the least-norm (damped) ``d`` of ``J d = rhs``."""
     import jax.numpy as jnp
 
-    from .. import dense
+    from ..._engine import dense
 
     gram = jac @ jac.T
     eye = jnp.eye(gram.shape[0])
@@ -149,11 +149,11 @@ def _min_norm(jac, rhs, damping):
 @functools.cache
 def _programs():
     """The jitted solver stages, built on first use: a file that declares no assembly
-    is read without JAX (:mod:`linkopt._imports`). :mod:`linkopt._config` comes
-    first, so JAX starts in float64; every other JAX use in this package runs after
-    this, inside these programs or on their results."""
+    is read without JAX. :mod:`linkopt._config` comes first, so JAX starts in float64;
+    every other JAX use in this package runs after this, inside these programs or on
+    their results."""
     from ..._config import jit
-    from .. import lm as _lm
+    from ..._engine import lm as _lm
 
     jax = importlib.import_module("jax")  # after linkopt._config: float64 on
     jnp = jax.numpy

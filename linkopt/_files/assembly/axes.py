@@ -13,15 +13,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..._engine.model import MOTOR_JOINTS
 from ..fields import shown
-from ..model import MOTOR_JOINTS
 
 #: Joint kinds whose one axis both bodies carry (their axes stay parallel).
 SHARED_AXIS = ("revolute", "prismatic", "cylindrical")
 #: Joint kinds whose bodies slide along the axis: the second body's anchor of the
 #: joint only has to lie on the axis line through the first's (the slide is free).
 LINE_JOINTS = ("prismatic", "cylindrical")
-#: The motor fields of :class:`~linkopt._engine.assembly.problem.Rows`.
+#: The motor fields of :class:`~linkopt._files.assembly.problem.Rows`.
 MOTOR_FIELDS = (
     "motor_linear",
     "motor_frame",

@@ -25,15 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .design_kinds import (
-    ANCHOR,
-    Context,
-    Move,
-    Parameter,
-    bounds,
-    link_joints,
-    positive_bounds,
-)
+from .design_kinds import link_joints
+from .design_moves import ANCHOR, Context, Move, Parameter, bounds, positive_bounds
 from .fields import shown
 
 #: Axes closer to parallel than this (|sin| of their angle) have no twist (an offset).

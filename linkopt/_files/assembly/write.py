@@ -8,8 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..._engine.rotations import matrix_exp, turn_onto
 from ..fields import is_number_list
-from ..rotations import matrix_exp, turn_onto
 from .axes import any_normal
 from .problem import BODY_KEYS, Problem
 from .solve import residual_np, start
