@@ -17,7 +17,9 @@ The particles start around the file's design, spread by ``spread`` of each
 parameter's range (wider than ``optimize``'s default: a synthesis starts from a
 design that does not yet meet its target); for a planar four-bar path, from the best
 closed-form starts instead (:func:`seeded`, :mod:`.starts`). The swarm's design is
-polished by the starts' least squares at the end (:func:`polished`).
+polished by least squares at the end and the polish kept where it ranks first
+(:func:`polished`: the starts' closed-form fit for a planar four-bar path,
+:mod:`.polish` on the swept cycle for any other mechanism).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from .._errors import InputError
 from . import fourbar, starts
 from .cycle import sweep_cycle
 from .objective import Plan, Problem, Score, gradients, plan, score
+from .polish import polish
 from .targets import Targets, check_targets
 
 #: Closed-form starts scored before the swarm (at least the swarm's size), the best
@@ -276,18 +279,21 @@ def seeded(mech, problem: Problem, settings, alpha, run):
 
 def polished(mech, problem: Problem, design, settings, alpha) -> np.ndarray:
     """The run's design, or its least-squares polish where that is better: for a
-    planar four-bar path (:func:`.starts.refine_batch`, the path error with the
-    transmission bound), scored with the whole cycle beside the design and kept
-    only when it is feasible and its total lower (or the design was not
-    feasible)."""
+    planar four-bar path :func:`.starts.refine_batch` (the path error with the
+    transmission bound, on the closed-form coupler curve), for any other mechanism
+    :func:`.polish.polish` (the distances on the swept cycle). The polish is scored
+    with the whole cycle beside the design and kept only when it ranks first:
+    feasible before not, then the lower total."""
     targets = problem.targets
-    if not starts.applies(mech, targets):
-        return np.asarray(design, dtype=float)
-    fit = starts.problem_of(
-        mech, targets, targets.min_transmission_deg, problem.plan.cyclic
-    )
-    fine = starts.refine_batch(mech, fit, np.asarray(design, dtype=float)[None])[0][0]
-    pair = np.stack([np.asarray(design, dtype=float), fine])
+    design = np.asarray(design, dtype=float)
+    if starts.applies(mech, targets):
+        fit = starts.problem_of(
+            mech, targets, targets.min_transmission_deg, problem.plan.cyclic
+        )
+        fine = starts.refine_batch(mech, fit, design[None])[0][0]
+    else:
+        fine = polish(mech, problem, design, alpha, batch=settings.particles)
+    pair = np.stack([design, fine])
     result = score(mech, problem, _padded(pair, settings.particles), alpha)
     return pair[int(_ranked(result, targets.tolerance)[0]) % 2]
 
