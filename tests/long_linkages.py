@@ -1,27 +1,36 @@
-"""Generated planar linkages of any number of bodies, as mechanism-file text: a serial
-chain and a ladder of closed four-bar loops (``benchmarks/bench_bodies.py`` times
-them; ``tests/test_banded.py`` solves them).
+"""Generated planar linkages of any number of bodies and one degree of freedom, as
+mechanism-file text: a chain and a ladder of closed loops
+(``benchmarks/bench_bodies.py`` times them; ``tests/test_banded.py`` solves them).
 
-* :func:`chain`: the ground and ``bodies - 1`` links in a row, joined by revolute
-  joints about z, every joint a motor and its angle an output (mobility
-  ``bodies - 1``).
+* :func:`chain`: lazy tongs, ``n`` scissors of two links pinned at their middles,
+  neighbouring scissors pinned at both ends (a closed four-bar loop between each
+  pair); the ground is the first scissor's first link, the motor its middle pivot and
+  the output the last scissor's middle angle. ``2n`` bodies.
 * :func:`ladder`: rungs ``r0`` (the ground) .. ``rk`` standing on the x axis, each
-  pair of neighbours joined by a top and a bottom link (four revolute joints per
-  cell, a closed four-bar loop); the rung heights vary a little, so no cell is a
-  parallelogram. The top-left joint of each cell is a motor, the bottom-left one's
-  angle an output (mobility ``k``, ``3k + 1`` bodies).
+  pair of neighbours joined by a top and a bottom link, a closed four-bar loop per
+  cell; every cell after the first is braced by a diagonal link, so the first cell's
+  motor (its top-left joint) swings the rest as one truss, and the output is the first
+  cell's bottom-left angle. ``4k`` bodies.
+
+The heights vary a little along the x axis, so no loop is a parallelogram.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-LINK = 10.0  # mm between neighbouring joints along x
+LINK = 10.0  # mm between neighbouring pivots along x
 HEIGHT = 20.0  # mm, the mean rung height
 
 
-def _head(name: str) -> list[str]:
-    return ["[mechanism]", f'name = "{name}"', 'ground = "b0"', 'units = "mm"', ""]
+def _head(name: str, ground: str) -> list[str]:
+    return [
+        "[mechanism]",
+        f'name = "{name}"',
+        f'ground = "{ground}"',
+        'units = "mm"',
+        "",
+    ]
 
 
 def _body(name: str) -> list[str]:
@@ -41,52 +50,64 @@ def _joint(name: str, first: str, second: str, anchor) -> list[str]:
     ]
 
 
-def _motor_and_output(index: int, motor: str, output: str) -> list[str]:
+def _motor_and_output(motor: str, output: str) -> list[str]:
     return [
         "[[motors]]",
-        f'name = "m{index}"',
+        'name = "m"',
         f'joint = "{motor}"',
         "",
         "[[outputs]]",
-        f'name = "o{index}"',
+        'name = "o"',
         f'joint = "{output}"',
-        "min = -0.5",
-        "max = 0.5",
+        "min = -0.3",
+        "max = 0.3",
         "",
     ]
 
 
+def _heights(count: int):
+    return HEIGHT * (1.0 + 0.1 * np.sin(np.arange(count)))
+
+
 def chain(bodies: int) -> str:
-    """A serial chain of ``bodies`` bodies (``b0`` the ground), one motor per joint."""
-    lines = _head(f"chain-{bodies}")
-    for b in range(bodies):
-        lines += _body(f"b{b}")
-    for j in range(1, bodies):
-        lines += _joint(f"j{j}", f"b{j - 1}", f"b{j}", (LINK * (j - 1), 0.0))
-    for j in range(1, bodies):
-        lines += _motor_and_output(j, f"j{j}", f"j{j}")
-    return "\n".join(lines)
+    """Lazy tongs of ``bodies // 2`` scissors (``a0``, the ground, and ``b0`` first)."""
+    n = max(2, bodies // 2)
+    half = _heights(n + 1) / 2.0  # at the junction left of scissor i
+    lines = _head(f"lazy-tongs-{2 * n}", "a0")
+    for i in range(n):
+        lines += _body(f"a{i}") + _body(f"b{i}")
+    for i in range(n):
+        lines += _joint(f"c{i}", f"a{i}", f"b{i}", (LINK * i, 0.0))
+    for i in range(n - 1):
+        x = LINK * (i + 0.5)
+        lines += _joint(f"u{i}", f"a{i}", f"b{i + 1}", (x, half[i + 1]))
+        lines += _joint(f"d{i}", f"b{i}", f"a{i + 1}", (x, -half[i + 1]))
+    return "\n".join(lines + _motor_and_output("c0", f"c{n - 1}"))
 
 
 def ladder_cells(bodies: int) -> int:
     """Cells of the ladder with the number of bodies nearest ``bodies``."""
-    return max(1, round((bodies - 1) / 3))
+    return max(1, round(bodies / 4))
 
 
 def ladder(cells: int) -> str:
-    """A ladder of ``cells`` four-bar loops, ``3 cells + 1`` bodies."""
-    heights = HEIGHT * (1.0 + 0.1 * np.sin(np.arange(cells + 1)))
-    lines = _head(f"ladder-{cells}")
-    names = ["b0"] + [f"b{k}" for k in range(1, 3 * cells + 1)]
-    for name in names:
-        lines += _body(name)
-    motors = []
+    """A ladder of ``cells`` four-bar loops, all braced but the first; ``4 cells``
+    bodies."""
+    heights = _heights(cells + 1)
+    lines = _head(f"ladder-{cells}", "r0")
+    lines += _body("r0")
     for i in range(1, cells + 1):
-        left, top, bottom, right = names[3 * i - 3], *names[3 * i - 2 : 3 * i + 1]
+        lines += _body(f"t{i}") + _body(f"d{i}") + _body(f"r{i}")
+        if i > 1:
+            lines += _body(f"x{i}")
+    for i in range(1, cells + 1):
+        left, right = f"r{i - 1}", f"r{i}"
         x0, x1 = LINK * (i - 1), LINK * i
-        lines += _joint(f"tl{i}", left, top, (x0, heights[i - 1]))
-        lines += _joint(f"tr{i}", top, right, (x1, heights[i]))
-        lines += _joint(f"bl{i}", left, bottom, (x0, 0.0))
-        lines += _joint(f"br{i}", bottom, right, (x1, 0.0))
-        motors += _motor_and_output(i, f"tl{i}", f"bl{i}")
-    return "\n".join(lines + motors)
+        lines += _joint(f"tl{i}", left, f"t{i}", (x0, heights[i - 1]))
+        lines += _joint(f"tr{i}", f"t{i}", right, (x1, heights[i]))
+        lines += _joint(f"bl{i}", left, f"d{i}", (x0, 0.0))
+        lines += _joint(f"br{i}", f"d{i}", right, (x1, 0.0))
+        if i > 1:  # the brace: top of the left rung to the middle of the right one
+            lines += _joint(f"xl{i}", left, f"x{i}", (x0, 0.8 * heights[i - 1]))
+            lines += _joint(f"xr{i}", f"x{i}", right, (x1, 0.3 * heights[i]))
+    return "\n".join(lines + _motor_and_output("tl1", "bl1"))
