@@ -1,5 +1,5 @@
 """The bodies and joints of a mechanism file: ``[[bodies]]``, ``[[joints]]``, the
-bodies' frame origins and the size the dense solver accepts."""
+bodies' frame origins and the most bodies a file may have."""
 
 from __future__ import annotations
 
@@ -10,17 +10,21 @@ from .._engine.fields import Reader, shown
 from .._engine.model import AXIAL_JOINTS, JOINT_ROWS
 from .bounds import ORTHOGONAL_TOL, position
 
-#: Most bodies of a mechanism (:func:`check_size`): the solver works on dense square
-#: matrices of 7 numbers per body, batched 64 at a time (``blocks.BLOCK``) with a few
-#: copies each; at 300 bodies a block holds about 2 GB of them.
-MAX_BODIES = 300
-#: Matrices of a block of solves held at once in that estimate (64 rows, 3 copies).
-BLOCK_COPIES = 64 * 3
+#: Most bodies of a mechanism (:func:`check_size`). The FK/BK solves factor ``JᵀJ`` in
+#: band storage (:mod:`linkopt._engine.banded`), so their time and memory grow
+#: linearly with the bodies; what grows faster is what is still dense: loading checks
+#: the mobility and σ_min at the rest pose on the full ``7B x 7B`` Jacobians (an SVD
+#: and a Cholesky factor, cubic in the bodies: a few minutes and a few GB at 1000
+#: bodies), and the design evaluation's σ_min per sample holds two such Jacobians
+#: (784 MB at 1000 bodies, so a block of samples no longer fits in memory). 1000
+#: bodies keeps loading within minutes; evaluating and optimising is practical to a
+#: few hundred.
+MAX_BODIES = 1000
 
 
 def check_size(rd: Reader, data: dict) -> None:
-    """Refuse, before any work, a mechanism too large for the dense linear algebra:
-    the state has 7 numbers per body and every solve factors its square."""
+    """Refuse, before any work, a mechanism too large for the dense checks at load:
+    the state has 7 numbers per body and loading factors its square."""
     bodies = data.get("bodies")
     if not isinstance(bodies, list) or len(bodies) <= MAX_BODIES:
         return
@@ -28,10 +32,9 @@ def check_size(rd: Reader, data: dict) -> None:
     matrix = 8.0 * size * size
     raise rd.fail(
         "[[bodies]]",
-        f"{len(bodies)} bodies make a state of {size} numbers: every solve factors "
-        f"a {size} x {size} matrix ({matrix / 2**20:.0f} MB, about "
-        f"{BLOCK_COPIES * matrix / 2**30:.0f} GB for a block of solves); linkopt's "
-        f"dense solver takes at most {MAX_BODIES} bodies",
+        f"{len(bodies)} bodies make a state of {size} numbers: loading checks the "
+        f"mobility on a {size} x {size} matrix ({matrix / 2**20:.0f} MB, cubic time "
+        f"in the bodies); linkopt takes at most {MAX_BODIES} bodies",
     )
 
 
