@@ -5,6 +5,7 @@ differences."""
 
 import dataclasses
 import tomllib
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -14,7 +15,7 @@ from conftest import MECHANISMS, ROOT
 from long_linkages import chain, ladder
 
 import linkopt
-from linkopt._engine import banded, jacobian
+from linkopt._engine import banded, banded_sigma, jacobian, singularity
 from linkopt._engine.geometry import geometry, rest_state
 from linkopt._files.loader import build
 
@@ -205,3 +206,34 @@ def test_a_long_chain_takes_the_banded_path_and_closes():
     np.testing.assert_allclose(
         linkopt.motor_values(mech, np.asarray(solution.state)), rows, atol=1e-9
     )
+
+
+def test_a_hub_that_widens_the_band_keeps_the_dense_factor():
+    """A body joined to every other (a walker's ground and crank) makes the band as
+    wide as the mechanism: the default stays dense there."""
+    mech = linkopt.loads(chain(2 * banded.MIN_BODIES), "chain.toml")
+    count = mech.num_bodies
+    star = np.stack([np.zeros(count - 1, dtype=int), np.arange(1, count)], axis=1)
+    assert banded.body_order(count, star).width > banded.MAX_WIDTH * count
+    assert banded.serves(mech)
+    assert not banded.serves(dataclasses.replace(mech, joint_bodies=star))
+
+
+@pytest.mark.parametrize("index", range(3), ids=["five_bar", "jansen", "ladder"])
+def test_sigma_min_on_the_band_equals_the_dense_one_and_its_gradient(index):
+    mech = _small_mechanisms()[index]
+    geom = geometry(mech)
+    state = rest_state(mech)
+
+    def f_sing(sigmas, s):
+        return jnp.sum(1.0 / sigmas(mech, geom, s))
+
+    dense = jax.jit(jax.value_and_grad(partial(f_sing, singularity.sigma_min_pair)))
+    band = jax.jit(jax.value_and_grad(partial(f_sing, banded_sigma.sigma_min_pair)))
+    (value, grad), (value_b, grad_b) = dense(state), band(state)
+    jac = np.asarray(jacobian.stacked_jacobians(mech, geom, state))
+    exact = [np.linalg.svd(j, compute_uv=False)[-1] for j in jac]
+    sigmas = jax.jit(partial(banded_sigma.sigma_min_pair, mech))(geom, state)
+    np.testing.assert_allclose(sigmas, exact, rtol=1e-7)  # both iterate 6 sweeps
+    np.testing.assert_allclose(value_b, value, rtol=1e-7)
+    np.testing.assert_allclose(grad_b, grad, atol=5e-4 * np.abs(grad).max())

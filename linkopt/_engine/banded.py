@@ -49,14 +49,27 @@ from .model import Mechanism
 #: (``benchmarks/bench_bodies.py`` times both on chains and ladders: the dense factor
 #: is a single kernel call and wins on small mechanisms, the banded one from here on).
 MIN_BODIES = 40
+#: ... and whose band is at most this fraction of the bodies wide. A body joined to
+#: many others (a ground or a crank that every leg of a walker hangs from) widens the
+#: band to the whole mechanism, where the band's ``O(B w²)`` is no better than the
+#: dense ``O(B³)`` and runs slower than the dense kernel.
+MAX_WIDTH = 1 / 8
 
 Band = Float[Array, "B w1 7 7"]
 
 
 def serves(mech: Mechanism) -> bool:
-    """Whether the FK/BK solves of ``mech`` use the banded factor."""
+    """Whether the FK/BK solves of ``mech`` use the banded factor: ``[solver]
+    factor`` "banded", or "auto" with at least :data:`MIN_BODIES` bodies in a band at
+    most :data:`MAX_WIDTH` of them wide."""
     factor = mech.solver.factor
-    return factor == "banded" or (factor == "auto" and mech.num_bodies >= MIN_BODIES)
+    if factor != "auto":
+        return factor == "banded"
+    if mech.num_bodies < MIN_BODIES:
+        return False
+    pairs = np.concatenate([mech.joint_bodies, mech.output_table.bodies])
+    pairs = pairs[np.all(pairs >= 0, axis=1)]
+    return body_order(mech.num_bodies, pairs).width <= MAX_WIDTH * mech.num_bodies
 
 
 @dataclass(frozen=True)
