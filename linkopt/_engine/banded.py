@@ -45,10 +45,11 @@ from . import dense
 from .jacobian import row_groups
 from .model import Mechanism
 
-#: Fewest bodies for which the FK/BK solves take the banded factor by default
-#: (``benchmarks/bench_bodies.py`` times both on chains and ladders: the dense factor
-#: is a single kernel call and wins on small mechanisms, the banded one from here on).
-MIN_BODIES = 40
+#: Fewest bodies for which the FK/BK solves take the banded factor by default. Timed
+#: by ``benchmarks/bench_bodies.py`` on lazy tongs and ladders, the two break even
+#: near 20 bodies (the dense factor is one fused kernel call up to 22 bodies, then
+#: 3-4x slower at 24); every shipped mechanism (at most 14 bodies) stays dense.
+MIN_BODIES = 20
 #: ... and whose band is at most this fraction of the bodies wide. A body joined to
 #: many others (a ground or a crank that every leg of a walker hangs from) widens the
 #: band to the whole mechanism, where the band's ``O(B w²)`` is no better than the
