@@ -21,7 +21,8 @@ shape ``(B, w + 1, 7, 7)``, in that order.
 
 :class:`Banded` is the :mod:`linkopt._engine.lm` method on this storage; the FK/BK
 solves (:mod:`linkopt._engine.kinematics`) take it where :func:`serves` says so: a
-mechanism of at least :data:`MIN_BODIES` bodies, or one whose ``[solver]`` settings
+mechanism of at least :data:`MIN_BODIES` bodies whose band is narrow
+(:data:`MAX_WIDTH`), or one whose ``[solver]`` settings
 ask for it (``factor = "banded"``, which tests set on small files). Below the
 threshold the dense factor (:mod:`linkopt._engine.dense`, one kernel call) is faster
 and keeps every earlier result bit for bit.

@@ -56,7 +56,8 @@ COORDINATES = ("x", "y", "z", "axis_x", "axis_y", "axis_z")
 class SolverSettings:
     """Levenberg–Marquardt settings; ``tolerance`` bounds ``max |C|`` (homogenised).
     ``factor`` picks the FK/BK solves' factor of ``JᵀJ``: ``"auto"`` (dense below
-    :data:`linkopt._engine.banded.MIN_BODIES` bodies, banded from there),
+    :data:`linkopt._engine.banded.MIN_BODIES` bodies or where the band is wide, banded
+    otherwise: :func:`linkopt._engine.banded.serves`),
     ``"dense"`` or ``"banded"``; not a file key (tests set it)."""
 
     max_iterations: int = 60
