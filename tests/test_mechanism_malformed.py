@@ -755,12 +755,13 @@ def serial_chain(count: int, island: bool = False) -> str:
     return "\n".join(lines)
 
 
-@pytest.mark.parametrize("count, island", [(300, False), (999, False), (9999, True)])
-def test_a_mechanism_too_large_for_the_dense_solver_is_refused_before_work(
+@pytest.mark.parametrize("count, island", [(1000, False), (4999, False), (9999, True)])
+def test_a_mechanism_too_large_for_the_dense_checks_is_refused_before_work(
     count, island, monkeypatch
 ):
-    """Regression: a 1,000-body chain ran past 300 s and a 10,000-body one past 6 GB.
-    Refused while reading, with what the dense solver would need, before any solve."""
+    """Regression: a 1,000-body chain ran past 300 s and a 10,000-body one past 6 GB
+    (before the banded solves). Refused while reading, with the size of the matrix the
+    load-time checks would factor, before any solve."""
     from linkopt._engine import programs
 
     def no_work(*args, **kwargs):
@@ -772,4 +773,6 @@ def test_a_mechanism_too_large_for_the_dense_solver_is_refused_before_work(
     message = str(error.value)
     bodies = count + 1 + 2 * island
     assert "chain.toml: [[bodies]]" in message and f"{bodies} bodies" in message
-    assert f"{7 * bodies} x {7 * bodies} matrix" in message and "at most 300" in message
+    assert (
+        f"{7 * bodies} x {7 * bodies} matrix" in message and "at most 1000" in message
+    )

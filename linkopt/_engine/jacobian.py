@@ -456,6 +456,16 @@ def _tail_groups(mech: Mechanism, geom: Geometry, kind: str, x, q, values):
     raise ValueError(f"kind must be 'fk' or 'bk', not {kind!r}")
 
 
+def row_groups(mech: Mechanism, geom: Geometry, kind: str, values, state):
+    """``(passive, tail, order)``: the row groups of ``C_FK``/``C_BK`` (each with
+    ``values (G, m)`` and ``blocks``, ``((bodies (G,), jac (G, m, 7)), ...)``) and the
+    raw order of the tail rows, for assemblies outside this module
+    (:mod:`linkopt._engine.banded`)."""
+    x, q = _split(state)
+    tail, order = _tail_groups(mech, geom, kind, x, q, values)
+    return _passive_groups(mech, geom, x, q), tail, order
+
+
 # ---------------------------------------------------------------------------------
 # Dense assembly.
 

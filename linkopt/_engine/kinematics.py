@@ -35,7 +35,7 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .._config import jit, stored_record, traced
 from .._errors import InputError
-from . import dense, jacobian, lm, programs
+from . import banded, dense, jacobian, lm, programs
 from .blocks import first_rows, in_blocks, path_rows
 from .constraints import (
     bk_residual,
@@ -98,6 +98,8 @@ def _implicit_state_jvp(mech, kind, primals, tangents):
     _, rhs = jax.jvp(
         lambda g, v: residual(mech, g, v, state), (geom, values), (d_geom, d_values)
     )
+    if banded.serves(mech):
+        return state, banded.tangent(mech, kind, geom, values, state, residual, rhs)
     jac = jacobian.state_jacobian(mech, geom, kind, state)
     d_state = -dense.solve_spd(jac.T @ jac, jac.T @ rhs)
     return state, d_state
@@ -142,6 +144,8 @@ def _lm(
         lambda s: _RESIDUALS[kind](mech, geom, values, s),
         lambda s: jacobian.normal_equations(mech, geom, kind, values, s),
     )
+    if banded.serves(mech):
+        method = banded.Banded(mech, geom, kind, values)
     return lm.solve(
         method,
         start,
@@ -159,6 +163,8 @@ def predict(mech: Mechanism, kind: str, geom: Geometry, values, state):
     ``C`` vanishes at the old values, so ``Jᵀ C(values, s) = Jᵀ ∂C/∂v Δv``: this is the
     tangent ``ds/dv Δv`` of the implicit function theorem (least squares where rows
     are redundant), built from the LM solver's own normal equations."""
+    if banded.serves(mech):
+        return banded.predict(mech, kind, geom, values, state)
     _, hessian, gradient = jacobian.normal_equations(mech, geom, kind, values, state)
     return state - dense.damped_solve(hessian, 1e-12, gradient)
 

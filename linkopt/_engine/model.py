@@ -54,11 +54,16 @@ COORDINATES = ("x", "y", "z", "axis_x", "axis_y", "axis_z")
 
 @dataclass(frozen=True)
 class SolverSettings:
-    """Levenberg–Marquardt settings; ``tolerance`` bounds ``max |C|`` (homogenised)."""
+    """Levenberg–Marquardt settings; ``tolerance`` bounds ``max |C|`` (homogenised).
+    ``factor`` picks the FK/BK solves' factor of ``JᵀJ``: ``"auto"`` (dense below
+    :data:`linkopt._engine.banded.MIN_BODIES` bodies or where the band is wide, banded
+    otherwise: :func:`linkopt._engine.banded.serves`),
+    ``"dense"`` or ``"banded"``; not a file key (tests set it)."""
 
     max_iterations: int = 60
     tolerance: float = 1e-12
     initial_damping: float = 1e-6
+    factor: str = "auto"
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,206 @@
+"""Cost against the number of bodies: forward kinematics of generated chains and
+ladders of closed loops (``tests/long_linkages.py``), dense factor against banded.
+
+Run: ``.venv/bin/python benchmarks/bench_bodies.py [--sizes 10,30,100,300,1000]
+[--dense-max 100] [--rows 16] [--repeats 3]``
+
+For each linkage and size: the time per solve of ``linkopt.solve_fk`` from the rest
+pose (continuation, then Levenberg–Marquardt) for a batch of motor rows uniform
+within ±``SPAN`` rad of rest, seed 0, with the dense factor of ``JᵀJ``
+(``[solver] factor = "dense"``, the only one before issue 43) and the banded one
+(:mod:`linkopt._engine.banded`), timed alternately (``--repeats`` times each, the
+median kept) after one compiling call each, so a loaded machine slows both alike. The
+dense factor runs up to ``--dense-max`` bodies (its assembly and factor grow with the
+square and the cube of the bodies: at 300 bodies a solve takes minutes). The two
+answers are compared where both run. Prints the log-log slope of time per solve
+against bodies from 30 bodies on (issue 43's target: at most 1.2), writes
+``benchmarks/results/bench_bodies.json`` and draws ``figures/bench_bodies.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import _results
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests"))
+
+import long_linkages  # noqa: E402
+
+#: Issue 43: fitted log-log slope of time per solve against bodies, from 30 bodies on.
+TARGET_SLOPE = 1.2
+#: Motor rows uniform within ±SPAN rad of rest. Both linkages magnify a motor's motion
+#: with their length (the tongs' tip, the ladder's far end), and a first-order
+#: prediction's error with it, so a wider span adds LM iterations as they grow; the
+#: records keep the iterations per solve and the time per iteration beside it.
+SPAN = 0.05
+#: Why ``--chain-max`` is 300: lazy tongs of 500 scissors magnify a motor's turn so
+#: much that the continuation needs hundreds of LM iterations per solve (measured: 564,
+#: 23.5 s per solve at 1000 bodies), which times the mechanism, not the factor.
+CHAIN_MAX_NOTE = "lazy tongs of 1000 bodies need ~560 LM iterations per solve"
+
+
+def _mechanism(kind: str, bodies: int, factor: str):
+    from linkopt._engine.fields import parse_toml
+    from linkopt._files.loader import build
+
+    if kind == "chain":
+        text = long_linkages.chain(bodies)
+    else:
+        text = long_linkages.ladder(long_linkages.ladder_cells(bodies))
+    # the load-time mobility check factors a dense Jacobian: not what is timed here
+    mech = build(parse_toml(text, kind), kind, check=False)
+    return dataclasses.replace(
+        mech, solver=dataclasses.replace(mech.solver, factor=factor)
+    )
+
+
+def _solver(mech, motors):
+    import jax
+
+    from linkopt._engine.kinematics import solve_batch_from_rest
+
+    def run():
+        solution = solve_batch_from_rest(mech, "fk", motors, None)
+        return jax.block_until_ready(solution)
+
+    return run
+
+
+def _timed(run) -> float:
+    start = time.perf_counter()
+    run()
+    return time.perf_counter() - start
+
+
+def measure(kind: str, bodies: int, rows: int, repeats: int, dense: bool) -> dict:
+    factors = ("dense", "banded") if dense else ("banded",)
+    mechs = {f: _mechanism(kind, bodies, f) for f in factors}
+    mech = mechs["banded"]
+    rng = np.random.default_rng(0)
+    motors = rng.uniform(-SPAN, SPAN, size=(rows, mech.num_motors))
+    runs = {f: _solver(m, motors) for f, m in mechs.items()}
+    compile_s = {f: _timed(run) for f, run in runs.items()}
+    times = {f: [] for f in factors}
+    for _ in range(repeats):  # alternate, so load hits both alike
+        for f in factors:
+            times[f].append(_timed(runs[f]) / rows)
+    answers = {f: runs[f]() for f in factors}
+    record = {
+        "linkage": kind,
+        "bodies": mech.num_bodies,
+        "rows": rows,
+        "converged": float(np.mean(np.asarray(answers["banded"].converged))),
+        "iterations": float(np.mean(np.asarray(answers["banded"].iterations))),
+        "banded_s": statistics.median(times["banded"]),
+        "banded_first_call_s": compile_s["banded"],
+    }
+    record["banded_per_iteration_s"] = record["banded_s"] / record["iterations"]
+    if dense:
+        record["dense_s"] = statistics.median(times["dense"])
+        record["dense_first_call_s"] = compile_s["dense"]
+        record["ratio"] = record["dense_s"] / record["banded_s"]
+        gap = np.asarray(answers["dense"].state) - np.asarray(answers["banded"].state)
+        record["max_state_difference"] = float(np.max(np.abs(gap)))
+    return record
+
+
+def slope(records: list[dict], key: str, smallest: int = 30) -> float | None:
+    """Least-squares slope of ``log(time)`` against ``log(bodies)``, bodies >=
+    ``smallest``."""
+    pts = [
+        (r["bodies"], r[key]) for r in records if key in r and r["bodies"] >= smallest
+    ]
+    if len(pts) < 2:
+        return None
+    x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def draw(records: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.0, 4.0))
+    for kind, marker in (("chain", "o"), ("ladder", "s")):
+        rows = [r for r in records if r["linkage"] == kind]
+        for key, style, label in (
+            ("dense_s", "--", "dense"),
+            ("banded_s", "-", "banded"),
+        ):
+            pts = [(r["bodies"], r[key]) for r in rows if key in r]
+            if pts:
+                x, y = zip(*pts, strict=True)
+                ax.loglog(x, y, style, marker=marker, label=f"{kind}, {label}")
+    ax.set_xlabel("bodies")
+    ax.set_ylabel("time per FK solve from rest (s)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", default="10,30,100,300,1000")
+    parser.add_argument("--kinds", default="chain,ladder")
+    parser.add_argument("--dense-max", type=int, default=100)
+    parser.add_argument(
+        "--chain-max",
+        type=int,
+        default=300,
+        help=f"largest lazy tongs timed ({CHAIN_MAX_NOTE})",
+    )
+    parser.add_argument("--rows", type=int, default=16)
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    records = []
+    for kind in args.kinds.split(","):
+        for size in (int(s) for s in args.sizes.split(",")):
+            if kind == "chain" and size > args.chain_max:
+                continue
+            rec = measure(kind, size, args.rows, args.repeats, size <= args.dense_max)
+            records.append(rec)
+            line = f"{kind:6s} {rec['bodies']:5d} bodies: banded "
+            line += (
+                f"{rec['banded_s'] * 1e3:9.2f} ms/solve ({rec['iterations']:.1f} it)"
+            )
+            if "dense_s" in rec:
+                line += f", dense {rec['dense_s'] * 1e3:9.2f} ms/solve "
+                line += f"(x{rec['ratio']:.2f}, |Δs| {rec['max_state_difference']:.1e})"
+            print(
+                line,
+                flush=True,
+            )
+    slopes = {}
+    for kind in args.kinds.split(","):
+        rows = [r for r in records if r["linkage"] == kind]
+        slopes[kind] = {
+            "banded": slope(rows, "banded_s"),
+            "banded_per_iteration": slope(rows, "banded_per_iteration_s"),
+            "dense": slope(rows, "dense_s"),
+        }
+        print(f"{kind}: log-log slope from 30 bodies: {slopes[kind]} (target <= 1.2)")
+    draw(records, ROOT / "figures" / "bench_bodies.png")
+    _results.write(
+        "bench_bodies",
+        {
+            "fk_per_solve": records,
+            "slope_from_30_bodies": slopes,
+            "target_slope": TARGET_SLOPE,
+        },
+    )
+
+
+if __name__ == "__main__":
+    main()
