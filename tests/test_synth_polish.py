@@ -26,7 +26,7 @@ def test_residuals_charge_a_target_again_past_the_margin():
 def test_difference_steps_stay_in_the_bounds():
     lower, upper = np.zeros(3), np.ones(3)
     p = np.array([0.0, 0.5, 1.0])
-    h = polishing._steps(p, lower, upper)
+    h = polishing.difference_steps(p, lower, upper)
     assert np.all(p + h >= lower) and np.all(p + h <= upper) and np.all(h != 0)
 
 

@@ -49,7 +49,7 @@ def residuals(distances: np.ndarray, tolerance: float) -> np.ndarray:
     return np.concatenate([d, extra], axis=-1)
 
 
-def _steps(p: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+def difference_steps(p: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """Signed difference steps: forward, backward where forward leaves the bounds."""
     h = STEP * np.maximum(upper - lower, 1e-12)
     return np.where(p + h > upper, -h, h)
@@ -87,7 +87,7 @@ def polish(
     def evaluate(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         key = p.tobytes()
         if key not in memo:
-            h = _steps(p, lower, upper)
+            h = difference_steps(p, lower, upper)
             designs = np.vstack([p, p + np.diag(h)])
             r = residuals(_distances(mech, problem, designs, alpha, batch), tolerance)
             memo.clear()
