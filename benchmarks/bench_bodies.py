@@ -48,7 +48,7 @@ CHAIN_MAX_NOTE = "lazy tongs of 1000 bodies need ~560 LM iterations per solve"
 
 
 def _mechanism(kind: str, bodies: int, factor: str):
-    from linkopt._engine.fields import parse_toml
+    from linkopt._files.fields import parse_toml
     from linkopt._files.loader import build
 
     if kind == "chain":
