@@ -186,7 +186,7 @@ def test_a_crashing_arm_design_leaves_no_result(tmp_path, monkeypatch):
         raise RuntimeError("simulated crash")
 
     out = tmp_path / "run"
-    monkeypatch.setattr(nlp, "solve", fake_solve)
+    monkeypatch.setattr(multistart, "solve", fake_solve)
     monkeypatch.setattr(nlp, "waypoint_report", fake_report)
     monkeypatch.setattr(nlp, "evaluate", crash)
     assert main(["arm", "design", str(task), "--out", str(out)]) == 3  # internal error
