@@ -39,7 +39,7 @@ def _header(arg: str) -> list[str] | None:
 def path_rows(mech, arg: str) -> tuple[str, np.ndarray]:
     """``--path``: ``("fk", motor rows)`` or ``("bk", output rows)`` from a CSV file
     whose header names the motors or the outputs; at most ``MAX_FRAMES`` rows."""
-    from .._engine.kinematics import MAX_VALUE
+    from .._engine.arguments import MAX_VALUE
 
     if not Path(arg).is_file():
         raise InputError(f"--path: {arg}: no such CSV file")

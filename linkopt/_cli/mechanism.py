@@ -190,8 +190,8 @@ def run_solve(args, kind: str) -> int:
     """``linkopt fk`` (``kind`` "fk") or ``linkopt bk`` ("bk")."""
     mech = load(args.file)
     from .._design.maps import check_count
+    from .._engine.arguments import MAX_VALUE
     from .._engine.kinematics import (
-        MAX_VALUE,
         solve_bk,
         solve_bk_path,
         solve_fk,

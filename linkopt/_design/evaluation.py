@@ -64,10 +64,10 @@ from jaxtyping import Array, Float, Int
 
 from .._config import stored_record
 from .._engine import programs
+from .._engine.arguments import check_design
 from .._engine.collision import collision_value, has_collision
 from .._engine.constraints import homogenised_output_values, output_residual
 from .._engine.geometry import design_vector, geometry, rest_state
-from .._engine.kinematics import check_design
 from .._engine.lifting import padded_design
 from .._engine.model import Mechanism, per_length
 from .conditioning import alpha_minus

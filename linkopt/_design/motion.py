@@ -40,10 +40,9 @@ from dataclasses import dataclass
 import numpy as np
 from jaxtyping import Bool, Float
 
+from .._engine.arguments import check_design, check_values
 from .._engine.geometry import rest_state
 from .._engine.kinematics import (
-    check_design,
-    check_values,
     solve_bk,
     solve_bk_path,
     solve_fk_path,

@@ -54,7 +54,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from .._engine import dense
+from .._engine import dense, dense_lu
 from .._engine.constraints import (
     fk_residual,
 )
@@ -176,7 +176,7 @@ def _trial(mech: Mechanism, geom: Geometry, it: _Iterate, fresh) -> _Trial:
     box = motor_box(mech)
     if box is not None:  # static: without limits the step is as it was
         system, gradient = held(box, it.motors, system, gradient)
-    delta = -dense.solve(system, gradient)  # LU, as jnp.linalg.solve
+    delta = -dense_lu.solve(system, gradient)  # LU, as jnp.linalg.solve
     norm = jnp.sqrt(delta @ delta)
     shortened = norm > it.radius
     delta = jnp.where(

@@ -24,9 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._engine.arguments import check_design
 from .._engine.collision import clearance, has_collision, pair_names
 from .._engine.geometry import rest_state
-from .._engine.kinematics import check_design, solve_bk, solve_bk_path
+from .._engine.kinematics import solve_bk, solve_bk_path
 from .._engine.mobility import check_design_mobility
 from .._engine.model import Mechanism
 from .._engine.readout import motor_values, output_values

@@ -23,8 +23,8 @@ from matplotlib.colors import LogNorm, Normalize
 
 from .._design.evaluation import Evaluation
 from .._design.maps import MAX_BYTES, MAX_CELLS, Map2D, check_plot_resolution
+from .._engine.arguments import check_design
 from .._engine.collision import has_collision
-from .._engine.kinematics import check_design
 from .._engine.model import Mechanism
 from .._engine.readout import output_values
 from . import figures, labels

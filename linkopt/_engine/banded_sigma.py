@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from . import banded, dense
+from . import banded, eigh
 from .constraints import bk_residual, fk_residual
 from .model import Mechanism
 from .singularity import BLOCK, ITERATIONS, SHIFT
@@ -50,7 +50,7 @@ def smallest_right_vector(band: banded.Band) -> Float[Array, "B 7"]:
         0, ITERATIONS, lambda _, x: _orthonormalise(solve(x)), _orthonormalise(start)
     )
     image = jax.vmap(lambda v: banded.matvec(band, v), in_axes=2, out_axes=2)(x)
-    _, ritz = dense.symmetric_eigh(jnp.einsum("bai,baj->ij", x, image))
+    _, ritz = eigh.symmetric_eigh(jnp.einsum("bai,baj->ij", x, image))
     return jnp.einsum("bak,k->ba", x, ritz[:, 0])
 
 

@@ -18,10 +18,6 @@ Behaviour outside the happy path (chosen to match what the LAPACK routines give 
 * :func:`cholesky` of a matrix that is not positive definite, or holds NaN, gives NaN
   from the first non-positive pivot on (``sqrt`` of a negative number); every solve with
   that factor is then NaN. Only the lower triangle of the input is read.
-* :func:`lu_factor` of an exactly singular matrix gives a zero pivot, and
-  :func:`lu_solve` then inf/NaN, as LAPACK's ``getrs`` would; :func:`det` gives 0.
-* :func:`symmetric_eigh` runs a fixed number of cyclic Jacobi sweeps (no convergence
-  test, so it vmaps without a ragged loop); on NaN input it returns NaN.
 
 Compiled kernels. Where linkopt's compiled extension is built (:mod:`linkopt._kernels`,
 made by ``pip install`` with the machine's C++ compiler) and the program runs on CPU in
@@ -42,11 +38,13 @@ differentiates through them, are the plain-JAX code's (``jax.custom_jvp``). With
 the extension, with ``LINKOPT_KERNELS=0``, on another platform, in another precision or
 for an order above the kernels' limit, the plain-JAX code below runs.
 
-Derivatives: :func:`solve_spd` and :func:`solve` are ``lax.custom_linear_solve``s, so
-their JVP and transpose are further solves with the same factor (the matrix's
-derivative enters only through ``A x``); the factorisations themselves are never
-differentiated. :func:`det` differentiates through the LU loop (its callers' matrices
-are at most 6 × 6).
+Derivatives: :func:`solve_spd` is a ``lax.custom_linear_solve``, so its JVP and
+transpose are further solves with the same factor (the matrix's derivative enters only
+through ``A x``); the factorisation itself is never differentiated.
+
+General square matrices (LU, :func:`linkopt._engine.dense_lu.solve`, ``det``) are in
+:mod:`linkopt._engine.dense_lu`, the small symmetric eigenproblem in
+:mod:`linkopt._engine.eigh`.
 """
 
 from __future__ import annotations
@@ -56,17 +54,12 @@ import functools
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float, Int
+from jaxtyping import Array, Float
 
 from .. import (
     _config,  # noqa: F401  (float64 on before any array)
     _kernels,
 )
-
-#: Cyclic Jacobi sweeps of :func:`symmetric_eigh`. Convergence is quadratic once the
-#: off-diagonal part is below the eigenvalue gaps; for 6 × 6 matrices 6 sweeps reach
-#: round-off from random starts (``tests/test_dense.py``), 8 leave a margin.
-JACOBI_SWEEPS = 8
 
 
 def _as_matrix(b):
@@ -441,131 +434,3 @@ def solve_spd(a: Float[Array, "n n"], b: Float[Array, "n ..."]):
         solve=lambda _, rhs: cho_solve(lower, rhs),
         symmetric=True,
     )
-
-
-def lu_factor(
-    a: Float[Array, "n n"],
-) -> tuple[Float[Array, "n n"], Int[Array, " n"], Float[Array, ""]]:
-    """``(lu, perm, sign)``: ``a[perm] = L U`` with unit-lower ``L`` and ``U`` packed in
-    ``lu`` (Doolittle, partial pivoting on the largest magnitude, ties to the lower
-    row, as LAPACK's ``getrf``), and the permutation's sign."""
-    n = a.shape[-1]
-    rows = jnp.arange(n)
-
-    def step(k, carry):
-        m, perm, sign = carry
-        col = jax.lax.dynamic_index_in_dim(m, k, 1, keepdims=False)
-        p = jnp.argmax(jnp.where(rows >= k, jnp.abs(col), -1.0))
-        swap = jnp.where(rows == k, p, jnp.where(rows == p, k, rows))
-        m, perm = m[swap], perm[swap]
-        sign = jnp.where(p == k, sign, -sign)
-        col = jax.lax.dynamic_index_in_dim(m, k, 1, keepdims=False)
-        row = jax.lax.dynamic_index_in_dim(m, k, 0, keepdims=False)
-        pivot = jax.lax.dynamic_index_in_dim(col, k, 0, keepdims=False)
-        # a zero pivot means a zero column below it: skip the elimination, as getrf
-        factors = jnp.where(rows > k, col / jnp.where(pivot == 0.0, 1.0, pivot), 0.0)
-        m = m - jnp.outer(factors, jnp.where(rows > k, row, 0.0))
-        m = jax.lax.dynamic_update_index_in_dim(
-            m, jnp.where(rows > k, factors, col), k, 1
-        )
-        return m, perm, sign
-
-    return jax.lax.fori_loop(0, n, step, (a, rows, jnp.ones((), a.dtype)))
-
-
-def lu_solve(lu, perm, b: Float[Array, "n ..."]):
-    """``x`` with ``a x = b`` from :func:`lu_factor` (not differentiable in ``lu``)."""
-    return solve_upper(jnp.triu(lu), solve_lower(lu, b[perm], unit_diagonal=True))
-
-
-def solve(a: Float[Array, "n n"], b: Float[Array, "n ..."]):
-    """``a⁻¹ b`` for a general square ``a`` by LU with partial pivoting;
-    differentiable in both arguments (module docstring)."""
-    fixed = jax.lax.stop_gradient(a)
-    lu, perm, _ = lu_factor(fixed)
-
-    def transpose_solve(_, rhs):  # traced only when a derivative is transposed
-        lu_t, perm_t, _ = lu_factor(fixed.T)
-        return lu_solve(lu_t, perm_t, rhs)
-
-    return jax.lax.custom_linear_solve(
-        lambda x: a @ x,
-        b,
-        solve=lambda _, rhs: lu_solve(lu, perm, rhs),
-        transpose_solve=transpose_solve,
-    )
-
-
-def det(a: Float[Array, "n n"]) -> Float[Array, ""]:
-    """Determinant: closed form up to 3 × 3 (exact zero at exact singularity, smooth
-    derivatives), else the signed product of the LU pivots."""
-    n = a.shape[-1]
-    if n == 1:
-        return a[0, 0]
-    if n == 2:
-        return a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
-    if n == 3:
-        return jnp.dot(a[0], jnp.cross(a[1], a[2]))
-    lu, _, sign = lu_factor(a)
-    return sign * jnp.prod(jnp.diagonal(lu))
-
-
-def _rotation_pairs(k: int) -> np.ndarray:
-    """``(k(k-1)/2, 2)``: the cyclic row-by-row order of Jacobi's ``(p, q)``, p < q."""
-    return np.array([(p, q) for p in range(k) for q in range(p + 1, k)], dtype=int)
-
-
-def _jacobi_rotation(app, aqq, apq):
-    """``(c, s)`` of the rotation that zeroes ``a[p, q]`` (Golub & Van Loan,
-    Alg. 8.5.1, ``|θ| ≤ π/4``; the identity where ``a[p, q]`` is already zero)."""
-    safe = jnp.where(apq == 0.0, 1.0, apq)
-    theta = (aqq - app) / (2.0 * safe)
-    t = jnp.sign(theta) / (jnp.abs(theta) + jnp.sqrt(theta * theta + 1.0))
-    t = jnp.where((apq == 0.0) | (theta == 0.0), jnp.where(apq == 0, 0.0, 1.0), t)
-    c = 1.0 / jnp.sqrt(t * t + 1.0)
-    return c, t * c
-
-
-def _rotated_columns(m, p, q, c, s, index):
-    """``m G`` for the Jacobi rotation ``G`` in the plane ``(p, q)``: only columns
-    ``p`` and ``q`` change."""
-    col_p = jax.lax.dynamic_index_in_dim(m, p, 1, keepdims=False)
-    col_q = jax.lax.dynamic_index_in_dim(m, q, 1, keepdims=False)
-    new_p, new_q = (c * col_p - s * col_q)[:, None], (s * col_p + c * col_q)[:, None]
-    return jnp.where(index == p, new_p, jnp.where(index == q, new_q, m))
-
-
-def symmetric_eigh(
-    a: Float[Array, "k k"], sweeps: int = JACOBI_SWEEPS
-) -> tuple[Float[Array, " k"], Float[Array, "k k"]]:
-    """``(w, v)`` with ``a v = v diag(w)``, ``w`` ascending, for a small symmetric
-    ``a`` (cyclic Jacobi, ``sweeps`` fixed sweeps).
-
-    One loop step per rotation, which updates only rows and columns ``p`` and ``q``
-    (``m ← Gᵀ m G`` as ``(m G)ᵀ G`` of the symmetric ``m``, ``v ← v G``). Forming
-    ``G`` and taking three ``k x k`` matrix products a step made σ_min's Ritz step
-    most of a sample step (``benchmarks/bench_evaluation.py``); unrolling a sweep's
-    rotations with static ``(p, q)`` ran no faster inside the evaluation and compiled
-    slower."""
-    k = a.shape[-1]
-    if k == 1:
-        return a[0], jnp.ones_like(a)
-    pairs = jnp.asarray(_rotation_pairs(k))
-    index = jnp.arange(k)[None, :]
-
-    def rotate(r, carry):
-        m, v = carry
-        p, q = pairs[r % pairs.shape[0], 0], pairs[r % pairs.shape[0], 1]
-        row_p = jax.lax.dynamic_index_in_dim(m, p, 0, keepdims=False)
-        row_q = jax.lax.dynamic_index_in_dim(m, q, 0, keepdims=False)
-        c, s = _jacobi_rotation(row_p[p], row_q[q], row_p[q])
-        m = _rotated_columns(m, p, q, c, s, index)  # m G
-        m = _rotated_columns(m.T, p, q, c, s, index)  # Gᵀ m G (symmetric m)
-        return m, _rotated_columns(v, p, q, c, s, index)
-
-    m, v = jax.lax.fori_loop(
-        0, sweeps * pairs.shape[0], rotate, (a, jnp.eye(k, dtype=a.dtype))
-    )
-    w = jnp.diagonal(m)
-    order = jnp.argsort(w)
-    return w[order], v[:, order]

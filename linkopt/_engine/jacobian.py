@@ -4,7 +4,7 @@ Every row of the constraint system touches at most two bodies (14 of the ``7B`` 
 entries), so instead of ``jax.jacfwd`` over the whole state (``7B`` tangent directions
 through the full residual) each row group is differentiated analytically in its local
 variables. The rows are polynomial in the state (see :mod:`linkopt._engine.joints`), so
-with ``R(q) v`` the quadratic form of :func:`linkopt._engine.quaternion.rotate`
+with ``R(q) v`` the quadratic form of :func:`linkopt._engine.rotations.rotate`
 
 * ``∂(R(q) v)/∂q = 2 [w v + u × v,  (u·v) I + u vᵀ - v uᵀ - w [v]×]``
   for ``q = (w, u)``;
@@ -49,6 +49,19 @@ from .constraints import gauge_rows
 from .geometry import Geometry
 from .model import JOINT_ROWS, Mechanism
 from .rotations import rotate
+from .row_algebra import (
+    Frames,
+    dot,
+    dot_grad,
+    frames,
+    gram,
+    q_block,
+    rotate_grad,
+    stack_rows,
+    sum_rows,
+    take,
+    xq_block,
+)
 
 
 @dataclass(frozen=True)
@@ -57,145 +70,27 @@ class _Rows:
     blocks: tuple  # ((bodies: np.ndarray (G,), jac: (G, m, 7)), ...)
 
 
-# ---------------------------------------------------------------------------------
-# Local derivatives.
-
-
-def _take(a, index: np.ndarray):
-    """``a[index]`` along axis 0 for a static index: a slice where the index is a
-    run, else one gather with constant indices. A gather is one operation however
-    many members a group has, where a stack of one slice per member grew the programs
-    with the joints (on the Stewart platform's evaluation, stacks were a tenth of the
-    operations); ``benchmarks/bench_compile.py`` measures the compile times."""
-    index = np.asarray(index, dtype=int)
-    if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
-        return a[int(index[0]) : int(index[0]) + index.size]
-    return a[index]
-
-
-def _dot(a, b):
-    """Dot product over a short last axis, unrolled: reductions would end XLA
-    fusions."""
-    out = a[..., 0] * b[..., 0]
-    for k in range(1, a.shape[-1]):
-        out = out + a[..., k] * b[..., k]
-    return out
-
-
-def _sum_rows(a):
-    """Sum over axis 1 (the rows of a group), unrolled."""
-    out = a[:, 0]
-    for k in range(1, a.shape[1]):
-        out = out + a[:, k]
-    return out
-
-
-def _gram(a, b):
-    """``Σ_k a[:, k]ᵀ b[:, k]`` for blocks ``(G, m, 7)``: ``(G, 7, 7)``, row by row."""
-    out = a[:, 0, :, None] * b[:, 0, None, :]
-    for k in range(1, a.shape[1]):
-        out = out + a[:, k, :, None] * b[:, k, None, :]
-    return out
-
-
-def _rotate_grad(q, v):
-    """``∂(R(q) v)/∂q``, shape ``(..., 3, 4)``."""
-    w, u = q[..., :1], q[..., 1:]
-    dw = 2.0 * (w * v + jnp.cross(u, v))
-    uv = _dot(u, v)[..., None, None]
-    eye = jnp.eye(3)
-    ekv = jnp.swapaxes(jnp.cross(eye, v[..., None, :]), -1, -2)  # column k: e_k x v
-    du = 2.0 * (
-        uv * eye
-        + u[..., :, None] * v[..., None, :]
-        - v[..., :, None] * u[..., None, :]
-        + w[..., None] * ekv
-    )
-    return jnp.concatenate([dw[..., :, None], du], axis=-1)
-
-
-def _dot_grad(q, v, a):
-    """``∂(a · R(q) v)/∂q`` for ``a`` held fixed, shape ``(..., 4)``."""
-    w, u = q[..., :1], q[..., 1:]
-    av = _dot(a, v)[..., None]
-    dw = 2.0 * (w * av + _dot(a, jnp.cross(u, v))[..., None])
-    du = 2.0 * (
-        -av * u
-        + _dot(u, a)[..., None] * v
-        + _dot(u, v)[..., None] * a
-        + w * jnp.cross(v, a)
-    )
-    return jnp.concatenate([dw, du], axis=-1)
-
-
-def _q_block(dq):
-    """A row block touching only the quaternion: ``(..., 4)`` -> ``(..., 7)``."""
-    return jnp.concatenate([jnp.zeros(dq.shape[:-1] + (3,)), dq], axis=-1)
-
-
-def _xq_block(dx, dq):
-    return jnp.concatenate([dx, dq], axis=-1)
-
-
-def _stack_rows(*rows):
-    """Stack ``(value, jac_i, jac_j)`` rows into ``values (G, m)``, two ``(G, m, 7)``
-    blocks."""
-    values = jnp.stack([r[0] for r in rows], axis=1)
-    ji = jnp.stack([r[1] for r in rows], axis=1)
-    jj = jnp.stack([r[2] for r in rows], axis=1)
-    return values, ji, jj
-
-
-@dataclass(frozen=True)
-class _Frames:
-    xi: Array
-    qi: Array
-    ri: Array
-    xj: Array
-    qj: Array
-    rj: Array
-    n: Array
-    u: Array
-    n2: Array
-
-
-def _frames(mech: Mechanism, geom: Geometry, x, q, index: np.ndarray) -> _Frames:
-    bi, bj = mech.joint_bodies[index, 0], mech.joint_bodies[index, 1]
-    anchor = _take(geom.anchors, index)
-    return _Frames(
-        _take(x, bi),
-        _take(q, bi),
-        anchor - _take(geom.origins, bi),
-        _take(x, bj),
-        _take(q, bj),
-        anchor - _take(geom.origins, bj),
-        _take(geom.axes, index),
-        _take(geom.helpers, index),
-        _take(geom.axes2, index),
-    )
-
-
-def _point_rows(f: _Frames):
+def _point_rows(f: Frames):
     """The 3 point-coincidence rows ``d`` and their blocks ``(G, 3, 7)``, plus ``d``."""
     d = (f.xj + rotate(f.qj, f.rj)) - (f.xi + rotate(f.qi, f.ri))
     eye = jnp.broadcast_to(jnp.eye(3), d.shape[:-1] + (3, 3))
-    ji = jnp.concatenate([-eye, -_rotate_grad(f.qi, f.ri)], axis=-1)
-    jj = jnp.concatenate([eye, _rotate_grad(f.qj, f.rj)], axis=-1)
+    ji = jnp.concatenate([-eye, -rotate_grad(f.qi, f.ri)], axis=-1)
+    jj = jnp.concatenate([eye, rotate_grad(f.qj, f.rj)], axis=-1)
     return d, ji, jj
 
 
 def _pair_row(qi, vi, qj, vj):
     """Row ``(R_i vi)·(R_j vj)`` with its two blocks."""
     a, b = rotate(qi, vi), rotate(qj, vj)
-    return _dot(a, b), _q_block(_dot_grad(qi, vi, b)), _q_block(_dot_grad(qj, vj, a))
+    return dot(a, b), q_block(dot_grad(qi, vi, b)), q_block(dot_grad(qj, vj, a))
 
 
-def _slide_row(f: _Frames, d, v):
+def _slide_row(f: Frames, d, v):
     """Row ``d · (R_i v)`` with ``d`` the anchor separation, with its two blocks."""
     e = rotate(f.qi, v)
-    ji = _xq_block(-e, _dot_grad(f.qi, v, d) - _dot_grad(f.qi, f.ri, e))
-    jj = _xq_block(e, _dot_grad(f.qj, f.rj, e))
-    return _dot(d, e), ji, jj
+    ji = xq_block(-e, dot_grad(f.qi, v, d) - dot_grad(f.qi, f.ri, e))
+    jj = xq_block(e, dot_grad(f.qj, f.rj, e))
+    return dot(d, e), ji, jj
 
 
 def _angle_row(qi, qj, n, u, target):
@@ -204,7 +99,7 @@ def _angle_row(qi, qj, n, u, target):
     w = jnp.cross(n, u)
     uj = rotate(qj, u)
     ui, wi = rotate(qi, u), rotate(qi, w)
-    c, s = _dot(uj, ui), _dot(uj, wi)
+    c, s = dot(uj, ui), dot(uj, wi)
     if target is None:
         value = jnp.arctan2(s, c)
     else:
@@ -212,12 +107,12 @@ def _angle_row(qi, qj, n, u, target):
         value = jnp.arctan2(s * ct - c * st, c * ct + s * st)
     scale = 1.0 / (c * c + s * s)
     cs, ss = (c * scale)[..., None], (s * scale)[..., None]
-    dqi = cs * _dot_grad(qi, w, uj) - ss * _dot_grad(qi, u, uj)
-    dqj = cs * _dot_grad(qj, u, wi) - ss * _dot_grad(qj, u, ui)
-    return value, _q_block(dqi), _q_block(dqj)
+    dqi = cs * dot_grad(qi, w, uj) - ss * dot_grad(qi, u, uj)
+    dqj = cs * dot_grad(qj, u, wi) - ss * dot_grad(qj, u, ui)
+    return value, q_block(dqi), q_block(dqj)
 
 
-def _family_rows(kind: str, f: _Frames):
+def _family_rows(kind: str, f: Frames):
     """Rows ``(G, m)`` and blocks ``(G, m, 7)`` of one joint family, row order of
     ``_joints``."""
     w = jnp.cross(f.n, f.u)
@@ -236,14 +131,14 @@ def _family_rows(kind: str, f: _Frames):
             parts.append((d, di, dj))
     if kind in ("revolute", "prismatic", "cylindrical", "fixed"):
         parts.append(
-            _stack_rows(_pair_row(f.qi, f.n, f.qj, f.u), _pair_row(f.qi, f.n, f.qj, w))
+            stack_rows(_pair_row(f.qi, f.n, f.qj, f.u), _pair_row(f.qi, f.n, f.qj, w))
         )
     if kind == "universal":
-        parts.append(_stack_rows(_pair_row(f.qi, f.n, f.qj, f.n2)))
+        parts.append(stack_rows(_pair_row(f.qi, f.n, f.qj, f.n2)))
     if kind in ("prismatic", "fixed"):
-        parts.append(_stack_rows(_pair_row(f.qi, f.u, f.qj, w)))
+        parts.append(stack_rows(_pair_row(f.qi, f.u, f.qj, w)))
     if kind in ("prismatic", "cylindrical"):
-        parts.append(_stack_rows(_slide_row(f, d, f.u), _slide_row(f, d, w)))
+        parts.append(stack_rows(_slide_row(f, d, f.u), _slide_row(f, d, w)))
     values = jnp.concatenate([p[0] for p in parts], axis=1)
     ji = jnp.concatenate([p[1] for p in parts], axis=1)
     jj = jnp.concatenate([p[2] for p in parts], axis=1)
@@ -257,7 +152,7 @@ def _family_rows(kind: str, f: _Frames):
 def _passive_groups(mech: Mechanism, geom: Geometry, x, q) -> list[_Rows]:
     bodies = np.arange(mech.num_bodies)
     groups = [
-        _Rows(_dot(q, q)[:, None] - 1.0, ((bodies, _q_block(2.0 * q)[:, None, :]),))
+        _Rows(dot(q, q)[:, None] - 1.0, ((bodies, q_block(2.0 * q)[:, None, :]),))
     ]
     g = mech.ground
     ground = jnp.concatenate([x[g] - geom.origins[g], q[g, 1:]])
@@ -268,7 +163,7 @@ def _passive_groups(mech: Mechanism, geom: Geometry, x, q) -> list[_Rows]:
     for kind in JOINT_ROWS:
         index = mech.joints_of(kind)
         if index.size:
-            values, ji, jj = _family_rows(kind, _frames(mech, geom, x, q, index))
+            values, ji, jj = _family_rows(kind, frames(mech, geom, x, q, index))
             groups.append(
                 _Rows(
                     values,
@@ -280,7 +175,7 @@ def _passive_groups(mech: Mechanism, geom: Geometry, x, q) -> list[_Rows]:
             )
     if mech.idle_bodies.size:  # gauge rows of idle spins (constraints.gauge_rows)
         values, dq = gauge_rows(mech, geom, q)
-        block = _q_block(dq)[:, None, :]
+        block = q_block(dq)[:, None, :]
         groups.append(_Rows(values[:, None], ((mech.idle_bodies, block),)))
     return groups
 
@@ -306,8 +201,8 @@ def _motor_groups(mech: Mechanism, geom: Geometry, x, q, motors):
         if not index.size:
             continue
         joints = mech.motor_joints[index]
-        f = _frames(mech, geom, x, q, joints)
-        target = None if motors is None else _take(motors, index)
+        f = frames(mech, geom, x, q, joints)
+        target = None if motors is None else take(motors, index)
         if is_linear:
             d = (f.xj + rotate(f.qj, f.rj)) - (f.xi + rotate(f.qi, f.ri))
             value, ji, jj = _slide_row(f, d, f.n)
@@ -331,27 +226,27 @@ def _output_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
         points = mech.output_points[positional]
         coords = mech.output_coords[positional]
         body = mech.point_bodies[points]
-        qb = _take(q, body)
-        r = _take(geom.points, points) - _take(geom.origins, body)
+        qb = take(q, body)
+        r = take(geom.points, points) - take(geom.origins, body)
         select = jnp.asarray(np.eye(3)[coords])  # (G, 3) one-hot coordinate
-        world = _take(x, body) + rotate(qb, r)
+        world = take(x, body) + rotate(qb, r)
         value = jnp.stack([world[k, int(c)] for k, c in enumerate(coords)])
         if outputs is not None:
-            value = value - _take(outputs, positional)
-        block = _xq_block(select, _dot_grad(qb, r, select))
+            value = value - take(outputs, positional)
+        block = xq_block(select, dot_grad(qb, r, select))
         groups.append(_Rows(value[:, None], ((body, block[:, None]),)))
         order.append(positional)
     if angular.size:
         joints = mech.output_joints[angular]
-        f = _frames(mech, geom, x, q, joints)
-        target = None if outputs is None else _take(outputs, angular)
+        f = frames(mech, geom, x, q, joints)
+        target = None if outputs is None else take(outputs, angular)
         value, ji, jj = _angle_row(f.qi, f.qj, f.n, f.u, target)
         groups.append(_joint_rows(mech, joints, value, ji, jj))
         order.append(angular)
     if tait_bryan.size:
         joints = mech.output_joints[tait_bryan]
-        f = _frames(mech, geom, x, q, joints)
-        target = None if outputs is None else _take(outputs, tait_bryan)
+        f = frames(mech, geom, x, q, joints)
+        target = None if outputs is None else take(outputs, tait_bryan)
         value, ji, jj = _tait_bryan_row(
             f.qi, f.qj, f.n, f.n2, mech.output_coords[tait_bryan], target
         )
@@ -372,11 +267,11 @@ def _orientation_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
     if pointed.size:
         pair = table.bodies[pointed]
         frame = jnp.asarray(table.frames[pointed])
-        target = None if outputs is None else _take(outputs, pointed)
+        target = None if outputs is None else take(outputs, pointed)
         value, ji, jj = _local_row(
             joint_types.direction_angles,
-            _take(q, pair[:, 0]),
-            _take(q, pair[:, 1]),
+            take(q, pair[:, 0]),
+            take(q, pair[:, 1]),
             frame[:, 0],
             frame[:, 1],
             table.coords[pointed],
@@ -388,10 +283,10 @@ def _orientation_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
     if turned.size:
         pair = table.bodies[turned]
         frame = jnp.asarray(table.frames[turned])
-        target = None if outputs is None else _take(outputs, turned)
+        target = None if outputs is None else take(outputs, turned)
         value, ji, jj = _tait_bryan_row(
-            _take(q, pair[:, 0]),
-            _take(q, pair[:, 1]),
+            take(q, pair[:, 0]),
+            take(q, pair[:, 1]),
             frame[:, 0],
             frame[:, 1],
             table.coords[turned],
@@ -402,11 +297,11 @@ def _orientation_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
         order.append(turned)
     if slid.size:
         joints = table.joints[slid]
-        f = _frames(mech, geom, x, q, joints)
+        f = frames(mech, geom, x, q, joints)
         d = (f.xj + rotate(f.qj, f.rj)) - (f.xi + rotate(f.qi, f.ri))
         value, ji, jj = _slide_row(f, d, f.n)
         if outputs is not None:
-            value = value - _take(outputs, slid)
+            value = value - take(outputs, slid)
         bodies = mech.joint_bodies[joints]
         blocks = ((bodies[:, 0], ji[:, None]), (bodies[:, 1], jj[:, None]))
         groups.append(_Rows(value[:, None], blocks))
@@ -429,7 +324,7 @@ def _local_row(angles, qi, qj, e1, e2, which: np.ndarray, target):
 
     def angle(a, b, n, n2, pick, goal):
         every = angles(a, b, n, n2)
-        value = _dot(every, pick[: every.shape[0]])
+        value = dot(every, pick[: every.shape[0]])
         return value if goal is None else joint_types.wrap(value - goal)
 
     def local(a, b, n, n2, pick, goal):
@@ -440,7 +335,7 @@ def _local_row(angles, qi, qj, e1, e2, which: np.ndarray, target):
     value, dqi, dqj = jax.vmap(local)(
         qi, qj, e1, e2, select, target
     )  # target None: no leaves
-    return value, _q_block(dqi), _q_block(dqj)
+    return value, q_block(dqi), q_block(dqj)
 
 
 def _split(state):
@@ -494,7 +389,7 @@ def _permute_tail(residual, jacobian, head: int, order: list[np.ndarray]):
     if np.array_equal(perm, np.arange(perm.size)):
         return residual, jacobian
     index = np.concatenate([np.arange(head), head + perm])
-    return _take(residual, index), _take(jacobian, index)
+    return take(residual, index), take(jacobian, index)
 
 
 def linearise(
@@ -561,11 +456,11 @@ def normal_equations(
     for group in groups:
         r = group.values
         for a, (bodies_a, jac_a) in enumerate(group.blocks):
-            ga = _sum_rows(jac_a * r[:, :, None])  # (G, 7)
+            ga = sum_rows(jac_a * r[:, :, None])  # (G, 7)
             for k, b in enumerate(bodies_a):
                 grad.setdefault(int(b), []).append(ga[k])
             for bodies_b, jac_b in group.blocks[a:]:
-                prod = _gram(jac_a, jac_b)  # (G, 7, 7)
+                prod = gram(jac_a, jac_b)  # (G, 7, 7)
                 same = jac_b is jac_a
                 for k in range(len(bodies_a)):
                     i, j = int(bodies_a[k]), int(bodies_b[k])
@@ -589,5 +484,5 @@ def normal_equations(
     if order:
         perm = np.argsort(np.concatenate(order), kind="stable")
         if not np.array_equal(perm, np.arange(perm.size)):
-            residual = _take(residual, np.concatenate([np.arange(head), head + perm]))
+            residual = take(residual, np.concatenate([np.arange(head), head + perm]))
     return residual, hessian, gradient

@@ -36,6 +36,7 @@ from jaxtyping import Array, Bool, Float, Int
 from .._config import jit, stored_record, traced
 from .._errors import InputError
 from . import banded, dense, jacobian, lm, programs
+from .arguments import check_arguments, check_design, check_state, value_scale
 from .blocks import first_rows, in_blocks, path_rows
 from .constraints import (
     bk_residual,
@@ -62,11 +63,6 @@ PREDICTION_RATIO = 0.5
 PREDICTION_SLACK = 1e-7
 #: Cap on continuation steps (accepted and rejected) per solve.
 MAX_STEPS = 400
-#: Largest magnitude of a motor value or output the public solves accept (homogenised:
-#: rad, or reference lengths). A continuation moves at most ``MAX_STEPS · MAX_STEP`` =
-#: 80 from its start, so larger values are never reached, and near 1e308 the step
-#: arithmetic overflows to NaN.
-MAX_VALUE = 1e6
 
 
 @stored_record("linkopt.Solution")
@@ -242,12 +238,8 @@ def continue_to(
     return Solution(final, converged, residual, walk.iterations, walk.fraction)
 
 
-def _scale(mech: Mechanism, kind: str):
-    return mech.motor_scale if kind == "fk" else mech.output_scale
-
-
 def _prepare(mech: Mechanism, kind: str, values, start, design):
-    values = jnp.asarray(values, dtype=jnp.float64) / _scale(mech, kind)
+    values = jnp.asarray(values, dtype=jnp.float64) / value_scale(mech, kind)
     start = rest_state(mech) if start is None else jnp.asarray(start, dtype=jnp.float64)
     return values, start, geometry(mech, design_vector(mech, design))
 
@@ -367,104 +359,6 @@ def _along(mech: Mechanism, kind: str, values, start, design) -> Solution:
     return first_rows(solution, count)
 
 
-# ---------------------------------------------------------------------------------
-# Argument checks of the public solves: shapes always (also of traced arrays), finite
-# values and ranges of concrete arrays. Each raises InputError naming the argument.
-
-
-def _numbers(name: str, value):
-    """``value`` as a float64 array, or None when it is traced (shape checks only)."""
-    if isinstance(value, jax.core.Tracer):
-        return None
-    try:
-        return np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(
-            f"{name}: expected an array of numbers, got {type(value).__name__}"
-        ) from None
-
-
-def _shape(name: str, value, array) -> tuple[int, ...]:
-    return tuple(value.shape) if array is None else array.shape
-
-
-def _finite(name: str, array) -> None:
-    if array is not None and not np.all(np.isfinite(array)):
-        raise InputError(f"{name}: expected finite numbers, got NaN or infinity")
-
-
-def check_design(mech: Mechanism, design, name: str = "design") -> None:
-    """``design`` is None or ``(P,)`` finite numbers, P the file's parameter count."""
-    if design is None:
-        return
-    array = _numbers(name, design)
-    shape = _shape(name, design, array)
-    if shape != (mech.design.size,):
-        raise InputError(
-            f"{name}: expected shape ({mech.design.size},) "
-            f"({', '.join(mech.design.names)}), got {shape}"
-        )
-    _finite(name, array)
-
-
-def check_state(mech: Mechanism, state, name: str = "state", batch=False) -> None:
-    """``state`` is a finite homogenised state ``(S,)``; with ``batch`` True also a
-    stack ``(N, S)``, N ≥ 1, and with an int ``batch`` a stack of that many."""
-    array = _numbers(name, state)
-    shape, size = _shape(name, state, array), mech.state_size
-    stacked = len(shape) == 2 and shape[1] == size and shape[0] >= 1
-    if batch is True:
-        ok, allowed = stacked, f"({size},) or (N, {size})"
-    elif batch is False:
-        ok, allowed = False, f"({size},)"
-    else:
-        ok, allowed = stacked and shape[0] == batch, f"({size},) or ({batch}, {size})"
-    if not (shape == (size,) or ok):
-        raise InputError(f"{name}: expected a homogenised state {allowed}, got {shape}")
-    _finite(name, array)
-
-
-def check_values(mech: Mechanism, kind: str, values, *, path: bool = False) -> int:
-    """Motor values (``kind`` "fk") or outputs ("bk"), file units: ``(W,)`` or
-    ``(N, W)`` (a path: ``(T, W)``), N, T ≥ 1, finite and within ``MAX_VALUE``
-    homogenised units. Returns the batch size N, None for one row ``(W,)``."""
-    name = "motors" if kind == "fk" else "outputs"
-    names = mech.motor_names if kind == "fk" else mech.output_names
-    array = _numbers(name, values)
-    shape, width = _shape(name, values, array), len(names)
-    if path:
-        ok, expected = len(shape) == 2, f"(T, {width}) with T >= 1"
-    else:
-        ok, expected = len(shape) in (1, 2), f"({width},) or (N, {width}) with N >= 1"
-    if not ok or shape[-1] != width or (len(shape) == 2 and shape[0] == 0):
-        raise InputError(
-            f"{name}: expected shape {expected} ({', '.join(names)}), got {shape}"
-        )
-    _finite(name, array)
-    if array is not None:
-        _check_range(name, names, array.reshape(-1, width), _scale(mech, kind))
-    return None if len(shape) == 1 else shape[0]
-
-
-def _check_range(name: str, names, rows, scale) -> None:
-    bound = MAX_VALUE * np.asarray(scale)
-    outside = np.any(np.abs(rows) > bound, axis=0)
-    if np.any(outside):
-        k = int(np.argmax(outside))
-        raise InputError(
-            f"{name}: {names[k]} = {float(np.max(np.abs(rows[:, k]))):g} is out of "
-            f"range: expected |{names[k]}| <= {float(bound[k]):g}"
-        )
-
-
-def _check(mech: Mechanism, kind: str, values, start, design, path: bool) -> None:
-    """Every argument of a public solve (see the functions above)."""
-    rows = check_values(mech, kind, values, path=path)
-    if start is not None:
-        check_state(mech, start, "start", batch=False if path or not rows else rows)
-    check_design(mech, design)
-
-
 def solve_fk(mech: Mechanism, motors, *, start=None, design=None) -> Solution:
     """Forward kinematics: motors ``(M,)`` or a batch ``(N, M)`` -> states.
 
@@ -475,7 +369,7 @@ def solve_fk(mech: Mechanism, motors, *, start=None, design=None) -> Solution:
     file's). Differentiable in ``motors`` and ``design`` through the implicit function
     theorem.
     """
-    _check(mech, "fk", motors, start, design, path=False)
+    check_arguments(mech, "fk", motors, start, design, path=False)
     if start is None:
         return _from_rest(mech, "fk", motors, design)
     return _warm(mech, "fk", motors, start, design)
@@ -484,7 +378,7 @@ def solve_fk(mech: Mechanism, motors, *, start=None, design=None) -> Solution:
 def solve_bk(mech: Mechanism, outputs, *, start=None, design=None) -> Solution:
     """Backward kinematics: outputs ``(K,)`` or ``(N, K)`` -> states (motors read off
     them); ``start`` as for :func:`solve_fk`."""
-    _check(mech, "bk", outputs, start, design, path=False)
+    check_arguments(mech, "bk", outputs, start, design, path=False)
     if start is None:
         return _from_rest(mech, "bk", outputs, design)
     return _warm(mech, "bk", outputs, start, design)
@@ -496,13 +390,13 @@ def solve_fk_path(mech: Mechanism, motors, *, start=None, design=None) -> Soluti
     predictor-corrector steps that are subdivided until they stay on the branch of
     ``start``; a row the branch cannot reach is not converged, and later rows continue
     from the last state reached."""
-    _check(mech, "fk", motors, start, design, path=True)
+    check_arguments(mech, "fk", motors, start, design, path=True)
     return _along(mech, "fk", motors, start, design)
 
 
 def solve_bk_path(mech: Mechanism, outputs, *, start=None, design=None) -> Solution:
     """Continuation along outputs ``(T, K)``, as :func:`solve_fk_path`."""
-    _check(mech, "bk", outputs, start, design, path=True)
+    check_arguments(mech, "bk", outputs, start, design, path=True)
     return _along(mech, "bk", outputs, start, design)
 
 

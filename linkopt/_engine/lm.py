@@ -36,7 +36,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from . import dense
+from . import dense, dense_lu
 
 Residual = Callable[[Float[Array, " n"]], Float[Array, " m"]]
 #: ``x -> (C(x), J(x)ᵀJ(x), J(x)ᵀC(x))``: the residual and its Gauss–Newton normal
@@ -131,7 +131,7 @@ class MinimumNorm:
     def direction(self, model, residual, damping):
         gram = model @ model.T
         eye = jnp.eye(gram.shape[0])
-        u = dense.solve(gram + jnp.maximum(damping, self.floor) * eye, residual)
+        u = dense_lu.solve(gram + jnp.maximum(damping, self.floor) * eye, residual)
         after = residual - gram @ u  # C + J δ, the linear model after the step
         return -self.scale * (model.T @ u), residual @ residual - after @ after
 

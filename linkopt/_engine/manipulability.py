@@ -28,7 +28,7 @@ from jaxtyping import Array, Float
 
 from .._config import jit
 from .._errors import InputError
-from . import dense
+from . import dense_lu
 from .kinematics import sensitivity
 from .model import Mechanism
 from .readout import point_positions
@@ -39,7 +39,7 @@ def yoshikawa(jac: Float[Array, "k M"]) -> Float[Array, ""]:
     singularity."""
     k, m = jac.shape
     gram = jac @ jac.T if k <= m else jac.T @ jac
-    det = dense.det(gram)  # no LAPACK call (linkopt._config)
+    det = dense_lu.det(gram)  # no LAPACK call (linkopt._config)
     positive = det > 0.0
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, det, 1.0)), 0.0)
 

@@ -42,7 +42,7 @@ from jaxtyping import Array, Float
 
 from .._config import jit, traced
 from .._errors import InputError
-from . import dense, jacobian, programs
+from . import dense, eigh, jacobian, programs
 from .blocks import in_blocks
 from .geometry import Geometry, design_array, design_vector, geometry
 from .model import Mechanism
@@ -89,7 +89,7 @@ def plain_smallest(a: Float[Array, "B n n"], start: Float[Array, "B n k"]):
         return _orthonormalise(jnp.einsum("bij,bjk->bik", inverse, x))
 
     x = jax.lax.fori_loop(0, ITERATIONS, sweep, x)
-    _, ritz = jax.vmap(dense.symmetric_eigh)(jnp.einsum("bni,bnm,bmj->bij", x, a, x))
+    _, ritz = jax.vmap(eigh.symmetric_eigh)(jnp.einsum("bni,bnm,bmj->bij", x, a, x))
     return jnp.einsum("bnk,bk->bn", x, ritz[:, :, 0])
 
 
@@ -101,7 +101,7 @@ def _kernel_smallest(a: Float[Array, "B n n"], start: Float[Array, "B n k"]):
         a,
         start,
         iterations=ITERATIONS,
-        sweeps=dense.JACOBI_SWEEPS,
+        sweeps=eigh.JACOBI_SWEEPS,
         shift=SHIFT,
     )
 

@@ -30,7 +30,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._errors import InputError
-from . import dense
+from . import dense, dense_lu
 from .constraints import body_frames
 from .geometry import Geometry, design_vector, geometry
 from .jacobian import state_jacobian
@@ -61,7 +61,7 @@ def multipliers(
     )
     jac = state_jacobian(mech, geom, "fk", state)
     if jac.shape[0] == jac.shape[1]:
-        return dense.solve(jac.T, -grad)
+        return dense_lu.solve(jac.T, -grad)
     # least-norm λ = -J (JᵀJ)⁻¹ ∇V = -pinv(Jᵀ) ∇V for J of full column rank (a solved,
     # non-singular FK state); by Cholesky rather than LAPACK's SVD (linkopt._config)
     return -jac @ dense.solve_spd(jac.T @ jac, grad)

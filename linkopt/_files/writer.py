@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._engine.arguments import check_design
 from .._engine.geometry import geometry, moved_joints
-from .._engine.kinematics import check_design
 from .._engine.model import Mechanism
 from .._engine.welding import parts
 from .._errors import InputError

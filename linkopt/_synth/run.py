@@ -34,7 +34,7 @@ import numpy as np
 from .._design import optimizer as swarm_run
 from .._design.evaluation import alpha_minus
 from .._design.settings import OptimizerSettings
-from .._engine.kinematics import check_design
+from .._engine.arguments import check_design
 from .._engine.model import Mechanism
 from .._errors import InputError
 from . import fourbar, starts

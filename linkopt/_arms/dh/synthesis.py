@@ -60,7 +60,7 @@ import scipy.optimize
 from jaxtyping import Array, Float
 
 from ..._config import jit, one_blas_thread
-from ..._engine import dense
+from ..._engine import dense_lu
 from ..._errors import InputError
 from .. import checks
 from . import table as dh
@@ -129,7 +129,7 @@ def _pack(table: dh.DHTable, q) -> np.ndarray:
 def _w_squared(jac: Float[Array, "3 N"]) -> Float[Array, ""]:
     """``w²`` of eq. 1: ``det(J Jᵀ)``, or ``det(Jᵀ J)`` for fewer than 3 joints."""
     k, n = jac.shape
-    return dense.det(jac @ jac.T if k <= n else jac.T @ jac)  # closed form, <= 3x3
+    return dense_lu.det(jac @ jac.T if k <= n else jac.T @ jac)  # closed form, <= 3x3
 
 
 def _per_target(types: str, table: dh.DHTable, q, target):
@@ -193,7 +193,7 @@ def polish(
         def step(_, v):
             jac = dh.tip_jacobian(types, table, v)
             gap = dh.tip_position(types, table, v) - target
-            delta = dense.solve(
+            delta = dense_lu.solve(
                 jac.T @ jac + 1e-12 * jnp.eye(jac.shape[1]), jac.T @ gap
             )
             trial = v - delta

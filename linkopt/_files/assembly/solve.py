@@ -139,11 +139,11 @@ def _min_norm(jac, rhs, damping):
     """``Jᵀ (J Jᵀ + μ I)⁻¹ rhs``: the least-norm (damped) ``d`` of ``J d = rhs``."""
     import jax.numpy as jnp
 
-    from ..._engine import dense
+    from ..._engine import dense_lu
 
     gram = jac @ jac.T
     eye = jnp.eye(gram.shape[0])
-    return jac.T @ dense.solve(gram + damping * eye, rhs)
+    return jac.T @ dense_lu.solve(gram + damping * eye, rhs)
 
 
 @functools.cache
