@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
+from .._engine.blocks import in_blocks
 from .._engine.model import Mechanism
 from .objective import Problem, score
 
@@ -56,15 +57,13 @@ def difference_steps(p: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.
 
 
 def _distances(mech, problem: Problem, designs, alpha, batch: int) -> np.ndarray:
-    """Distances ``(B, k)`` of ``designs`` scored in calls of exactly ``batch``
-    rows (the last padded by repeating its last row)."""
-    out = []
-    for start in range(0, len(designs), batch):
-        chunk = designs[start : start + batch]
-        padded = np.vstack([chunk, np.repeat(chunk[-1:], batch - len(chunk), axis=0)])
-        d = np.asarray(score(mech, problem, padded, alpha).distances)
-        out.append(d[: len(chunk)])
-    return np.concatenate(out, axis=0)
+    """Distances ``(B, k)`` of ``designs`` scored in blocks of exactly ``batch`` rows
+    (:func:`linkopt._engine.blocks.in_blocks`: one compiled score)."""
+    return np.asarray(
+        in_blocks(
+            lambda d: score(mech, problem, d, alpha).distances, [designs], width=batch
+        )
+    )
 
 
 def polish(
