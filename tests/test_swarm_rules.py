@@ -15,8 +15,6 @@ import pytest
 
 from linkopt._design import swarm as ours
 
-pytest.importorskip("pyswarms")
-
 _REFERENCE = r"""
 import json, sys
 import numpy as np
