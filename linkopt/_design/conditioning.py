@@ -5,8 +5,8 @@ singular, paper Sec. IV), with the message that names a near-singular rest pose.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
-from functools import cache
 
 import numpy as np
 from jaxtyping import Float
@@ -81,10 +81,14 @@ def rest_conditioning(mech: Mechanism) -> RestConditioning:
     return RestConditioning(sigma_fk, sigma_bk, np.linalg.svd(jac, compute_uv=False))
 
 
-@cache
+#: α₋ of each live mechanism: weak, so that a mechanism dropped by its caller is not
+#: kept alive by having been evaluated once.
+_ALPHA_MINUS: weakref.WeakKeyDictionary[Mechanism, float] = weakref.WeakKeyDictionary()
+
+
 def alpha_minus(mech: Mechanism) -> float:
     """``α₋ = alpha_factor · f_sing(rest pose of the initial design)``, unless the file
-    gives ``alpha_minus`` itself.
+    gives ``alpha_minus`` itself. Computed once per mechanism while it lives.
 
     :class:`~linkopt.MechanismFileError` when the rest pose is near a singularity
     (σ_min below :data:`NEAR_SINGULAR_SIGMA`): α₋ would then be huge (σ_min 8e-6 gave
@@ -92,6 +96,12 @@ def alpha_minus(mech: Mechanism) -> float:
     the file must set ``[evaluation] alpha_minus``."""
     if mech.evaluation.alpha_minus is not None:
         return float(mech.evaluation.alpha_minus)
+    if mech not in _ALPHA_MINUS:
+        _ALPHA_MINUS[mech] = _alpha_from_rest(mech)
+    return _ALPHA_MINUS[mech]
+
+
+def _alpha_from_rest(mech: Mechanism) -> float:
     rest = rest_conditioning(mech)
     if rest.near_singular:
         raise MechanismFileError(
