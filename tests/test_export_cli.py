@@ -70,7 +70,7 @@ def test_urdf_glb_stl(tmp_path, capsys):
     "extra, message",
     [
         (["--format", "step", "--out", "x.step"], "invalid choice: 'step'"),
-        (["--format", "urdf", "--out", "x.urdf"], "--format mjcf"),
+        (["--format", "urdf", "--out", "x.urdf"], "as MJCF"),
         (["--format", "stl", "--out", "d", "--thickness", "0"], "--thickness"),
         (["--format", "glb", "--out", "x.glb", "--thickness", "-2"], "--thickness"),
         (["--format", "glb", "--out", "x.glb", "--thickness", "nan"], "--thickness"),

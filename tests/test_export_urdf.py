@@ -155,5 +155,7 @@ max = 1.25
 
 
 def test_closed_loop_is_refused(five_bar):
-    with pytest.raises(linkopt.InputError, match=r"closed loops .*tip.*--format mjcf"):
+    with pytest.raises(
+        linkopt.InputError, match=r"closed loops .*tip.*as MJCF, which holds loops"
+    ):
         urdf.urdf_text(five_bar)

@@ -119,7 +119,7 @@ def test_a_resumed_run_ends_as_an_uninterrupted_one(tmp_path, monkeypatch, capsy
     ("extra", "words"),
     [
         (["--export", "pdf"], "--export: expected formats among"),
-        (["--export", "urdf"], "URDF"),
+        (["--export", "urdf"], "URDF cannot hold closed loops"),
         (["--resume"], "no checkpoint to resume"),
         (["--verify", "--resume"], "--resume: not with --verify"),
     ],
@@ -128,6 +128,7 @@ def test_bad_export_and_resume_flags_are_one_line(tmp_path, capsys, extra, words
     assert _run(tmp_path / "run", "--iterations", "1", *extra) == 2
     err = capsys.readouterr().err
     assert words in err and err.count("\n") == 1
+    assert "--format" not in err  # a flag of `linkopt export`, not of this command
     assert not (tmp_path / "run" / "checkpoint.json").exists()
 
 

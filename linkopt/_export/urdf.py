@@ -41,7 +41,7 @@ def check_open_chain(mech: Mechanism) -> None:
         names = [mech.joint_names[j] for j in spanning_tree(mech, rest_pose).closures]
         raise InputError(
             f"{mech.source}: URDF cannot hold closed loops ({closures} loop-closing "
-            f"joint(s): {', '.join(names)}); export it as MJCF (--format mjcf)"
+            f"joint(s): {', '.join(names)}); export it as MJCF, which holds loops"
         )
 
 
