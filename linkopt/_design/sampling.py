@@ -62,10 +62,10 @@ from .._engine.solvers.quasi_newton import QNState, QuasiNewton, unevaluated
 from .motor_box import held, into_box, motor_box, projected
 
 BRANCH_TOL = 0.5
-#: Iteration cap of a trial forward solve: from the linear prediction, a step of at most
-#: ``RADIUS_GROWTH · max_step`` converges in 2-4 LM iterations; one that needs more is
-#: rejected, since under ``vmap`` a lane that ran on to a longer cap would hold up every
-#: other sample.
+#: Iteration cap of a trial forward solve: from the linear prediction, a step of at
+#: most ``quasi_newton.RADIUS_GROWTH · max_step`` converges in 2-4 LM iterations; one
+#: that needs more is rejected, since under ``vmap`` a lane that ran on to a longer cap
+#: would hold up every other sample.
 TRIAL_ITERATIONS = 6
 
 
