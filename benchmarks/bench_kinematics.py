@@ -11,8 +11,8 @@ the targets ``TARGET_SINGLE_US`` and ``TARGET_RATE`` (issue 19, 2 cores); writes
 ``benchmarks/results/bench_kinematics.json``.
 
 The choices behind these figures are documented where they are made: the hand-written
-Levenberg–Marquardt (:mod:`linkopt._engine.lm`), plain-JAX linear algebra and its
-one-column Cholesky (:mod:`linkopt._engine.dense`), batches in chunks of
+Levenberg–Marquardt (:mod:`linkopt._engine.solvers.lm`), plain-JAX linear algebra and
+its one-column Cholesky (:mod:`linkopt._engine.dense`), batches in chunks of
 ``kinematics.CHUNK`` lanes (:mod:`linkopt._engine.kinematics`), σ_min by block inverse
 iteration (:mod:`linkopt._engine.singularity`), the Jacobian entry points jitted with
 the mechanism static (:mod:`linkopt._engine.jacobian`). Where a solve's time goes, and

@@ -35,7 +35,7 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .._config import jit, stored_record, traced
 from .._errors import InputError
-from . import banded, dense, jacobian, lm, programs
+from . import banded, dense, jacobian, programs
 from .arguments import check_arguments, check_design, check_state, value_scale
 from .blocks import first_rows, in_blocks, path_rows
 from .constraints import (
@@ -46,6 +46,7 @@ from .constraints import (
 )
 from .geometry import Geometry, design_array, design_vector, geometry, rest_state
 from .model import Mechanism
+from .solvers import lm
 
 _RESIDUALS = {"fk": fk_residual, "bk": bk_residual}
 _VALUES = {"fk": homogenised_motor_values, "bk": homogenised_output_values}

@@ -56,7 +56,8 @@ What is solved (choices the issue leaves open, made here):
   fixed points are the first-order optimality conditions), then a last polish.
   Written here rather than with optimistix: neither step is one of its least-squares
   solvers, and the problems are tiny (tens of unknowns); the Levenberg–Marquardt
-  phases are :mod:`linkopt._engine.lm`'s loop with its minimum-norm step.
+  phases are :mod:`linkopt._engine.solvers.lm`'s loop with its minimum-norm step and
+  the projections :mod:`linkopt._engine.solvers.projection`'s.
 * A file whose loops cannot close is refused, never changed silently: the message
   names the loop (its joints and bodies, a fundamental cycle of the body graph through
   the joints that miss), the dimensions that cannot all hold at the closest assembly

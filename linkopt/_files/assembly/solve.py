@@ -2,11 +2,12 @@
 drawing (minimum-norm Levenberg–Marquardt, then projection onto the nearest point of
 the constraint manifold, then a polish; the package docstring gives the choices).
 
-The Levenberg–Marquardt phases are :mod:`linkopt._engine.lm`'s loop with its
-:class:`~linkopt._engine.lm.MinimumNorm` step: an assembly is underdetermined (every
-anchor of a body given by world anchors, six unknowns per frame, more than the rows),
-so the step is the minimum-norm one through ``J Jᵀ`` in weighted variables, which the
-projection after it needs (``JᵀJ`` there is singular up to λ).
+The Levenberg–Marquardt phases are :mod:`linkopt._engine.solvers.lm`'s loop with its
+:class:`~linkopt._engine.solvers.lm.MinimumNorm` step: an assembly is underdetermined
+(every anchor of a body given by world anchors, six unknowns per frame, more than the
+rows), so the step is the minimum-norm one through ``J Jᵀ`` in weighted variables, which
+the projection after it (:mod:`linkopt._engine.solvers.projection`) needs (``JᵀJ``
+there is singular up to λ).
 """
 
 from __future__ import annotations
@@ -135,17 +136,6 @@ def _motor_residual(rows: Rows, a, carry):
     return jnp.where(rows.motor_linear, linear - rows.motor_target, rotary)
 
 
-def _min_norm(jac, rhs, damping):
-    """``Jᵀ (J Jᵀ + μ I)⁻¹ rhs``: the least-norm (damped) ``d`` of ``J d = rhs``."""
-    import jax.numpy as jnp
-
-    from ..._engine import dense_lu
-
-    gram = jac @ jac.T
-    eye = jnp.eye(gram.shape[0])
-    return jac.T @ dense_lu.solve(gram + damping * eye, rhs)
-
-
 @functools.cache
 def _programs():
     """The jitted solver stages, built on first use: a file that declares no assembly
@@ -153,7 +143,9 @@ def _programs():
     every other JAX use in this package runs after this, inside these programs or on
     their results."""
     from ..._config import jit
-    from ..._engine import lm as _lm
+    from ..._engine.solvers import lm as _lm
+    from ..._engine.solvers.driver import run
+    from ..._engine.solvers.projection import Projection
 
     jax = importlib.import_module("jax")  # after linkopt._config: float64 on
     jnp = jax.numpy
@@ -178,23 +170,8 @@ def _programs():
     def project(sizes, rows, x, x0, s):
         """Gauss–Newton projection onto the assembly nearest the drawing."""
         method = _lm.MinimumNorm(lambda y: _residual(sizes, rows, y), s)
-
-        def body(state):
-            x, it, _ = state
-            r, jac = method.linearise(x)
-            delta = jnp.where(s > 0, (x - x0) / jnp.where(s > 0, s, 1.0), 0.0)
-            dy = -delta + _min_norm(jac, jac @ delta - r, 1e-14)
-            dx = s * dy
-            small = jnp.max(jnp.abs(dx)) < 1e-15
-            return x + dx, it + 1, small
-
-        def cond(state):
-            return (~state[2]) & (state[1] < PROJECTION_ITERATIONS)
-
-        x, it, _ = jax.lax.while_loop(
-            cond, body, (x, jnp.asarray(0), jnp.asarray(False))
-        )
-        return x, it
+        state, _ = run(Projection(method, x0), x, PROJECTION_ITERATIONS)
+        return state.x, state.iteration
 
     residual = jit(_residual, static_argnums=0)
     return lm, project, residual

@@ -7,16 +7,18 @@ per-iteration overhead dominates. optimistix fixes its initial damping at 1, whi
 costs several extra iterations from a warm start; ``benchmarks/bench_kinematics.py``
 keeps it as the comparison. Neither step below is one of optimistix's.
 
-Shape follows optimistix: :func:`init`, :func:`step`, :func:`terminate`, run by
-:func:`solve` in a ``lax.while_loop``. What differs between problems is the *method*
-(a frozen dataclass, static to the loop): how it linearises ``C`` at ``x`` and which
-damped step it takes from that linearisation.
+:class:`LevenbergMarquardt` is a solver of the package's protocol (``init``, ``step``,
+``terminate``, run by :func:`linkopt._engine.solvers.driver.run`; :func:`solve` wraps
+it). What differs between problems is the *method* (a frozen dataclass, static to the
+loop): how it linearises ``C`` at ``x`` and which damped step it takes from that
+linearisation.
 
 * :class:`NormalEquations` (the FK/BK constraint solves, square or tall ``J`` with
   redundant rows, e.g. a planar loop written in 3-D): ``(JᵀJ + λI) δ = -Jᵀr`` by
   Cholesky (:mod:`linkopt._engine.dense`, no LAPACK call).
 * :class:`MinimumNorm` (the assembly, :mod:`linkopt._files.assembly.solve`, more
-  unknowns than rows, ``JᵀJ`` singular up to λ): the least weighted-norm step
+  unknowns than rows, ``JᵀJ`` singular up to λ; also the linearisation of
+  :mod:`~linkopt._engine.solvers.projection`): the least weighted-norm step
   ``δ = -S Jₛᵀ (Jₛ Jₛᵀ + λI)⁻¹ r`` with ``Jₛ = J S``, ``S = diag(scale)``.
 
 Shared by both: a step is taken iff it lowers ``|C|²`` and its linear model predicted
@@ -36,7 +38,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from . import dense, dense_lu
+from .. import dense, dense_lu
+from .driver import Result, run
 
 Residual = Callable[[Float[Array, " n"]], Float[Array, " m"]]
 #: ``x -> (C(x), J(x)ᵀJ(x), J(x)ᵀC(x))``: the residual and its Gauss–Newton normal
@@ -99,9 +102,7 @@ class NormalEquations:
         if self.linearisation is not None:
             residual, hessian, gradient = self.linearisation(x)
         else:
-            jacobian, residual = jax.jacfwd(
-                lambda y: (self.fn(y), self.fn(y)), has_aux=True
-            )(x)
+            jacobian, residual = value_and_jacobian(self.fn, x)
             hessian, gradient = jacobian.T @ jacobian, jacobian.T @ residual
         return residual, (hessian, gradient)
 
@@ -123,58 +124,82 @@ class MinimumNorm:
     floor: float = 1e-15
 
     def linearise(self, x):
-        jacobian, residual = jax.jacfwd(
-            lambda y: (self.fn(y), self.fn(y)), has_aux=True
-        )(x)
+        jacobian, residual = value_and_jacobian(self.fn, x)
         return residual, jacobian * self.scale[None, :]
 
     def direction(self, model, residual, damping):
-        gram = model @ model.T
-        eye = jnp.eye(gram.shape[0])
-        u = dense_lu.solve(gram + jnp.maximum(damping, self.floor) * eye, residual)
+        gram, u = gram_solve(model, jnp.maximum(damping, self.floor), residual)
         after = residual - gram @ u  # C + J δ, the linear model after the step
         return -self.scale * (model.T @ u), residual @ residual - after @ after
 
 
-def init(method: Method, x0, initial_damping: float) -> LMState:
-    residual, model = method.linearise(x0)
-    return LMState(
-        x0,
-        residual,
-        model,
-        jnp.asarray(initial_damping),
-        jnp.asarray(2.0),
-        jnp.asarray(0),
-        jnp.asarray(False),
-    )
+def value_and_jacobian(fn: Residual, x) -> tuple[Float[Array, "m n"], Any]:
+    """``(∂fn/∂x, fn(x))`` by forward mode, ``fn`` traced once (its value is the
+    primal of the same pushforward)."""
+
+    def both(y):
+        value = fn(y)
+        return value, value
+
+    return jax.jacfwd(both, has_aux=True)(x)
 
 
-def step(method: Method, state: LMState) -> LMState:
-    """One damped step with Nielsen's damping update."""
-    r, lam = state.residual, state.damping
-    delta, predicted = method.direction(state.model, r, lam)
-    new_residual, new_model = method.linearise(state.x + delta)
-    actual = r @ r - new_residual @ new_residual
-    rho = actual / jnp.where(predicted > 0, predicted, 1.0)
-    accept = (actual > 0) & (predicted > 0) & jnp.all(jnp.isfinite(new_residual))
-    shrink = jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-    tiny = jnp.sqrt(delta @ delta) < MIN_STEP * (1.0 + jnp.sqrt(state.x @ state.x))
-    return LMState(
-        x=jnp.where(accept, state.x + delta, state.x),
-        residual=jnp.where(accept, new_residual, r),
-        model=jax.tree.map(
-            lambda new, old: jnp.where(accept, new, old), new_model, state.model
-        ),
-        damping=jnp.where(accept, lam * shrink, lam * state.growth),
-        growth=jnp.where(accept, 2.0, 2.0 * state.growth),
-        iteration=state.iteration + 1,
-        stalled=(~accept & (lam * state.growth > MAX_DAMPING)) | (tiny & ~accept),
-    )
+def gram_solve(jacobian, damping, rhs):
+    """``(J Jᵀ, (J Jᵀ + μI)⁻¹ rhs)`` by LU: ``Jᵀ`` times the second is the least-norm
+    ``d`` of ``J d = rhs`` (damped by ``μ``)."""
+    gram = jacobian @ jacobian.T
+    eye = jnp.eye(gram.shape[0])
+    return gram, dense_lu.solve(gram + damping * eye, rhs)
 
 
-def terminate(state: LMState, tolerance: float, max_iterations: int) -> Bool[Array, ""]:
-    done = jnp.max(jnp.abs(state.residual)) <= tolerance
-    return done | state.stalled | (state.iteration >= max_iterations)
+@dataclass(frozen=True)
+class LevenbergMarquardt:
+    """Minimise ``½|C(x)|²`` by ``method``'s damped steps until ``max |C| <=
+    tolerance`` or a stall (module docstring)."""
+
+    method: Method
+    tolerance: float
+    initial_damping: float
+
+    def init(self, x0) -> LMState:
+        residual, model = self.method.linearise(x0)
+        return LMState(
+            x0,
+            residual,
+            model,
+            jnp.asarray(self.initial_damping),
+            jnp.asarray(2.0),
+            jnp.asarray(0),
+            jnp.asarray(False),
+        )
+
+    def step(self, state: LMState) -> LMState:
+        """One damped step with Nielsen's damping update."""
+        r, lam = state.residual, state.damping
+        delta, predicted = self.method.direction(state.model, r, lam)
+        new_residual, new_model = self.method.linearise(state.x + delta)
+        actual = r @ r - new_residual @ new_residual
+        rho = actual / jnp.where(predicted > 0, predicted, 1.0)
+        accept = (actual > 0) & (predicted > 0) & jnp.all(jnp.isfinite(new_residual))
+        shrink = jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+        size = jnp.sqrt(delta @ delta)
+        tiny = size < MIN_STEP * (1.0 + jnp.sqrt(state.x @ state.x))
+        return LMState(
+            x=jnp.where(accept, state.x + delta, state.x),
+            residual=jnp.where(accept, new_residual, r),
+            model=jax.tree.map(
+                lambda new, old: jnp.where(accept, new, old), new_model, state.model
+            ),
+            damping=jnp.where(accept, lam * shrink, lam * state.growth),
+            growth=jnp.where(accept, 2.0, 2.0 * state.growth),
+            iteration=state.iteration + 1,
+            stalled=(~accept & (lam * state.growth > MAX_DAMPING)) | (tiny & ~accept),
+        )
+
+    def terminate(self, state: LMState):
+        converged = jnp.max(jnp.abs(state.residual)) <= self.tolerance
+        result = jnp.where(converged, Result.SUCCESSFUL, Result.STALLED)
+        return converged | state.stalled, result
 
 
 def solve(
@@ -187,12 +212,8 @@ def solve(
 ) -> LMResult:
     """Minimise ``½|C(x)|²`` from ``x0`` by ``method``'s steps; jit- and vmap-friendly,
     no NaN on failure."""
-    state = init(method, x0, initial_damping)
-    state = jax.lax.while_loop(
-        lambda st: ~terminate(st, tolerance, max_iterations),
-        lambda st: step(method, st),
-        state,
-    )
+    solver = LevenbergMarquardt(method, tolerance, initial_damping)
+    state, _ = run(solver, x0, max_iterations)
     error = jnp.max(jnp.abs(state.residual))
     converged = error <= tolerance
     return LMResult(
