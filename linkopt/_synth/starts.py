@@ -20,9 +20,11 @@ target as extra unknowns, on
   that a degree short costs more than any tolerance.
 
 The seeds: the file's design, the precision-point fits of :func:`.fourbar.fit_path`
-(many seeds; at most five of the targets each, evenly spread or drawn) carried into
-the design space by least squares on the joint anchors, and designs drawn uniformly
-in the design box. A design's coupler point follows the file's rule (the point's
+(many seeds; at most five of the targets each, evenly spread or drawn), for more than
+five targets the four-bars of :mod:`.atlas` whose coupler curves best match the
+targets' shape, each carried into the design space by least squares on the joint
+anchors (and the coupler point's driven coordinates), and designs drawn uniformly in
+the design box. A design's coupler point follows the file's rule (the point's
 ``follow``, :func:`linkopt._engine.following.follow`, and the point parameters that
 place it, :func:`linkopt._engine.following.drive`), so every start is a design of the
 file: where point parameters let the coupler point move, its place on the coupler is
@@ -45,7 +47,7 @@ import numpy as np
 from .._engine.following import rest_points
 from .._engine.model import Mechanism
 from .._errors import InputError
-from . import fourbar
+from . import atlas, fourbar
 from .targets import Targets
 
 #: Levenberg–Marquardt iterations of the refinement (all starts together).
@@ -60,6 +62,8 @@ SAMPLES = 72
 HINGE, HINGE_WEIGHT = 0.6, 3.0
 #: Weight of a radian of transmission shortfall, in the targets' extents.
 SHORTFALL_WEIGHT = 10.0
+#: Targets above this many (beyond precision points) also get :mod:`.atlas` starts.
+ATLAS_FROM = 5
 #: How closely the fast rule of the coupler point must reproduce the file's
 #: ``follow`` (file units) on random designs to be used.
 RULE_CHECK = 1e-9
@@ -344,16 +348,35 @@ def problem_of(
     return Problem(frame, goals, need, targets.tolerance, weight, d.lower, d.upper)
 
 
-def _fit_designs(frame: Frame, goals, closed: bool, seed: int, count: int):
-    """Precision-point fits (:func:`.fourbar.fit_path`) on at most five targets,
-    carried into the design space (least squares on the anchors)."""
-    rng = np.random.default_rng(seed)
-    k = len(goals)
+def _carried(frame: Frame, rest: np.ndarray) -> np.ndarray:
+    """Four-bars ``(N, 5, 2)`` (``A, B, C, D, P`` in the plane) carried into the
+    design space: least squares on the anchors of ``A``-``D`` and the coordinates of
+    ``P`` that point parameters drive."""
     j = frame.joints
     rows = [3 * i + m for i in (j.A, j.B, j.C, j.D) for m in range(3)]
     driven = np.flatnonzero(np.any(frame.pmap != 0.0, axis=1))  # the point's, if any
     matrix = np.vstack([frame.matrix[rows], frame.pmap[driven]])
     flat0 = np.concatenate([frame.flat0[rows], frame.w0[driven]])
+    world = frame.plane[0] + rest @ frame.plane[1:]  # (N, 5, 3)
+    want = np.concatenate([world[:, :4].reshape(len(rest), -1),
+                           world[:, 4][:, driven]], axis=1)  # fmt: skip
+    change = np.linalg.lstsq(matrix, (want - flat0).T, rcond=None)[0]
+    return frame.p0 + change.T
+
+
+def _atlas_designs(frame: Frame, goals, closed: bool, need, seed: int, count: int):
+    """The best :func:`.atlas.matches` of the targets' shape, carried into the
+    design space."""
+    if count <= 0:
+        return []
+    return list(_carried(frame, atlas.matches(goals, closed, need, seed, count)))
+
+
+def _fit_designs(frame: Frame, goals, closed: bool, seed: int, count: int):
+    """Precision-point fits (:func:`.fourbar.fit_path`) on at most five targets,
+    carried into the design space (:func:`_carried`)."""
+    rng = np.random.default_rng(seed)
+    k = len(goals)
     out = []
     for attempt in range(count):
         if k <= 5:
@@ -370,11 +393,7 @@ def _fit_designs(frame: Frame, goals, closed: bool, seed: int, count: int):
         except (InputError, ValueError, np.linalg.LinAlgError):
             continue
         p = fit.placed
-        world = [frame.plane[0] + x[0] * frame.plane[1] + x[1] * frame.plane[2]
-                 for x in (p.A, p.B, p.C, p.D, p.P)]  # fmt: skip
-        want = np.concatenate([*world[:4], world[4][driven]])
-        change = np.linalg.lstsq(matrix, want - flat0, rcond=None)[0]
-        out.append(frame.p0 + change)
+        out.append(_carried(frame, np.stack([p.A, p.B, p.C, p.D, p.P])[None])[0])
     return out
 
 
@@ -397,6 +416,10 @@ def candidates(
     fits = count // 4 if fits is None else fits
     seeds = [problem.frame.p0]
     seeds += _fit_designs(problem.frame, problem.goals, targets.closed, seed, fits)
+    if len(targets.values) > ATLAS_FROM:
+        seeds += _atlas_designs(
+            problem.frame, problem.goals, targets.closed, problem.need, seed, count // 4
+        )
     drawn = rng.uniform(problem.lower, problem.upper, (max(0, count - len(seeds)),
                                                        problem.lower.size))  # fmt: skip
     seeds = np.vstack([np.stack(seeds)[:count], drawn])
