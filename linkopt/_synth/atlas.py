@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 #: Four-bars drawn for the atlas, and the crank angles sampled on each curve.
-CURVES, ANGLES = 2000, 96
+CURVES, ANGLES = 4000, 96
 #: Points of each curve at equal arc length, and of the targets.
 SAMPLES, RESAMPLE = 192, 32
 #: Starting places tried along each curve (every ``SAMPLES // SHIFTS``-th point).
@@ -108,11 +108,25 @@ def _windows(closed: bool) -> np.ndarray:
     return np.array([(s + span) % SAMPLES for span in spans for s in starts])
 
 
+def _selection(windows: np.ndarray, target: np.ndarray) -> tuple:
+    """``(SAMPLES, W)`` matrices: how often each curve point is in each window, and
+    the sum of the target points it meets there (so that a window's sums over its
+    points are matrix products with the curves)."""
+    count, length = windows.shape
+    column = np.repeat(np.arange(count), length)
+    chosen = np.zeros((SAMPLES, count))
+    np.add.at(chosen, (windows.ravel(), column), 1.0)
+    weights = np.zeros((SAMPLES, count), dtype=complex)
+    np.add.at(weights, (windows.ravel(), column), np.tile(target, count))
+    return chosen, weights
+
+
 def matches(goals, closed: bool, need: float, seed: int, count: int) -> np.ndarray:
     """``(count, 5, 2)``: four-bars ``A, B, C, D, P`` (targets' plane, at rest) whose
     coupler curves best match the shape of the targets ``goals`` ``(k, 2)`` in
     order (module docstring), the best first; ``need`` the least transmission angle
-    (rad)."""
+    (rad). Each window's fit is in closed form from sums over its points (matrix
+    products with the curves): ``Σ conj(c) t``, ``Σ c`` and ``Σ |c|²``."""
     rng = np.random.default_rng(seed)
     bars = _draw(rng, CURVES, need)
     phi = np.linspace(0.0, 2 * np.pi, ANGLES, endpoint=False)
@@ -122,30 +136,32 @@ def matches(goals, closed: bool, need: float, seed: int, count: int) -> np.ndarr
     target = target - middle
     spread = float(np.sum(np.abs(target) ** 2))
     windows = _windows(closed)
-    best = np.full((len(bars),), np.inf)
+    chosen, forward = _selection(windows, target)
+    _, backward = _selection(windows, target[::-1])
+    sums = curves @ chosen  # (N, W)
+    norm = np.abs(curves) ** 2 @ chosen - np.abs(sums) ** 2 / RESAMPLE + 1e-300
+    rows = np.arange(len(bars))
+    best = np.full(len(bars), np.inf)
     fits = np.zeros((len(bars), 2), dtype=complex)
     mirrored = np.zeros(len(bars), dtype=bool)
     for mirror in (False, True):
         shapes = np.conj(curves) if mirror else curves
-        for reverse in (False, True):
-            placed = shapes[:, windows[:, ::-1] if reverse else windows]  # (N, W, R)
-            centre = placed.mean(-1, keepdims=True)
-            c = placed - centre
-            dot = np.sum(np.conj(c) * target, -1)
-            norm = np.sum(np.abs(c) ** 2, -1) + 1e-300
+        centre = (np.conj(sums) if mirror else sums) / RESAMPLE
+        for weights in (forward, backward):
+            dot = np.conj(shapes) @ weights  # Σ conj(c) t over each window
             residual = spread - np.abs(dot) ** 2 / norm  # (N, W)
             w = np.argmin(residual, axis=1)
-            r = residual[np.arange(len(bars)), w]
+            r = residual[rows, w]
             better = r < best
-            alpha = dot[np.arange(len(bars)), w] / norm[np.arange(len(bars)), w]
-            beta = middle - alpha * centre[np.arange(len(bars)), w, 0]
+            alpha = dot[rows, w] / norm[rows, w]
+            beta = middle - alpha * centre[rows, w]
             best = np.where(better, r, best)
             fits = np.where(better[:, None], np.stack([alpha, beta], 1), fits)
             mirrored = np.where(better, mirror, mirrored)
-    chosen = np.argsort(best)[:count]
-    pin, tip, point = (x[:, 0] for x in _poses(bars[chosen], np.zeros(1)))
-    joints = np.stack([np.zeros(len(chosen)), pin, tip, np.ones(len(chosen)), point], 1)
-    joints = np.where(mirrored[chosen, None], np.conj(joints), joints)
-    alpha, beta = fits[chosen, :1], fits[chosen, 1:]
-    world = alpha * joints + beta
+    chosen_bars = np.argsort(best)[:count]
+    pin, tip, point = (x[:, 0] for x in _poses(bars[chosen_bars], np.zeros(1)))
+    size = len(chosen_bars)
+    joints = np.stack([np.zeros(size), pin, tip, np.ones(size), point], 1)
+    joints = np.where(mirrored[chosen_bars, None], np.conj(joints), joints)
+    world = fits[chosen_bars, :1] * joints + fits[chosen_bars, 1:]
     return np.stack([world.real, world.imag], -1)

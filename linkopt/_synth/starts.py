@@ -418,7 +418,7 @@ def candidates(
     seeds += _fit_designs(problem.frame, problem.goals, targets.closed, seed, fits)
     if len(targets.values) > ATLAS_FROM:
         seeds += _atlas_designs(
-            problem.frame, problem.goals, targets.closed, problem.need, seed, count // 4
+            problem.frame, problem.goals, targets.closed, problem.need, seed, count // 2
         )
     drawn = rng.uniform(problem.lower, problem.upper, (max(0, count - len(seeds)),
                                                        problem.lower.size))  # fmt: skip
