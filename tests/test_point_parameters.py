@@ -199,3 +199,22 @@ def test_a_point_no_parameter_can_place_is_refused(where):
     with pytest.raises(MechanismFileError, match=r"parameters\[3\]\.point") as caught:
         linkopt.loads(with_parameters("[[parameters]]" + parameter, text), str(FILE))
     assert words in str(caught.value)
+
+
+def test_the_starts_meet_a_curve_that_needs_the_point_moved(mech):
+    """Eight points of the coupler curve of a design whose coupler point lies
+    elsewhere on the coupler: the best refined start (precision-point fits, the
+    atlas, the point's place among the unknowns) meets them to 0.5 % of their
+    extent on the closed-form curve."""
+    design = np.r_[mech.design.p0[:3] + [2.0, -3.0, 4.0], 41.0, 49.0]
+    goals = _curve(mech, design, np.linspace(0.0, 2 * np.pi, 8, endpoint=False))
+    targets = build(str(FILE), "test", "path", "coupler_point",
+                    np.column_stack([goals, np.zeros(8)]), None, True, 0.5)  # fmt: skip
+    found = starts.candidates(mech, targets, seed=0, count=48)
+    frame = starts.frame_of(mech, targets)
+    rest = starts.placed_batch(mech, frame, found[:1])
+    turn = np.linspace(-np.pi, np.pi, 3600, endpoint=False)
+    curve = starts.coupler_points(rest[0], turn)
+    gaps = np.linalg.norm(curve[:, None] - goals[None], axis=-1).min(axis=0)
+    extent = np.linalg.norm(np.ptp(goals, axis=0))
+    assert np.sqrt(np.mean(gaps**2)) < 0.005 * extent
