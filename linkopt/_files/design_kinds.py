@@ -1,8 +1,8 @@
 """The kinds of design parameter, each read into the anchor, axis and point moves it
 makes per unit change (:class:`Move`): ``coordinate`` (with ``ties`` and symmetric
-``mirror``/``copies``), ``length``, ``radius`` and ``point`` (a named point's
-coordinate on its body); the link angles and offsets (``twist``, ``offset``) are in
-:mod:`.design_angles`. :mod:`.design_space` turns the
+``mirror``/``copies``), ``length`` and ``radius``; the link angles and offsets
+(``twist``, ``offset``) are in :mod:`.design_angles`, a named point's coordinate on
+its body (``point``) in :mod:`.design_points`. :mod:`.design_space` turns the
 moves into the DesignSpace's matrix.
 """
 
@@ -17,7 +17,6 @@ from .._engine.symmetry import MIRROR_TOL
 from .design_moves import (
     ANCHOR,
     AXIS,
-    POINT,
     Context,
     Move,
     Parameter,
@@ -37,7 +36,7 @@ def read_parameter(ctx: Context, item: dict, where: str) -> Parameter:
         raise ctx.rd.fail(
             f"{where}.kind", f"expected one of {list(KINDS)}, got {shown(kind)}"
         )
-    from . import design_angles  # it builds on this module's readers
+    from . import design_angles, design_points  # they build on this module's readers
 
     reader = {
         "coordinate": _coordinate,
@@ -45,7 +44,7 @@ def read_parameter(ctx: Context, item: dict, where: str) -> Parameter:
         "radius": _radius,
         "twist": design_angles.twist,
         "offset": design_angles.offset,
-        "point": _point,
+        "point": design_points.point,
     }[kind]
     par = reader(ctx, item, where)
     return replace(par, value=min(max(par.value, par.low), par.high))
@@ -485,47 +484,3 @@ def _radial(ctx: Context, where: str, joint: int, center, axis) -> np.ndarray:
             "the axis",
         )
     return radial
-
-
-# --- named points ---------------------------------------------------------------------
-
-
-def _point(ctx: Context, item: dict, where: str) -> Parameter:
-    """One rest coordinate (``x``, ``y`` or ``z``, file units) of a named point given
-    by ``position``, in its body's frame (the world axes at the rest pose, as a
-    joint's coordinate). The parameter *is* that coordinate: it no longer follows the
-    body's anchors (:func:`linkopt._engine.following.drive`), the point's other
-    coordinates still follow its ``follow`` rule. Refused for a point given by
-    ``joint`` (move the joint) and for a point on the ground (it never moves with the
-    mechanism, so the parameter would move no traced point)."""
-    rd = ctx.rd
-    fields = {"name", "kind", "point", "coordinate", "min", "max"}
-    rd.keys(item, where, fields, fields)
-    index = {p["name"]: k for k, p in enumerate(ctx.points)}
-    k = rd.lookup(index, item["point"], f"{where}.point", "point")
-    point = ctx.points[k]
-    if point["joint"] >= 0:
-        raise rd.fail(
-            f"{where}.point",
-            f"point {point['name']!r} is given by 'joint' and follows that joint's "
-            "anchor; expected a point given by 'position' (or a coordinate parameter "
-            "of the joint)",
-        )
-    if point["body"] == ctx.ground:
-        raise rd.fail(
-            f"{where}.point",
-            f"point {point['name']!r} is on the ground body, which never moves; "
-            "expected a point on a moving body",
-        )
-    coord = item["coordinate"]
-    if coord not in ("x", "y", "z"):
-        raise rd.fail(
-            f"{where}.coordinate",
-            f"expected one of ['x', 'y', 'z'], got {shown(coord)}",
-        )
-    c = "xyz".index(coord)
-    value = float(point["position"][c])
-    label = f"{field_name(point['name'])}.{coord}"
-    low, high = bounds(rd, item, where, value, label)
-    check_bound_magnitude(ctx, where, (low, high), ANCHOR)
-    return Parameter(value, low, high, True, [Move(k, POINT, np.eye(3)[c])], [])
