@@ -458,7 +458,7 @@ MALFORMED = {
     "unknown_kind": (
         edit(A, 'kind = "radius"', 'kind = "angle"'),
         "parameters[0].kind",
-        "expected one of ['coordinate', 'length', 'radius', 'twist', 'offset'], got "
+        "expected one of ['coordinate', 'length', 'radius', 'twist', 'offset', 'point'], got "
         "'angle'",
     ),
     "unknown_symmetry": (
