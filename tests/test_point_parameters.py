@@ -218,3 +218,14 @@ def test_the_starts_meet_a_curve_that_needs_the_point_moved(mech):
     gaps = np.linalg.norm(curve[:, None] - goals[None], axis=-1).min(axis=0)
     extent = np.linalg.norm(np.ptp(goals, axis=0))
     assert np.sqrt(np.mean(gaps**2)) < 0.005 * extent
+
+
+def test_a_placed_four_bar_reads_back_as_its_design(mech):
+    """``four_bar_design`` places the coupler point too where point parameters
+    let it move: a design's own four-bar gives that design back."""
+    from linkopt._synth.fourbar import four_bar_design, read_four_bar
+
+    design = mech.design.p0 + np.array([1.5, -2.0, 2.5, 4.0, -3.0])
+    assert four_bar_design(mech, read_four_bar(mech, design)) == pytest.approx(
+        design, abs=1e-9
+    )
