@@ -178,6 +178,12 @@ def four_bar_file(placed, extent: float, case: str, closed: bool) -> str:
                 f'coordinate = "{axis}"\nmin = {float(p[k]) - extent!r}\n'
                 f"max = {float(p[k]) + extent!r}\n"
             )
+    for k, axis in enumerate("xy"):  # the coupler point's place on the coupler
+        out.append(
+            f'[[parameters]]\nname = "tip_{axis}"\nkind = "point"\npoint = "tip"\n'
+            f'coordinate = "{axis}"\nmin = {float(placed.P[k]) - extent!r}\n'
+            f"max = {float(placed.P[k]) + extent!r}\n"
+        )
     out.append(
         f'[synthesis]\nkind = "path"\nname = "tip"\nfile = "{case}.csv"\n'
         f"closed = {str(closed).lower()}\ntolerance = {0.01 * extent!r}\n"

@@ -458,8 +458,8 @@ MALFORMED = {
     "unknown_kind": (
         edit(A, 'kind = "radius"', 'kind = "angle"'),
         "parameters[0].kind",
-        "expected one of ['coordinate', 'length', 'radius', 'twist', 'offset'], got "
-        "'angle'",
+        "expected one of ['coordinate', 'length', 'radius', 'twist', 'offset', "
+        "'point'], got 'angle'",
     ),
     "unknown_symmetry": (
         edit(A, 'kind = "rotation"', 'kind = "helix"'),

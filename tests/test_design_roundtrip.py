@@ -17,6 +17,7 @@ from test_design_parameters import TEXTS
 import linkopt
 from linkopt._cli.values import design_arg
 from linkopt._design.evaluation import alpha_minus
+from linkopt._engine.following import rest_points
 from linkopt._engine.geometry import moved_joints
 from linkopt._files.fields import parse_toml
 from linkopt._files.loader import build
@@ -47,6 +48,15 @@ DELTA_AXES = (MECHANISMS / "delta.toml").read_text() + (
     '  { joint = "shoulder2", coordinate = "axis_z", factor = 1.0 },\n'
     '  { joint = "shoulder3", coordinate = "axis_z", factor = 1.0 },\n]\n'
 )
+#: The path four-bar with its coupler point's x and y free on the coupler
+#: (``kind = "point"``; the point follows the anchors in the file).
+POINT = (MECHANISMS / "four_bar_path.toml").read_text().split("[synthesis]")[
+    0
+] + "".join(
+    f'[[parameters]]\nname = "tip_{c}"\nkind = "point"\npoint = "coupler_point"\n'
+    f'coordinate = "{c}"\nmin = {lo}\nmax = {hi}\n\n'
+    for c, lo, hi in (("x", 20.0, 50.0), ("y", 40.0, 70.0))
+)
 SHIPPED = {
     path.stem: path.read_text()
     for path in sorted(MECHANISMS.glob("*.toml"))
@@ -59,6 +69,7 @@ CASES = {
     "spherical_axes": AXES,
     "delta_axes": DELTA_AXES,
     "offset": OFFSET,
+    "point": POINT,
 }
 
 
@@ -82,6 +93,12 @@ def joints(mech, design) -> tuple[np.ndarray, np.ndarray]:
     return anchors, np.divide(axes, norms, out=np.zeros_like(axes), where=norms > 0)
 
 
+def points(mech, design) -> np.ndarray:
+    """The named points' rest positions of ``design`` (numpy, no tracing)."""
+    change = np.asarray(design) - mech.design.p0
+    return rest_points(mech, joints(mech, design)[0], change)
+
+
 def test_every_kind_is_covered():
     kinds = set()
     for text in CASES.values():
@@ -99,6 +116,7 @@ def test_every_kind_is_covered():
         "radius",
         "twist",
         "offset",
+        "point",
         "ties",
         "mirror",
         "copies",
@@ -125,6 +143,8 @@ def test_a_written_design_reads_back_as_the_same_design(name, fractions, later):
         (a0, x0), (a1, x1) = joints(mech, p), joints(again, p)
         assert np.abs(a1 - a0).max() <= 1e-12 * scale
         assert np.abs(x1 - x0).max() <= 1e-12
+        if len(mech.point_names):
+            assert np.abs(points(again, p) - points(mech, p)).max() <= 1e-12 * scale
 
 
 #: Compared to 1e-10. Not the adversarial samples one by one: each is the end of an

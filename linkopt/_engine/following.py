@@ -1,6 +1,7 @@
 """Named points at the rest pose of a design: the traceable half of
 :mod:`.attachment`, whose rule (fixed at load, numpy) says how each point follows its
-body's anchors; here the anchors of a design move the points by that rule."""
+body's anchors; here the anchors of a design move the points by that rule, and the
+point parameters (``kind = "point"``, :func:`drive`) set the coordinates they name."""
 
 from __future__ import annotations
 
@@ -62,3 +63,40 @@ def _plane(xp, spans, offsets, anchors0, anchors):
     n0 = unit(xp, xp.cross(e0[:, 0], e0[:, 1]))
     n = unit(xp, xp.cross(e[:, 0], e[:, 1]))
     return xp.sum(xp.asarray(offsets) * n0, axis=-1, keepdims=True) * n
+
+
+def drive(
+    points_map: Float[np.ndarray, "3P n_p"] | None,
+    positions0: Float[np.ndarray, "P 3"],
+    followed: Float[Array, "P 3"],
+    change: Float[Array, " n_p"],
+) -> Float[Array, "P 3"]:
+    """The points ``followed`` (by :func:`follow`) with the coordinates that point
+    parameters drive set to ``positions0 + points_map @ change`` (file units).
+
+    The rule of a point parameter: it *is* the point's rest coordinate in its body's
+    frame (bodies keep the identity orientation at rest, so the world axes), as a
+    coordinate parameter is a joint's. A driven coordinate no longer follows the
+    anchors (whatever the point's ``follow``); the others still do. So a coupler point
+    with ``x`` and ``y`` driven is placed freely on its body in the plane, and a
+    written design reads back with each parameter's value equal to the written
+    coordinate. ``points_map`` ``(3P, n_p)``, None where no parameter drives a
+    point; traceable in all but ``positions0`` (numpy where ``followed`` is)."""
+    if points_map is None:
+        return followed
+    xp = np if isinstance(followed, np.ndarray) else jnp
+    count = positions0.shape[0]
+    points_map = xp.asarray(points_map)
+    moved = (points_map @ change).reshape(count, 3)
+    driven = xp.any(points_map != 0.0, axis=1).reshape(count, 3)
+    return xp.where(driven, xp.asarray(positions0) + moved, followed)
+
+
+def rest_points(mech, anchors, change) -> Float[Array, "P 3"]:
+    """The named points' rest positions (file units) of the design whose anchors are
+    ``anchors`` ``(J, 3)`` and whose change from the file's design is ``change``
+    ``(n_p,)``: :func:`follow`, then :func:`drive`. numpy where ``anchors`` is."""
+    followed = follow(
+        mech.point_attachment, mech.point_positions, mech.anchors, anchors
+    )
+    return drive(mech.design.points, mech.point_positions, followed, change)

@@ -11,7 +11,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .. import _config  # noqa: F401  (float64 on before any array)
-from .following import follow
+from .following import rest_points
 from .lifting import padded_design
 from .model import Mechanism
 from .rotations import axis_angle_matrix, unit
@@ -91,7 +91,8 @@ def geometry(mech: Mechanism, design=None) -> Geometry:
     axes = jnp.where(has_axis, unit(jnp, raw_axes), 0.0)
     helpers = _perpendicular(jnp.asarray(np.eye(3)[mech.helper_index]), axes)
     axes2 = _perpendicular(jnp.asarray(mech.axes2), axes)
-    points = follow(mech.point_attachment, mech.point_positions, mech.anchors, anchors)
+    change = design_vector(mech, design) - mech.design.p0
+    points = rest_points(mech, anchors, change)
     scale = mech.length_scale
     return Geometry(
         anchors=anchors / scale,

@@ -50,8 +50,10 @@ FIELDS = (
 #: The design space's fields taken as data, padded to :func:`design_class` columns
 #: (zeros: a padded parameter moves nothing; ``is_length`` False).
 DESIGN_FIELDS = ("p0", "lower", "upper", "matrix", "is_length")
-#: The link angles' fields (:class:`~.model.Turns`), taken as data where a file has
-#: twists; ``select`` padded like the design map, the number of turns keyed.
+#: The point parameters' map (``design.points``) is data too, padded like ``matrix``,
+#: where a file has one. The link angles' fields (:class:`~.model.Turns`), taken as
+#: data where a file has twists; ``select`` padded like the design map, the number of
+#: turns keyed.
 TURN_FIELDS = ("select", "centers", "normals", "joints")
 ATTACHMENT_FIELDS = ("weights", "offsets", "spans")
 #: Settings taken as data (``[solver]``, ``[evaluation]``, ``[collision]``): editing
@@ -108,6 +110,8 @@ def numbers(mech: Mechanism) -> dict:
             if name == "select":
                 value = padded_design(mech, value)
             out[f"design.turns.{name}"] = value
+    if mech.design.points is not None:
+        out["design.points"] = padded_design(mech, mech.design.points)
     for name in ATTACHMENT_FIELDS:
         out[f"points.{name}"] = np.asarray(
             getattr(mech.point_attachment, name), np.float64
@@ -180,10 +184,14 @@ def lift(mech: Mechanism, values: dict) -> Mechanism:
         turns = dataclasses.replace(
             turns, **{n: values[f"design.turns.{n}"] for n in TURN_FIELDS}
         )
+    driven = {}
+    if mech.design.points is not None:
+        driven["points"] = values["design.points"]
     design = dataclasses.replace(
         mech.design,
         names=names + ("",) * (design_class(len(names)) - len(names)),
         turns=turns,
+        **driven,
         **{n: values[f"design.{n}"] for n in DESIGN_FIELDS},
     )
     attachment = dataclasses.replace(

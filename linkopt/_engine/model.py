@@ -145,8 +145,9 @@ class DesignSpace:
     ``geometry_flat(p) = geometry_flat(p0) + matrix @ (p - p0)``, where the flat
     geometry is ``[anchors (J,3), axes (J,3)]`` raveled, in file units (an axis moves
     by its axis-component parameters over the length of the axis as written), then
-    the link angles' ``turns`` (:mod:`.design_angles`). Every other kind of parameter
-    is such a linear map (:mod:`.design_space`): a ``coordinate`` drives one
+    the link angles' ``turns`` (:mod:`.design_angles`); the named points' coordinates
+    that ``points`` drives are ``points0 + points @ (p - p0)``. Every other kind of
+    parameter is such a linear map (:mod:`.design_space`): a ``coordinate`` drives one
     coordinate of a joint, plus its ``ties`` and its ``mirror``/``copies`` images under
     the ``[symmetry]``; a ``length`` moves the ``to`` anchors of a link along its rest
     direction (and with every move of its ``from`` anchor); a ``radius`` moves joints
@@ -167,6 +168,10 @@ class DesignSpace:
     #: Link angles (``kind = "twist"``), the one part that is not linear; None when
     #: there are none.
     turns: Turns | None = field(default=None, metadata=UNLESS_SET)
+    #: ``(3 P, n_p)``: the named points' rest coordinates that ``kind = "point"``
+    #: parameters set (a coordinate a column moves is the parameter's value, and no
+    #: longer follows the anchors: :func:`.following.drive`); None when there are none.
+    points: np.ndarray | None = field(default=None, metadata=UNLESS_SET)
 
     @property
     def size(self) -> int:

@@ -14,7 +14,8 @@ moves the body, not the point on it), compared with the body's size, its *anchor
 reference length for a body whose anchors are all at one place). A move larger than
 :data:`MOVE_SHARE` of the span is reported. Points fixed in their frame never move, and
 points that follow one joint (given by ``joint`` or on an anchor) move as that joint
-does, which the design parameter states; neither is reported.
+does, which the design parameter states; neither is reported, nor is a point that a
+point parameter (``kind = "point"``) drives.
 
 Over the design box, the in-hull part of a followed point is linear in the design, so
 its largest move lies at a corner of the box: every corner is tried for up to
@@ -30,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .attachment import follows_one_joint
-from .following import follow
+from .following import rest_points
 from .model import Mechanism
 
 #: A point moved farther than this share of its body's anchor span is reported.
@@ -121,7 +122,10 @@ def point_moves(mech: Mechanism, designs) -> tuple[PointMove, ...]:
     designs = np.atleast_2d(np.asarray(designs, dtype=float))
     weights = mech.point_attachment.weights
     fixed = ~np.any(weights != 0.0, axis=1)  # fixed in their frame
-    candidates = np.flatnonzero(~follows_one_joint(mech.point_attachment) & ~fixed)
+    driven = _driven(mech)  # a point parameter states its move
+    candidates = np.flatnonzero(
+        ~follows_one_joint(mech.point_attachment) & ~fixed & ~driven
+    )
     if len(candidates) == 0 or mech.design.size == 0:
         return ()
     rest, moved, anchors = _rest_points(mech, designs)
@@ -147,6 +151,15 @@ def point_moves(mech: Mechanism, designs) -> tuple[PointMove, ...]:
     return tuple(found)
 
 
+def _driven(mech: Mechanism) -> np.ndarray:
+    """``(P,)`` bool: the points a ``kind = "point"`` parameter drives."""
+    count = len(mech.point_names)
+    if mech.design.points is None:
+        return np.zeros(count, dtype=bool)
+    moved = np.any(mech.design.points != 0.0, axis=1).reshape(count, 3)
+    return np.any(moved, axis=1)
+
+
 def _rest_points(mech: Mechanism, designs: np.ndarray):
     """The points' rest positions at the initial design ``(P, 3)`` and at each design
     ``(N, P, 3)``, and the anchors ``(N, J, 3)``, file units: :func:`.geometry.geometry`
@@ -154,8 +167,9 @@ def _rest_points(mech: Mechanism, designs: np.ndarray):
     space, count = mech.design, len(mech.anchors)
     flat = space.matrix[: 3 * count] @ (designs - space.p0).T  # (3J, N)
     anchors = mech.anchors[None] + flat.T.reshape(-1, count, 3)
-    att, rest = mech.point_attachment, mech.point_positions
-    moved = np.array([follow(att, rest, mech.anchors, a) for a in anchors])
+    rest = mech.point_positions
+    changes = designs - space.p0
+    moved = np.array([rest_points(mech, a, d) for a, d in zip(anchors, changes)])
     return rest, moved.reshape(len(designs), -1, 3), anchors
 
 

@@ -1,7 +1,8 @@
-"""The kinds of design parameter, each read into the anchor and axis moves it makes
-per unit change (:class:`Move`): ``coordinate`` (with ``ties`` and symmetric
+"""The kinds of design parameter, each read into the anchor, axis and point moves it
+makes per unit change (:class:`Move`): ``coordinate`` (with ``ties`` and symmetric
 ``mirror``/``copies``), ``length`` and ``radius``; the link angles and offsets
-(``twist``, ``offset``) are in :mod:`.design_angles`. :mod:`.design_space` turns the
+(``twist``, ``offset``) are in :mod:`.design_angles`, a named point's coordinate on
+its body (``point``) in :mod:`.design_points`. :mod:`.design_space` turns the
 moves into the DesignSpace's matrix.
 """
 
@@ -26,7 +27,7 @@ from .design_moves import (
 )
 from .fields import Reader, field_name, shown
 
-KINDS = ("coordinate", "length", "radius", "twist", "offset")
+KINDS = ("coordinate", "length", "radius", "twist", "offset", "point")
 
 
 def read_parameter(ctx: Context, item: dict, where: str) -> Parameter:
@@ -35,7 +36,7 @@ def read_parameter(ctx: Context, item: dict, where: str) -> Parameter:
         raise ctx.rd.fail(
             f"{where}.kind", f"expected one of {list(KINDS)}, got {shown(kind)}"
         )
-    from . import design_angles  # it builds on this module's readers
+    from . import design_angles, design_points  # they build on this module's readers
 
     reader = {
         "coordinate": _coordinate,
@@ -43,6 +44,7 @@ def read_parameter(ctx: Context, item: dict, where: str) -> Parameter:
         "radius": _radius,
         "twist": design_angles.twist,
         "offset": design_angles.offset,
+        "point": design_points.point,
     }[kind]
     par = reader(ctx, item, where)
     return replace(par, value=min(max(par.value, par.low), par.high))

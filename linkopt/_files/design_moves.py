@@ -19,8 +19,9 @@ MAX_AXIS_BOUND = 1e6
 #: How far (relative to the bounds' magnitude) a rest value may lie outside its bounds
 #: and count as on them: the round-off of a design written at a bound.
 BOUND_ROUND_OFF = 1e-12
-#: The two parts a parameter moves: a joint anchor, a joint axis.
-ANCHOR, AXIS = 0, 1
+#: The parts a parameter moves: a joint anchor, a joint axis, a named point (whose
+#: ``Move.joint`` is then the point's index).
+ANCHOR, AXIS, POINT = 0, 1, 2
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,8 @@ class Context:
     scale: float
     check_position: Callable[[str, object], None]
     axis_lengths: np.ndarray  # (J,) length of each joint's axis as the file writes it
+    points: tuple[dict, ...] = ()  # the named points as read (points.read_points)
+    ground: int = -1  # the ground body
 
     @property
     def tol(self) -> float:

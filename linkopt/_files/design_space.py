@@ -14,7 +14,10 @@ primary axes, file units), so the optimiser, the partial gradient, the writer an
   anchors of ``to`` (joints of ``body``); the ``to`` joints translate along the rest
   direction of that link, so the parameter *is* the link length;
 * ``radius``: the distance of ``joints`` from an axis; each anchor moves radially;
-* ``offset``: the distance between two parallel axes, moved like a length.
+* ``offset``: the distance between two parallel axes, moved like a length;
+* ``point``: one rest coordinate of a named point on its body, a separate map
+  (``DesignSpace.points``): the coordinates it drives no longer follow the anchors
+  (:func:`linkopt._engine.following.drive`).
 
 An axis component is one of the axis as the file writes it (:func:`_axis_lengths`):
 the unit axis moves by the change over that length, so a design written with its axes
@@ -42,7 +45,7 @@ from .._engine.model import DesignSpace, Turns
 from .._engine.symmetry import MIRROR_TOL, Symmetry
 from .design_angles import turn_joints
 from .design_kinds import read_parameter
-from .design_moves import ANCHOR, AXIS, Context, Move
+from .design_moves import ANCHOR, AXIS, POINT, Context, Move
 from .fields import Reader
 
 __all__ = ["read_design"]
@@ -56,9 +59,13 @@ def read_design(
     symmetry: Symmetry | None,
     scale: float,
     check_position: Callable[[str, object], None],
+    points: tuple[dict, ...] = (),
+    ground: int = -1,
 ) -> DesignSpace:
     """``[[parameters]]`` as a :class:`DesignSpace`; ``check_position(where, values)``
-    raises for positions (bounds of lengths) beyond the loader's position bound."""
+    raises for positions (bounds of lengths) beyond the loader's position bound;
+    ``points`` the named points as read (for ``kind = "point"``), ``ground`` the
+    ground body."""
     items = rd.entries(data, "parameters", required=False)
     rd.names(items, "parameters")
     joint_index = {j["name"]: k for k, j in enumerate(joints)}
@@ -71,11 +78,13 @@ def read_design(
         scale,
         check_position,
         _axis_lengths(data, len(joints)),
+        tuple(points),
+        ground,
     )
     params = [
         read_parameter(ctx, item, f"parameters[{k}]") for k, item in enumerate(items)
     ]
-    matrix = np.zeros((6 * len(joints), len(items)))
+    matrix = np.zeros((6 * len(joints) + 3 * len(points), len(items)))
     owner: dict[int, int] = {}
     links, turns = [], []
     for k, par in enumerate(params):
@@ -87,6 +96,7 @@ def read_design(
         turns += [(k, turn) for turn in par.turns]
     _compose(ctx, matrix, links)
     _align_legs(ctx, matrix, owner)
+    matrix, point_map = matrix[: 6 * len(joints)], matrix[6 * len(joints) :]
     return DesignSpace(
         tuple(i["name"] for i in items),
         np.array([p.value for p in params], dtype=float),
@@ -95,6 +105,7 @@ def read_design(
         matrix,
         np.array([p.is_length for p in params], dtype=bool),
         _turns(ctx, turns, matrix, links) if turns else None,
+        point_map if np.any(point_map) else None,
     )
 
 
@@ -161,7 +172,9 @@ def _axis_lengths(data: dict, count: int) -> np.ndarray:
 
 
 def _row(ctx: Context, joint: int, part: int, c: int) -> int:
-    return (3 * len(ctx.joints) if part == AXIS else 0) + 3 * joint + c
+    """The row of a joint's anchor or axis coordinate, or (``POINT``, ``joint`` the
+    point's index) of a named point's, below the ``6 J`` rows of the joints."""
+    return 3 * len(ctx.joints) * part + 3 * joint + c
 
 
 def _expanded_rows(ctx: Context, where: str, moves: list[Move]) -> dict[int, float]:
@@ -169,8 +182,9 @@ def _expanded_rows(ctx: Context, where: str, moves: list[Move]) -> dict[int, flo
     joint coincident at rest with a moved joint given the same anchor move."""
     anchor: dict[int, np.ndarray] = {}
     axis: dict[int, np.ndarray] = {}
+    point: dict[int, np.ndarray] = {}
     for move in moves:
-        table = anchor if move.part == ANCHOR else axis
+        table = {ANCHOR: anchor, AXIS: axis, POINT: point}[move.part]
         table[move.joint] = table.get(move.joint, np.zeros(3)) + move.vector
     for j in list(anchor):
         for other in ctx.coincident(j):
@@ -186,7 +200,7 @@ def _expanded_rows(ctx: Context, where: str, moves: list[Move]) -> dict[int, flo
     for j in axis:  # the unit axis moves by the written axis's move over its length
         axis[j] = axis[j] / ctx.axis_lengths[j]
     rows = {}
-    for part, table in ((ANCHOR, anchor), (AXIS, axis)):
+    for part, table in ((ANCHOR, anchor), (AXIS, axis), (POINT, point)):
         for j, vec in table.items():
             for c in range(3):
                 if abs(vec[c]) > 1e-14 * np.max(np.abs(vec)):

@@ -136,7 +136,7 @@ def _read_parts(
     )
     design = read_design(
         rd, data, joints, body_index, symmetry, scale,
-        lambda at, values: check_position(rd, at, values, scale),
+        lambda at, values: check_position(rd, at, values, scale), points, ground,
     )  # fmt: skip
     return {
         **point_fields(points, joints, anchors, scale),

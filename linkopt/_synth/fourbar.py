@@ -439,7 +439,15 @@ def four_bar_design(
     target = np.concatenate(list(want.values()))
     p0 = np.asarray(mech.design.p0, dtype=float)
     current = np.asarray(mech.anchors, dtype=float).ravel()[rows]
-    change = np.linalg.lstsq(mech.design.matrix[rows], target - current, rcond=None)[0]
+    matrix = np.asarray(mech.design.matrix)[rows]
+    point = four_bar_joints(mech).point
+    if point >= 0 and mech.design.points is not None:  # point parameters place P
+        block = np.asarray(mech.design.points)[3 * point : 3 * point + 3]
+        driven = np.flatnonzero(np.any(block != 0.0, axis=1))
+        matrix = np.vstack([matrix, block[driven]])
+        target = np.r_[target, placed.world(placed.P)[driven]]
+        current = np.r_[current, mech.point_positions[point][driven]]
+    change = np.linalg.lstsq(matrix, target - current, rcond=None)[0]
     design = p0 + change
     inside = np.all(design >= mech.design.lower - tolerance) and np.all(
         design <= mech.design.upper + tolerance

@@ -15,8 +15,9 @@ no collision term is left. The run stops when a feasible design has not improved
 
 The particles start around the file's design, spread by ``spread`` of each
 parameter's range (wider than ``optimize``'s default: a synthesis starts from a
-design that does not yet meet its target); for a planar four-bar path, from the best
-closed-form starts instead (:func:`seeded`, :mod:`.starts`). The swarm's design is
+design that does not yet meet its target); for a planar four-bar path or function,
+from the best closed-form starts instead (:func:`seeded`, :mod:`.starts`,
+:mod:`.function_starts`). The swarm's design is
 polished by least squares at the end and the polish kept where it ranks first
 (:func:`polished`: the starts' closed-form fit for a planar four-bar path,
 :mod:`.polish` on the swept cycle for any other mechanism).
@@ -37,7 +38,7 @@ from .._design.settings import OptimizerSettings
 from .._engine.arguments import check_design
 from .._engine.model import Mechanism
 from .._errors import InputError
-from . import fourbar, starts
+from . import fourbar, function_starts, starts
 from .cycle import sweep_cycle
 from .objective import Plan, Problem, Score, gradients, plan, score
 from .polish import polish
@@ -239,22 +240,28 @@ def _ranked(result: Score, tolerance: float) -> np.ndarray:
 def seeded(mech, problem: Problem, settings, alpha, run):
     """The swarm's first positions: for a planar four-bar path
     (:func:`.starts.applies`) ``CANDIDATES`` closed-form starts
-    (:func:`.starts.candidates`), the swarm's size of the best of them scored with
-    the whole cycle in one batch, the best
+    (:func:`.starts.candidates`), for a planar four-bar function generation the
+    Freudenstein starts (:func:`.function_starts.candidates`); the swarm's size of
+    the best of them scored with the whole cycle in one batch, the best
     ``SEEDS`` kept exactly (the best first) with the file's design, the other
     particles spread by ``SEED_SPREAD`` of each range around them; otherwise the
     optimiser's start around the file's design, unchanged."""
     targets = problem.targets
-    if not starts.applies(mech, targets):
+    if starts.applies(mech, targets):
+        found = starts.candidates(
+            mech,
+            targets,
+            seed=settings.seed,
+            count=max(settings.particles, CANDIDATES),
+            min_transmission_deg=targets.min_transmission_deg,
+            full_turn=problem.plan.cyclic,
+        )
+    elif function_starts.applies(mech, targets):
+        found = function_starts.candidates(mech, targets)
+    else:
         return run
-    found = starts.candidates(
-        mech,
-        targets,
-        seed=settings.seed,
-        count=max(settings.particles, CANDIDATES),
-        min_transmission_deg=targets.min_transmission_deg,
-        full_turn=problem.plan.cyclic,
-    )
+    if len(found) == 0:
+        return run
     size = settings.particles
     found = found[:size]  # the refinement's best, scored in one batch
     result = score(mech, problem, _padded(found, size), alpha)

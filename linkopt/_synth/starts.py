@@ -20,13 +20,18 @@ target as extra unknowns, on
   that a degree short costs more than any tolerance.
 
 The seeds: the file's design, the precision-point fits of :func:`.fourbar.fit_path`
-(many seeds; at most five of the targets each, evenly spread or drawn) carried into
-the design space by least squares on the joint anchors, and designs drawn uniformly
-in the design box. A design's coupler point follows the file's rule (the point's
-``follow``, :func:`linkopt._engine.following.follow`), so every start is a design of
-the file. :func:`candidates` returns the refined designs; the synthesis run scores
-them all with the dense cycle in one batched call and seeds its swarm with the best
-(:mod:`.run`).
+(many seeds; at most five of the targets each, evenly spread or drawn), for more than
+five targets the four-bars of :mod:`.atlas` whose coupler curves best match the
+targets' shape, each carried into the design space by least squares on the joint
+anchors (and the coupler point's driven coordinates), and designs drawn uniformly in
+the design box. A design's coupler point follows the file's rule (the point's
+``follow``, :func:`linkopt._engine.following.follow`, and the point parameters that
+place it, :func:`linkopt._engine.following.drive`), so every start is a design of the
+file: where point parameters let the coupler point move, its place on the coupler is
+part of every fit (the fits' coupler point carried into the design with the pins) and
+of the refinement's unknowns. :func:`candidates` returns the refined designs; the
+synthesis run scores them all with the dense cycle in one batched call and seeds
+its swarm with the best (:mod:`.run`).
 
 Applies to a path target without timing on a one-motor planar four-bar
 (:func:`.fourbar.four_bar_joints`) whose named point is on the coupler, with a linear
@@ -35,14 +40,14 @@ design map (no link angles); :func:`applies` says whether.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .._engine.following import follow
+from .._engine.following import rest_points
 from .._engine.model import Mechanism
 from .._errors import InputError
-from . import fourbar
+from . import atlas, fourbar
 from .targets import Targets
 
 #: Levenberg–Marquardt iterations of the refinement (all starts together).
@@ -57,6 +62,8 @@ SAMPLES = 72
 HINGE, HINGE_WEIGHT = 0.6, 3.0
 #: Weight of a radian of transmission shortfall, in the targets' extents.
 SHORTFALL_WEIGHT = 10.0
+#: Targets above this many (beyond precision points) also get :mod:`.atlas` starts.
+ATLAS_FROM = 5
 #: How closely the fast rule of the coupler point must reproduce the file's
 #: ``follow`` (file units) on random designs to be used.
 RULE_CHECK = 1e-9
@@ -66,8 +73,9 @@ RULE_CHECK = 1e-9
 class Frame:
     """What the closed form needs of a file: the four-bar's joint indices, the plane
     (rows origin, e1, e2), the linear design map of the joints' anchors, and the rule
-    by which the coupler point follows the design (``"line"``: a fixed affine
-    coordinate ``lam`` along ``B → C`` and a fixed offset ``h`` to its left;
+    by which the coupler point follows the design (``"driven"``: point parameters
+    (``kind = "point"``) place it, ``w0 + pmap @ (p - p0)``; ``"line"``: a fixed
+    affine coordinate ``lam`` along ``B → C`` and a fixed offset ``h`` to its left;
     ``"fixed"``: it does not move; ``"follow"``: the file's rule, one design at a
     time)."""
 
@@ -80,6 +88,10 @@ class Frame:
     rule: str = "follow"
     lam: float = 0.0
     h: float = 0.0
+    #: ``(3, n_p)`` the rows of the point parameters' map for the coupler point (zero
+    #: where none drives it) and its rest position at the file's design.
+    pmap: np.ndarray | None = None
+    w0: np.ndarray | None = None
 
 
 def applies(mech: Mechanism, targets: Targets) -> bool:
@@ -101,13 +113,16 @@ def frame_of(mech: Mechanism, targets: Targets) -> Frame:
     joints = fourbar.four_bar_joints(mech, targets.name)
     placed0 = fourbar.read_four_bar(mech, None, targets.name)
     size = 3 * mech.anchors.shape[0]
+    point = mech.point_names.index(targets.name)
     base = Frame(
         joints,
         placed0.plane,
         np.ravel(mech.anchors).astype(float),
         np.asarray(mech.design.matrix, dtype=float)[:size],
         np.asarray(mech.design.p0, dtype=float),
-        mech.point_names.index(targets.name),
+        point,
+        pmap=_point_map(mech, point),
+        w0=np.asarray(mech.point_positions[point], dtype=float),
     )
     rest = _followed(mech, base, base.p0[None])[0]
     _, b, c, _, p = rest
@@ -117,12 +132,19 @@ def frame_of(mech: Mechanism, targets: Targets) -> Frame:
     rng = np.random.default_rng(0)
     trial = rng.uniform(mech.design.lower, mech.design.upper, (3, base.p0.size))
     truth = _followed(mech, base, trial)
-    for rule in ("line", "fixed"):
-        frame = Frame(*[getattr(base, f) for f in ("joints", "plane", "flat0")],
-                      base.matrix, base.p0, base.point, rule, lam, h)  # fmt: skip
+    for rule in ("driven", "line", "fixed"):
+        frame = replace(base, rule=rule, lam=lam, h=h)
         if np.max(np.abs(placed_batch(mech, frame, trial) - truth)) <= RULE_CHECK:
             return frame
     return base
+
+
+def _point_map(mech: Mechanism, point: int) -> np.ndarray:
+    """``(3, n_p)``: the point parameters' map rows of ``point`` (zeros where no
+    parameter drives it)."""
+    if mech.design.points is None:
+        return np.zeros((3, mech.design.size))
+    return np.asarray(mech.design.points, dtype=float)[3 * point : 3 * point + 3]
 
 
 def _plane_of(frame: Frame, world):
@@ -142,12 +164,7 @@ def _followed(mech: Mechanism, frame: Frame, designs) -> np.ndarray:
     out = []
     for design in designs:
         anchors = (frame.flat0 + frame.matrix @ (design - frame.p0)).reshape(-1, 3)
-        points = follow(
-            mech.point_attachment,
-            np.asarray(mech.point_positions, dtype=float),
-            np.asarray(mech.anchors, dtype=float),
-            anchors,
-        )
+        points = rest_points(mech, anchors, design - frame.p0)
         world = np.vstack([anchors[[frame.joints.A, frame.joints.B, frame.joints.C,
                                     frame.joints.D]], points[frame.point]])  # fmt: skip
         out.append(_plane_of(frame, world))
@@ -161,7 +178,9 @@ def placed_batch(mech: Mechanism, frame: Frame, designs) -> np.ndarray:
     if frame.rule == "follow":
         return _followed(mech, frame, designs)
     four = _anchors(frame, designs)
-    if frame.rule == "fixed":
+    if frame.rule == "driven":
+        point = _plane_of(frame, frame.w0 + (designs - frame.p0) @ frame.pmap.T)
+    elif frame.rule == "fixed":
         point = np.broadcast_to(
             _followed(mech, frame, frame.p0[None])[0, 4], (len(designs), 2)
         )
@@ -329,13 +348,35 @@ def problem_of(
     return Problem(frame, goals, need, targets.tolerance, weight, d.lower, d.upper)
 
 
-def _fit_designs(frame: Frame, goals, closed: bool, seed: int, count: int):
-    """Precision-point fits (:func:`.fourbar.fit_path`) on at most five targets,
-    carried into the design space (least squares on the anchors)."""
-    rng = np.random.default_rng(seed)
-    k = len(goals)
+def _carried(frame: Frame, rest: np.ndarray) -> np.ndarray:
+    """Four-bars ``(N, 5, 2)`` (``A, B, C, D, P`` in the plane) carried into the
+    design space: least squares on the anchors of ``A``-``D`` and the coordinates of
+    ``P`` that point parameters drive."""
     j = frame.joints
     rows = [3 * i + m for i in (j.A, j.B, j.C, j.D) for m in range(3)]
+    driven = np.flatnonzero(np.any(frame.pmap != 0.0, axis=1))  # the point's, if any
+    matrix = np.vstack([frame.matrix[rows], frame.pmap[driven]])
+    flat0 = np.concatenate([frame.flat0[rows], frame.w0[driven]])
+    world = frame.plane[0] + rest @ frame.plane[1:]  # (N, 5, 3)
+    want = np.concatenate([world[:, :4].reshape(len(rest), -1),
+                           world[:, 4][:, driven]], axis=1)  # fmt: skip
+    change = np.linalg.lstsq(matrix, (want - flat0).T, rcond=None)[0]
+    return frame.p0 + change.T
+
+
+def _atlas_designs(frame: Frame, goals, closed: bool, need, seed: int, count: int):
+    """The best :func:`.atlas.matches` of the targets' shape, carried into the
+    design space."""
+    if count <= 0:
+        return []
+    return list(_carried(frame, atlas.matches(goals, closed, need, seed, count)))
+
+
+def _fit_designs(frame: Frame, goals, closed: bool, seed: int, count: int):
+    """Precision-point fits (:func:`.fourbar.fit_path`) on at most five targets,
+    carried into the design space (:func:`_carried`)."""
+    rng = np.random.default_rng(seed)
+    k = len(goals)
     out = []
     for attempt in range(count):
         if k <= 5:
@@ -352,14 +393,7 @@ def _fit_designs(frame: Frame, goals, closed: bool, seed: int, count: int):
         except (InputError, ValueError, np.linalg.LinAlgError):
             continue
         p = fit.placed
-        want = np.concatenate(
-            [frame.plane[0] + x[0] * frame.plane[1] + x[1] * frame.plane[2]
-             for x in (p.A, p.B, p.C, p.D)]
-        )  # fmt: skip
-        change = np.linalg.lstsq(
-            frame.matrix[rows], want - frame.flat0[rows], rcond=None
-        )[0]
-        out.append(frame.p0 + change)
+        out.append(_carried(frame, np.stack([p.A, p.B, p.C, p.D, p.P])[None])[0])
     return out
 
 
@@ -382,6 +416,10 @@ def candidates(
     fits = count // 4 if fits is None else fits
     seeds = [problem.frame.p0]
     seeds += _fit_designs(problem.frame, problem.goals, targets.closed, seed, fits)
+    if len(targets.values) > ATLAS_FROM:
+        seeds += _atlas_designs(
+            problem.frame, problem.goals, targets.closed, problem.need, seed, count // 2
+        )
     drawn = rng.uniform(problem.lower, problem.upper, (max(0, count - len(seeds)),
                                                        problem.lower.size))  # fmt: skip
     seeds = np.vstack([np.stack(seeds)[:count], drawn])

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._engine.following import follow
+from .._engine.following import rest_points
 from .._engine.model import Mechanism
 from .._errors import MechanismFileError
 from .._files.synthesis import (
@@ -197,7 +197,7 @@ def _anchors_points(mech: Mechanism, p: np.ndarray):
     joints = mech.anchors.shape[0]
     change = mech.design.matrix[: 3 * joints] @ (p - mech.design.p0)
     anchors = mech.anchors + change.reshape(joints, 3)
-    points = follow(mech.point_attachment, mech.point_positions, mech.anchors, anchors)
+    points = rest_points(mech, anchors, p - mech.design.p0)
     return anchors, np.asarray(points)
 
 
