@@ -5,19 +5,20 @@ block Cholesky whose cost is linear in the bodies.
 A constraint row touches at most two bodies, so ``JᵀJ`` is zero outside the
 ``7 x 7`` blocks ``(i, j)`` of bodies that share a row (a joint, a motor, an output of
 one body relative to another). Numbered in the reverse Cuthill–McKee order of that
-graph (:func:`body_order`, ``scipy.sparse.csgraph``), every such pair lies within
+graph (:func:`linkopt._engine.body_order.body_order`), every such pair lies within
 ``w`` places of each other: a chain gives ``w = 1``, a ladder of closed loops a small
 ``w`` however long it is. The lower band is stored as ``band[i, k] = H[i, i - k]``,
-shape ``(B, w + 1, 7, 7)``, in that order.
+shape ``(B, w + 1, 7, 7)``, in that order. Where a few hub bodies are joined to many
+others (a walker's ground and crank) they go last and ``JᵀJ`` is an
+:class:`linkopt._engine.arrowhead.Arrow` (the others' band, the hubs' border and
+corner) instead.
 
 * :func:`normal_equations`: ``(C, band, Jᵀ C)`` from the per-joint blocks of
   :mod:`linkopt._engine.jacobian`, scatter-added into the band (never a dense
   ``7B x 7B`` matrix).
-* :func:`factor`: ``L`` with ``H + λI = L Lᵀ``, one ``lax.scan`` step per block row:
-  row ``i`` of ``L`` is ``A[i, window] W⁻ᵀ`` with ``W`` the ``7w x 7w`` triangle of
-  the ``w`` rows before it (the scan's carry), then the Cholesky factor of
-  ``A[i, i] - L[i, window] L[i, window]ᵀ``; ``O(B w² 7³)`` work, ``O(B w)`` memory.
-* :func:`cho_solve` (two scans), :func:`matvec`.
+* :func:`factor`, :func:`cho_solve`, :func:`matvec`, :func:`trace`: on either storage
+  (:mod:`linkopt._engine.band_factor`: ``O(B w² 7³)`` work, ``O(B w)`` memory;
+  :mod:`linkopt._engine.arrowhead`: plus the Schur complement of the hubs).
 
 :class:`Banded` is the :mod:`linkopt._engine.lm` method on this storage; the FK/BK
 solves (:mod:`linkopt._engine.kinematics`) take it where :func:`serves` says so: a
@@ -49,10 +50,10 @@ from .model import Mechanism
 #: near 20 bodies (the dense factor is one fused kernel call up to 22 bodies, then
 #: 3-4x slower at 24); every shipped mechanism (at most 14 bodies) stays dense.
 MIN_BODIES = 20
-#: ... and whose band is at most this fraction of the bodies wide. A body joined to
-#: many others (a ground or a crank that every leg of a walker hangs from) widens the
-#: band to the whole mechanism, where the band's ``O(B w²)`` is no better than the
-#: dense ``O(B³)`` and runs slower than the dense kernel.
+#: ... and whose band is at most this fraction of the bodies wide (without the hubs,
+#: which the arrowhead order numbers last: :mod:`linkopt._engine.body_order`). A
+#: band as wide as the mechanism is no better than the dense ``O(B³)`` and runs
+#: slower than the dense kernel.
 MAX_WIDTH = 1 / 8
 
 Band = band_factor.Band
