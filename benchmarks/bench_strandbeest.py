@@ -6,14 +6,15 @@ mechanism), the load-time checks, and the CLI on ``mechanisms/strandbeest_12.tom
 ``check``, ``evaluate`` and a short ``optimize``, each timed with its peak memory.
 
 Run: ``.venv/bin/python benchmarks/bench_strandbeest.py [--legs 4,8,12,24,48]
-[--dense-max 12] [--rows 8] [--repeats 3] [--no-cli]``
+[--dense-max 12] [--rows 8] [--repeats 3] [--no-cli] [--no-fk]``
 
 The FK rows are crank angles uniform within ±``SPAN`` rad of rest, seed 0, solved from
 the rest pose (continuation, then Levenberg–Marquardt); dense and arrowhead are timed
 alternately after one compiling call each (the median of ``--repeats`` kept) and their
 states compared. The optimisation is ``--iterations 2 --particles 4 --workers 1
 --verify-rounds 0 --resolution 10`` (a smoke run: the cost of an iteration and of the
-outputs, not a design). Writes ``benchmarks/results/bench_strandbeest.json``.
+outputs, not a design). Writes ``benchmarks/results/bench_strandbeest.json`` (FK and
+loading) and ``bench_strandbeest_cli.json`` (the commands).
 """
 
 from __future__ import annotations
@@ -159,7 +160,15 @@ def main() -> None:
     parser.add_argument("--rows", type=int, default=8)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-cli", action="store_true")
+    parser.add_argument("--no-fk", action="store_true")
     args = parser.parse_args()
+    if not args.no_fk:
+        fk_and_load(args)
+    if not args.no_cli:
+        _results.write("bench_strandbeest_cli", {"cli": cli_runs()})
+
+
+def fk_and_load(args) -> None:
     records = []
     for legs in (int(s) for s in args.legs.split(",")):
         rec = measure(legs, args.rows, args.repeats, legs <= args.dense_max)
@@ -175,27 +184,30 @@ def main() -> None:
         "dense": slope(records, "dense_s"),
     }
     print(f"log-log slope of time per solve against bodies: {slopes}", flush=True)
-    figures = {"fk_per_solve": records, "slope": slopes}
     loads = load_times()
     print(f"load: {loads}", flush=True)
-    figures["load"] = loads
-    if not args.no_cli:
-        with tempfile.TemporaryDirectory() as tmp:
-            runs = [
-                ["check", str(FILE)],
-                ["evaluate", str(FILE)],
-                ["optimize", str(FILE), "--out", f"{tmp}/run", *OPTIMIZE],
-            ]
-            figures["cli"] = []
-            for command in runs:
-                record = timed_cli(command)
-                figures["cli"].append(record)
-                print(
-                    f"{record['command'][:60]}: {record['wall_s']:.1f} s, "
-                    f"{record['peak_rss_mb']:.0f} MB, rc {record['returncode']}",
-                    flush=True,
-                )
-    _results.write("bench_strandbeest", figures)
+    _results.write(
+        "bench_strandbeest", {"fk_per_solve": records, "slope": slopes, "load": loads}
+    )
+
+
+def cli_runs() -> list[dict]:
+    records = []
+    with tempfile.TemporaryDirectory() as tmp:
+        runs = [
+            ["check", str(FILE)],
+            ["evaluate", str(FILE)],
+            ["optimize", str(FILE), "--out", f"{tmp}/run", *OPTIMIZE],
+        ]
+        for command in runs:
+            record = timed_cli(command)
+            records.append(record)
+            print(
+                f"{record['command'][:60]}: {record['wall_s']:.1f} s, "
+                f"{record['peak_rss_mb']:.0f} MB, rc {record['returncode']}",
+                flush=True,
+            )
+    return records
 
 
 if __name__ == "__main__":
