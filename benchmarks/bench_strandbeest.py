@@ -6,7 +6,8 @@ mechanism), the load-time checks, and the CLI on ``mechanisms/strandbeest_12.tom
 ``check``, ``evaluate`` and a short ``optimize``, each timed with its peak memory.
 
 Run: ``.venv/bin/python benchmarks/bench_strandbeest.py [--legs 4,8,12,24,48]
-[--dense-max 12] [--rows 8] [--repeats 3] [--no-cli] [--no-fk]``
+[--dense-max 12] [--rows 8] [--repeats 3] [--no-cli] [--no-fk]
+[--commands check,evaluate,optimize]``
 
 The FK rows are crank angles uniform within ±``SPAN`` rad of rest, seed 0, solved from
 the rest pose (continuation, then Levenberg–Marquardt); dense and arrowhead are timed
@@ -161,11 +162,13 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-cli", action="store_true")
     parser.add_argument("--no-fk", action="store_true")
+    parser.add_argument("--commands", default="check,evaluate,optimize")
     args = parser.parse_args()
     if not args.no_fk:
         fk_and_load(args)
     if not args.no_cli:
-        _results.write("bench_strandbeest_cli", {"cli": cli_runs()})
+        commands = args.commands.split(",")
+        _results.write("bench_strandbeest_cli", {"cli": cli_runs(commands)})
 
 
 def fk_and_load(args) -> None:
@@ -191,7 +194,7 @@ def fk_and_load(args) -> None:
     )
 
 
-def cli_runs() -> list[dict]:
+def cli_runs(commands: list[str]) -> list[dict]:
     records = []
     with tempfile.TemporaryDirectory() as tmp:
         runs = [
@@ -199,7 +202,7 @@ def cli_runs() -> list[dict]:
             ["evaluate", str(FILE)],
             ["optimize", str(FILE), "--out", f"{tmp}/run", *OPTIMIZE],
         ]
-        for command in runs:
+        for command in (r for r in runs if r[0] in commands):
             record = timed_cli(command)
             records.append(record)
             print(
