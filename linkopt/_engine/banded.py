@@ -214,8 +214,8 @@ def unpermute(layout: Layout, rows: Float[Array, "B 7"]) -> Float[Array, " S"]:
     return rows[layout.position].reshape(-1)
 
 
-def damped_solve(band: Band, damping, gradient: Float[Array, "B 7"]):
-    """``(H + λI)⁻¹ g`` in the band's order."""
+def damped_solve(band, damping, gradient: Float[Array, "B 7"]):
+    """``(H + λI)⁻¹ g`` in the layout's order (band or arrowhead storage)."""
     return cho_solve(factor(band, damping), gradient)
 
 
