@@ -48,7 +48,8 @@ from .model import Mechanism
 #: Fewest bodies for which the FK/BK solves take the banded factor by default. Timed
 #: by ``benchmarks/bench_bodies.py`` on lazy tongs and ladders, the two break even
 #: near 20 bodies (the dense factor is one fused kernel call up to 22 bodies, then
-#: 3-4x slower at 24); every shipped mechanism (at most 14 bodies) stays dense.
+#: 3-4x slower at 24); every shipped mechanism but ``strandbeest_12.toml`` (74
+#: bodies, the arrowhead) has at most 14 bodies and stays dense.
 MIN_BODIES = 20
 #: ... and whose band is at most this fraction of the bodies wide (without the hubs,
 #: which the arrowhead order numbers last: :mod:`linkopt._engine.body_order`). A
