@@ -208,15 +208,18 @@ def test_a_long_chain_takes_the_banded_path_and_closes():
     )
 
 
-def test_a_hub_that_widens_the_band_keeps_the_dense_factor():
-    """A body joined to every other (a walker's ground and crank) makes the band as
-    wide as the mechanism: the default stays dense there."""
+def test_a_hub_joined_to_every_body_goes_last_and_keeps_the_band_narrow():
+    """A body joined to every other (a walker's ground and crank) would make the band
+    as wide as the mechanism; numbered last (the arrowhead), it leaves the rest a band
+    of width one, and the default takes it."""
     mech = linkopt.loads(chain(2 * banded.MIN_BODIES), "chain.toml")
     count = mech.num_bodies
     star = np.stack([np.zeros(count - 1, dtype=int), np.arange(1, count)], axis=1)
-    assert banded.body_order(count, star).width > banded.MAX_WIDTH * count
+    layout = banded.body_order(count, star)
+    assert layout.hubs == 1 and layout.order[-1] == 0 and layout.width == 1
+    assert banded.body_order(count, mech.joint_bodies).hubs == 0
     assert banded.serves(mech)
-    assert not banded.serves(dataclasses.replace(mech, joint_bodies=star))
+    assert banded.serves(dataclasses.replace(mech, joint_bodies=star))
 
 
 @pytest.mark.parametrize("index", range(3), ids=["five_bar", "jansen", "ladder"])

@@ -37,11 +37,11 @@ def _orthonormalise(x: Float[Array, "B 7 k"]) -> Float[Array, "B 7 k"]:
     return jnp.stack(columns, axis=-1)
 
 
-def smallest_right_vector(band: banded.Band) -> Float[Array, "B 7"]:
+def smallest_right_vector(band) -> Float[Array, "B 7"]:
     """The right singular vector of the smallest singular value of ``J`` from
-    ``JᵀJ`` in band storage (in the band's order)."""
-    nb = band.shape[0]
-    trace = jnp.sum(jnp.trace(band[:, 0], axis1=1, axis2=2))
+    ``JᵀJ`` in band (or arrowhead) storage (in the layout's order)."""
+    nb = banded.size(band)
+    trace = banded.trace(band)
     lower = banded.factor(band, SHIFT * trace)
     k = min(BLOCK, 7 * nb)
     start = np.random.default_rng(0).standard_normal((7 * nb, k)).reshape(nb, 7, k)
