@@ -176,15 +176,6 @@ points = [[0.0, 0.0], [0.1, 0.1]]
     _refused(tmp_path, text, "[synthesis].kind", "one-motor mechanism", base=base)
 
 
-def test_a_two_motor_path_without_timing_is_refused(tmp_path):
-    base = (MECHANISMS / "five_bar.toml").read_text()
-    mech = linkopt.load(MECHANISMS / "five_bar.toml")
-    rest = np.asarray(linkopt.point_positions(mech, linkopt.rest_state(mech)))[0]
-    rows = [[float(rest[0]), float(rest[1])], [float(rest[0]) + 0.01, float(rest[1])]]
-    text = PATH.replace("coupler_point", "ee") + f"points = {rows}\n"
-    _refused(tmp_path, text, "[synthesis].motors", "needs timing", base=base)
-
-
 @pytest.mark.parametrize(
     ("csv", "where", "words"),
     [

@@ -20,8 +20,8 @@ corner) instead.
   (:mod:`linkopt._engine.band_factor`: ``O(B w² 7³)`` work, ``O(B w)`` memory;
   :mod:`linkopt._engine.arrowhead`: plus the Schur complement of the hubs).
 
-:class:`Banded` is the :mod:`linkopt._engine.solvers.lm` method on this storage; the FK/BK
-solves (:mod:`linkopt._engine.kinematics`) take it where :func:`serves` says so: a
+:class:`Banded` is the :mod:`linkopt._engine.solvers.lm` method on this storage; the
+FK/BK solves (:mod:`linkopt._engine.kinematics`) take it where :func:`serves` says so: a
 mechanism of at least :data:`MIN_BODIES` bodies whose band is narrow
 (:data:`MAX_WIDTH`), or one whose ``[solver]`` settings
 ask for it (``factor = "banded"``, which tests set on small files). Below the

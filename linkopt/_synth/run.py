@@ -42,6 +42,7 @@ from . import fourbar, function_starts, starts
 from .cycle import sweep_cycle
 from .objective import Plan, Problem, Score, gradients, plan, score
 from .polish import polish
+from .sweep import reaching_timing
 from .targets import Targets, check_targets
 
 #: Closed-form starts scored before the swarm (at least the swarm's size), the best
@@ -199,7 +200,7 @@ def synthesize(
     an uninterrupted run: every step is deterministic)."""
     settings = settings or DEFAULT
     targets = check_targets(mech, targets)
-    problem = Problem(targets, plan(mech, targets, steps, span))
+    problem = _problem(mech, targets, steps, span)
     alpha = alpha_minus(mech)
     began = time.perf_counter()
     if resume is None:
@@ -221,7 +222,22 @@ def synthesize(
         if checkpoint is not None:
             checkpoint(run)
     design = polished(mech, problem, run.result_pos, settings, alpha)
-    return finish(mech, problem, design, alpha, run.history, began)
+    result = finish(mech, problem, design, alpha, run.history, began)
+    return dataclasses.replace(result, targets=targets)
+
+
+def _problem(mech: Mechanism, targets: Targets, steps: int, span) -> Problem:
+    """The swept problem of ``targets``. A multi-motor target without timing is
+    fitted at the motor values that reach its targets with the file's design
+    (:func:`.sweep.reaching_timing`): the designs are scored on that motion, and the
+    result keeps the targets untimed, so that :func:`verify` reaches each target
+    again with the result's own design and sweeps the straight motor-space motion
+    between consecutive ones. One fixed timing is a choice: a timing that followed
+    each design would need an IK solve per particle and target in every score."""
+    if targets.motors is None and mech.num_motors > 1:
+        timing = reaching_timing(mech, mech.design.p0, targets)
+        targets = dataclasses.replace(targets, motors=timing)
+    return Problem(targets, plan(mech, targets, steps, span))
 
 
 def _padded(designs: np.ndarray, size: int) -> np.ndarray:
@@ -347,9 +363,10 @@ def score_design(
     """The :class:`SynthesisResult` numbers of one design (None: the file's) without
     optimising: its cycle, distances and terms."""
     targets = check_targets(mech, targets)
-    problem = Problem(targets, plan(mech, targets, steps, span))
+    problem = _problem(mech, targets, steps, span)
     design = mech.design.p0 if design is None else design
-    return finish(mech, problem, design, alpha_minus(mech))
+    result = finish(mech, problem, design, alpha_minus(mech))
+    return dataclasses.replace(result, targets=targets)
 
 
 def four_bar_summary(mech: Mechanism, design) -> dict | None:
@@ -380,9 +397,9 @@ def verify(mech: Mechanism, result: SynthesisResult, *, steps: int | None = None
     targets = result.targets
     if result.plan.cyclic and not targets.closed:
         targets = dataclasses.replace(targets, closed=True)
-    if targets.closed or targets.motors is not None:
+    if targets.closed or targets.motors is not None or mech.num_motors > 1:
         report = sweep_cycle(mech, result.design, targets, steps=steps)
-        if report.in_order or targets.motors is not None:
+        if report.in_order or targets.motors is not None or mech.num_motors > 1:
             return report
         back = sweep_cycle(mech, result.design, targets, steps=steps, direction=-1)
         return back if back.in_order else report

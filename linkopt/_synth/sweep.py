@@ -113,6 +113,19 @@ def _piecewise(rows: np.ndarray, steps: int, closed: bool):
     return np.concatenate(pieces), np.array(timed[: len(rows)])
 
 
+def reaching_timing(mech, design, targets) -> np.ndarray:
+    """Motor values ``(k, M)`` (file units) at which ``design`` reaches each target of
+    a multi-motor target without timing, in turn from the rest pose, held inside the
+    motors' limits: the timing a synthesis run fits its designs at
+    (:func:`linkopt._synth.run.synthesize`). A target out of the design's reach gets
+    the motor values nearest to it in the least-squares sense."""
+    rest = np.asarray(motor_values(mech, rest_state(mech), design=design))
+    motors = _reaching_motors(mech, design, targets, rest)
+    if mech.motor_limited:
+        motors = np.clip(motors, mech.motor_min, mech.motor_max)
+    return motors
+
+
 def _reaching_motors(mech, design, targets, rest) -> np.ndarray:
     """Motor values ``(k, M)`` that reach each target in turn (damped Gauss–Newton on
     the motors, each target started from the last; the Jacobian by the implicit

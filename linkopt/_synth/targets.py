@@ -12,8 +12,9 @@ adds what needs the mechanism's geometry, before any solve:
   is what is checked before any work; whether the design bounds hold a design whose
   crank turns fully is found by the sweep itself (a design that cannot turn fully
   fails its sweep and scores the penalty of :mod:`.objective`);
-* a multi-motor target needs timing (reaching untimed points through IK segments is
-  not done here);
+* a multi-motor target without timing is met through the motor values that reach
+  each target (:func:`linkopt._synth.sweep.reaching_timing`), so it needs a path or
+  motion target;
 * every path or motion target lies within reach: a cheap bound, :func:`reach_bound`.
 """
 
@@ -99,12 +100,6 @@ def check_targets(mech: Mechanism, targets: Targets) -> Targets:
         )
     if targets.motors is not None:
         _check_timing(mech, targets, fail, at)
-    elif mech.num_motors > 1:
-        raise fail(
-            "[synthesis].motors",
-            f"a target for a {mech.num_motors}-motor mechanism needs timing (motor "
-            "values at each target)",
-        )
     if targets.closed:
         _check_crank(mech, fail)
     _check_body(mech, targets, fail)
