@@ -134,13 +134,16 @@ def test_the_partial_gradient_of_a_timed_path_matches_finite_differences(mech):
 
     alpha = alpha_minus(mech)
     design = mech.design.p0
-    scored = objective.score(mech, problem, design[None], alpha)
-    assert float(scored.singularity[0]) == 0.0
-    gradient = objective.gradients(mech, problem, design[None], scored, alpha)[0]
     step = 1e-4
+    # the design, then each parameter moved up, then down: one batch, one program
+    moves = np.concatenate([np.zeros((1, 3)), step * np.eye(3), -step * np.eye(3)])
+    designs = design + moves
+    scored = objective.score(mech, problem, designs, alpha)
+    assert float(scored.singularity[0]) == 0.0
+    gradient = objective.gradients(mech, problem, designs, scored, alpha)[0]
+    path = np.asarray(scored.path)
     for i in range(mech.design.size):
-        moved = np.array([design + step * e for e in (np.eye(3)[i], -np.eye(3)[i])])
-        up, down = np.asarray(objective.score(mech, problem, moved, alpha).path)
+        up, down = path[1 + i], path[4 + i]
         assert gradient[i] == pytest.approx((up - down) / (2 * step), rel=1e-4)
 
 
