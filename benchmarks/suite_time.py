@@ -30,12 +30,18 @@ ROOT = Path(__file__).resolve().parent.parent
 RESULTS = _results.RESULTS / "suite_time.json"
 
 
-def measure(test_file: str, select: str | None, workers: str = "0") -> dict:
+def measure(
+    test_file: str, select: str | None, workers: str = "0", warm: str | None = None
+) -> dict:
     """One cold run of ``test_file`` (several, space-separated; ``-k select`` where
     given; ``workers``: pytest-xdist's ``-n`` and, after a colon, its ``--dist``, e.g.
-    ``2:worksteal``): CPU and wall seconds, the summary line, the exit status."""
+    ``2:worksteal``; ``warm``: a command run first in the same cache folder, not timed,
+    e.g. the tests that in the suite run before it): CPU and wall seconds, the summary
+    line, the exit status."""
     with tempfile.TemporaryDirectory(prefix="linkopt-suite-time-") as cache:
         env = {**os.environ, "LINKOPT_CACHE_DIR": cache}
+        if warm:
+            subprocess.run(warm, shell=True, cwd=ROOT, env=env, capture_output=True)
         count, _, dist = workers.partition(":")
         cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"]
         cmd += ["-n", count] + (["--dist", dist] if dist else [])
@@ -51,7 +57,8 @@ def measure(test_file: str, select: str | None, workers: str = "0") -> dict:
     return {
         "file": test_file
         + (f" -k {select}" if select else "")
-        + (f" -n {workers}" if workers != "0" else ""),
+        + (f" -n {workers}" if workers != "0" else "")
+        + (f" after {warm!r}" if warm else ""),
         "cpu_s": round(usage.ru_utime + usage.ru_stime, 1),
         "user_s": round(usage.ru_utime, 1),
         "sys_s": round(usage.ru_stime, 1),
@@ -67,12 +74,16 @@ def main() -> None:
     parser.add_argument("--label", default="now", help="e.g. before, after")
     parser.add_argument("-k", dest="select", default=None, help="pytest -k expression")
     parser.add_argument("-n", dest="workers", default="0", help="e.g. 2:worksteal")
+    parser.add_argument("--warm", default=None, help="command run first, untimed")
     parser.add_argument("--results", default=str(RESULTS), help="the records' file")
     args = parser.parse_args()
     results = Path(args.results)
     old = json.loads(results.read_text())["files"] if results.exists() else []
     for test_file in args.files:
-        record = {"label": args.label, **measure(test_file, args.select, args.workers)}
+        record = {
+            "label": args.label,
+            **measure(test_file, args.select, args.workers, args.warm),
+        }
         print(
             f"{record['label']:>8} {record['file']:55} cpu {record['cpu_s']:7.1f} s"
             f"  wall {record['wall_s']:7.1f} s  {record['result']}",
