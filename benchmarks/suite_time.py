@@ -78,7 +78,9 @@ def main() -> None:
     parser.add_argument("--results", default=str(RESULTS), help="the records' file")
     args = parser.parse_args()
     results = Path(args.results)
-    old = json.loads(results.read_text())["files"] if results.exists() else []
+    kept = json.loads(results.read_text()) if results.exists() else {}
+    old = kept.get("files", [])
+    note = {k: v for k, v in kept.items() if k == "conditions"}  # kept where written
     for test_file in args.files:
         record = {
             "label": args.label,
@@ -97,7 +99,7 @@ def main() -> None:
         old.append(record)
         _results.write(
             results.name,
-            {"files": sorted(old, key=lambda r: r["file"])},
+            {**note, "files": sorted(old, key=lambda r: r["file"])},
             results.parent,
         )
 
