@@ -2,7 +2,9 @@
 plain-JAX code they replace: a fresh process with ``LINKOPT_KERNELS=0`` computes the
 same things, and the two must agree to round-off, for the dense routines (values,
 vmapped batches, derivatives) and for what users see (forward kinematics, σ_min, a
-design evaluation)."""
+design evaluation). Both processes use the test processes' compilation caches, as the
+command line does: a program's key holds the kernels' digest or "plain"
+(:func:`linkopt._engine.programs.kernels_digest`), so neither loads the other's."""
 
 import json
 import os
@@ -29,6 +31,7 @@ import json, sys
 import jax, jax.numpy as jnp, numpy as np
 import linkopt
 from linkopt._engine import dense
+linkopt.use_cache()  # the test processes' caches: programs other tests compiled load
 rng = np.random.default_rng(0)
 m = rng.standard_normal((6, 35, 35))
 a = jnp.asarray(m @ np.swapaxes(m, 1, 2) + 35 * np.eye(35))

@@ -134,19 +134,23 @@ def test_the_partial_gradient_of_a_timed_path_matches_finite_differences(mech):
 
     alpha = alpha_minus(mech)
     design = mech.design.p0
-    scored = objective.score(mech, problem, design[None], alpha)
-    assert float(scored.singularity[0]) == 0.0
-    gradient = objective.gradients(mech, problem, design[None], scored, alpha)[0]
     step = 1e-4
+    # the design, then each parameter moved up, then down: one batch, one program
+    moves = np.concatenate([np.zeros((1, 3)), step * np.eye(3), -step * np.eye(3)])
+    designs = design + moves
+    scored = objective.score(mech, problem, designs, alpha)
+    assert float(scored.singularity[0]) == 0.0
+    gradient = objective.gradients(mech, problem, designs, scored, alpha)[0]
+    path = np.asarray(scored.path)
     for i in range(mech.design.size):
-        moved = np.array([design + step * e for e in (np.eye(3)[i], -np.eye(3)[i])])
-        up, down = np.asarray(objective.score(mech, problem, moved, alpha).path)
+        up, down = path[1 + i], path[4 + i]
         assert gradient[i] == pytest.approx((up - down) / (2 * step), rel=1e-4)
 
 
 def test_a_short_synthesis_lowers_the_rms_and_keeps_the_cycle_clear(mech):
     near = np.array([61.5, 65.0, 50.0])
-    turn = np.array([0.0, 1.6, 3.2, 4.8])
+    # six points, as the file's targets: the same compiled single-design score
+    turn = np.linspace(0.0, 2 * np.pi, 7)[:-1]
     curve, _, _ = _coupler_curve(mech, near, turn)
     targets = _targets(mech, "path", "coupler_point", curve, closed=True, tolerance=1.0)
     start = score(mech, targets, steps=STEPS)
@@ -175,7 +179,8 @@ def test_a_short_synthesis_lowers_the_rms_and_keeps_the_cycle_clear(mech):
 
 
 def test_a_short_function_synthesis_lowers_the_miss(mech):
-    turn = np.linspace(0.0, 2 * np.pi, 6)[:-1]
+    # six pairs, as Freudenstein's test above: the same compiled single-design score
+    turn = np.linspace(0.0, 2 * np.pi, 7)[:-1]
     _, swing, _ = _coupler_curve(mech, np.array([61.5, 65.0, 50.0]), turn)
     targets = _targets(mech, "function", "rocker", swing, turn[:, None], tolerance=0.01)
     start = score(mech, targets, steps=STEPS)
