@@ -40,11 +40,17 @@ def _corrected(mech: Mechanism, geom, values, predicted, count: int):
     """``count`` (at least one) Gauss–Newton corrections of a prediction, fewer
     where the residual is already within the solver tolerance; and the last
     ``JᵀJ``."""
-    current = predicted
-    for _ in range(count):
+    n = predicted.shape[-1]
+
+    def correct(_, carry):
+        current, _ = carry
         new, residual, hessian = _newton(mech, geom, values, current)
-        current = jnp.where(residual > mech.solver.tolerance, new, current)
-    return current, hessian
+        return jnp.where(residual > mech.solver.tolerance, new, current), hessian
+
+    start = (predicted, jnp.zeros((n, n), predicted.dtype))
+    # a loop, not unrolled: one traced correction whatever the count (the sweep's
+    # program compiled several times faster)
+    return jax.lax.fori_loop(0, count, correct, start)
 
 
 def _verdict(mech: Mechanism, geom, values, state, predicted, current):
@@ -96,9 +102,12 @@ def step_to(mech: Mechanism, geoms, states, values, alive):
 def _smallest(hessian, vector, count: int = 1):
     """``count`` inverse iterations of ``vector`` on ``JᵀJ`` and the Rayleigh
     estimate of ``σ_min(J) = √λ_min(JᵀJ)``."""
-    for _ in range(count):
+
+    def iterate(_, vector):
         vector = dense.damped_solve(hessian, 1e-14, vector)
-        vector = vector / jnp.linalg.norm(vector)
+        return vector / jnp.linalg.norm(vector)
+
+    vector = jax.lax.fori_loop(0, count, iterate, vector)
     return vector, jnp.sqrt(jnp.maximum(vector @ hessian @ vector, 0.0) + 1e-300)
 
 
