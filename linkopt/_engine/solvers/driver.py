@@ -9,6 +9,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Int
 
+from ... import _config  # noqa: F401  (float64 on before any array)
+
 
 class Result(enum.IntEnum):
     """Why a solve stopped, as an integer array inside traced code."""
