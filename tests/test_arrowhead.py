@@ -4,18 +4,17 @@ FK/BK solves, sensitivities and σ_min on it against the dense path, finite
 differences and the SVD; the shipped ``strandbeest_12.toml`` is the generator's."""
 
 import dataclasses
-from functools import partial
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 from conftest import MECHANISMS
 from long_linkages import chain, ladder
 from strandbeest import strandbeest
+from test_banded import check_band_sigma_min
 
 import linkopt
-from linkopt._engine import arrowhead, banded, banded_sigma, jacobian, singularity
+from linkopt._engine import arrowhead, banded, jacobian
 from linkopt._engine.body_order import body_order
 from linkopt._engine.geometry import geometry, rest_state
 
@@ -185,21 +184,7 @@ def test_arrowhead_sensitivities_match_finite_differences_and_the_dense_path(wal
 
 
 def test_sigma_min_on_the_arrowhead_equals_the_svd_and_the_dense_gradient(walker):
-    geom = geometry(walker)
-    state = rest_state(walker)
-
-    def f_sing(sigmas, s):
-        return jnp.sum(1.0 / sigmas(walker, geom, s))
-
-    dense = jax.jit(jax.value_and_grad(partial(f_sing, singularity.sigma_min_pair)))
-    band = jax.jit(jax.value_and_grad(partial(f_sing, banded_sigma.sigma_min_pair)))
-    (value, grad), (value_b, grad_b) = dense(state), band(state)
-    jac = np.asarray(jacobian.stacked_jacobians(walker, geom, state))
-    exact = [np.linalg.svd(j, compute_uv=False)[-1] for j in jac]
-    sigmas = jax.jit(partial(banded_sigma.sigma_min_pair, walker))(geom, state)
-    np.testing.assert_allclose(sigmas, exact, rtol=1e-7)
-    np.testing.assert_allclose(value_b, value, rtol=1e-7)
-    np.testing.assert_allclose(grad_b, grad, atol=5e-4 * np.abs(grad).max())
+    check_band_sigma_min(walker)
 
 
 def test_the_shipped_strandbeest_is_the_generated_one_and_takes_the_arrowhead():

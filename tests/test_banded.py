@@ -224,7 +224,12 @@ def test_a_hub_joined_to_every_body_goes_last_and_keeps_the_band_narrow():
 
 @pytest.mark.parametrize("index", range(3), ids=["five_bar", "jansen", "ladder"])
 def test_sigma_min_on_the_band_equals_the_dense_one_and_its_gradient(index):
-    mech = _small_mechanisms()[index]
+    check_band_sigma_min(_small_mechanisms()[index])
+
+
+def check_band_sigma_min(mech):
+    """σ_min on the band's storage (band or arrowhead) equals the SVD's, and its
+    ``f_sing`` value and gradient the dense path's (``tests/test_arrowhead.py`` too)."""
     geom = geometry(mech)
     state = rest_state(mech)
 
