@@ -236,7 +236,10 @@ def check_band_sigma_min(mech):
     def f_sing(sigmas, s):
         return jnp.sum(1.0 / sigmas(mech, geom, s))
 
-    dense = jax.jit(jax.value_and_grad(partial(f_sing, singularity.sigma_min_pair)))
+    def dense_sigmas(m, g, s):  # the dense Jacobians whatever the factor setting
+        return singularity.sigmas_of(singularity.stacked_jacobians(m, g, s))
+
+    dense = jax.jit(jax.value_and_grad(partial(f_sing, dense_sigmas)))
     band = jax.jit(jax.value_and_grad(partial(f_sing, banded_sigma.sigma_min_pair)))
     (value, grad), (value_b, grad_b) = dense(state), band(state)
     jac = np.asarray(jacobian.stacked_jacobians(mech, geom, state))

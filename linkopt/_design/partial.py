@@ -31,7 +31,7 @@ import functools
 import jax
 import jax.numpy as jnp
 
-from .._engine import dense, programs
+from .._engine import banded, dense, programs
 from .._engine.collision import collision_value, has_collision
 from .._engine.constraints import fk_residual, output_residual
 from .._engine.geometry import geometry
@@ -113,14 +113,21 @@ def adjoint_term(mech: Mechanism, term, design, motors, state):
     pass as ``∂g/∂s``. Differentiating ``g`` again through ``x(p)`` (the form before)
     ran the sample term, σ_min and all, forward and backward twice per sample, in the
     program and in its compile time (``benchmarks/bench_compile.py``). The value is
-    not ``g``; only the gradient is used."""
+    not ``g``; only the gradient is used. Where the solves take the band
+    (:func:`linkopt._engine.banded.serves`), ``μ`` comes from the banded factor
+    (:func:`linkopt._engine.banded.adjoint_multiplier`) and σ_min in ``g`` from
+    :mod:`linkopt._engine.banded_sigma`: no dense Jacobian, cost linear in the
+    bodies."""
     motors = jax.lax.stop_gradient(motors)
     state = jax.lax.stop_gradient(state)
     geom = geometry(mech, design)
     fixed = jax.lax.stop_gradient(geom)
     d_state, d_geom = jax.grad(term, argnums=(0, 1))(state, fixed)
-    jac = state_jacobian(mech, fixed, "fk", state)
-    mu = jac @ dense.solve_spd(jac.T @ jac, d_state)  # built from `fixed`: no gradient
+    if banded.serves(mech):  # static; built from `fixed`: no gradient
+        mu = banded.adjoint_multiplier(mech, fixed, motors, state, d_state)
+    else:
+        jac = state_jacobian(mech, fixed, "fk", state)
+        mu = jac @ dense.solve_spd(jac.T @ jac, d_state)  # from `fixed`: no gradient
     leaves = zip(jax.tree.leaves(d_geom), jax.tree.leaves(geom))
     direct = sum(jnp.vdot(g, x) for g, x in leaves)
     return direct - mu @ fk_residual(mech, geom, motors, state)

@@ -50,13 +50,13 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from .._engine import dense
+from .._engine import banded, dense
 from .._engine.constraints import fk_residual
 from .._engine.geometry import Geometry
 from .._engine.jacobian import state_jacobian
 from .._engine.kinematics import solve_single
 from .._engine.model import Mechanism
-from .._engine.singularity import sigmas_of, stacked_jacobians
+from .._engine.singularity import sigma_min_pair, sigmas_of, stacked_jacobians
 from .._engine.solvers.driver import run, stopped
 from .._engine.solvers.quasi_newton import QNState, QuasiNewton, unevaluated
 from .motor_box import held, into_box, motor_box, projected
@@ -92,7 +92,10 @@ class _Point:
 def state_motor_jacobian(
     mech: Mechanism, geom: Geometry, motors, state
 ) -> Float[Array, "S M"]:
-    """``ds/da`` at a solved state (eq. 2, least-squares form for tall Jacobians)."""
+    """``ds/da`` at a solved state (eq. 2, least-squares form for tall Jacobians); on
+    the band where the solves take it (:func:`linkopt._engine.banded.motor_tangent`)."""
+    if banded.serves(mech):
+        return banded.motor_tangent(mech, geom, motors, state)
     jac_s = state_jacobian(mech, geom, "fk", state)
     jac_a = jax.jacfwd(lambda a: fk_residual(mech, geom, a, state))(motors)
     return -dense.solve_spd(jac_s.T @ jac_s, jac_s.T @ jac_a)
@@ -110,13 +113,27 @@ def evaluate_point(
 ):
     """The objective at a solved point, with ``ds/da`` and ``f_sing``. The forward
     Jacobian is built once, for σ_min and for ``ds/da`` (eq. 2): ``f_sing``'s
-    gradient comes from the stacked Jacobians' pullback."""
+    gradient comes from the stacked Jacobians' pullback. Where the solves take the
+    band (:func:`linkopt._engine.banded.serves`) no dense Jacobian is built: σ_min,
+    its gradient and ``ds/da`` come from the banded factor, linear in the bodies."""
+    if banded.serves(mech):
+        return _banded_point(objective, mech, geom, motors, state)
     jac, pullback = jax.vjp(lambda s: stacked_jacobians(mech, geom, s), state)
     f_sing, d_jac = jax.value_and_grad(lambda j: jnp.sum(1.0 / sigmas_of(j)))(jac)
     (d_f_sing,) = pullback(d_jac)
     jac_s = jac[0]
     jac_a = jax.jacfwd(lambda a: fk_residual(mech, geom, a, state))(motors)
     ds_da = -dense.solve_spd(jac_s.T @ jac_s, jac_s.T @ jac_a)
+    value, gradient, model = objective(motors, state, ds_da, f_sing, d_f_sing)
+    return value, gradient, model, ds_da, f_sing
+
+
+def _banded_point(objective: Objective, mech: Mechanism, geom: Geometry, motors, state):
+    """:func:`evaluate_point` on the band (:mod:`linkopt._engine.banded_sigma`)."""
+    f_sing, d_f_sing = jax.value_and_grad(
+        lambda s: jnp.sum(1.0 / sigma_min_pair(mech, geom, s))
+    )(state)
+    ds_da = banded.motor_tangent(mech, geom, motors, state)
     value, gradient, model = objective(motors, state, ds_da, f_sing, d_f_sing)
     return value, gradient, model, ds_da, f_sing
 

@@ -42,6 +42,7 @@ from jaxtyping import Array, Float
 from .._config import jit
 from . import arrowhead, band_factor
 from .body_order import Layout, body_order
+from .constraints import fk_residual
 from .jacobian import row_groups
 from .model import Mechanism
 
@@ -270,3 +271,43 @@ def tangent(mech: Mechanism, kind: str, geom, values, state, residual, rhs):
         symmetric=True,
     )
     return -unpermute(where, solved)
+
+
+def normal_solve(mech: Mechanism, kind: str, geom, state, rhs: Float[Array, "S k"]):
+    """``(JᵀJ)⁻¹ rhs`` for the ``k`` columns of ``rhs`` (state coordinates), ``J``
+    the Jacobian of ``kind`` at ``state``: one banded factor (no gradient through it)
+    and its two scans per column; what :func:`linkopt._engine.dense.solve_spd` gives
+    with the dense ``JᵀJ``."""
+    count = mech.num_motors if kind == "fk" else mech.num_outputs
+    _, band, _ = normal_equations(
+        mech,
+        jax.lax.stop_gradient(geom),
+        kind,
+        jnp.zeros(count),
+        jax.lax.stop_gradient(state),
+    )
+    lower = factor(band, 0.0)
+    where = layout(mech, geom, kind)
+
+    def column(b):
+        return unpermute(where, cho_solve(lower, permute(where, b)))
+
+    return jax.vmap(column, in_axes=1, out_axes=1)(rhs)
+
+
+def motor_tangent(mech: Mechanism, geom, motors, state) -> Float[Array, "S M"]:
+    """``ds/da = -(JᵀJ)⁻¹ Jᵀ ∂C_FK/∂a`` at a solved state on the band (the dense
+    :func:`linkopt._design.sampling.state_motor_jacobian`): ``∂C_FK/∂a`` by forward
+    mode, ``Jᵀ`` by reverse mode through the residual, never a dense ``J``."""
+    jac_a = jax.jacfwd(lambda a: fk_residual(mech, geom, a, state))(motors)
+    _, pull = jax.vjp(lambda s: fk_residual(mech, geom, motors, s), state)
+    projected = jax.vmap(lambda c: pull(c)[0], in_axes=1, out_axes=1)(jac_a)
+    return -normal_solve(mech, "fk", geom, state, projected)
+
+
+def adjoint_multiplier(mech: Mechanism, geom, motors, state, d_state):
+    """``μ = J (JᵀJ)⁻¹ ∂g/∂s`` of :func:`linkopt._design.partial.adjoint_term` with
+    ``J = ∂C_FK/∂s`` on the band: one banded solve and a forward-mode product."""
+    solved = normal_solve(mech, "fk", geom, state, d_state[:, None])[:, 0]
+    _, mu = jax.jvp(lambda s: fk_residual(mech, geom, motors, s), (state,), (solved,))
+    return mu

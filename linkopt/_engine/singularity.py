@@ -136,7 +136,13 @@ def sigmas_of(jac: Float[Array, "2 m n"]) -> Float[Array, 2]:
 
 def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, 2]:
     """``(σ_min^FK, σ_min^BK)`` at one state, differentiable in ``state`` and
-    ``geom``."""
+    ``geom``: on the band (:mod:`linkopt._engine.banded_sigma`, cost linear in the
+    bodies) wherever the FK/BK solves take it (:func:`linkopt._engine.banded.serves`),
+    from the dense Jacobians otherwise."""
+    from . import banded, banded_sigma  # local: banded_sigma imports this module
+
+    if banded.serves(mech):
+        return banded_sigma.sigma_min_pair(mech, geom, state)
     return sigmas_of(stacked_jacobians(mech, geom, state))
 
 
