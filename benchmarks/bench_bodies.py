@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import statistics
 import sys
 import time
@@ -112,6 +113,64 @@ def measure(kind: str, bodies: int, rows: int, repeats: int, dense: bool) -> dic
     return record
 
 
+def _evaluation(mech):
+    import jax
+
+    from linkopt._design.evaluation import evaluate
+
+    def run():
+        return jax.tree_util.tree_map(np.asarray, evaluate(mech))
+
+    return run
+
+
+def measure_evaluation(kind: str, bodies: int, repeats: int, dense: bool) -> dict:
+    """``linkopt.evaluate`` of the file's design on the banded path (and the dense
+    one where ``dense``): time per sample (the evaluation over its ``T`` targets, IK
+    and adversarial minimisation each) and per sample step (over the steps its
+    samples took), the first call (compiling) apart, the dense and banded answers
+    compared."""
+    factors = ("dense", "banded") if dense else ("banded",)
+    runs = {f: _evaluation(_mechanism(kind, bodies, f)) for f in factors}
+    compile_s = {f: _timed(run) for f, run in runs.items()}
+    times, answers = {f: [] for f in factors}, {}
+    for _ in range(repeats):  # alternate, so load hits both alike
+        for f in factors:
+            start = time.perf_counter()
+            answers[f] = runs[f]()
+            times[f].append(time.perf_counter() - start)
+    ev = answers["banded"]
+    samples = int(ev.ik_iterations.size)
+    steps = int(np.sum(ev.ik_iterations) + np.sum(ev.adv_iterations))
+    record = {
+        "linkage": kind,
+        "bodies": bodies,
+        "samples": samples,
+        "sample_steps": steps,
+        "f_design": float(ev.f_design),
+        "banded_s": statistics.median(times["banded"]),
+        "banded_first_call_s": compile_s["banded"],
+    }
+    record["banded_per_sample_s"] = record["banded_s"] / samples
+    record["banded_per_step_s"] = record["banded_s"] / steps
+    if dense:
+        other = answers["dense"]
+        record["dense_s"] = statistics.median(times["dense"])
+        record["dense_first_call_s"] = compile_s["dense"]
+        record["dense_per_sample_s"] = record["dense_s"] / samples
+        record["ratio"] = record["dense_s"] / record["banded_s"]
+        record["same_steps"] = bool(
+            np.array_equal(other.ik_iterations, ev.ik_iterations)
+            and np.array_equal(other.adv_iterations, ev.adv_iterations)
+        )
+        record["f_design_dense"] = float(other.f_design)
+        gap = np.abs(np.concatenate([other.adv_f_sing - ev.adv_f_sing]))
+        record["max_f_sing_relative_difference"] = float(
+            np.max(gap / np.abs(other.adv_f_sing))
+        )
+    return record
+
+
 def slope(records: list[dict], key: str, smallest: int = 30) -> float | None:
     """Least-squares slope of ``log(time)`` against ``log(bodies)``, bodies >=
     ``smallest``."""
@@ -124,13 +183,27 @@ def slope(records: list[dict], key: str, smallest: int = 30) -> float | None:
     return float(np.polyfit(x, y, 1)[0])
 
 
-def draw(records: list[dict], path: Path) -> None:
+def draw(records: list[dict], evaluations: list[dict], path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.0, 4.0))
+    fig, (ax, right) = plt.subplots(1, 2, figsize=(11.0, 4.0))
+    for kind, marker in (("chain", "o"), ("ladder", "s")):
+        rows = [r for r in evaluations if r["linkage"] == kind]
+        for key, style, label in (
+            ("dense_per_sample_s", "--", "dense"),
+            ("banded_per_sample_s", "-", "banded"),
+        ):
+            pts = [(r["bodies"], r[key]) for r in rows if key in r]
+            if pts:
+                x, y = zip(*pts, strict=True)
+                right.loglog(x, y, style, marker=marker, label=f"{kind}, {label}")
+    right.set_xlabel("bodies")
+    right.set_ylabel("evaluation time per sample (s)")
+    right.grid(True, which="both", alpha=0.3)
+    right.legend()
     for kind, marker in (("chain", "o"), ("ladder", "s")):
         rows = [r for r in records if r["linkage"] == kind]
         for key, style, label in (
@@ -163,9 +236,39 @@ def main() -> None:
     )
     parser.add_argument("--rows", type=int, default=16)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--eval-sizes", default="10,30,100,300")
+    parser.add_argument("--eval-dense-max", type=int, default=30)
+    parser.add_argument("--eval-repeats", type=int, default=2)
+    parser.add_argument("--skip-fk", action="store_true", help="time evaluation only")
     args = parser.parse_args()
-    records = []
+    evaluations = []
     for kind in args.kinds.split(","):
+        for size in (int(s) for s in args.eval_sizes.split(",") if s):
+            rec = measure_evaluation(
+                kind, size, args.eval_repeats, size <= args.eval_dense_max
+            )
+            evaluations.append(rec)
+            line = f"{kind:6s} {rec['bodies']:5d} bodies: evaluate banded "
+            line += f"{rec['banded_per_sample_s'] * 1e3:9.1f} ms/sample "
+            line += f"({rec['sample_steps']} steps, first call "
+            line += f"{rec['banded_first_call_s']:.0f} s)"
+            if "dense_s" in rec:
+                line += f", dense {rec['dense_per_sample_s'] * 1e3:9.1f} ms/sample "
+                line += f"(x{rec['ratio']:.2f}, same steps {rec['same_steps']}, "
+                line += f"f_sing rel. {rec['max_f_sing_relative_difference']:.1e})"
+            print(line, flush=True)
+    eval_slopes = {}
+    for kind in args.kinds.split(","):
+        rows = [r for r in evaluations if r["linkage"] == kind]
+        eval_slopes[kind] = {
+            "per_sample": slope(rows, "banded_per_sample_s"),
+            "per_step": slope(rows, "banded_per_step_s"),
+        }
+        print(f"{kind}: evaluation log-log slope from 30 bodies: {eval_slopes[kind]}")
+    records = []
+    if args.skip_fk:
+        args.kinds = ""
+    for kind in (k for k in args.kinds.split(",") if k):
         for size in (int(s) for s in args.sizes.split(",")):
             if kind == "chain" and size > args.chain_max:
                 continue
@@ -183,7 +286,7 @@ def main() -> None:
                 flush=True,
             )
     slopes = {}
-    for kind in args.kinds.split(","):
+    for kind in (k for k in args.kinds.split(",") if k):
         rows = [r for r in records if r["linkage"] == kind]
         slopes[kind] = {
             "banded": slope(rows, "banded_s"),
@@ -191,13 +294,18 @@ def main() -> None:
             "dense": slope(rows, "dense_s"),
         }
         print(f"{kind}: log-log slope from 30 bodies: {slopes[kind]} (target <= 1.2)")
-    draw(records, ROOT / "figures" / "bench_bodies.png")
+    if args.skip_fk:  # the FK figures of the last full run stay
+        kept = json.loads((_results.RESULTS / "bench_bodies.json").read_text())
+        records, slopes = kept["fk_per_solve"], kept["slope_from_30_bodies"]
+    draw(records, evaluations, ROOT / "figures" / "bench_bodies.png")
     _results.write(
         "bench_bodies",
         {
             "fk_per_solve": records,
             "slope_from_30_bodies": slopes,
             "target_slope": TARGET_SLOPE,
+            "evaluation_per_sample": evaluations,
+            "evaluation_slope_from_30_bodies": eval_slopes,
         },
     )
 

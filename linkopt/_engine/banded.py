@@ -16,6 +16,10 @@ corner) instead.
 * :func:`normal_equations`: ``(C, band, Jᵀ C)`` from the per-joint blocks of
   :mod:`linkopt._engine.jacobian`, scatter-added into the band (never a dense
   ``7B x 7B`` matrix).
+* :func:`normal_solve`, :func:`motor_tangent` (``ds/da`` of a sample step) and
+  :func:`adjoint_multiplier` (the partial gradient's ``μ``): the design evaluation's
+  solves with ``JᵀJ`` on the band, taken where :func:`serves` says so
+  (:mod:`linkopt._design.sampling`, :mod:`linkopt._design.partial`).
 * :func:`factor`, :func:`cho_solve`, :func:`matvec`, :func:`trace`: on either storage
   (:mod:`linkopt._engine.band_factor`: ``O(B w² 7³)`` work, ``O(B w)`` memory;
   :mod:`linkopt._engine.arrowhead`: plus the Schur complement of the hubs).

@@ -10,6 +10,11 @@ The value is ``‖J v‖`` with the Ritz vector ``v`` held fixed, as there: an u
 on σ_min equal to it at convergence, whose derivative in the state and the geometry is
 σ_min's for a simple smallest singular value. ``J v`` is a forward-mode product through
 the residual (the motor/output targets play no part in ``J``).
+
+:func:`linkopt._engine.singularity.sigma_min_pair` calls :func:`sigma_min_pair`
+wherever the solves take the band (:func:`linkopt._engine.banded.serves`), so the
+evaluation's σ_min at every sample step, the partial gradient's and the verification
+grid's are these.
 """
 
 from __future__ import annotations
