@@ -13,7 +13,11 @@ median kept) after one compiling call each, so a loaded machine slows both alike
 dense factor runs up to ``--dense-max`` bodies (its assembly and factor grow with the
 square and the cube of the bodies: at 300 bodies a solve takes minutes). The two
 answers are compared where both run. Prints the log-log slope of time per solve
-against bodies from 30 bodies on (issue 43's target: at most 1.2), writes
+against bodies from 30 bodies on (issue 43's target: at most 1.2). Before that, the
+evaluation time per sample (``--eval-sizes``, default 10-300 bodies:
+:func:`measure_evaluation`, dense and banded alike up to ``--eval-dense-max``) and its
+slopes; ``--skip-fk`` times only the evaluation and keeps the FK figures of the last
+results file. Writes
 ``benchmarks/results/bench_bodies.json`` and draws ``figures/bench_bodies.png``.
 """
 
@@ -48,7 +52,13 @@ SPAN = 0.05
 CHAIN_MAX_NOTE = "lazy tongs of 1000 bodies need ~560 LM iterations per solve"
 
 
-def _mechanism(kind: str, bodies: int, factor: str):
+#: ``[evaluation] alpha_minus`` of the evaluated linkages: long lazy tongs stand near a
+#: singularity at rest (σ_min 1e-4 at 100 bodies), where the default (twice ``f_sing``
+#: at rest) is refused.
+ALPHA_MINUS = 50.0
+
+
+def _mechanism(kind: str, bodies: int, factor: str, evaluation: bool = False):
     from linkopt._files.fields import parse_toml
     from linkopt._files.loader import build
 
@@ -56,6 +66,8 @@ def _mechanism(kind: str, bodies: int, factor: str):
         text = long_linkages.chain(bodies)
     else:
         text = long_linkages.ladder(long_linkages.ladder_cells(bodies))
+    if evaluation:
+        text += f"\n[evaluation]\nalpha_minus = {ALPHA_MINUS}\n"
     # the load-time mobility check factors a dense Jacobian: not what is timed here
     mech = build(parse_toml(text, kind), kind, check=False)
     return dataclasses.replace(
@@ -131,7 +143,8 @@ def measure_evaluation(kind: str, bodies: int, repeats: int, dense: bool) -> dic
     samples took), the first call (compiling) apart, the dense and banded answers
     compared."""
     factors = ("dense", "banded") if dense else ("banded",)
-    runs = {f: _evaluation(_mechanism(kind, bodies, f)) for f in factors}
+    mechs = {f: _mechanism(kind, bodies, f, True) for f in factors}
+    runs = {f: _evaluation(m) for f, m in mechs.items()}
     compile_s = {f: _timed(run) for f, run in runs.items()}
     times, answers = {f: [] for f in factors}, {}
     for _ in range(repeats):  # alternate, so load hits both alike
@@ -144,7 +157,7 @@ def measure_evaluation(kind: str, bodies: int, repeats: int, dense: bool) -> dic
     steps = int(np.sum(ev.ik_iterations) + np.sum(ev.adv_iterations))
     record = {
         "linkage": kind,
-        "bodies": bodies,
+        "bodies": mechs["banded"].num_bodies,
         "samples": samples,
         "sample_steps": steps,
         "f_design": float(ev.f_design),
@@ -294,14 +307,17 @@ def main() -> None:
             "dense": slope(rows, "dense_s"),
         }
         print(f"{kind}: log-log slope from 30 bodies: {slopes[kind]} (target <= 1.2)")
+    fk_from = None  # the FK figures are this run's
     if args.skip_fk:  # the FK figures of the last full run stay
         kept = json.loads((_results.RESULTS / "bench_bodies.json").read_text())
         records, slopes = kept["fk_per_solve"], kept["slope_from_30_bodies"]
+        fk_from = kept.get("fk_measured") or {k: kept[k] for k in ("date", "commit")}
     draw(records, evaluations, ROOT / "figures" / "bench_bodies.png")
     _results.write(
         "bench_bodies",
         {
             "fk_per_solve": records,
+            "fk_measured": fk_from,
             "slope_from_30_bodies": slopes,
             "target_slope": TARGET_SLOPE,
             "evaluation_per_sample": evaluations,
