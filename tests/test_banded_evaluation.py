@@ -109,3 +109,19 @@ def test_the_adjoint_multiplier_on_the_arrowhead_is_the_dense_one(walker):
     expected = jac @ np.linalg.solve(jac.T @ jac, d_state)
     np.testing.assert_allclose(mu, expected, atol=1e-8 * np.abs(expected).max())
     assert mu.shape == fk_residual(walker, geom, motors, state).shape
+
+
+def test_singular_values_of_a_batch_on_the_arrowhead_are_the_svds(walker):
+    """``linkopt.singular_values`` (the verification grid's and the CLI's σ_min) on
+    the band: a batch of two solved states against the SVD of the dense Jacobians."""
+    geom = geometry(walker)
+    rest = rest_state(walker)
+    motors = jnp.asarray(linkopt.motor_values(walker, rest))
+    states = np.stack(
+        [rest, solve_single(walker, "fk", geom, motors - 0.2, rest).state]
+    )
+    got = np.asarray(linkopt.singular_values(walker, states))
+    for state, pair in zip(states, got, strict=True):
+        jac = np.asarray(jacobian.stacked_jacobians(walker, geom, state))
+        exact = [np.linalg.svd(j, compute_uv=False)[-1] for j in jac]
+        np.testing.assert_allclose(pair, exact, rtol=1e-7)
