@@ -7,7 +7,6 @@ handed back warm where the command line asks for it (:mod:`linkopt._design.ahead
 
 import dataclasses
 
-import numpy as np
 import pytest
 
 from linkopt._design import ahead
@@ -138,24 +137,33 @@ def test_writing_names_the_output_and_keeps_the_cause():
             raise InputError("f.toml: bad")
 
 
+def _imported(name: str) -> bool:  # module level: it runs in a worker process
+    import sys
+
+    return name in sys.modules
+
+
 def test_the_optimisers_processes_serve_the_outputs_only_where_asked(five_bar):
     """After :func:`ahead.start` (the command line), a finished ``Workers`` hands its
     process back: the next ``Workers`` of as many adopts it, or the outputs take it
-    (:func:`ahead.side`), and :func:`ahead.close` ends what is held. Without
+    (:func:`ahead.side`), importing the modules :func:`ahead.start` named as ``warm``
+    once held, and :func:`ahead.close` ends what is held. Without
     :func:`ahead.start` (the library), nothing is held after a ``Workers``."""
     with Workers(five_bar, 2) as workers:
         pool = workers._pool
     assert ahead.side() is None  # the library's Workers ends its processes
     assert pool._shutdown_thread
     try:
-        ahead.start(2)
+        ahead.start(2, warm=("wave",))
         with Workers(five_bar, 2) as workers:
             first = workers._pool
+            assert not first.submit(_imported, "wave").result()
         with Workers(five_bar, 2) as workers:
             assert workers._pool is first  # adopted by the next round's Workers
         side = ahead.side()
         assert side is first and ahead.side() is None
-        assert side.submit(np.add, 1, 2).result() == 3  # alive, and warm
+        # alive, and warm: the module asked for imported once it was held
+        assert side.submit(_imported, "wave").result()
         assert ahead.keep(2, side)
     finally:
         ahead.close()

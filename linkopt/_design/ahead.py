@@ -16,8 +16,10 @@ the engine, so that the processes start before the caller's own imports.
 
 from __future__ import annotations
 
+import importlib
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 
 from .. import _cache
 
@@ -26,6 +28,8 @@ _AHEAD: tuple[int, ProcessPoolExecutor] | None = None
 #: Whether a finished ``Workers`` hands its processes back here (:func:`keep`): in a
 #: process that called :func:`start` (the command line), which :func:`close` ends.
 _KEEP = False
+#: Modules a held process imports as soon as it is held (:func:`start`'s ``warm``).
+_WARM: tuple[str, ...] = ()
 
 
 def initialise(caches: _cache.Use | None = None) -> None:
@@ -55,13 +59,15 @@ def spawn(count: int) -> ProcessPoolExecutor:
     )
 
 
-def start(count: int) -> None:
+def start(count: int, warm: tuple[str, ...] = ()) -> None:
     """Spawn the ``count - 1`` worker processes of a ``Workers`` of ``count`` now;
-    nothing for ``count`` < 2 or when some are spawned already."""
-    global _AHEAD, _KEEP
+    nothing for ``count`` < 2 or when some are spawned already. ``warm``: modules (by
+    name: the caller's layer knows what its outputs draw with) that a process held by
+    :func:`keep` imports while this one works on (a run's last verification round)."""
+    global _AHEAD, _KEEP, _WARM
     if count < 2 or _AHEAD is not None:
         return
-    _KEEP = True
+    _KEEP, _WARM = True, tuple(warm)
     pool = spawn(count - 1)
     for _ in range(count - 1):  # each submit to a pool with no idle process spawns one
         pool.submit(_ready)
@@ -87,7 +93,18 @@ def keep(count: int, pool: ProcessPoolExecutor) -> bool:
     if not _KEEP or _AHEAD is not None:
         return False
     _AHEAD = (count, pool)
+    if _WARM:
+        try:
+            pool.submit(_import, _WARM)
+        except (BrokenProcessPool, RuntimeError):  # its next user replaces it
+            pass
     return True
+
+
+def _import(names: tuple[str, ...]) -> None:
+    """A held process's task: import ``names`` (:func:`start`'s ``warm``)."""
+    for name in names:
+        importlib.import_module(name)
 
 
 def side() -> ProcessPoolExecutor | None:
@@ -102,8 +119,8 @@ def side() -> ProcessPoolExecutor | None:
 
 def close() -> None:
     """End the processes of :func:`start` (or :func:`keep`) that nothing adopted."""
-    global _AHEAD, _KEEP
-    _KEEP = False
+    global _AHEAD, _KEEP, _WARM
+    _KEEP, _WARM = False, ()
     if _AHEAD is not None:
         _AHEAD[1].shutdown(wait=False, cancel_futures=True)
         _AHEAD = None
