@@ -6,7 +6,9 @@ output, from whichever process; and the side process is one of the optimiser's,
 handed back warm where the command line asks for it (:mod:`linkopt._design.ahead`)."""
 
 import dataclasses
+import io
 
+import numpy as np
 import pytest
 
 from linkopt._design import ahead
@@ -57,14 +59,13 @@ def _fail_main(job) -> None:
             raise ValueError("no records to plot")
 
 
-def test_the_outputs_of_two_processes_are_the_serial_ones_byte_for_byte(
-    tmp_path, five_bar
-):
+def test_the_outputs_of_two_processes_are_the_serial_ones(tmp_path, five_bar):
     """``workers=2`` (the side process draws the file's design's space plot and both
     motions) at the default resolutions (shared with the other run-folder tests'
     programs) writes the same files as ``workers=1`` (all here): the same
-    verification numbers, summary, optimised file and MJCF, and the same PNG and GIF
-    bytes; and every figure of a run folder is there."""
+    verification numbers, summary, optimised file and MJCF, the same GIF and PNG
+    bytes (the space maps to a few pixels: :data:`MAPS`); and every figure of a run
+    folder is there."""
     run = _finished_run(five_bar)
     folders = {}
     for workers in (1, 2):
@@ -91,9 +92,25 @@ def test_the_outputs_of_two_processes_are_the_serial_ones_byte_for_byte(
         "motion_optimized.gif",
     } <= set(serial)
     assert serial.keys() == parallel.keys()
-    for name in serial:
+    for name in serial.keys() - MAPS:
         assert serial[name] == parallel[name], name
+    for name in MAPS:
+        a, b = (_pixels(files[name]) for files in (serial, parallel))
+        assert a.shape == b.shape and np.mean(np.any(a != b, axis=-1)) < 1e-3, name
     assert serial["motion_initial.gif"] != serial["motion_optimized.gif"]
+
+
+#: The space maps: the same to a few pixels, not byte for byte. A process's second
+#: run-folder map of a mechanism can differ from its first in about 150 of 624,000
+#: pixels (main's serial outputs too: two ``write_outputs`` in one process), so the
+#: two halves' maps, drawn by processes with other histories, are compared as images.
+MAPS = {"spaces_initial.png", "spaces_optimized.png"}
+
+
+def _pixels(data: bytes) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
 
 
 @pytest.mark.parametrize("where", ["side", "main"])
