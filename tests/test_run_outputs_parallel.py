@@ -1,7 +1,7 @@
 """A run folder's final outputs made by two processes (issue 43): the file's design's
-figures (its space plot, both designs' motions) in a side process while this one
-verifies both designs and draws the optimised design's. The files are those of the
-serial outputs, byte for byte; an error in an output is raised here naming that
+figures (both designs' motions) in a side process while this one verifies both
+designs and draws the optimised design's (both space plots among them). The files are
+those of the serial outputs; an error in an output is raised here naming that
 output, from whichever process; and the side process is one of the optimiser's,
 handed back warm where the command line asks for it (:mod:`linkopt._design.ahead`)."""
 
@@ -60,12 +60,11 @@ def _fail_main(job) -> None:
 
 
 def test_the_outputs_of_two_processes_are_the_serial_ones(tmp_path, five_bar):
-    """``workers=2`` (the side process draws the file's design's space plot and both
-    motions) at the default resolutions (shared with the other run-folder tests'
-    programs) writes the same files as ``workers=1`` (all here): the same
-    verification numbers, summary, optimised file and MJCF, the same GIF and PNG
-    bytes (the space maps to a few pixels: :data:`MAPS`); and every figure of a run
-    folder is there."""
+    """``workers=2`` (the side process draws both designs' motions), at the default
+    resolutions (shared with the other run-folder tests' programs), writes the same
+    files as ``workers=1`` (all here): the same verification numbers, summary,
+    optimised file and MJCF, the same GIF and PNG bytes (the space maps to a few
+    pixels: :data:`MAPS`); and every figure of a run folder is there."""
     run = _finished_run(five_bar)
     folders = {}
     for workers in (1, 2):

@@ -31,11 +31,11 @@ sits above it (:mod:`linkopt._draw.run_folder`, whose ``write_outputs`` is the p
 one). The figures are made in two halves of about equal time: with ``workers`` > 1 a
 side process (one the optimiser's ``Workers`` handed back warm,
 :func:`linkopt._design.ahead.side`, else a spawned one) draws the file's design's call
-(its space plot and both designs' motions) while this one verifies both designs (it
-holds the verification's programs from the run's last round) and draws the optimised
-design's call. The files are the same with one process; an error in an output is
-raised here as :class:`OutputError` naming it (:func:`writing`), whichever process
-made it.
+(both designs' motions) while this one verifies both designs (it holds the
+verification's programs from the run's last round) and draws the optimised design's
+call (both space plots, whose programs it shares, convergence, mechanism). The files
+are the same with one process; an error in an output is raised here as
+:class:`OutputError` naming it (:func:`writing`), whichever process made it.
 """
 
 from __future__ import annotations
@@ -329,8 +329,8 @@ def _design_outputs(
 ) -> tuple[dict, Evaluation]:
     """Both designs' verifications (``{"initial": ..., "optimized": ...}``), the
     optimised design's evaluation (with the targets of ``current``: the file's and the
-    run's rounds'), and the figures: the file's design's job (its space plot and the
-    motions of both designs) in the ``side`` process while this one verifies both
+    run's rounds'), and the figures: the file's design's job (the motions of both
+    designs) in the ``side`` process while this one verifies both
     designs (this process has the verification's programs loaded from the run's last
     round) and draws the optimised design's; without ``side`` all here, in the same
     order. The figures are the same either way."""
