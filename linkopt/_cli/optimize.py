@@ -36,6 +36,14 @@ WORKERS = default_workers()
 #: times the five-bar's 180, beyond which an iteration takes minutes.
 MAX_LANES = 200_000
 MAX_WORKERS = 64
+#: What the side process of the run's final outputs draws with
+#: (:func:`linkopt._design.run.write_outputs`), imported by the optimiser's worker that
+#: becomes that process while this one runs the last verification round.
+DRAWING = (
+    "linkopt._draw.run_folder",
+    "linkopt._draw.space_plots",
+    "linkopt._draw.animation",
+)
 #: seconds ``--scheduler`` waits for the scheduler to answer (``--connect-timeout``)
 CONNECT_TIMEOUT = 10.0
 _SUMMARY_KEYS = (
@@ -182,7 +190,7 @@ def run_optimize(args) -> int:
     if args.seed < 0:
         raise InputError(f"--seed: expected a non-negative integer, got {args.seed}")
     if args.scheduler is None:  # the workers import while this process loads the file
-        ahead.start(args.workers)
+        ahead.start(args.workers, DRAWING)
     try:
         return _run_optimize(args)
     finally:

@@ -6,19 +6,30 @@ worker processes of a :class:`linkopt._design.workers.Workers` of ``count`` proc
 at once, so that they import while the caller loads and checks the mechanism
 (``linkopt optimize`` calls it before loading the file); the next ``Workers`` of as many
 processes adopts them (:func:`adopt`), and :func:`close` ends them where none does (a
-file that fails to load, a finished run resumed). This module imports neither JAX nor
+file that fails to load, a finished run resumed). After :func:`start`, a ``Workers``
+that finishes hands its processes back (:func:`keep`) instead of ending them: the next
+round's ``Workers`` adopts them, or the run's final outputs take one for the work they
+do beside this process (:func:`side`; :mod:`linkopt._design.run`), warm, with JAX
+imported and the evaluation's programs loaded. This module imports neither JAX nor
 the engine, so that the processes start before the caller's own imports.
 """
 
 from __future__ import annotations
 
+import importlib
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 
 from .. import _cache
 
 #: Processes spawned by :func:`start`, not adopted yet, with the ``count`` they serve.
 _AHEAD: tuple[int, ProcessPoolExecutor] | None = None
+#: Whether a finished ``Workers`` hands its processes back here (:func:`keep`): in a
+#: process that called :func:`start` (the command line), which :func:`close` ends.
+_KEEP = False
+#: Modules a held process imports as soon as it is held (:func:`start`'s ``warm``).
+_WARM: tuple[str, ...] = ()
 
 
 def initialise(caches: _cache.Use | None = None) -> None:
@@ -48,12 +59,15 @@ def spawn(count: int) -> ProcessPoolExecutor:
     )
 
 
-def start(count: int) -> None:
+def start(count: int, warm: tuple[str, ...] = ()) -> None:
     """Spawn the ``count - 1`` worker processes of a ``Workers`` of ``count`` now;
-    nothing for ``count`` < 2 or when some are spawned already."""
-    global _AHEAD
+    nothing for ``count`` < 2 or when some are spawned already. ``warm``: modules (by
+    name: the caller's layer knows what its outputs draw with) that a process held by
+    :func:`keep` imports while this one works on (a run's last verification round)."""
+    global _AHEAD, _KEEP, _WARM
     if count < 2 or _AHEAD is not None:
         return
+    _KEEP, _WARM = True, tuple(warm)
     pool = spawn(count - 1)
     for _ in range(count - 1):  # each submit to a pool with no idle process spawns one
         pool.submit(_ready)
@@ -70,9 +84,43 @@ def adopt(count: int) -> ProcessPoolExecutor | None:
     return pool
 
 
-def close() -> None:
-    """End the processes of :func:`start` that nothing adopted."""
+def keep(count: int, pool: ProcessPoolExecutor) -> bool:
+    """Hold the processes of a finished ``Workers`` of ``count`` for the next one, or
+    for :func:`side` (the run's final outputs): their imports and loaded programs are
+    what a fresh process would spend its first seconds on. Only after :func:`start`
+    and while nothing is held; False: not held, the caller ends them."""
     global _AHEAD
+    if not _KEEP or _AHEAD is not None:
+        return False
+    _AHEAD = (count, pool)
+    if _WARM:
+        try:
+            pool.submit(_import, _WARM)
+        except (BrokenProcessPool, RuntimeError):  # its next user replaces it
+            pass
+    return True
+
+
+def _import(names: tuple[str, ...]) -> None:
+    """A held process's task: import ``names`` (:func:`start`'s ``warm``)."""
+    for name in names:
+        importlib.import_module(name)
+
+
+def side() -> ProcessPoolExecutor | None:
+    """The held processes, whatever ``count`` they served (and then no longer held
+    here), for work beside this process's; None when none are held."""
+    global _AHEAD
+    if _AHEAD is None:
+        return None
+    pool, _AHEAD = _AHEAD[1], None
+    return pool
+
+
+def close() -> None:
+    """End the processes of :func:`start` (or :func:`keep`) that nothing adopted."""
+    global _AHEAD, _KEEP, _WARM
+    _KEEP, _WARM = False, ()
     if _AHEAD is not None:
         _AHEAD[1].shutdown(wait=False, cancel_futures=True)
         _AHEAD = None

@@ -28,9 +28,14 @@ Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.
 :mod:`linkopt._export.mjcf`), and the figures that :func:`write_outputs`'s ``figures``
 draws from a :class:`RunFigures` per design. This layer draws nothing: the drawing layer
 sits above it (:mod:`linkopt._draw.run_folder`, whose ``write_outputs`` is the public
-one). The initial design's verification and figures do not depend on the run, so with
-``workers`` > 1 a spawned process makes them while this one makes the optimised
-design's.
+one). The figures are made in two halves of about equal time: with ``workers`` > 1 a
+side process (one the optimiser's ``Workers`` handed back warm,
+:func:`linkopt._design.ahead.side`, else a spawned one) draws the file's design's call
+(both designs' motions) while this one verifies both designs (it holds the
+verification's programs from the run's last round) and draws the optimised design's
+call (both space plots, whose programs it shares, convergence, mechanism). The files
+are the same with one process; an error in an output is raised here as
+:class:`OutputError` naming it (:func:`writing`), whichever process made it.
 """
 
 from __future__ import annotations
@@ -52,9 +57,10 @@ import numpy as np
 from .._cache import requested
 from .._config import adopt, one_blas_thread
 from .._engine.model import Mechanism
-from .._errors import InputError
+from .._errors import InputError, LinkoptError
 from .._files.writer import write_design
 from .._folders import check_path, run_folder, staged, write_atomic
+from . import ahead
 from .checkpoint import CHECKPOINT, HISTORY_FIELDS, check_match, decode, encode, read
 from .collision import history_fields, summary_entry
 from .evaluation import Evaluation, alpha_minus, capped, evaluate_in_batch, targets
@@ -191,7 +197,10 @@ class RunFigures:
     ``design`` the optimised design or None for the file's, ``evaluation`` that
     design's with ``current`` (None for the file's design: evaluate it with
     :func:`~linkopt._design.evaluation.evaluate_in_batch` in blocks of ``rows``, the
-    swarm program's shape, if a figure needs it), ``history`` the run's records."""
+    swarm program's shape, if a figure needs it), ``history`` the run's records.
+    ``optimized``: on the file's design's job, the optimised design, for the figures
+    that show both designs (the motions), which that job then draws and the optimised
+    design's job does not."""
 
     mech: Mechanism
     current: Mechanism
@@ -202,12 +211,33 @@ class RunFigures:
     history: tuple[dict, ...] = ()
     resolution: int | None = None
     progress: Callable[[dict], None] | None = None
+    optimized: np.ndarray | None = None
 
 
 #: The drawing of a run folder's figures (:mod:`linkopt._draw.run_folder`), called
-#: once per design; it must pickle (a module-level function) to run in a spawned
+#: once per design; it must pickle (a module-level function) to run in another
 #: process.
 Figures = Callable[[RunFigures], None]
+
+
+class OutputError(RuntimeError):
+    """An output of a run folder that could not be written: the message names it and
+    says what failed (an internal error, not the user's input, whatever process
+    made the output)."""
+
+
+@contextmanager
+def writing(name: str) -> Iterator[None]:
+    """Name the output ``name`` in an error raised while it is made
+    (:class:`OutputError`; a :class:`~linkopt.LinkoptError` names its file already and
+    passes unchanged)."""
+    try:
+        yield
+    except (LinkoptError, OutputError):
+        raise
+    except Exception as err:
+        text = " ".join(str(err).split())
+        raise OutputError(f"{name}: {type(err).__name__}: {text}") from err
 
 
 def _verification(mech: Mechanism, design, resolution: int | None) -> dict:
@@ -216,57 +246,55 @@ def _verification(mech: Mechanism, design, resolution: int | None) -> dict:
     return verify(mech, design, resolution).as_json()
 
 
-def _initial_outputs(
-    mech: Mechanism,
-    out: Path,
-    resolution: int | None,
-    verify_resolution: int | None,
-    rows: int,
-    figures: Figures | None,
-    progress: Callable[[dict], None] | None = None,
-) -> dict:
-    """The initial design's verification (returned) and figures (written);
-    ``rows``: the optimiser's chunk size (:func:`.evaluation.evaluate_in_batch`)."""
-    with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._config
-        _announce(progress, "verifying the initial design")
-        check = _verification(mech, None, verify_resolution)
-    if figures is not None:
-        figures(RunFigures(mech, mech, out, None, None, rows, (), resolution, progress))
-    return check
-
-
 def _announce(progress, stage: str) -> None:
     """A stage of the final outputs, as a ``{"stage"}`` progress record."""
     if progress is not None:
         progress({"stage": stage})
 
 
-def _optimized_outputs(
-    mech: Mechanism,
-    out: Path,
-    run: SwarmRun,
-    design: np.ndarray,
-    resolution: int | None,
-    verify_resolution: int | None,
-    rows: int,
-    figures: Figures | None,
-    progress: Callable[[dict], None] | None = None,
-    file_mech: Mechanism | None = None,
-) -> tuple[dict, Evaluation]:
-    """The optimised design's verification and evaluation (returned) and figures
-    (written); ``mech`` has the targets of the run's verification rounds, whose last
-    verification serves when it was of ``design`` at the same resolution, and
-    ``file_mech`` is the file's mechanism (the same linkage without those targets)."""
+def _side_pool(workers: int) -> ProcessPoolExecutor | None:
+    """The process that draws the file's design's figures beside this one when the run
+    has ``workers`` > 1: one the optimiser's ``Workers`` handed back, warm
+    (:func:`linkopt._design.ahead.side`), else a spawned one."""
+    if workers < 2:
+        return None
+    return ahead.side() or ProcessPoolExecutor(
+        1,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=adopt,
+        initargs=(requested(),),
+    )
+
+
+def _draw_side(figures: Figures, job: RunFigures) -> None:
+    """The file's design's figures (:data:`Figures`), with OpenBLAS held to one thread
+    (:mod:`linkopt._config`); run in the side process or, without one, here."""
     with one_blas_thread():
-        checked = last_round_verification(mech, run, design, verify_resolution)
-        if checked is None:
-            _announce(progress, "verifying the optimised design")
-            checked = _verification(mech, design, verify_resolution)
-        final = evaluate_in_batch(mech, design, rows)
-    if figures is not None:
-        job = RunFigures(file_mech or mech, mech, out, design, final, rows, run.history)
-        figures(dataclasses.replace(job, resolution=resolution, progress=progress))
-    return checked, final
+        figures(job)
+
+
+def _submit(side: ProcessPoolExecutor | None, figures: Figures, job: RunFigures):
+    """The side process's future of ``job``, or None: no side process, or it died
+    before taking the job (then :func:`_side_result` draws here)."""
+    if side is None:
+        return None
+    try:
+        return side.submit(_draw_side, figures, job)
+    except (BrokenProcessPool, RuntimeError):  # broken, or shut down
+        return None
+
+
+def _side_result(future, figures: Figures, job: RunFigures, progress=None) -> None:
+    """Wait for the side process's figures; an error there is raised here as it was
+    raised there (naming its output, :func:`writing`). When that process died
+    (killed, or crashed), or there was none, the figures are drawn here: a lost side
+    process costs time, never the run."""
+    if future is not None:
+        try:
+            return future.result()
+        except BrokenProcessPool:
+            pass
+    _draw_side(figures, dataclasses.replace(job, progress=progress))
 
 
 def last_round_verification(
@@ -297,58 +325,38 @@ def _design_outputs(
     workers: int,
     figures: Figures | None,
     progress: Callable[[dict], None] | None = None,
+    side: ProcessPoolExecutor | None = None,
 ) -> tuple[dict, Evaluation]:
     """Both designs' verifications (``{"initial": ..., "optimized": ...}``), the
     optimised design's evaluation (with the targets of ``current``: the file's and the
-    run's rounds'), and the figures; with ``workers`` > 1 the initial design's in a
-    spawned process (module docstring)."""
-    side = (
-        ProcessPoolExecutor(
-            1,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=adopt,
-            initargs=(requested(),),
-        )
-        if workers > 1
-        else None
-    )
+    run's rounds'), and the figures: the file's design's job (the motions of both
+    designs) in the ``side`` process while this one verifies both
+    designs (this process has the verification's programs loaded from the run's last
+    round) and draws the optimised design's; without ``side`` all here, in the same
+    order. The figures are the same either way."""
     first = chunk_slices(len(run.position), workers)[0]  # the swarm's program's shape
     rows = first.stop - first.start
-    args = (mech, out, resolution, verify_resolution, rows, figures)
-    try:
-        initial = side.submit(_initial_outputs, *args) if side is not None else None
-        checked, final = _optimized_outputs(
-            current,
-            out,
-            run,
-            design,
-            resolution,
-            verify_resolution,
-            rows,
-            figures,
-            progress,
-            mech,
-        )
-        checks = {
-            "initial": _side_result(initial, args, progress),
-            "optimized": checked,
-        }
-    finally:
-        if side is not None:
-            side.shutdown(cancel_futures=True)
-    return checks, final
-
-
-def _side_result(initial, args: tuple, progress) -> dict:
-    """The spawned process's initial-design outputs, or, when that process died
-    (killed, or crashed), the same outputs computed here: a lost side process costs
-    time, never the run."""
-    if initial is not None:
-        try:
-            return initial.result()
-        except BrokenProcessPool:
-            pass
-    return _initial_outputs(*args, progress)
+    side_job = None
+    if figures is not None:
+        side_job = RunFigures(mech, current, out, None, None, rows, (), resolution)
+        side_job = dataclasses.replace(side_job, optimized=design)
+    future = _submit(side, figures, side_job) if side_job is not None else None
+    with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._config
+        with writing("verification.json (optimised design)"):
+            checked = last_round_verification(current, run, design, verify_resolution)
+            if checked is None:
+                _announce(progress, "verifying the optimised design")
+                checked = _verification(current, design, verify_resolution)
+        with writing("verification.json (initial design)"):
+            _announce(progress, "verifying the initial design")
+            initial = _verification(mech, None, verify_resolution)
+        with writing("summary.json (the optimised design's evaluation)"):
+            final = evaluate_in_batch(current, design, rows)
+    if figures is not None:
+        job = RunFigures(mech, current, out, design, final, rows, run.history)
+        figures(dataclasses.replace(job, resolution=resolution, progress=progress))
+        _side_result(future, figures, side_job, progress)
+    return {"initial": initial, "optimized": checked}, final
 
 
 def _summary(
@@ -389,6 +397,36 @@ def _summary(
     }
 
 
+@contextmanager
+def _ending(pool: ProcessPoolExecutor | None) -> Iterator[ProcessPoolExecutor | None]:
+    """``pool`` for the block, ended after it (its queued work cancelled)."""
+    try:
+        yield pool
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
+
+
+def _design_files(mech, current, design, stage: Path, settings, run) -> None:
+    """``optimized.toml`` and ``optimized.xml`` (the design for MuJoCo,
+    :mod:`linkopt._export.mjcf`) in ``stage``."""
+    with writing("optimized.toml"):
+        write_design(
+            current,
+            design,
+            alpha_minus(mech),
+            stage / "optimized.toml",
+            header=(
+                f"Optimised by linkopt from {mech.source} "
+                f"(seed {settings.seed}, {run.iteration} iterations)."
+            ),
+        )
+    from .._export.mjcf import export_mjcf
+
+    with writing("optimized.xml"):
+        export_mjcf(current, stage / "optimized.xml", design)
+
+
 def write_outputs(
     mech: Mechanism,
     out: str | Path,
@@ -406,33 +444,24 @@ def write_outputs(
     :func:`linkopt.write_outputs` passes the drawing layer's
     (:func:`linkopt._draw.run_folder.draw_run_figures`).
 
-    With ``workers`` > 1 a spawned process verifies and draws the initial design while
-    this one does the optimised design (module docstring). ``out`` is locked for the
+    With ``workers`` > 1 a side process draws the file's design's figures while this
+    one does the rest (module docstring). ``out`` is locked for the
     call, and the files are staged: they replace the folder's earlier ones only once
     all are written, ``summary.json`` last (:func:`linkopt._folders.staged`), so a
     failure leaves no ``optimized.toml`` that looks like this run's result.
     ``resolution`` and ``progress`` are handed to ``figures``; ``progress`` also gets
-    ``{"stage"}`` records as each verification starts (not those of the spawned
-    process)."""
+    ``{"stage"}`` records as each verification starts."""
     out = Path(out)
     design = best_design(run)
     if design is None:
         raise InputError(f"{out}: the run has not finished an iteration yet")
     current = with_targets(mech, run.added_targets)
-    with locked_run_folder(out), staged(out, marker="summary.json") as stage:
-        write_design(
-            current,
-            design,
-            alpha_minus(mech),
-            stage / "optimized.toml",
-            header=(
-                f"Optimised by linkopt from {mech.source} "
-                f"(seed {settings.seed}, {run.iteration} iterations)."
-            ),
-        )
-        from .._export.mjcf import export_mjcf  # the design for MuJoCo
-
-        export_mjcf(current, stage / "optimized.xml", design)
+    with (
+        locked_run_folder(out),
+        staged(out, marker="summary.json") as stage,
+        _ending(_side_pool(workers) if figures is not None else None) as side,
+    ):
+        _design_files(mech, current, design, stage, settings, run)
         checks, final = _design_outputs(
             mech,
             current,
@@ -444,6 +473,7 @@ def write_outputs(
             workers,
             figures,
             progress,
+            side,
         )
         (stage / "verification.json").write_text(json.dumps(checks, indent=2))
         summary = _summary(current, run, settings, design, final, checks)

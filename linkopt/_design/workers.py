@@ -261,8 +261,11 @@ class Workers:
             )
 
     def close(self) -> None:
+        """End the processes, or hand them to :func:`linkopt._design.ahead.keep`
+        where the command line asked for that (the run's final outputs use one)."""
         if self._pool is not None:
-            self._pool.shutdown(wait=True)
+            if not ahead.keep(self.count, self._pool):
+                self._pool.shutdown(wait=True)
             self._pool = None
 
     def __enter__(self) -> Workers:

@@ -4,11 +4,12 @@ The run folder is written by the design layer
 (:func:`linkopt._design.run.write_outputs`), which may not import this layer; it takes
 the drawing as an argument, and :func:`draw_run_figures` is the one call it makes, once
 per design. The initial design's
-call draws ``spaces_initial.png`` (in a spawned process when the run has workers); the
-optimised design's draws ``spaces_optimized.png``, ``convergence.png``,
-``mechanism.png`` (both designs overlaid) and ``motion_initial.gif`` /
-``motion_optimized.gif`` (mechanisms with 1-3 motors). Space plots are drawn for 2 or 3
-motors and as many outputs.
+call draws ``motion_initial.gif`` / ``motion_optimized.gif`` (mechanisms with 1-3
+motors; in a side process when the run has workers); the optimised design's draws
+``spaces_optimized.png``, ``spaces_initial.png``, ``convergence.png`` and
+``mechanism.png`` (both designs overlaid). An error in a figure names it
+(:func:`linkopt._design.run.writing`), in whichever process it was drawn. Space plots
+are drawn for 2 or 3 motors and as many outputs.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from pathlib import Path
 from .._config import one_blas_thread
 from .._design import run as run_folder
 from .._design.optimizer import OptimizerSettings, SwarmRun
+from .._design.run import writing
 from .._engine.model import Mechanism
 
 
@@ -43,54 +45,62 @@ def draw_run_figures(job: run_folder.RunFigures) -> None:
 
 
 def _initial(job: run_folder.RunFigures) -> None:
-    from .._design.evaluation import evaluate_in_batch
-    from .space_plots import plot_spaces
+    """The motions of both designs (given the optimised design, ``job.optimized``):
+    with workers, the run's side process draws them while the main one draws
+    :func:`_optimized`'s figures (:func:`linkopt._design.run.write_outputs`); the two
+    take about as long."""
+    if job.optimized is not None:
+        from .animation import write_run_motions
 
-    mech = job.mech
-    if not has_space_plots(mech):
-        return
-    with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._config
-        plot_spaces(
-            mech,
-            evaluate_in_batch(mech, None, job.rows),
-            job.out / "spaces_initial.png",
-            resolution=job.resolution,
-            title=f"{mech.name}, initial design",
-            progress=_prefixed(job.progress, "initial design, "),
-        )
+        with writing("motion_initial.gif, motion_optimized.gif"):
+            write_run_motions(job.mech, job.current, job.out, job.optimized)
 
 
 def _optimized(job: run_folder.RunFigures) -> None:
-    """The space plot solves with the file's mechanism: the rounds' targets, which the
-    figure does not use, are part of the fingerprint that keys every compiled program,
-    so it shares the initial design's plot's programs."""
-    from .animation import write_run_motions
+    """Both designs' space plots, the convergence and the mechanism figures. The space
+    plots solve with the file's mechanism: the rounds' targets, which the figure does
+    not use, are part of the fingerprint that keys every compiled program, so the two
+    share their programs."""
     from .plots import plot_convergence, plot_mechanism
-    from .space_plots import plot_spaces
 
     current = job.current
     with one_blas_thread():
         if has_space_plots(current):
-            plot_spaces(
-                job.mech,
-                job.evaluation,
-                job.out / "spaces_optimized.png",
-                resolution=job.resolution,
-                design=job.design,
-                title=f"{current.name}, optimised design",
-                progress=_prefixed(job.progress, "optimised design, "),
+            _space_plot(job, job.evaluation, job.design, "optimised design")
+            _space_plot(job, None, None, "initial design")
+        with writing("convergence.png"):
+            plot_convergence(
+                job.history,
+                job.out / "convergence.png",
+                title=f"{current.name}: optimisation",
             )
-        plot_convergence(
-            job.history,
-            job.out / "convergence.png",
-            title=f"{current.name}: optimisation",
+        with writing("mechanism.png"):
+            plot_mechanism(
+                current,
+                job.out / "mechanism.png",
+                designs={"initial": None, "optimised": job.design},
+            )
+
+
+def _space_plot(job: run_folder.RunFigures, evaluation, design, label: str) -> None:
+    """``spaces_optimized.png`` (``design``, with its ``evaluation``) or
+    ``spaces_initial.png`` (``design`` None: the file's, evaluated here)."""
+    from .._design.evaluation import evaluate_in_batch
+    from .space_plots import plot_spaces
+
+    name = "spaces_initial.png" if design is None else "spaces_optimized.png"
+    with writing(name):
+        if evaluation is None:
+            evaluation = evaluate_in_batch(job.mech, None, job.rows)
+        plot_spaces(
+            job.mech,
+            evaluation,
+            job.out / name,
+            resolution=job.resolution,
+            design=design,
+            title=f"{job.mech.name if design is None else job.current.name}, {label}",
+            progress=_prefixed(job.progress, f"{label}, "),
         )
-        plot_mechanism(
-            current,
-            job.out / "mechanism.png",
-            designs={"initial": None, "optimised": job.design},
-        )
-    write_run_motions(job.mech, current, job.out, job.design)
 
 
 def write_outputs(
@@ -106,15 +116,15 @@ def write_outputs(
 ) -> dict:
     """Optimised file, verification, summary and figures for a finished run.
 
-    With ``workers`` > 1 a spawned process verifies and plots the initial design while
-    this one does the optimised design. ``out`` is locked for the call, and the files
-    are staged: they replace the folder's earlier ones only once all are written,
-    ``summary.json`` last (:func:`linkopt._folders.staged`), so a failure leaves no
-    ``optimized.toml`` that looks like this run's result. ``resolution``: the space
-    plots' (default by the number of outputs,
-    :func:`linkopt._design.maps.plot_resolution`); ``progress`` gets ``{"stage"}``
-    records as each verification starts and the maps' wave records (not those of the
-    spawned process)."""
+    With ``workers`` > 1 a side process draws the motions while this one verifies both
+    designs and draws the rest. ``out`` is
+    locked for the call, and the files are staged: they replace the folder's earlier
+    ones only once all are written, ``summary.json`` last
+    (:func:`linkopt._folders.staged`), so a failure leaves no ``optimized.toml`` that
+    looks like this run's result. ``resolution``: the space plots' (default by the
+    number of outputs, :func:`linkopt._design.maps.plot_resolution`); ``progress``
+    gets ``{"stage"}`` records as each verification starts and the maps' wave records
+    (not those of the side process)."""
     return run_folder.write_outputs(
         mech,
         out,

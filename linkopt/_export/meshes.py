@@ -13,9 +13,9 @@ that frame.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from .._engine.model import Mechanism
 from .._engine.welding import parts
@@ -23,11 +23,18 @@ from .._errors import InputError
 from .._folders import write_atomic
 from .tree import Rest, body_capsules, default_thickness, metres_per_unit, rest
 
+if TYPE_CHECKING:  # trimesh is imported where a solid is made: importing it takes
+    # about a second, which the figures that only need this module's constants
+    # (:mod:`linkopt._draw.planar` via :mod:`.sheet`) should not pay
+    import trimesh
+
 #: Joint spheres are this much thicker than the links.
 JOINT_FACTOR = 1.5
 
 
 def _capsule(a: np.ndarray, b: np.ndarray, radius: float) -> trimesh.Trimesh:
+    import trimesh
+
     d = b - a
     length = float(np.linalg.norm(d))
     transform = trimesh.geometry.align_vectors([0.0, 0.0, 1.0], d / length)
@@ -36,6 +43,8 @@ def _capsule(a: np.ndarray, b: np.ndarray, radius: float) -> trimesh.Trimesh:
 
 
 def _sphere(at: np.ndarray, radius: float) -> trimesh.Trimesh:
+    import trimesh
+
     sphere = trimesh.creation.icosphere(subdivisions=2, radius=radius)
     sphere.apply_translation(at)
     return sphere
@@ -59,6 +68,8 @@ def body_mesh(
     if not parts:  # one place and no joint: a sphere there
         parts = [_sphere(capsules[0][0], capsules[0][2])]
     _require_manifold()
+    import trimesh
+
     solid = (
         parts[0] if len(parts) == 1 else trimesh.boolean.union(parts, engine="manifold")
     )
@@ -136,6 +147,8 @@ def scene(mech: Mechanism, design=None, *, thickness=None) -> trimesh.Scene:
     docstring)."""
     meshes = body_meshes(mech, design, thickness)
     s, _ = metres_per_unit(mech)
+    import trimesh
+
     world = trimesh.Scene()
     for b, (name, mesh) in enumerate(zip(mech.body_names, meshes)):
         origin = mech.body_origins[b] * s
