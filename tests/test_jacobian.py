@@ -59,25 +59,41 @@ def test_linearise_matches_jacfwd(path, variant):
         mech.design.upper - mech.design.lower
     )
     geom = linkopt.geometry(mech, design)
+    kinds = (
+        ("fk", fk_residual, mech.num_motors),
+        ("bk", bk_residual, mech.num_outputs),
+    )
+    # one program per kind, as the solvers run it (jitted), for the three states: op
+    # by op, each of the Jacobian's thousand small operations compiled on its own
+    # costs more than the whole program's compile
+    compared = {kind: _linearised_and_reference(mech, kind, r) for kind, r, _ in kinds}
     for _ in range(3):
         state = linkopt.rest_state(mech) + rng.normal(0, 0.05, mech.state_size)
-        for kind, residual, size in (
-            ("fk", fk_residual, mech.num_motors),
-            ("bk", bk_residual, mech.num_outputs),
-        ):
+        for kind, _residual, size in kinds:
             values = jnp.asarray(rng.normal(0, 0.1, size))
-            value, jac = linearise(mech, geom, kind, values, state)
-            np.testing.assert_allclose(
-                value, residual(mech, geom, values, state), atol=1e-13
-            )
-            np.testing.assert_allclose(
-                jac,
-                jax.jacfwd(partial(residual, mech, geom, values))(state),
-                atol=1e-12,
-            )
-            c, jtj, jtc = normal_equations(mech, geom, kind, values, state)
+            (value, jac), reference, (c, jtj, jtc) = compared[kind](geom, values, state)
+            np.testing.assert_allclose(value, reference[0], atol=1e-13)
+            np.testing.assert_allclose(jac, reference[1], atol=1e-12)
             np.testing.assert_allclose(jtj, jac.T @ jac, atol=1e-11)
             np.testing.assert_allclose(jtc, jac.T @ value, atol=1e-11)
+
+
+def _linearised_and_reference(mech, kind, residual):
+    """``(geom, values, state)`` -> linearise's ``(value, jac)``, the residual and
+    its ``jacfwd``, and ``normal_equations``, in one jitted program."""
+
+    def both(geom, values, state):
+        reference = (
+            residual(mech, geom, values, state),
+            jax.jacfwd(partial(residual, mech, geom, values))(state),
+        )
+        return (
+            linearise(mech, geom, kind, values, state),
+            reference,
+            normal_equations(mech, geom, kind, values, state),
+        )
+
+    return jax.jit(both)
 
 
 def test_jacobian_is_differentiable_in_design():

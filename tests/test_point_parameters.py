@@ -124,14 +124,17 @@ def test_the_path_gradient_wrt_the_point_matches_finite_differences(mech):
     from linkopt._design.evaluation import alpha_minus
 
     alpha = alpha_minus(mech)
-    scored = objective.score(mech, problem, design[None], alpha)
-    assert float(scored.path[0]) > 0.0
-    gradient = objective.gradients(mech, problem, design[None], scored, alpha)[0]
     step = 1e-4
-    for i in (3, 4):  # the point's x and y
-        e = np.eye(5)[i]
-        moved = np.array([design + step * e, design - step * e])
-        up, down = np.asarray(objective.score(mech, problem, moved, alpha).path)
+    # the design and its steps along the point's x and y in one batch: one score
+    # program and one gradient program (a program per batch shape)
+    e = step * np.eye(5)[[3, 4]]
+    designs = np.array([design, *(design + e), *(design - e)])
+    scored = objective.score(mech, problem, designs, alpha)
+    assert float(scored.path[0]) > 0.0
+    gradient = objective.gradients(mech, problem, designs, scored, alpha)[0]
+    path = np.asarray(scored.path)
+    for j, i in enumerate((3, 4)):  # the point's x and y
+        up, down = path[1 + j], path[3 + j]
         assert abs(gradient[i]) > 1e-6
         assert gradient[i] == pytest.approx((up - down) / (2 * step), rel=1e-4)
 
