@@ -258,7 +258,7 @@ def _chunked(fn, xs):
     return jax.lax.map(fn, xs, batch_size=CHUNK)
 
 
-@partial(jit, static_argnums=(0, 1))
+@partial(jit, static_argnums=1)
 def solve_batch(mech: Mechanism, kind: str, values, start, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, start, design)
     if values.ndim == 1:
@@ -268,7 +268,7 @@ def solve_batch(mech: Mechanism, kind: str, values, start, design) -> Solution:
     return _chunked(lambda v: solve_single(mech, kind, geom, v, start), values)
 
 
-@partial(jit, static_argnums=(0, 1))
+@partial(jit, static_argnums=1)
 def solve_batch_from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, None, design)
     v_rest = _VALUES[kind](mech, geom, start)
@@ -279,7 +279,7 @@ def solve_batch_from_rest(mech: Mechanism, kind: str, values, design) -> Solutio
     return one(values) if values.ndim == 1 else _chunked(one, values)
 
 
-@partial(jit, static_argnums=(0, 1))
+@partial(jit, static_argnums=1)
 def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, start, design)
 

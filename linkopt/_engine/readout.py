@@ -16,7 +16,7 @@ from .geometry import design_array, design_vector, geometry
 from .model import Mechanism
 
 
-@partial(jit, static_argnums=(0, 1))
+@partial(jit, static_argnums=1)
 def _read(mech: Mechanism, what: str, state, design):
     geom = geometry(mech, design_vector(mech, design))
     fn = {

@@ -33,8 +33,6 @@ its derivative is the plain-JAX steps'.
 
 from __future__ import annotations
 
-from functools import partial
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -140,14 +138,14 @@ def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, 2]:
     return sigmas_of(stacked_jacobians(mech, geom, state))
 
 
-@partial(jit, static_argnums=0)
+@jit
 def f_sing_value(mech: Mechanism, geom: Geometry, state) -> Float[Array, ""]:
     """Eq. 3 at one state."""
     sigma = sigma_min_pair(mech, geom, state)
     return jnp.sum(1.0 / sigma)
 
 
-@partial(jit, static_argnums=0)
+@jit
 def sigma_pairs(mech: Mechanism, state, design):
     geom = geometry(mech, design_vector(mech, design))
     state = jnp.asarray(state, dtype=jnp.float64)
