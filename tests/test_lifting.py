@@ -93,7 +93,7 @@ def test_numbers_and_names_are_not_in_the_key(five_bar):
 
 
 def test_a_number_used_as_a_constant_fails_loudly(five_bar):
-    """A program that turned a lifted number into numpy would bake the first
+    """A program that turned a traced number into numpy would bake the first
     mechanism's value into a program that others reuse; it cannot be traced."""
 
     def baking(m, x):

@@ -83,7 +83,7 @@ COLLISION_FIELDS = (
 #: Motor limits, taken as data when a file has them (``inf`` where a motor has none on
 #: one side; whether the file has any is static and keyed).
 LIMIT_FIELDS = ("motor_min", "motor_max")
-#: Integer settings (iteration caps), lifted as int64.
+#: Integer settings (iteration caps), taken as int64.
 INTEGER_FIELDS = frozenset(
     {"max_iterations", "ik_iterations", "adversarial_iterations"}
 )
