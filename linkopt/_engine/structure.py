@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import jax
 
+from .. import _config  # noqa: F401  (float64 on before any array)
 from .lifting import numbers
 from .model import Mechanism, digest
 from .welding import Welds
