@@ -169,3 +169,31 @@ def test_sigma_min_is_differentiable_in_the_anchors(five_bar):
         bump[joint, coord] = step
         fd = (f_sing(anchors + bump) - f_sing(anchors - bump)) / (2 * step)
         np.testing.assert_allclose(gradient[joint, coord], fd, rtol=1e-4)
+
+
+def test_a_stored_program_never_sees_names(five_bar):
+    """A program of :func:`programs.call` is traced from the mechanism's Structure:
+    blank names, its own numbers."""
+    from linkopt._engine import programs
+
+    renamed = dataclasses.replace(
+        five_bar,
+        name="renamed_five_bar",
+        motor_names=("left", "right"),
+        anchors=five_bar.anchors * 2.0,
+    )
+    seen = []
+
+    def total(mech, x):
+        seen.append((mech.name, mech.motor_names, mech.joint_names))
+        return jnp.sum(mech.anchors) * x
+
+    one = jnp.ones(())
+    ours = programs.call("names_test", five_bar, total, one)
+    theirs = programs.call("names_test", renamed, total, one)
+    assert float(theirs) == pytest.approx(2.0 * float(ours))
+    assert float(ours) == pytest.approx(np.sum(five_bar.anchors))
+    assert seen and all(
+        name == "" and set(motors) == {""} and set(joints) == {""}
+        for name, motors, joints in seen
+    )
