@@ -197,3 +197,16 @@ def test_a_stored_program_never_sees_names(five_bar):
         name == "" and set(motors) == {""} and set(joints) == {""}
         for name, motors, joints in seen
     )
+
+
+def test_vmap_over_mechanisms_of_one_structure(five_bar):
+    """A batch of mechanisms (stacked numbers, one Structure) maps like any pytree:
+    each lane computes with its own anchors."""
+    edited = edited_five_bar()
+    batch = jax.tree_util.tree_map(lambda a, b: jnp.stack([a, b]), five_bar, edited)
+    sums = jax.vmap(lambda m: jnp.sum(m.anchors))(batch)
+    np.testing.assert_allclose(sums, [np.sum(five_bar.anchors), np.sum(edited.anchors)])
+    spread = jax.vmap(lambda m, x: jnp.sum(m.anchors) * x, in_axes=(None, 0))
+    np.testing.assert_allclose(
+        spread(five_bar, jnp.arange(2.0)), [0.0, np.sum(five_bar.anchors)]
+    )

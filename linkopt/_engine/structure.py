@@ -131,11 +131,12 @@ def _placed(leaves: list) -> list:
 
 
 def unflatten(structure: Structure, leaves) -> Mechanism:
-    """The Structure's template with ``leaves`` in their fields."""
+    """The Structure's template with ``leaves`` in their fields (tracers inside a
+    program; JAX's placeholders when it matches axes specifications, which flatten
+    back as they came)."""
     leaves = list(leaves)
     mech = replaced(structure.template, dict(zip(structure.paths, leaves, strict=True)))
-    if all(hasattr(leaf, "shape") for leaf in leaves):  # not JAX's placeholders
-        _FLAT[mech] = (leaves, structure)
+    _FLAT[mech] = (leaves, structure)  # flatten(unflatten(s, x)) is (x, s)
     return mech
 
 
