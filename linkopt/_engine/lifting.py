@@ -45,20 +45,21 @@ FIELDS = (
     "output_max",
     "length_scale",
 )
-#: The design space's fields taken as data, padded to :func:`design_class` columns
-#: (zeros: a padded parameter moves nothing; ``is_length`` False).
+#: The design space's fields taken as data (:func:`padded` pads them to
+#: :func:`design_class` columns: zeros, a padded parameter moves nothing;
+#: ``is_length`` False).
 DESIGN_FIELDS = ("p0", "lower", "upper", "matrix", "is_length")
 #: The point parameters' map (``design.points``) is data too, padded like ``matrix``,
 #: where a file has one. The link angles' fields (:class:`~.model.Turns`), taken as
 #: data where a file has twists; ``select`` padded like the design map, the number of
-#: turns keyed.
+#: turns part of the structure.
 TURN_FIELDS = ("select", "centers", "normals", "joints")
 ATTACHMENT_FIELDS = ("weights", "offsets", "spans")
 #: Settings taken as data (``[solver]``, ``[evaluation]``, ``[collision]``): editing
 #: a weight, a step, an iteration cap, a threshold or an extra target's values reuses
 #: every program. Each is a number or an array inside a program: an iteration cap
 #: bounds a ``while_loop`` (int64), ``targets`` is an ``(E, K)`` array, ``alpha_minus``
-#: is NaN where the file gives none. What shapes a program stays static and keyed:
+#: is NaN where the file gives none. What shapes a program stays in the structure:
 #: ``samples_per_dimension`` and ``interior`` (the grid), the number of extra targets,
 #: ``[collision].enable`` and the capsules and pairs.
 SOLVER_FIELDS = ("tolerance", "max_iterations", "initial_damping")
@@ -81,7 +82,7 @@ COLLISION_FIELDS = (
     "body_radii",
 )
 #: Motor limits, taken as data when a file has them (``inf`` where a motor has none on
-#: one side; whether the file has any is static and keyed).
+#: one side; whether the file has any is part of the structure).
 LIMIT_FIELDS = ("motor_min", "motor_max")
 #: Integer settings (iteration caps), taken as int64.
 INTEGER_FIELDS = frozenset(
