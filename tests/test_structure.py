@@ -210,3 +210,20 @@ def test_vmap_over_mechanisms_of_one_structure(five_bar):
     np.testing.assert_allclose(
         spread(five_bar, jnp.arange(2.0)), [0.0, np.sum(five_bar.anchors)]
     )
+
+
+def test_a_mechanism_of_jax_arrays_flattened_inside_a_trace_keeps_no_tracer(five_bar):
+    """A concrete mechanism whose fields are JAX arrays (as the DH arms build them),
+    first flattened inside a trace, is cached with concrete numbers: a later trace
+    of another function computes with them (regression: a float32 field converted
+    by ``jax.numpy`` inside the first trace was kept as that trace's tracer)."""
+    arrays = dataclasses.replace(
+        five_bar,
+        anchors=jnp.asarray(five_bar.anchors, dtype=jnp.float32),
+        length_scale=jnp.asarray(five_bar.length_scale),
+    )
+    first = jax.jit(lambda x: jax.tree_util.tree_leaves(arrays)[1].sum() * x)(1.0)
+    again = jax.jit(lambda m, x: jnp.sum(m.anchors) * x)(arrays, 2.0)
+    np.testing.assert_allclose(again, 2.0 * first, rtol=1e-6)
+    leaves = jax.tree_util.tree_leaves(arrays)
+    assert not any(isinstance(leaf, jax.core.Tracer) for leaf in leaves)

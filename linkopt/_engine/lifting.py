@@ -93,12 +93,15 @@ _PADDED: weakref.WeakKeyDictionary[Mechanism, Mechanism] = weakref.WeakKeyDictio
 
 
 def _array(value, dtype) -> np.ndarray:
-    """``value`` as a numpy array of ``dtype``; a JAX array or tracer (a mechanism
-    rebuilt inside a program) as a ``jax.numpy`` one."""
+    """``value`` as a numpy array of ``dtype``; a tracer (a mechanism rebuilt inside
+    a program) as a ``jax.numpy`` one. A concrete JAX array becomes numpy: a
+    ``jax.numpy`` conversion inside a trace would give a tracer, which a cache of a
+    concrete mechanism's numbers must never keep."""
     if type(value).__module__.startswith("jax"):
-        import jax.numpy as jnp
+        import jax
 
-        return jnp.asarray(value, dtype=dtype)
+        if isinstance(value, jax.core.Tracer):
+            return jax.numpy.asarray(value, dtype=dtype)
     return np.asarray(value, dtype=dtype)
 
 
