@@ -80,20 +80,23 @@ class Solution:
     progress: Float[Array, ...]
 
 
-@partial(jax.custom_jvp, nondiff_argnums=(0, 1))
-def implicit_state(mech: Mechanism, kind: str, geom: Geometry, values, state):
+@partial(jax.custom_jvp, nondiff_argnums=(0,))
+def implicit_state(kind: str, mech: Mechanism, geom: Geometry, values, state):
     """Identity on ``state``; carries the implicit-function derivative (module
-    docstring)."""
+    docstring), in the geometry, the values and the mechanism's numbers (an
+    argument, not a closure: inside a program they are tracers)."""
     return state
 
 
 @implicit_state.defjvp
-def _implicit_state_jvp(mech, kind, primals, tangents):
-    geom, values, state = primals
-    d_geom, d_values, _ = tangents
+def _implicit_state_jvp(kind, primals, tangents):
+    mech, geom, values, state = primals
+    d_mech, d_geom, d_values, _ = tangents
     residual = _RESIDUALS[kind]
     _, rhs = jax.jvp(
-        lambda g, v: residual(mech, g, v, state), (geom, values), (d_geom, d_values)
+        lambda m, g, v: residual(m, g, v, state),
+        (mech, geom, values),
+        (d_mech, d_geom, d_values),
     )
     if banded.serves(mech):
         return state, banded.tangent(mech, kind, geom, values, state, residual, rhs)
@@ -120,7 +123,7 @@ def solve_single(
         jax.lax.stop_gradient(start),
         max_iterations,
     )
-    state = implicit_state(mech, kind, geom, values, result.x)
+    state = implicit_state(kind, mech, geom, values, result.x)
     progress = result.converged.astype(jnp.float64)
     return Solution(
         state, result.converged, result.residual, result.iterations, progress
@@ -235,7 +238,7 @@ def continue_to(
         jnp.abs(_RESIDUALS[kind](mech, fixed_geom, fixed_to, walk.state))
     )
     converged = (walk.fraction >= 1.0) & (residual <= mech.solver.tolerance)
-    final = implicit_state(mech, kind, geom, v_to, walk.state)
+    final = implicit_state(kind, mech, geom, v_to, walk.state)
     return Solution(final, converged, residual, walk.iterations, walk.fraction)
 
 
