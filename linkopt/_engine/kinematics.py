@@ -301,7 +301,7 @@ def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
     """:func:`solve_batch`; a concrete batch in fixed blocks (:mod:`.blocks`), each row
     with its own start. Concrete calls here and below keep their traces on disk
     (:func:`.programs.call`: a warm process skips tracing a solve)."""
-    if traced(values, start, design):
+    if traced(mech, values, start, design):
         return solve_batch(mech, kind, values, start, design)
     design = design_array(mech, design)
     values = np.asarray(values, dtype=np.float64)
@@ -324,7 +324,7 @@ def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
 
 def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
     """:func:`solve_batch_from_rest`; a concrete batch in fixed blocks."""
-    if traced(values, design):
+    if traced(mech, values, design):
         return solve_batch_from_rest(mech, kind, values, design)
     design = design_array(mech, design)
     values = np.asarray(values, dtype=np.float64)
@@ -344,7 +344,7 @@ def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
 def _along(mech: Mechanism, kind: str, values, start, design) -> Solution:
     """:func:`_solve_path`; a concrete path padded to :func:`.blocks.path_rows` rows
     (repeats of its last row, continuations of length zero), then cut back."""
-    if traced(values, start, design):
+    if traced(mech, values, start, design):
         return _solve_path(mech, kind, values, start, design)
     values = np.asarray(values, dtype=np.float64)
     count = len(values)

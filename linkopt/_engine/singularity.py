@@ -159,7 +159,7 @@ def singular_values(mech: Mechanism, state, *, design=None) -> Float[Array, "...
     states are allowed: maps pass unreached cells too, and get NaN for them."""
     if not isinstance(state, jax.core.Tracer):
         _check_shape(mech, state)
-    if traced(state, design):
+    if traced(mech, state, design):
         return sigma_pairs(mech, state, design)
     design = design_array(mech, design)  # None and arrays: one program
 
