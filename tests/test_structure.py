@@ -230,8 +230,8 @@ def test_a_mechanism_of_jax_arrays_flattened_inside_a_trace_keeps_no_tracer(five
 
 
 def test_gradient_through_a_solve_wrt_anchors(five_bar):
-    """``d s / d anchors`` of an FK solve (the implicit derivative, now in the
-    mechanism's numbers too) against central differences."""
+    """``d s / d anchors`` of an FK solve (the implicit derivative, carried
+    through the geometry) against central differences."""
 
     def solved(anchors):
         mech = dataclasses.replace(five_bar, anchors=anchors)

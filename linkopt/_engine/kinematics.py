@@ -83,20 +83,21 @@ class Solution:
 @partial(jax.custom_jvp, nondiff_argnums=(0,))
 def implicit_state(kind: str, mech: Mechanism, geom: Geometry, values, state):
     """Identity on ``state``; carries the implicit-function derivative (module
-    docstring), in the geometry, the values and the mechanism's numbers (an
-    argument, not a closure: inside a program they are tracers)."""
+    docstring) in the geometry and the values. The mechanism is an argument, not a
+    nondiff one (inside a program its numbers are tracers, which a nondiff argument
+    would keep past its trace); its numbers reach the derivative through the
+    geometry, and their own tangent is dropped, so the rule computes what it did
+    when the mechanism was static."""
     return state
 
 
 @implicit_state.defjvp
 def _implicit_state_jvp(kind, primals, tangents):
     mech, geom, values, state = primals
-    d_mech, d_geom, d_values, _ = tangents
+    _, d_geom, d_values, _ = tangents
     residual = _RESIDUALS[kind]
     _, rhs = jax.jvp(
-        lambda m, g, v: residual(m, g, v, state),
-        (mech, geom, values),
-        (d_mech, d_geom, d_values),
+        lambda g, v: residual(mech, g, v, state), (geom, values), (d_geom, d_values)
     )
     if banded.serves(mech):
         return state, banded.tangent(mech, kind, geom, values, state, residual, rhs)
