@@ -146,7 +146,7 @@ def _arrow_blocks(groups, layout: Layout, nb: int):
     return arrow, grad
 
 
-@partial(jit, static_argnums=(0, 2))
+@partial(jit, static_argnums=2)
 def normal_equations(mech: Mechanism, geom, kind: str, values, state):
     """``(C, band, g)``: the residual (row order of ``fk_residual``/``bk_residual``),
     ``JᵀJ`` in band storage ``(B, w + 1, 7, 7)`` and ``JᵀC`` ``(B, 7)``, both in the

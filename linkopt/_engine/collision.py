@@ -183,7 +183,7 @@ def _pair_gaps(mech: Mechanism, geom: Geometry, state):
     return by_pair, jnp.sum(barrier(gaps, band))
 
 
-@partial(jit, static_argnums=0)
+@jit
 def _clearances(mech: Mechanism, state, design):
     geom = geometry(mech, design_vector(mech, design))
     state = jnp.asarray(state, dtype=jnp.float64)

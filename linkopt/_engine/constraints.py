@@ -16,8 +16,6 @@ other call site.
 
 from __future__ import annotations
 
-from functools import partial
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -257,7 +255,7 @@ def reported_values(mech: Mechanism, geom: Geometry, state) -> Float[Array, " E"
     return _output_rows(mech, geom, state, None, mech.reported_table)
 
 
-@partial(jit, static_argnums=0)
+@jit
 def homogenised_output_values(
     mech: Mechanism, geom: Geometry, state
 ) -> Float[Array, " K"]:
@@ -265,7 +263,7 @@ def homogenised_output_values(
     return _output_rows(mech, geom, state, None)
 
 
-@partial(jit, static_argnums=0)
+@jit
 def output_residual(
     mech: Mechanism, geom: Geometry, outputs, state
 ) -> Float[Array, " K"]:
@@ -273,7 +271,7 @@ def output_residual(
     return _output_rows(mech, geom, state, outputs)
 
 
-@partial(jit, static_argnums=0)
+@jit
 def fk_residual(mech: Mechanism, geom: Geometry, motors, state) -> Float[Array, " R"]:
     """``C_FK(a, s)``: passive rows then one row per motor."""
     return jnp.concatenate(

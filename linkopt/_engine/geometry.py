@@ -15,6 +15,7 @@ from .following import rest_points
 from .lifting import padded_design
 from .model import Mechanism
 from .rotations import axis_angle_matrix, unit
+from .structure import flatten as _registered  # noqa: F401  (Mechanism is a pytree)
 
 
 @jax.tree_util.register_dataclass

@@ -407,7 +407,7 @@ def linearise(
     return _permute_tail(residual, jacobian, head, order)
 
 
-@partial(jit, static_argnums=(0, 2))
+@partial(jit, static_argnums=2)
 def state_jacobian(
     mech: Mechanism, geom: Geometry, kind: str, state: Float[Array, " S"]
 ) -> Float[Array, "m S"]:
@@ -416,7 +416,7 @@ def state_jacobian(
     return linearise(mech, geom, kind, None, state)[1]
 
 
-@partial(jit, static_argnums=0)
+@jit
 def stacked_jacobians(
     mech: Mechanism, geom: Geometry, state: Float[Array, " S"]
 ) -> Float[Array, "2 m S"]:
@@ -437,7 +437,7 @@ def stacked_jacobians(
 # Normal equations for Levenberg–Marquardt.
 
 
-@partial(jit, static_argnums=(0, 2))
+@partial(jit, static_argnums=2)
 def normal_equations(
     mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]
 ):

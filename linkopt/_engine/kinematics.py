@@ -80,17 +80,21 @@ class Solution:
     progress: Float[Array, ...]
 
 
-@partial(jax.custom_jvp, nondiff_argnums=(0, 1))
-def implicit_state(mech: Mechanism, kind: str, geom: Geometry, values, state):
+@partial(jax.custom_jvp, nondiff_argnums=(0,))
+def implicit_state(kind: str, mech: Mechanism, geom: Geometry, values, state):
     """Identity on ``state``; carries the implicit-function derivative (module
-    docstring)."""
+    docstring) in the geometry and the values. The mechanism is an argument, not a
+    nondiff one (inside a program its numbers are tracers, which a nondiff argument
+    would keep past its trace); its numbers reach the derivative through the
+    geometry, and their own tangent is dropped, so the rule computes what it did
+    when the mechanism was static."""
     return state
 
 
 @implicit_state.defjvp
-def _implicit_state_jvp(mech, kind, primals, tangents):
-    geom, values, state = primals
-    d_geom, d_values, _ = tangents
+def _implicit_state_jvp(kind, primals, tangents):
+    mech, geom, values, state = primals
+    _, d_geom, d_values, _ = tangents
     residual = _RESIDUALS[kind]
     _, rhs = jax.jvp(
         lambda g, v: residual(mech, g, v, state), (geom, values), (d_geom, d_values)
@@ -120,7 +124,7 @@ def solve_single(
         jax.lax.stop_gradient(start),
         max_iterations,
     )
-    state = implicit_state(mech, kind, geom, values, result.x)
+    state = implicit_state(kind, mech, geom, values, result.x)
     progress = result.converged.astype(jnp.float64)
     return Solution(
         state, result.converged, result.residual, result.iterations, progress
@@ -235,7 +239,7 @@ def continue_to(
         jnp.abs(_RESIDUALS[kind](mech, fixed_geom, fixed_to, walk.state))
     )
     converged = (walk.fraction >= 1.0) & (residual <= mech.solver.tolerance)
-    final = implicit_state(mech, kind, geom, v_to, walk.state)
+    final = implicit_state(kind, mech, geom, v_to, walk.state)
     return Solution(final, converged, residual, walk.iterations, walk.fraction)
 
 
@@ -258,7 +262,7 @@ def _chunked(fn, xs):
     return jax.lax.map(fn, xs, batch_size=CHUNK)
 
 
-@partial(jit, static_argnums=(0, 1))
+@partial(jit, static_argnums=1)
 def solve_batch(mech: Mechanism, kind: str, values, start, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, start, design)
     if values.ndim == 1:
@@ -268,7 +272,7 @@ def solve_batch(mech: Mechanism, kind: str, values, start, design) -> Solution:
     return _chunked(lambda v: solve_single(mech, kind, geom, v, start), values)
 
 
-@partial(jit, static_argnums=(0, 1))
+@partial(jit, static_argnums=1)
 def solve_batch_from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, None, design)
     v_rest = _VALUES[kind](mech, geom, start)
@@ -279,7 +283,7 @@ def solve_batch_from_rest(mech: Mechanism, kind: str, values, design) -> Solutio
     return one(values) if values.ndim == 1 else _chunked(one, values)
 
 
-@partial(jit, static_argnums=(0, 1))
+@partial(jit, static_argnums=1)
 def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, start, design)
 
@@ -298,7 +302,7 @@ def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
     """:func:`solve_batch`; a concrete batch in fixed blocks (:mod:`.blocks`), each row
     with its own start. Concrete calls here and below keep their traces on disk
     (:func:`.programs.call`: a warm process skips tracing a solve)."""
-    if traced(values, start, design):
+    if traced(mech, values, start, design):
         return solve_batch(mech, kind, values, start, design)
     design = design_array(mech, design)
     values = np.asarray(values, dtype=np.float64)
@@ -321,7 +325,7 @@ def _warm(mech: Mechanism, kind: str, values, start, design) -> Solution:
 
 def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
     """:func:`solve_batch_from_rest`; a concrete batch in fixed blocks."""
-    if traced(values, design):
+    if traced(mech, values, design):
         return solve_batch_from_rest(mech, kind, values, design)
     design = design_array(mech, design)
     values = np.asarray(values, dtype=np.float64)
@@ -341,7 +345,7 @@ def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
 def _along(mech: Mechanism, kind: str, values, start, design) -> Solution:
     """:func:`_solve_path`; a concrete path padded to :func:`.blocks.path_rows` rows
     (repeats of its last row, continuations of length zero), then cut back."""
-    if traced(values, start, design):
+    if traced(mech, values, start, design):
         return _solve_path(mech, kind, values, start, design)
     values = np.asarray(values, dtype=np.float64)
     count = len(values)

@@ -1,42 +1,40 @@
-"""The mechanism as data: one compiled program for every mechanism of one structure.
+"""A mechanism's numbers: what every program takes as data (:mod:`.structure` makes
+them the leaves of the mechanism's pytree), and the design classes.
 
 A :class:`~.model.Mechanism` mixes *structure* (bodies, joint families, which body each
 joint, point, motor and output belongs to, settings that shape arrays) with *numbers*
 (anchors, axes, body origins, points and how they follow their bodies, output ranges,
 motor limits, the reference length, the design space's map and bounds, and the
 settings that are numbers: weights, steps, tolerances, iteration caps, α₋, the extra
-targets' values, collision radii and band). The programs of :mod:`.programs` take
-the numbers as arguments, as MuJoCo MJX passes its ``Model``:
+targets' values, collision radii and band). :func:`numbers` reads them, in a fixed
+order, under their dotted field paths; everything else is the mechanism's
+:class:`~.structure.Structure`. So mechanisms with the same structure, e.g.
+``mechanisms/delta.toml`` and ``delta_deep_box.toml`` (other output ranges), a file
+whose anchors, names or ``[solver]``/``[evaluation]`` numbers were edited, share one
+traced and compiled program.
 
-* :func:`numbers` reads them off a concrete mechanism (numpy; float64, iteration caps
-  int64);
-* :func:`lift` puts traced values in their place, so a program built from one
-  mechanism computes with the numbers it is called with;
-* :func:`structure_key` digests everything else (the numbers by shape only), so that
-  mechanisms with the same structure, e.g. ``mechanisms/delta.toml`` and
-  ``delta_deep_box.toml`` (other output ranges), a file whose anchors, names or
-  ``[solver]``/``[evaluation]`` numbers were edited, share one traced and compiled
-  program. Names enter the key by their count only.
+Safety: a number is a tracer inside a program, so code that used it as a numpy
+constant fails loudly (``TracerArrayConversionError``) instead of baking the first
+mechanism's value into a program that others reuse. Structural facts that the loader
+derives from numbers (which joints have an axis, each joint's helper direction, which
+hull a point follows) are stored as their own fields, part of the structure.
 
-Safety: a lifted number is a tracer, so code that used it as a numpy constant inside a
-program fails loudly (``TracerArrayConversionError``) instead of baking the first
-mechanism's value into a program that others reuse; every field that is not lifted is
-part of the key. Structural facts that the loader derives from numbers (which joints
-have an axis, each joint's helper direction, which hull a point follows) are stored
-as static fields and keyed.
+Design classes: :func:`padded` gives a mechanism whose design space is padded with
+zero columns to :func:`design_class` parameters, which :mod:`.programs` uses, so a
+file that gains or loses a parameter within its class reuses every stored program.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import weakref
 
 import numpy as np
 
-from .model import Mechanism, digest
+from .model import Mechanism
 
 #: Mechanism fields taken as data, and those of its design space and point attachment.
+#: :func:`numbers` names each by its dotted path from the mechanism.
 FIELDS = (
     "body_origins",
     "anchors",
@@ -47,20 +45,21 @@ FIELDS = (
     "output_max",
     "length_scale",
 )
-#: The design space's fields taken as data, padded to :func:`design_class` columns
-#: (zeros: a padded parameter moves nothing; ``is_length`` False).
+#: The design space's fields taken as data (:func:`padded` pads them to
+#: :func:`design_class` columns: zeros, a padded parameter moves nothing;
+#: ``is_length`` False).
 DESIGN_FIELDS = ("p0", "lower", "upper", "matrix", "is_length")
 #: The point parameters' map (``design.points``) is data too, padded like ``matrix``,
 #: where a file has one. The link angles' fields (:class:`~.model.Turns`), taken as
 #: data where a file has twists; ``select`` padded like the design map, the number of
-#: turns keyed.
+#: turns part of the structure.
 TURN_FIELDS = ("select", "centers", "normals", "joints")
 ATTACHMENT_FIELDS = ("weights", "offsets", "spans")
 #: Settings taken as data (``[solver]``, ``[evaluation]``, ``[collision]``): editing
 #: a weight, a step, an iteration cap, a threshold or an extra target's values reuses
 #: every program. Each is a number or an array inside a program: an iteration cap
 #: bounds a ``while_loop`` (int64), ``targets`` is an ``(E, K)`` array, ``alpha_minus``
-#: is NaN where the file gives none. What shapes a program stays static and keyed:
+#: is NaN where the file gives none. What shapes a program stays in the structure:
 #: ``samples_per_dimension`` and ``interior`` (the grid), the number of extra targets,
 #: ``[collision].enable`` and the capsules and pairs.
 SOLVER_FIELDS = ("tolerance", "max_iterations", "initial_damping")
@@ -83,44 +82,52 @@ COLLISION_FIELDS = (
     "body_radii",
 )
 #: Motor limits, taken as data when a file has them (``inf`` where a motor has none on
-#: one side; whether the file has any is static and keyed).
+#: one side; whether the file has any is part of the structure).
 LIMIT_FIELDS = ("motor_min", "motor_max")
-#: Integer settings (iteration caps), lifted as int64.
+#: Integer settings (iteration caps), taken as int64.
 INTEGER_FIELDS = frozenset(
     {"max_iterations", "ik_iterations", "adversarial_iterations"}
 )
-#: Fields that never reach a program: names and where the file came from.
-IGNORED = ("name", "source", "raw")
-#: Name tuples: a program depends on how many names there are, never on the names.
-NAMES = ("body_names", "joint_names", "point_names", "motor_names", "output_names")
+#: Each mechanism's copy with its design padded to its class (:func:`padded`).
+_PADDED: weakref.WeakKeyDictionary[Mechanism, Mechanism] = weakref.WeakKeyDictionary()
 
-_KEYS: weakref.WeakKeyDictionary[Mechanism, str] = weakref.WeakKeyDictionary()
+
+def _array(value, dtype) -> np.ndarray:
+    """``value`` as a numpy array of ``dtype``; a tracer (a mechanism rebuilt inside
+    a program) as a ``jax.numpy`` one. A concrete JAX array becomes numpy: a
+    ``jax.numpy`` conversion inside a trace would give a tracer, which a cache of a
+    concrete mechanism's numbers must never keep."""
+    if type(value).__module__.startswith("jax"):
+        import jax
+
+        if isinstance(value, jax.core.Tracer):
+            return jax.numpy.asarray(value, dtype=dtype)
+    return np.asarray(value, dtype=dtype)
 
 
 def numbers(mech: Mechanism) -> dict:
-    """The numbers of ``mech`` that programs take as data (numpy arrays: float64,
-    int64 iteration caps, bool ``design.is_length``)."""
-    out = {name: np.asarray(getattr(mech, name), dtype=np.float64) for name in FIELDS}
+    """The numbers of ``mech`` that programs take as data, by dotted field path
+    (numpy arrays: float64, int64 iteration caps, bool ``design.is_length``; JAX
+    arrays where the mechanism holds them)."""
+    out = {name: _array(getattr(mech, name), np.float64) for name in FIELDS}
     for name in DESIGN_FIELDS:
-        out[f"design.{name}"] = _padded_design_field(mech, name)
+        dtype = bool if name == "is_length" else np.float64
+        out[f"design.{name}"] = _array(getattr(mech.design, name), dtype)
     turns = mech.design.turns
     if turns is not None:
         for name in TURN_FIELDS:
-            value = np.asarray(getattr(turns, name), dtype=np.float64)
-            if name == "select":
-                value = padded_design(mech, value)
-            out[f"design.turns.{name}"] = value
+            out[f"design.turns.{name}"] = _array(getattr(turns, name), np.float64)
     if mech.design.points is not None:
-        out["design.points"] = padded_design(mech, mech.design.points)
+        out["design.points"] = _array(mech.design.points, np.float64)
     for name in ATTACHMENT_FIELDS:
-        out[f"points.{name}"] = np.asarray(
+        out[f"point_attachment.{name}"] = _array(
             getattr(mech.point_attachment, name), np.float64
         )
     if mech.output_frames is not None:
-        out["output_frames"] = np.asarray(mech.output_frames, dtype=np.float64)
+        out["output_frames"] = _array(mech.output_frames, np.float64)
     if mech.motor_limited:
         for name in LIMIT_FIELDS:
-            out[name] = np.asarray(getattr(mech, name), dtype=np.float64)
+            out[name] = _array(getattr(mech, name), np.float64)
     for table, fields in _settings(mech):
         for name in fields:
             out[f"{table}.{name}"] = _setting(mech, table, name)
@@ -149,13 +156,6 @@ def padded_design(mech: Mechanism, design):
     return xp.pad(design, [(0, 0)] * (design.ndim - 1) + [(0, extra)])
 
 
-def _padded_design_field(mech: Mechanism, name: str) -> np.ndarray:
-    """A field of the design space with its parameter axis (the last) padded."""
-    value = getattr(mech.design, name)
-    dtype = bool if name == "is_length" else np.float64
-    return padded_design(mech, value).astype(dtype)
-
-
 def _settings(mech: Mechanism) -> tuple[tuple[str, tuple[str, ...]], ...]:
     """The settings tables of ``mech`` and their fields taken as data."""
     tables = (("solver", SOLVER_FIELDS), ("evaluation", EVALUATION_FIELDS))
@@ -168,80 +168,30 @@ def _setting(mech: Mechanism, table: str, name: str) -> np.ndarray:
     """One setting as an array (:data:`SOLVER_FIELDS` and the others)."""
     value = getattr(getattr(mech, table), name)
     if name == "targets":
-        return np.asarray(value, dtype=np.float64).reshape(len(value), mech.num_outputs)
+        return _array(value, np.float64).reshape(len(value), mech.num_outputs)
     if name == "alpha_minus":
-        return np.asarray(np.nan if value is None else value, dtype=np.float64)
+        return _array(np.nan if value is None else value, np.float64)
     dtype = np.int64 if name in INTEGER_FIELDS else np.float64
-    return np.asarray(value, dtype=dtype)
+    return _array(value, dtype)
 
 
-def lift(mech: Mechanism, values: dict) -> Mechanism:
-    """``mech`` with its numbers replaced by ``values`` (as :func:`numbers` gives
-    them; tracers inside a program)."""
-    names = mech.design.names
-    turns = mech.design.turns
-    if turns is not None:
-        turns = dataclasses.replace(
-            turns, **{n: values[f"design.turns.{n}"] for n in TURN_FIELDS}
-        )
-    driven = {}
-    if mech.design.points is not None:
-        driven["points"] = values["design.points"]
-    design = dataclasses.replace(
-        mech.design,
-        names=names + ("",) * (design_class(len(names)) - len(names)),
-        turns=turns,
-        **driven,
-        **{n: values[f"design.{n}"] for n in DESIGN_FIELDS},
-    )
-    attachment = dataclasses.replace(
-        mech.point_attachment,
-        **{n: values[f"points.{n}"] for n in ATTACHMENT_FIELDS},
-    )
-    extra = {}
-    if mech.output_frames is not None:
-        extra["output_frames"] = values["output_frames"]
-    if mech.motor_limited:
-        extra |= {name: values[name] for name in LIMIT_FIELDS}
-    for table, fields in _settings(mech):
-        extra[table] = dataclasses.replace(
-            getattr(mech, table), **{n: values[f"{table}.{n}"] for n in fields}
-        )
-    return dataclasses.replace(
-        mech,
-        **{n: values[n] for n in FIELDS},
-        design=design,
-        point_attachment=attachment,
-        **extra,
-    )
-
-
-def _skeleton(mech: Mechanism) -> Mechanism:
-    """``mech`` with every number replaced by its shape (what a program depends on)."""
-    shapes = {k: f"{v.dtype.str}{v.shape}" for k, v in numbers(mech).items()}
-    blank = lift(mech, shapes)
-    counts = {name: len(getattr(mech, name)) for name in NAMES}
-    design = dataclasses.replace(blank.design, names=len(blank.design.names))
-    reported = blank.reported
-    if reported is not None:
-        reported = dataclasses.replace(reported, names=len(reported.names))
-    welds = blank.welds  # the parts never enter a program: their map does
-    return dataclasses.replace(
-        blank,
-        **{name: None for name in IGNORED},
-        **counts,
-        design=design,
-        reported=reported,
-        welds=None if welds is None else tuple(welds.body_of),
-    )
-
-
-def structure_key(mech: Mechanism) -> str:
-    """Hex digest of the structure of ``mech``: equal for two mechanisms whose
-    programs are the same function of their numbers."""
-    key = _KEYS.get(mech)
-    if key is None:
-        sink = hashlib.sha256()
-        digest(_skeleton(mech), sink)
-        key = _KEYS[mech] = sink.hexdigest()
-    return key
+def padded(mech: Mechanism) -> Mechanism:
+    """``mech`` with its design space padded to :func:`design_class` parameters
+    (zero columns, blank names, ``is_length`` False: a padded parameter moves
+    nothing); once per mechanism, weakly held."""
+    held = _PADDED.get(mech)
+    if held is None:
+        space = mech.design
+        extra = {f: padded_design(mech, getattr(space, f)) for f in DESIGN_FIELDS}
+        extra["is_length"] = extra["is_length"].astype(bool)
+        if space.points is not None:
+            extra["points"] = padded_design(mech, space.points)
+        turns = space.turns
+        if turns is not None:
+            extra["turns"] = dataclasses.replace(
+                turns, select=padded_design(mech, turns.select)
+            )
+        names = space.names + ("",) * (design_class(space.size) - space.size)
+        design = dataclasses.replace(space, names=names, **extra)
+        held = _PADDED[mech] = dataclasses.replace(mech, design=design)
+    return held

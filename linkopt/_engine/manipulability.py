@@ -96,7 +96,7 @@ def _point_jacobian(
     return (dp_ds @ ds_da)[np.array(coords)]
 
 
-@partial(jit, static_argnums=(0, 1, 2))
+@partial(jit, static_argnums=(1, 2))
 def _batched(mech: Mechanism, index: int, coords: tuple[int, ...], states, design):
     jacs = jax.vmap(lambda s: _point_jacobian(mech, index, coords, s, design))(states)
     return jacs, jax.vmap(yoshikawa)(jacs)

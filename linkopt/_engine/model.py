@@ -261,9 +261,11 @@ class OutputTable:
 class Mechanism:
     """A linkage: bodies, joints, motors, named points, outputs and design space.
 
-    Hashed by identity so it can be a static argument of ``jax.jit``; all array fields
-    are numpy and never traced. Shapes: ``J`` joints, ``B`` bodies, ``P`` points,
-    ``M`` motors, ``K`` outputs.
+    A JAX pytree (:mod:`.structure`): its numbers (:func:`.lifting.numbers`) are the
+    leaves, traced inside a program, and the rest is its value-equal
+    :class:`~.structure.Structure`, so it is an ordinary argument of ``jax.jit``. The
+    object itself is hashed by identity (caches hold it weakly). Shapes: ``J``
+    joints, ``B`` bodies, ``P`` points, ``M`` motors, ``K`` outputs.
     """
 
     name: str
@@ -440,9 +442,9 @@ def fingerprint(mech: Mechanism) -> str:
     """Hex digest of a mechanism's contents, its file path left out.
 
     Two loads of the same file, from any path and in any process, share it; any change
-    to the file or to a field derived from it changes it. It keys the cache of traced
-    programs (:mod:`linkopt._engine.programs`) and ties an optimisation checkpoint to
-    its mechanism (:mod:`linkopt._design.run`).
+    to the file or to a field derived from it changes it. It ties an optimisation
+    checkpoint to its mechanism (:mod:`linkopt._design.run`) and names a worker's
+    mechanism; programs are keyed by the structure (:mod:`.structure`).
     """
     sink = hashlib.sha256()
     digest(mech, sink)

@@ -8,12 +8,14 @@ for the batched evaluation costs more than loading the executable
 process. The evaluation, the partial gradient, the blocked solves, σ_min and read-outs
 of concrete arrays and the load-time rest checks all run through :func:`call`.
 
-A program takes the mechanism's numbers (anchors, axes, origins, output ranges, the
-design space's map, ...) as arguments (:mod:`.lifting`), so its trace and its compiled
-executable depend only on the mechanism's structure: a second file of the same
-structure, or the same file with other numbers, reuses both. :func:`call` serialises
-the traced program (StableHLO) under a key of everything it depends on: the program's
-name, the structure (:func:`.lifting.structure_key`), the argument shapes and dtypes,
+A program takes the mechanism as an argument: its numbers (anchors, axes, origins,
+output ranges, the design space's map, ...) are the leaves of its pytree and its
+:class:`~.structure.Structure` the rest (:mod:`.structure`), with the design padded to
+its class (:func:`.lifting.padded`). So its trace and its compiled executable depend
+only on the mechanism's structure: a second file of the same structure, or the same
+file with other numbers, reuses both. :func:`call` serialises the traced program
+(StableHLO) under a key of everything it depends on: the program's name, the
+structure (its digest), the argument shapes and dtypes,
 the jax version and the source of every module of the package, subfolders included
 (:func:`source_digest`). A later process deserialises it instead of tracing. The entry
 is written to a temporary file and renamed, so worker processes can share the
@@ -43,14 +45,15 @@ from .. import _kernels
 from .._cache import read_used, store, traces_folder
 from .._config import jit
 from . import dense
-from .lifting import lift, numbers, structure_key
+from .lifting import padded
 from .model import Mechanism
+from .structure import Structure, flatten, unflatten
 
 #: The package folder whose sources key every program (:func:`source_digest`).
 PACKAGE = Path(__file__).resolve().parents[1]
-#: This process's programs: ``(name, structure key, argument signature)`` → jitted
-#: call of the (de)serialised program, least recently used first. Keyed by the
-#: structure's digest, not the mechanism, so it keeps no mechanism alive (an earlier
+#: This process's programs: ``(name, Structure, argument signature)`` → jitted call
+#: of the (de)serialised program, least recently used first. Keyed by the structure,
+#: which holds no numbers and no names, so it keeps no mechanism alive (an earlier
 #: verification round's is freed) and serves every mechanism of one structure.
 PROGRAMS: dict[tuple, Callable] = {}
 #: Most programs kept loaded (:data:`PROGRAMS`). Each loaded XLA:CPU executable holds
@@ -63,7 +66,7 @@ PROGRAMS: dict[tuple, Callable] = {}
 #: the disk caches when it is needed again. The five-bar's optimiser uses 9 (7,200
 #: mappings in all).
 LIVE_PROGRAMS = 48
-#: Errors of tracing itself (a lifted number used as a constant, :mod:`.lifting`),
+#: Errors of tracing itself (a traced number used as a constant, :mod:`.lifting`),
 #: raised as they are rather than taken for a program that cannot be exported.
 TRACE_ERRORS = (
     jax.errors.ConcretizationTypeError,
@@ -71,7 +74,7 @@ TRACE_ERRORS = (
     jax.errors.TracerBoolConversionError,
     jax.errors.TracerIntegerConversionError,
 )
-#: Each mechanism's numbers on the device, with their signature (:func:`_numbers`).
+#: Each mechanism's padded leaves, Structure and leaves' signature (:func:`_numbers`).
 NUMBERS: weakref.WeakKeyDictionary[Mechanism, tuple] = weakref.WeakKeyDictionary()
 #: Held while a program is looked up or made (:func:`_program`).
 _LOCK = threading.RLock()
@@ -123,12 +126,11 @@ def _signature(args) -> tuple:
     return tree, tuple((np.shape(leaf), _dtype(leaf)) for leaf in leaves)
 
 
-def _key(name: str, mech: Mechanism, signature: tuple) -> str:
+def _key(name: str, structure: Structure, signature: tuple) -> str:
     (value_tree, value_leaves), (tree, leaves) = signature
     leaves = value_leaves + leaves
     sink = hashlib.sha256(
-        f"{name}|{_package_digest(PACKAGE)}|{kernels_digest()}|"
-        f"{structure_key(mech)}".encode()
+        f"{name}|{_package_digest(PACKAGE)}|{kernels_digest()}|{structure.key}".encode()
     )
     sink.update(f"{value_tree}|{tree}".encode())
     for shape, dtype in leaves:
@@ -136,13 +138,13 @@ def _key(name: str, mech: Mechanism, signature: tuple) -> str:
     return sink.hexdigest()
 
 
-def _trace_path(name: str, mech: Mechanism, signature: tuple) -> Path | None:
-    """Where the trace of program ``name`` for ``mech`` and ``signature`` is kept, or
-    None where the caches are not in use (:func:`linkopt.use_cache`)."""
+def _trace_path(name: str, structure: Structure, signature: tuple) -> Path | None:
+    """Where the trace of program ``name`` for ``structure`` and ``signature`` is
+    kept, or None where the caches are not in use (:func:`linkopt.use_cache`)."""
     folder = traces_folder()
     if folder is None:
         return None
-    return folder / f"{name}-{_key(name, mech, signature)[:32]}.jaxexport"
+    return folder / f"{name}-{_key(name, structure, signature)[:32]}.jaxexport"
 
 
 def _load(path: Path | None):
@@ -190,49 +192,51 @@ def _named(name: str, fn: Callable) -> Callable:
     return program
 
 
-def _numbers(mech: Mechanism) -> tuple[dict, tuple]:
-    """The mechanism's numbers on the device and their signature, once per
-    mechanism (weakly held: :data:`NUMBERS`)."""
+def _numbers(mech: Mechanism) -> tuple[list, Structure, tuple]:
+    """The leaves and Structure of the mechanism with its design padded
+    (:func:`.lifting.padded`), and the leaves' signature; once per mechanism (weakly
+    held: :data:`NUMBERS`)."""
     held = NUMBERS.get(mech)
     if held is None:
-        values = jax.device_put(numbers(mech))
-        held = NUMBERS[mech] = (values, _signature(values))
+        leaves, structure = flatten(padded(mech))
+        held = NUMBERS[mech] = (leaves, structure, _signature(leaves))
     return held
 
 
-def _program(name: str, mech: Mechanism, fn: Callable, values, args) -> Callable:
+def _program(name: str, mech: Mechanism, fn: Callable, args) -> Callable:
     """The jitted program, from :data:`PROGRAMS`, the disk or a new trace; one
     thread at a time (:mod:`.blocks` calls programs from several), so that no program
     is loaded twice."""
     with _LOCK:
-        return _program_locked(name, mech, fn, values, args)
+        return _program_locked(name, mech, fn, args)
 
 
-def _program_locked(name: str, mech: Mechanism, fn: Callable, values, args):
-    signature = (_numbers(mech)[1], _signature(args))
-    memo = (name, structure_key(mech), signature)
+def _program_locked(name: str, mech: Mechanism, fn: Callable, args):
+    leaves, structure, numbers = _numbers(mech)
+    signature = (numbers, _signature(args))
+    memo = (name, structure, signature)
     if memo in PROGRAMS:
         PROGRAMS[memo] = PROGRAMS.pop(memo)  # most recently used last
         return PROGRAMS[memo]
     while len(PROGRAMS) >= LIVE_PROGRAMS:  # the least recently used goes
         del PROGRAMS[next(iter(PROGRAMS))]
-    path = _trace_path(name, mech, signature)
+    path = _trace_path(name, structure, signature)
     exported = _load(path)
 
-    def lifted(values, *args):
-        return fn(lift(mech, values), *args)
+    def program(leaves, *args):
+        return fn(unflatten(structure, leaves), *args)
 
     if exported is None:
-        specs = jax.tree_util.tree_map(_spec, (values, *args))
+        specs = jax.tree_util.tree_map(_spec, (leaves, *args))
         try:
             exported = export.export(
-                jax.jit(lifted), disabled_checks=dense.EXPORT_CHECKS
+                jax.jit(program), disabled_checks=dense.EXPORT_CHECKS
             )(*specs)
         except TRACE_ERRORS:
             raise  # the function itself cannot be traced: no fallback would run it
         except Exception as err:  # not exportable: plain jit, traced in every process
             _warn(name, "exported", err)
-            PROGRAMS[memo] = jit(_named(name, lifted))
+            PROGRAMS[memo] = jit(_named(name, program))
             return PROGRAMS[memo]
         _store(path, exported)
     PROGRAMS[memo] = jit(_named(name, exported.call))
@@ -242,15 +246,16 @@ def _program_locked(name: str, mech: Mechanism, fn: Callable, values, args):
 def stored(name: str, mech: Mechanism, *args) -> bool:
     """Whether the trace of ``call(name, mech, fn, *args)`` is on disk, i.e.
     some process has traced (and so, almost always, compiled) that program before."""
-    path = _trace_path(name, mech, (_numbers(mech)[1], _signature(args)))
+    _, structure, numbers = _numbers(mech)
+    path = _trace_path(name, structure, (numbers, _signature(args)))
     return path is not None and path.exists()
 
 
 def output_shapes(name: str, mech: Mechanism, fn: Callable, *args):
     """The shapes and dtypes (:class:`jax.ShapeDtypeStruct`) of
     ``call(name, mech, fn, *args)``'s result, without running it."""
-    values = _numbers(mech)[0]
-    return jax.eval_shape(_program(name, mech, fn, values, args), values, *args)
+    leaves = _numbers(mech)[0]
+    return jax.eval_shape(_program(name, mech, fn, args), leaves, *args)
 
 
 def compile_ahead(name: str, mech: Mechanism, fn: Callable, *args) -> None:
@@ -259,8 +264,8 @@ def compile_ahead(name: str, mech: Mechanism, fn: Callable, *args) -> None:
     compilation cache, where another process that calls the program finds it (an
     optimiser's worker compiles a program that the calling process needs next:
     :mod:`linkopt._design.workers`)."""
-    values = _numbers(mech)[0]
-    _program(name, mech, fn, values, args).lower(values, *args).compile()
+    leaves = _numbers(mech)[0]
+    _program(name, mech, fn, args).lower(leaves, *args).compile()
 
 
 def call(name: str, mech: Mechanism, fn: Callable, *args):
@@ -269,8 +274,9 @@ def call(name: str, mech: Mechanism, fn: Callable, *args):
 
     ``fn(mech, *args)`` must be a pure function of the mechanism and array arguments
     that depends on nothing but them and the linkopt sources; inside it the
-    mechanism's numbers are traced (:mod:`.lifting`). ``name`` names the program."""
+    mechanism's numbers are traced and its names blank (:mod:`.structure`). ``name``
+    names the program."""
     with _LOCK:
-        values = _numbers(mech)[0]
-        program = _program_locked(name, mech, fn, values, args)
-    return program(values, *args)
+        leaves = _numbers(mech)[0]
+        program = _program_locked(name, mech, fn, args)
+    return program(leaves, *args)

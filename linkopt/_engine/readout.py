@@ -16,7 +16,7 @@ from .geometry import design_array, design_vector, geometry
 from .model import Mechanism
 
 
-@partial(jit, static_argnums=(0, 1))
+@partial(jit, static_argnums=1)
 def _read(mech: Mechanism, what: str, state, design):
     geom = geometry(mech, design_vector(mech, design))
     fn = {
@@ -44,7 +44,7 @@ def _read(mech: Mechanism, what: str, state, design):
 def _blocked_read(mech: Mechanism, what: str, state, design):
     """:func:`_read`, a concrete batch of states in fixed blocks
     (:mod:`linkopt._engine.blocks`: one program for every batch size)."""
-    if traced(state, design):
+    if traced(mech, state, design):
         return _read(mech, what, state, design)
     design = design_array(mech, design)  # None and arrays: one program
 

@@ -33,8 +33,6 @@ its derivative is the plain-JAX steps'.
 
 from __future__ import annotations
 
-from functools import partial
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -146,14 +144,14 @@ def sigma_min_pair(mech: Mechanism, geom: Geometry, state) -> Float[Array, 2]:
     return sigmas_of(stacked_jacobians(mech, geom, state))
 
 
-@partial(jit, static_argnums=0)
+@jit
 def f_sing_value(mech: Mechanism, geom: Geometry, state) -> Float[Array, ""]:
     """Eq. 3 at one state."""
     sigma = sigma_min_pair(mech, geom, state)
     return jnp.sum(1.0 / sigma)
 
 
-@partial(jit, static_argnums=0)
+@jit
 def sigma_pairs(mech: Mechanism, state, design):
     geom = geometry(mech, design_vector(mech, design))
     state = jnp.asarray(state, dtype=jnp.float64)
@@ -167,7 +165,7 @@ def singular_values(mech: Mechanism, state, *, design=None) -> Float[Array, "...
     states are allowed: maps pass unreached cells too, and get NaN for them."""
     if not isinstance(state, jax.core.Tracer):
         _check_shape(mech, state)
-    if traced(state, design):
+    if traced(mech, state, design):
         return sigma_pairs(mech, state, design)
     design = design_array(mech, design)  # None and arrays: one program
 

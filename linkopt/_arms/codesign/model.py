@@ -337,7 +337,7 @@ def arm_state(
     implicit-function tangents ``ṡ = -(JᵀJ)⁻¹Jᵀ(∂C/∂a ȧ + ∂C/∂p ṗ)`` of ``C_FK``."""
     geom = arm_geometry(arm, d)
     state = direct_state(arm, theta, d)
-    return geom, implicit_state(arm.mechanism, "fk", geom, theta, state)
+    return geom, implicit_state("fk", arm.mechanism, geom, theta, state)
 
 
 def arm_loads(
