@@ -281,10 +281,13 @@ def test_particles_split_over_two_worker_processes_give_the_same_numbers(
     designs = np.concatenate([run.position, other])
     if cold:
         ahead.start(2)
-    with Workers(five_bar, 2) as workers:
-        assert ahead.adopt(2) is None  # taken by the pool, or never spawned
-        split = workers.evaluate(designs)
-        gradients = workers.partial_gradient(designs, split, alpha)
+    try:
+        with Workers(five_bar, 2) as workers:
+            assert ahead.adopt(2) is None  # taken by the pool, or never spawned
+            split = workers.evaluate(designs)
+            gradients = workers.partial_gradient(designs, split, alpha)
+    finally:  # as `linkopt optimize` does: the pool handed back is ended
+        ahead.close()
     for name in (f.name for f in dataclasses.fields(ev)):
         whole, part = getattr(expected, name), getattr(split, name)
         if whole is None:
