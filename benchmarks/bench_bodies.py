@@ -203,37 +203,28 @@ def draw(records: list[dict], evaluations: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, (ax, right) = plt.subplots(1, 2, figsize=(11.0, 4.0))
-    for kind, marker in (("chain", "o"), ("ladder", "s")):
-        rows = [r for r in evaluations if r["linkage"] == kind]
-        for key, style, label in (
-            ("dense_per_sample_s", "--", "dense"),
-            ("banded_per_sample_s", "-", "banded"),
-        ):
-            pts = [(r["bodies"], r[key]) for r in rows if key in r]
-            if pts:
-                x, y = zip(*pts, strict=True)
-                right.loglog(x, y, style, marker=marker, label=f"{kind}, {label}")
-    right.set_xlabel("bodies")
-    right.set_ylabel("evaluation time per sample (s)")
-    right.grid(True, which="both", alpha=0.3)
-    right.legend()
-    for kind, marker in (("chain", "o"), ("ladder", "s")):
-        rows = [r for r in records if r["linkage"] == kind]
-        for key, style, label in (
-            ("dense_s", "--", "dense"),
-            ("banded_s", "-", "banded"),
-        ):
-            pts = [(r["bodies"], r[key]) for r in rows if key in r]
-            if pts:
-                x, y = zip(*pts, strict=True)
-                ax.loglog(x, y, style, marker=marker, label=f"{kind}, {label}")
-    ax.set_xlabel("bodies")
-    ax.set_ylabel("time per FK solve from rest (s)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
+    _panel(right, evaluations, "per_sample_s", "evaluation time per sample (s)")
+    _panel(ax, records, "s", "time per FK solve from rest (s)")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
+
+
+def _panel(ax, records: list[dict], suffix: str, ylabel: str) -> None:
+    """Log-log time against bodies, dense dashed and banded solid, per linkage: the
+    records' ``dense_<suffix>`` and ``banded_<suffix>`` where they have them."""
+    for kind, marker in (("chain", "o"), ("ladder", "s")):
+        rows = [r for r in records if r["linkage"] == kind]
+        for name, style in (("dense", "--"), ("banded", "-")):
+            key = f"{name}_{suffix}"
+            pts = [(r["bodies"], r[key]) for r in rows if key in r]
+            if pts:
+                x, y = zip(*pts, strict=True)
+                ax.loglog(x, y, style, marker=marker, label=f"{kind}, {name}")
+    ax.set_xlabel("bodies")
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
 
 
 def main() -> None:
