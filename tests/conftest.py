@@ -102,3 +102,11 @@ def fresh_checkpoint(tmp_path, five_bar):
     out.mkdir()
     save_checkpoint(out, start(five_bar, settings), five_bar, settings)
     return out, json.loads((out / CHECKPOINT).read_text())
+
+
+def pytest_configure(config):
+    """Per-test compile statistics, opt-in (``$LINKOPT_COMPILE_STATS``; see
+    ``tests/_compile_stats.py``)."""
+    from _compile_stats import register
+
+    register(config)
