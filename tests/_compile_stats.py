@@ -6,7 +6,7 @@ for each test (setup, call and teardown together), the seconds spent tracing
 (``jaxpr_trace_duration``), lowering to MLIR (``jaxpr_to_mlir_module_duration``) and
 compiling (``backend_compile_duration``), the number of each, the compilations served
 from the disk cache (``cache_hits``), the process's CPU seconds and the wall seconds,
-and the programs that took the most compile time. One JSON line per test is appended
+and the programs that took the most compile time (name, seconds, compilations). One JSON line per test is appended
 to the file (each pytest-xdist worker appends its own lines). Work done in a
 subprocess the test starts (the command line, a cluster's workers) is not seen: its
 CPU shows only in the parent's wall time.
@@ -33,6 +33,7 @@ class CompileStats:
         self.events: collections.Counter = collections.Counter()
         self.counts: collections.Counter = collections.Counter()
         self.programs: collections.Counter = collections.Counter()
+        self.compiled: collections.Counter = collections.Counter()
         from jax import monitoring
 
         monitoring.register_event_duration_secs_listener(self._duration)
@@ -44,6 +45,7 @@ class CompileStats:
         self.counts[name] += 1
         if name == "backend_compile_duration":
             self.programs[kwargs.get("fun_name") or "?"] += duration
+            self.compiled[kwargs.get("fun_name") or "?"] += 1
 
     def _event(self, event: str, **kwargs) -> None:
         self.counts[event.rsplit("/", 1)[-1]] += 1
@@ -53,6 +55,7 @@ class CompileStats:
         self.events.clear()
         self.counts.clear()
         self.programs.clear()
+        self.compiled.clear()
         cpu, wall = time.process_time(), time.perf_counter()
         yield
         record = {
@@ -66,7 +69,7 @@ class CompileStats:
             "lower_s": round(self.events["jaxpr_to_mlir_module_duration"], 2),
             "cache_hits": self.counts["cache_hits"],
             "top": [
-                [name, round(seconds, 2)]
+                [name, round(seconds, 2), self.compiled[name]]
                 for name, seconds in self.programs.most_common(TOP)
             ],
         }
