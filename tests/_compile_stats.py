@@ -6,8 +6,9 @@ for each test (setup, call and teardown together), the seconds spent tracing
 (``jaxpr_trace_duration``), lowering to MLIR (``jaxpr_to_mlir_module_duration``) and
 compiling (``backend_compile_duration``), the number of each, the compilations served
 from the disk cache (``cache_hits``), the process's CPU seconds and the wall seconds,
-and the programs that took the most compile time (name, seconds, compilations). One JSON line per test is appended
-to the file (each pytest-xdist worker appends its own lines). Work done in a
+and the programs that took the most compile time (name, seconds, compilations). One
+JSON line per test is appended to the file (each pytest-xdist worker appends its own
+lines). Work done in a
 subprocess the test starts (the command line, a cluster's workers) is not seen: its
 CPU shows only in the parent's wall time.
 
