@@ -85,9 +85,15 @@ def _term(mech, ev) -> float:
 # --- f_design -----------------------------------------------------------------------
 
 
-def test_f_design_gains_the_weighted_collision_term():
+@pytest.fixture(scope="module")
+def colliding():
+    """The collision four-bar and its evaluation, shared by the tests that read it."""
     mech = linkopt.load(COLLIDING)
-    ev = evaluate(mech)
+    return mech, evaluate(mech)
+
+
+def test_f_design_gains_the_weighted_collision_term(colliding):
+    mech, ev = colliding
     term = _term(mech, ev)
     assert term > 0.0  # the coupler sweeps through the ground link
     share = float(ev.f_design - ev.reach - ev.singularity)
@@ -101,10 +107,10 @@ def test_f_design_gains_the_weighted_collision_term():
     assert share3 == pytest.approx(3.0 * share, rel=1e-9)
 
 
-def test_switched_off_collision_leaves_f_design_as_reach_plus_singularity():
-    mech = linkopt.load(COLLIDING)
+def test_switched_off_collision_leaves_f_design_as_reach_plus_singularity(colliding):
+    _, ev = colliding
     off = _load(replace=("enable = true", "enable = false"))
-    ev, ev_off = evaluate(mech), evaluate(off)
+    ev_off = evaluate(off)
     np.testing.assert_array_equal(ev_off.ik_states, ev.ik_states)
     np.testing.assert_array_equal(ev_off.adv_states, ev.adv_states)
     assert float(ev_off.reach) == float(ev.reach)
@@ -115,11 +121,10 @@ def test_switched_off_collision_leaves_f_design_as_reach_plus_singularity():
     assert float(ev.f_design) > float(ev_off.f_design)
 
 
-def test_evaluate_command_shows_the_share(capsys):
+def test_evaluate_command_shows_the_share(colliding):
     from linkopt._cli.evaluation import evaluation_payload
 
-    mech = linkopt.load(COLLIDING)
-    ev = evaluate(mech)
+    mech, ev = colliding
     entry = evaluation_payload(mech, ev)["collision"]
     assert entry["share"] == pytest.approx(
         float(ev.f_design - ev.reach - ev.singularity), rel=1e-9
@@ -135,11 +140,14 @@ def _frozen(mech):
 
 
 def test_partial_gradient_with_the_collision_term_matches_finite_differences():
-    """Lifts of 2 and 3 (the coupler in the band over the ground link where their
-    projections cross) and two positions of the pivot D."""
+    """Lifts of 2 to 3.5 (the coupler in the band over the ground link where their
+    projections cross) and four positions of the pivot D. Four designs: the batch of
+    the optimiser's four particles below (the same structure, its one parameter
+    padded as these two are), so both tests run one evaluation and one gradient
+    program."""
     mech = _load(LIFT + D_X, name="lift.toml")
     alpha = alpha_minus(mech)
-    designs = np.array([[2.0, 60.0], [3.0, 61.5]])
+    designs = np.array([[2.0, 60.0], [3.0, 61.5], [2.5, 59.0], [3.5, 62.5]])
     ev = jax.tree_util.tree_map(np.asarray, evaluate(mech, designs))
     assert np.all(ev.f_design - ev.reach - ev.singularity > 0.0)  # in the band
     assert np.all(ev.reach < 1e-12) and np.all(ev.singularity == 0.0)
