@@ -178,15 +178,17 @@ def test_exact_jacobian_matches_forward_mode_and_finite_differences():
         jax.jacfwd(lambda s: constraints.bk_residual(mech, geom, targets, s))
     )
     values = jax.jit(lambda s: constraints.homogenised_output_values(mech, geom, s))
+    # jitted, as the solvers run them: op by op, the closed form's small operations
+    # compiled one by one (about 280 compilations)
+    linearised = jax.jit(lambda s: jacobian.linearise(mech, geom, "bk", targets, s))
+    residual = jax.jit(lambda s: constraints.bk_residual(mech, geom, targets, s))
+    exact_of = jax.jit(jax.jacfwd(values))
     for state in _near_rest_states(mech):
         state = jnp.asarray(state)
-        value, jac = jacobian.linearise(mech, geom, "bk", targets, state)
+        value, jac = linearised(state)
         dense = forward(state)
         assert np.all(np.isfinite(dense))
-        assert (
-            np.abs(value - constraints.bk_residual(mech, geom, targets, state)).max()
-            < 1e-12
-        )
+        assert np.abs(value - residual(state)).max() < 1e-12
         assert np.abs(jac - dense).max() < 1e-10
         # central differences of the two angles, every state entry
         step = 1e-6
@@ -198,7 +200,7 @@ def test_exact_jacobian_matches_forward_mode_and_finite_differences():
             ],
             axis=1,
         )
-        exact = jax.jacfwd(values)(state)
+        exact = exact_of(state)
         assert np.abs(exact - fd).max() < 1e-7
         assert np.abs(dense[-2:] - exact).max() < 1e-12  # the output rows
 
