@@ -154,7 +154,9 @@ def test_a_short_synthesis_lowers_the_rms_and_keeps_the_cycle_clear(mech):
     curve, _, _ = _coupler_curve(mech, near, turn)
     targets = _targets(mech, "path", "coupler_point", curve, closed=True, tolerance=1.0)
     start = score(mech, targets, steps=STEPS)
-    settings = linkopt.OptimizerSettings(particles=6, iterations=3, spread=0.1, seed=0)
+    # four particles, as test_cli_synthesize.py's and test_synthesis_outputs.py's runs
+    # of the file's six targets: the same compiled swarm score and gradient
+    settings = linkopt.OptimizerSettings(particles=4, iterations=3, spread=0.1, seed=0)
     seen = []
     result = synthesize(mech, targets, settings, steps=STEPS, progress=seen.append)
     assert len(result.history) == len(seen) <= 3
