@@ -244,13 +244,14 @@ def test_bk_on_a_spherical_five_bar_reaches_the_tilts(five_bar_pointing):
     motors = np.array([[0.15, -0.1], [-0.2, 0.12], [0.1, 0.2]])
     targets = np.array([_tilt(_five_bar_tip(*a), c0, e1) for a in motors])
     assert np.all(np.abs(targets) < 0.3) and np.abs(targets).min() > 1e-3
-    sol = linkopt.solve_bk(mech, targets)
-    assert np.all(np.asarray(sol.converged))
-    np.testing.assert_allclose(
-        linkopt.output_values(mech, sol.state), targets, atol=1e-9
-    )
-    np.testing.assert_allclose(linkopt.motor_values(mech, sol.state), motors, atol=1e-9)
-    state = sol.state[0]
+    # row by row: the one-row program that the bk command below runs too (a batch
+    # would compile the 64-row block's program beside it)
+    solved = [linkopt.solve_bk(mech, row) for row in targets]
+    assert all(bool(sol.converged) for sol in solved)
+    states = np.stack([np.asarray(sol.state) for sol in solved])
+    np.testing.assert_allclose(linkopt.output_values(mech, states), targets, atol=1e-9)
+    np.testing.assert_allclose(linkopt.motor_values(mech, states), motors, atol=1e-9)
+    state = states[0]
     exact = np.asarray(linkopt.sensitivity(mech, state, "outputs"))
     step = 1e-6
     fd = np.stack(
