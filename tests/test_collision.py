@@ -518,12 +518,15 @@ def test_collision_term_gradients_match_finite_differences():
     state = np.asarray(linkopt.solve_bk(mech, np.array([-0.08])).state)
     p0 = np.asarray(mech.design.p0)
 
-    def term(s, p):
+    def value_of(s, p):
         return collision_value(mech, geometry(mech, p), s)
 
-    value = float(term(jnp.asarray(state), p0))
+    # jitted (numpy arguments each time, so one trace each): op by op, the term, its
+    # gradient and the differences compiled over two hundred small programs
+    term = jax.jit(value_of)
+    value = float(term(state, p0))
     assert 0.0 < value < 1.0  # in the band, short of contact
-    grad_s, grad_p = jax.grad(term, argnums=(0, 1))(jnp.asarray(state), p0)
+    grad_s, grad_p = jax.jit(jax.grad(value_of, argnums=(0, 1)))(state, p0)
     h = 1e-6
     fd_s = np.array(
         [
