@@ -52,8 +52,11 @@ def test_summary_and_history_hold_what_evaluate_reports():
     assert entry["min_clearance"] < 0.0  # the coupler passes through the ground link
     assert entry["verified_min_clearance"] == 2.0
     assert entry["initial_verified_min_clearance"] == -3.0
-    # a batch of two designs: the columns of each are its own evaluation's
-    batch = evaluate(mech, np.stack([mech.design.p0] * 2))
-    columns = history_columns(mech, batch, np.stack([mech.design.p0] * 2), 1)
+    # a batch of four designs (the batch of test_collision_objective.py's four
+    # particles, whose evaluation program this structure shares): the columns of
+    # each are its own evaluation's
+    designs = np.stack([mech.design.p0] * 4)
+    batch = evaluate(mech, designs)
+    columns = history_columns(mech, batch, designs, 1)
     assert columns["collision"] == pytest.approx(entry["share"], rel=1e-9)
     assert columns["min_clearance"] == pytest.approx(entry["min_clearance"], rel=1e-9)
