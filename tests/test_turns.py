@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from linkopt._engine import turns
+from linkopt._engine import rotations, turns
 from linkopt._engine.rotations import rotate
 from linkopt._engine.row_algebra import dot_grad, rotate_grad
 
@@ -32,7 +32,7 @@ def _draw(seed: int, count: int = 32):
 
 
 def test_quadratic_form_is_symmetric_with_unit_entries():
-    q = turns.QUADRATIC
+    q = rotations.QUADRATIC
     assert np.array_equal(q, np.swapaxes(q, -1, -2))
     assert set(np.unique(q)) <= {-1.0, 0.0, 1.0}
 

@@ -4,8 +4,9 @@ applied to every body-local vector of the constraint rows' Jacobian
 
 ``R(q)`` is the quadratic form of :func:`.rotations.rotate`, ``R(q) v = rotate(q, v)``
 for any ``q`` (for a non-unit ``q`` it is ``|q|²`` times a rotation, as the solver's
-states are), so its entries are ``R_ij = qᵀ Q_ij q`` with constant symmetric ``4 x 4``
-matrices ``Q_ij`` (:data:`QUADRATIC`) and its derivative is ``∂R_ij/∂q = 2 Q_ij q``.
+states are), so its entries are ``R_ij = qᵀ Q_ij q`` with constant symmetric
+``4 x 4`` matrices ``Q_ij`` (:data:`.rotations.QUADRATIC`) and its derivative is
+``∂R_ij/∂q = 2 Q_ij q``.
 Per body that is one product with a constant matrix each; per member of a row group a
 rotated vector is one contraction ``R v`` and ``∂(R v)/∂q`` one more, where the
 quaternion formula traced some forty operations (products, crosses, unrolled dots):
@@ -23,35 +24,9 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .. import _config  # noqa: F401  (float64 on before any array)
+from .rotations import QUADRATIC, quadratic_matrix
 from .row_algebra import take
 
-
-def _np_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """:func:`.rotations.rotate` in numpy (the same quadratic form)."""
-    w, u = q[0], q[1:]
-    return (w * w - u @ u) * v + 2.0 * (u @ v) * u + 2.0 * w * np.cross(u, v)
-
-
-def _quadratic() -> np.ndarray:
-    """``Q`` ``(3, 3, 4, 4)``: ``R_ij(q) = qᵀ Q_ij q`` by polarisation of the form on
-    the basis quaternions."""
-    eye4, eye3 = np.eye(4), np.eye(3)
-
-    def entries(q):  # (3, 3): column j is R(q) e_j
-        return np.stack([_np_rotate(q, e) for e in eye3], axis=1)
-
-    out = np.zeros((3, 3, 4, 4))
-    for a in range(4):
-        for b in range(4):
-            both = entries(eye4[a] + eye4[b]) - entries(eye4[a]) - entries(eye4[b])
-            out[:, :, a, b] = 0.5 * both if a != b else entries(eye4[a])
-    return out
-
-
-#: ``Q_ij`` of the module docstring, ``(3, 3, 4, 4)``, entries in {0, ±1}.
-QUADRATIC = _quadratic()
-#: ``R = (q ⊗ q) · _SQUARES`` with ``q ⊗ q`` flattened to 16: ``(16, 9)``.
-_SQUARES = QUADRATIC.reshape(9, 16).T.copy()
 #: ``∂R/∂q = q · _SLOPES``: ``(4, 36)``, index ``(i, j, a)`` of ``∂R_ij/∂q_a``.
 _SLOPES = (2.0 * QUADRATIC).transpose(3, 0, 1, 2).reshape(4, 36).copy()
 
@@ -67,11 +42,8 @@ class Turn:
 
 def body_turns(q: Float[Array, "B 4"]) -> Turn:
     """The :class:`Turn` of every body from its quaternion (homogeneous, any norm)."""
-    lead = q.shape[:-1]
-    squares = (q[..., :, None] * q[..., None, :]).reshape(lead + (16,))
-    matrix = (squares @ jnp.asarray(_SQUARES)).reshape(lead + (3, 3))
-    slope = (q @ jnp.asarray(_SLOPES)).reshape(lead + (3, 3, 4))
-    return Turn(matrix, slope)
+    slope = (q @ jnp.asarray(_SLOPES)).reshape(q.shape[:-1] + (3, 3, 4))
+    return Turn(quadratic_matrix(q), slope)
 
 
 def take_turn(turn: Turn, index: np.ndarray) -> Turn:
