@@ -48,20 +48,18 @@ from . import joints as joint_types
 from .constraints import gauge_rows
 from .geometry import Geometry
 from .model import JOINT_ROWS, Mechanism
-from .rotations import rotate
 from .row_algebra import (
     Frames,
     dot,
-    dot_grad,
     frames,
     gram,
     q_block,
-    rotate_grad,
     stack_rows,
     sum_rows,
     take,
     xq_block,
 )
+from .turns import Side, Turn, body_turns, take_turn
 
 
 @dataclass(frozen=True)
@@ -70,35 +68,35 @@ class _Rows:
     blocks: tuple  # ((bodies: np.ndarray (G,), jac: (G, m, 7)), ...)
 
 
-def _point_rows(f: Frames):
+def _point_rows(f: Frames, si: Side, sj: Side):
     """The 3 point-coincidence rows ``d`` and their blocks ``(G, 3, 7)``, plus ``d``."""
-    d = (f.xj + rotate(f.qj, f.rj)) - (f.xi + rotate(f.qi, f.ri))
+    d = (f.xj + sj.rot(f.rj)) - (f.xi + si.rot(f.ri))
     eye = jnp.broadcast_to(jnp.eye(3), d.shape[:-1] + (3, 3))
-    ji = jnp.concatenate([-eye, -rotate_grad(f.qi, f.ri)], axis=-1)
-    jj = jnp.concatenate([eye, rotate_grad(f.qj, f.rj)], axis=-1)
+    ji = jnp.concatenate([-eye, -si.slope(f.ri)], axis=-1)
+    jj = jnp.concatenate([eye, sj.slope(f.rj)], axis=-1)
     return d, ji, jj
 
 
-def _pair_row(qi, vi, qj, vj):
+def _pair_row(si: Side, vi, sj: Side, vj):
     """Row ``(R_i vi)·(R_j vj)`` with its two blocks."""
-    a, b = rotate(qi, vi), rotate(qj, vj)
-    return dot(a, b), q_block(dot_grad(qi, vi, b)), q_block(dot_grad(qj, vj, a))
+    a, b = si.rot(vi), sj.rot(vj)
+    return dot(a, b), q_block(si.dot_grad(vi, b)), q_block(sj.dot_grad(vj, a))
 
 
-def _slide_row(f: Frames, d, v):
+def _slide_row(f: Frames, si: Side, sj: Side, d, v):
     """Row ``d · (R_i v)`` with ``d`` the anchor separation, with its two blocks."""
-    e = rotate(f.qi, v)
-    ji = xq_block(-e, dot_grad(f.qi, v, d) - dot_grad(f.qi, f.ri, e))
-    jj = xq_block(e, dot_grad(f.qj, f.rj, e))
+    e = si.rot(v)
+    ji = xq_block(-e, si.dot_grad(v, d) - si.dot_grad(f.ri, e))
+    jj = xq_block(e, sj.dot_grad(f.rj, e))
     return dot(d, e), ji, jj
 
 
-def _angle_row(qi, qj, n, u, target):
+def _angle_row(si: Side, sj: Side, n, u, target):
     """Wrapped ``relative_angle - target`` (or the angle when ``target`` is None) and
     blocks."""
     w = jnp.cross(n, u)
-    uj = rotate(qj, u)
-    ui, wi = rotate(qi, u), rotate(qi, w)
+    uj = sj.rot(u)
+    ui, wi = si.rot(u), si.rot(w)
     c, s = dot(uj, ui), dot(uj, wi)
     if target is None:
         value = jnp.arctan2(s, c)
@@ -107,12 +105,18 @@ def _angle_row(qi, qj, n, u, target):
         value = jnp.arctan2(s * ct - c * st, c * ct + s * st)
     scale = 1.0 / (c * c + s * s)
     cs, ss = (c * scale)[..., None], (s * scale)[..., None]
-    dqi = cs * dot_grad(qi, w, uj) - ss * dot_grad(qi, u, uj)
-    dqj = cs * dot_grad(qj, u, wi) - ss * dot_grad(qj, u, ui)
+    dqi = cs * si.dot_grad(w, uj) - ss * si.dot_grad(u, uj)
+    dqj = cs * sj.dot_grad(u, wi) - ss * sj.dot_grad(u, ui)
     return value, q_block(dqi), q_block(dqj)
 
 
-def _family_rows(kind: str, f: Frames):
+def _sides(mech: Mechanism, turns: Turn, joints: np.ndarray) -> tuple[Side, Side]:
+    """The two sides of the joints ``joints`` (static)."""
+    bodies = mech.joint_bodies[joints]
+    return Side(take_turn(turns, bodies[:, 0])), Side(take_turn(turns, bodies[:, 1]))
+
+
+def _family_rows(kind: str, f: Frames, si: Side, sj: Side):
     """Rows ``(G, m)`` and blocks ``(G, m, 7)`` of one joint family, row order of
     ``_joints``."""
     w = jnp.cross(f.n, f.u)
@@ -126,19 +130,19 @@ def _family_rows(kind: str, f: Frames):
         "prismatic",
         "cylindrical",
     ):
-        d, di, dj = _point_rows(f)
+        d, di, dj = _point_rows(f, si, sj)
         if kind in ("revolute", "spherical", "universal", "fixed"):
             parts.append((d, di, dj))
     if kind in ("revolute", "prismatic", "cylindrical", "fixed"):
-        parts.append(
-            stack_rows(_pair_row(f.qi, f.n, f.qj, f.u), _pair_row(f.qi, f.n, f.qj, w))
-        )
+        parts.append(stack_rows(_pair_row(si, f.n, sj, f.u), _pair_row(si, f.n, sj, w)))
     if kind == "universal":
-        parts.append(stack_rows(_pair_row(f.qi, f.n, f.qj, f.n2)))
+        parts.append(stack_rows(_pair_row(si, f.n, sj, f.n2)))
     if kind in ("prismatic", "fixed"):
-        parts.append(stack_rows(_pair_row(f.qi, f.u, f.qj, w)))
+        parts.append(stack_rows(_pair_row(si, f.u, sj, w)))
     if kind in ("prismatic", "cylindrical"):
-        parts.append(stack_rows(_slide_row(f, d, f.u), _slide_row(f, d, w)))
+        parts.append(
+            stack_rows(_slide_row(f, si, sj, d, f.u), _slide_row(f, si, sj, d, w))
+        )
     values = jnp.concatenate([p[0] for p in parts], axis=1)
     ji = jnp.concatenate([p[1] for p in parts], axis=1)
     jj = jnp.concatenate([p[2] for p in parts], axis=1)
@@ -149,7 +153,7 @@ def _family_rows(kind: str, f: Frames):
 # Row groups of C_FK / C_BK.
 
 
-def _passive_groups(mech: Mechanism, geom: Geometry, x, q) -> list[_Rows]:
+def _passive_groups(mech: Mechanism, geom: Geometry, x, q, turns) -> list[_Rows]:
     bodies = np.arange(mech.num_bodies)
     groups = [
         _Rows(dot(q, q)[:, None] - 1.0, ((bodies, q_block(2.0 * q)[:, None, :]),))
@@ -163,7 +167,8 @@ def _passive_groups(mech: Mechanism, geom: Geometry, x, q) -> list[_Rows]:
     for kind in JOINT_ROWS:
         index = mech.joints_of(kind)
         if index.size:
-            values, ji, jj = _family_rows(kind, frames(mech, geom, x, q, index))
+            f = frames(mech, geom, x, q, index)
+            values, ji, jj = _family_rows(kind, f, *_sides(mech, turns, index))
             groups.append(
                 _Rows(
                     values,
@@ -192,7 +197,7 @@ def _joint_rows(mech: Mechanism, joints: np.ndarray, value, ji, jj) -> _Rows:
     )
 
 
-def _motor_groups(mech: Mechanism, geom: Geometry, x, q, motors):
+def _motor_groups(mech: Mechanism, geom: Geometry, x, q, turns, motors):
     """Motor rows (values, or errors against ``motors``) and their raw row order."""
     groups, order = [], []
     rotary = np.flatnonzero(~mech.motor_linear)
@@ -202,22 +207,23 @@ def _motor_groups(mech: Mechanism, geom: Geometry, x, q, motors):
             continue
         joints = mech.motor_joints[index]
         f = frames(mech, geom, x, q, joints)
+        si, sj = _sides(mech, turns, joints)
         target = None if motors is None else take(motors, index)
         if is_linear:
-            d = (f.xj + rotate(f.qj, f.rj)) - (f.xi + rotate(f.qi, f.ri))
-            value, ji, jj = _slide_row(f, d, f.n)
+            d = (f.xj + sj.rot(f.rj)) - (f.xi + si.rot(f.ri))
+            value, ji, jj = _slide_row(f, si, sj, d, f.n)
             if target is not None:
                 value = value - target
         else:
-            value, ji, jj = _angle_row(f.qi, f.qj, f.n, f.u, target)
+            value, ji, jj = _angle_row(si, sj, f.n, f.u, target)
         groups.append(_joint_rows(mech, joints, value, ji, jj))
         order.append(index)
     return groups, order
 
 
-def _output_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
+def _output_groups(mech: Mechanism, geom: Geometry, x, q, turns, outputs):
     """Output rows (values, or errors against ``outputs``) and their raw row order."""
-    groups, order = _orientation_groups(mech, geom, x, q, outputs)
+    groups, order = _orientation_groups(mech, geom, x, q, turns, outputs)
     positional = np.flatnonzero(mech.output_points >= 0)
     angle = np.array(mech.output_kinds, dtype=object) == "angle"
     angular = np.flatnonzero(angle & (mech.output_coords < 0))
@@ -226,21 +232,21 @@ def _output_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
         points = mech.output_points[positional]
         coords = mech.output_coords[positional]
         body = mech.point_bodies[points]
-        qb = take(q, body)
+        side = Side(take_turn(turns, body))
         r = take(geom.points, points) - take(geom.origins, body)
         select = jnp.asarray(np.eye(3)[coords])  # (G, 3) one-hot coordinate
-        world = take(x, body) + rotate(qb, r)
+        world = take(x, body) + side.rot(r)
         value = jnp.stack([world[k, int(c)] for k, c in enumerate(coords)])
         if outputs is not None:
             value = value - take(outputs, positional)
-        block = xq_block(select, dot_grad(qb, r, select))
+        block = xq_block(select, side.dot_grad(r, select))
         groups.append(_Rows(value[:, None], ((body, block[:, None]),)))
         order.append(positional)
     if angular.size:
         joints = mech.output_joints[angular]
         f = frames(mech, geom, x, q, joints)
         target = None if outputs is None else take(outputs, angular)
-        value, ji, jj = _angle_row(f.qi, f.qj, f.n, f.u, target)
+        value, ji, jj = _angle_row(*_sides(mech, turns, joints), f.n, f.u, target)
         groups.append(_joint_rows(mech, joints, value, ji, jj))
         order.append(angular)
     if tait_bryan.size:
@@ -255,7 +261,7 @@ def _output_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
     return groups, order
 
 
-def _orientation_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
+def _orientation_groups(mech: Mechanism, geom: Geometry, x, q, turns, outputs):
     """Orientation, direction and displacement output rows (see ``_output_groups``):
     the Tait–Bryan angles of one body relative to another in a fixed frame, the tilt
     of a body's axis, and the slide of a prismatic/cylindrical joint (the linear
@@ -298,8 +304,9 @@ def _orientation_groups(mech: Mechanism, geom: Geometry, x, q, outputs):
     if slid.size:
         joints = table.joints[slid]
         f = frames(mech, geom, x, q, joints)
-        d = (f.xj + rotate(f.qj, f.rj)) - (f.xi + rotate(f.qi, f.ri))
-        value, ji, jj = _slide_row(f, d, f.n)
+        si, sj = _sides(mech, turns, joints)
+        d = (f.xj + sj.rot(f.rj)) - (f.xi + si.rot(f.ri))
+        value, ji, jj = _slide_row(f, si, sj, d, f.n)
         if outputs is not None:
             value = value - take(outputs, slid)
         bodies = mech.joint_bodies[joints]
@@ -339,15 +346,16 @@ def _local_row(angles, qi, qj, e1, e2, which: np.ndarray, target):
 
 
 def _split(state):
+    """Positions ``(B, 3)``, quaternions ``(B, 4)`` and :class:`Turn` of the bodies."""
     bodies = state.reshape(-1, 7)
-    return bodies[:, :3], bodies[:, 3:]
+    return bodies[:, :3], bodies[:, 3:], body_turns(bodies[:, 3:])
 
 
-def _tail_groups(mech: Mechanism, geom: Geometry, kind: str, x, q, values):
+def _tail_groups(mech: Mechanism, geom: Geometry, kind: str, x, q, turns, values):
     if kind == "fk":
-        return _motor_groups(mech, geom, x, q, values)
+        return _motor_groups(mech, geom, x, q, turns, values)
     if kind == "bk":
-        return _output_groups(mech, geom, x, q, values)
+        return _output_groups(mech, geom, x, q, turns, values)
     raise ValueError(f"kind must be 'fk' or 'bk', not {kind!r}")
 
 
@@ -356,9 +364,9 @@ def row_groups(mech: Mechanism, geom: Geometry, kind: str, values, state):
     ``values (G, m)`` and ``blocks``, ``((bodies (G,), jac (G, m, 7)), ...)``) and the
     raw order of the tail rows, for assemblies outside this module
     (:mod:`linkopt._engine.banded`)."""
-    x, q = _split(state)
-    tail, order = _tail_groups(mech, geom, kind, x, q, values)
-    return _passive_groups(mech, geom, x, q), tail, order
+    x, q, t = _split(state)
+    tail, order = _tail_groups(mech, geom, kind, x, q, t, values)
+    return _passive_groups(mech, geom, x, q, t), tail, order
 
 
 # ---------------------------------------------------------------------------------
@@ -399,9 +407,9 @@ def linearise(
     (``"bk"``, the outputs), homogenised, equal to ``fk_residual``/``bk_residual`` and
     ``jax.jacfwd`` of it. ``values=None`` gives the motor/output values instead of
     errors in the last rows (the Jacobian does not depend on the targets)."""
-    x, q = _split(state)
-    passive = _passive_groups(mech, geom, x, q)
-    tail, order = _tail_groups(mech, geom, kind, x, q, values)
+    x, q, t = _split(state)
+    passive = _passive_groups(mech, geom, x, q, t)
+    tail, order = _tail_groups(mech, geom, kind, x, q, t, values)
     residual, jacobian = _dense(passive + tail, mech.num_bodies)
     head = sum(int(np.prod(g.values.shape)) for g in passive)
     return _permute_tail(residual, jacobian, head, order)
@@ -422,11 +430,11 @@ def stacked_jacobians(
 ) -> Float[Array, "2 m S"]:
     """``[∂C_FK/∂s, ∂C_BK/∂s]``, the passive rows computed once (as in
     ``_singularity``)."""
-    x, q = _split(state)
-    _, passive = _dense(_passive_groups(mech, geom, x, q), mech.num_bodies)
+    x, q, t = _split(state)
+    _, passive = _dense(_passive_groups(mech, geom, x, q, t), mech.num_bodies)
     out = []
     for kind in ("fk", "bk"):
-        tail, order = _tail_groups(mech, geom, kind, x, q, None)
+        tail, order = _tail_groups(mech, geom, kind, x, q, t, None)
         values, rows = _dense(tail, mech.num_bodies)
         _, rows = _permute_tail(values, rows, 0, order)
         out.append(jnp.concatenate([passive, rows]))
@@ -446,9 +454,9 @@ def normal_equations(
     ``C`` is in the row order of ``fk_residual``/``bk_residual``; ``JᵀJ`` and ``JᵀC``
     equal the dense products up to rounding (summation order differs).
     """
-    x, q = _split(state)
-    groups = _passive_groups(mech, geom, x, q)
-    tail, order = _tail_groups(mech, geom, kind, x, q, values)
+    x, q, t = _split(state)
+    groups = _passive_groups(mech, geom, x, q, t)
+    tail, order = _tail_groups(mech, geom, kind, x, q, t, values)
     groups = groups + tail
     nb = mech.num_bodies
     hess: dict[tuple[int, int], list] = {}

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .. import _config  # noqa: F401  (float64 on before any array)
-from .rotations import rotate
+from .rotations import quadratic_matrix, rotate
 
 Vec = Float[Array, "3"]
 Quat = Float[Array, "4"]
@@ -116,14 +116,16 @@ def tait_bryan(qi: Quat, qj: Quat, e1: Vec, e2: Vec) -> Float[Array, 3]:
     With ``M_ab = (R_i e_a)·(R_j e_b)`` the relative rotation in the joint's frame,
     ``θ1 = atan2(-M₂₃, M₃₃)``, ``θ2 = atan2(M₁₃, √(M₁₁² + M₁₂²))``,
     ``θ3 = atan2(-M₁₂, M₁₁)``; the angles are defined for ``|θ2| < π/2`` (gimbal lock at
-    ``±π/2``). For a universal joint with ``e1 = n`` on body i and ``e2 = n2`` on body
+    ``±π/2``). ``M`` is one product of the two bodies' matrices
+    (:func:`~.rotations.quadratic_matrix`, the form of :func:`~.rotations.rotate`, so
+    for non-unit quaternions too), not nine dots of six rotated vectors. For a
+    universal joint with ``e1 = n`` on body i and ``e2 = n2`` on body
     j, ``θ3 ≡ 0`` and ``θ1``, ``θ2`` are its two joint angles.
     """
-    e3 = jnp.cross(e1, e2)
-    i1, i2, i3 = rotate(qi, e1), rotate(qi, e2), rotate(qi, e3)
-    j1, j2, j3 = rotate(qj, e1), rotate(qj, e2), rotate(qj, e3)
-    m11, m12, m13 = i1 @ j1, i1 @ j2, i1 @ j3
-    first = jnp.arctan2(-(i2 @ j3), i3 @ j3)
+    frame = jnp.stack([e1, e2, jnp.cross(e1, e2)], axis=1)  # columns e_a
+    m = (quadratic_matrix(qi) @ frame).T @ (quadratic_matrix(qj) @ frame)
+    m11, m12, m13 = m[0, 0], m[0, 1], m[0, 2]
+    first = jnp.arctan2(-m[1, 2], m[2, 2])
     second = jnp.arctan2(m13, jnp.sqrt(m11 * m11 + m12 * m12))
     third = jnp.arctan2(-m12, m11)
     return jnp.stack([first, second, third])

@@ -71,7 +71,45 @@ def _matrix(xp, q: Float[Array, "... 4"]) -> Float[Array, "... 3 3"]:
     return xp.stack([xp.stack(row, axis=-1) for row in rows], axis=-2)
 
 
+def _np_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """:func:`rotate` in numpy (the same quadratic form)."""
+    w, u = q[0], q[1:]
+    return (w * w - u @ u) * v + 2.0 * (u @ v) * u + 2.0 * w * np.cross(u, v)
+
+
+def _quadratic() -> np.ndarray:
+    """:data:`QUADRATIC`, by polarisation of :func:`rotate` on the basis quaternions."""
+    eye4, eye3 = np.eye(4), np.eye(3)
+
+    def entries(q):  # (3, 3): column j is R(q) e_j
+        return np.stack([_np_rotate(q, e) for e in eye3], axis=1)
+
+    out = np.zeros((3, 3, 4, 4))
+    for a in range(4):
+        for b in range(4):
+            both = entries(eye4[a] + eye4[b]) - entries(eye4[a]) - entries(eye4[b])
+            out[:, :, a, b] = 0.5 * both if a != b else entries(eye4[a])
+    return out
+
+
+#: ``Q`` ``(3, 3, 4, 4)``, symmetric in its last two axes, entries in {0, ±1}: the
+#: matrix of :func:`rotate` is ``R_ij(q) = qᵀ Q_ij q`` for every ``q`` (for a non-unit
+#: ``q``, ``|q|²`` times a rotation), so ``∂R_ij/∂q = 2 Q_ij q``.
+QUADRATIC = _quadratic()
+#: ``R = (q ⊗ q) · _SQUARES`` with ``q ⊗ q`` flattened to 16: ``(16, 9)``.
+_SQUARES = QUADRATIC.reshape(9, 16).T.copy()
+
+
 # ---- JAX: traced code ---------------------------------------------------------------
+
+
+def quadratic_matrix(q: Float[Array, "... 4"]) -> Float[Array, "... 3 3"]:
+    """The matrix of :func:`rotate`: ``quadratic_matrix(q) @ v == rotate(q, v)`` for
+    any ``q`` (``|q|² R(q / |q|)``), one product of ``q ⊗ q`` with a constant."""
+    jnp = _jnp()
+    lead = q.shape[:-1]
+    squares = (q[..., :, None] * q[..., None, :]).reshape(lead + (16,))
+    return (squares @ jnp.asarray(_SQUARES)).reshape(lead + (3, 3))
 
 
 def rotate(q: Float[Array, "... 4"], v: Float[Array, "... 3"]) -> Float[Array, "... 3"]:
