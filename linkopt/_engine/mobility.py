@@ -5,12 +5,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
 from .._errors import InputError, MechanismFileError
-from . import programs
-from .constraints import homogenised_motor_values, passive_residual
+from . import banded, banded_sigma, programs, singularity
+from .constraints import (
+    bk_residual,
+    fk_residual,
+    homogenised_motor_values,
+    passive_residual,
+)
 from .geometry import geometry, rest_state
 from .jacobian import state_jacobian
 from .lifting import padded_design
@@ -28,11 +34,15 @@ class RestJacobians:
     """What the load-time checks and α₋ read at the rest pose, homogenised. The FK
     and BK Jacobians have one row per motor and per output on top of the passive
     rows, so a file whose motor and output counts differ (refused by
-    :func:`check_mobility`) has ``sigmas`` and ``stacked`` None."""
+    :func:`check_mobility`) has ``sigmas`` and ``stacked`` None. On the band
+    (:func:`linkopt._engine.banded.serves`) no dense Jacobian is formed: ``passive``
+    and ``stacked`` are None and ``rates`` holds what the input-output Jacobian
+    needs (:func:`_banded_rest_program`); on the dense path ``rates`` is None."""
 
-    passive: Float[Array, "P S"]  # ∂C_passive/∂s (motors as passive joints)
+    passive: Float[Array, "P S"] | None  # ∂C_passive/∂s (motors as passive joints)
     sigmas: Float[Array, 2] | None  # (σ_min^FK, σ_min^BK)
     stacked: Float[Array, "2 R S"] | None  # [∂C_FK/∂s, ∂C_BK/∂s]
+    rates: Float[Array, "K M"] | None = None  # homogenised ∂b/∂a, on the band
 
 
 def _rest_program(mech: Mechanism) -> tuple:
@@ -49,21 +59,104 @@ def _rest_program(mech: Mechanism) -> tuple:
     return passive, sigmas_of(stacked), stacked
 
 
+def _banded_rest_program(mech: Mechanism) -> tuple:
+    """``(σ_min^FK, σ_min^BK)`` on the band (:mod:`.banded_sigma`) and the
+    homogenised ``∂b/∂a``: the state velocity of a unit motor velocity is the least
+    squares solution of ``∂C_FK/∂s ṡ = (0, e_i)`` (``(JᵀJ)⁻¹Jᵀ``, one banded factor),
+    the outputs' velocity the output rows of ``∂C_BK/∂s ṡ`` (a forward-mode product);
+    what :func:`linkopt._design.conditioning.input_output_jacobian` gives from the
+    dense Jacobians."""
+    geom = geometry(mech)
+    state = rest_state(mech)
+    motors, outputs = jnp.zeros(mech.num_motors), jnp.zeros(mech.num_outputs)
+    _, pull = jax.vjp(lambda s: fk_residual(mech, geom, motors, s), state)
+    rows = jax.eval_shape(lambda: fk_residual(mech, geom, motors, state)).shape[0]
+    unit = (
+        jnp.zeros((rows, mech.num_motors))
+        .at[rows - mech.num_motors :]
+        .set(jnp.eye(mech.num_motors))
+    )
+    projected = jax.vmap(lambda c: pull(c)[0], in_axes=1, out_axes=1)(unit)
+    velocity = banded.normal_solve(mech, "fk", geom, state, projected)
+
+    def output_rates(v):
+        return jax.jvp(lambda s: bk_residual(mech, geom, outputs, s), (state,), (v,))[1]
+
+    rates = jax.vmap(output_rates, in_axes=1, out_axes=1)(velocity)
+    sigmas = banded_sigma.sigma_min_pair(mech, geom, state)
+    return sigmas, rates[rates.shape[0] - mech.num_outputs :]
+
+
 def rest_jacobians(mech: Mechanism) -> RestJacobians:
     """:class:`RestJacobians` of the file's initial design: one program for every
     check that loading runs and for α₋ (:mod:`.programs`: each new structure compiles
     it once, where three separate programs compiled the shared Jacobian rows three
-    times)."""
-    return RestJacobians(*programs.call("rest_jacobians", mech, _rest_program))
+    times). On the band: σ_min and ``∂b/∂a`` only (the mobility is
+    :func:`banded_mobility`'s)."""
+    if not banded.serves(mech):
+        return RestJacobians(*programs.call("rest_jacobians", mech, _rest_program))
+    if mech.num_motors != mech.num_outputs:
+        return RestJacobians(None, None, None)
+    sigmas, rates = programs.call("banded_rest", mech, _banded_rest_program)
+    return RestJacobians(None, sigmas, None, rates)
 
 
 def mobility(mech: Mechanism) -> int:
     """Degrees of freedom at rest: ``|s| - rank(∂C_passive/∂s)`` (motors as passive
     joints). Idle spins are not counted: the passive rows include their gauge rows
-    (:func:`linkopt._engine.constraints.gauge_rows`)."""
+    (:func:`linkopt._engine.constraints.gauge_rows`). On the band
+    (:func:`linkopt._engine.banded.serves`): :func:`banded_mobility`, linear in the
+    bodies, where the SVD of the dense passive Jacobian is cubic."""
+    if banded.serves(mech):
+        return banded_mobility(mech)
     values = np.linalg.svd(np.asarray(rest_jacobians(mech).passive), compute_uv=False)
     rank = int(np.sum(values > RANK_TOL * values[0]))
     return mech.state_size - rank
+
+
+#: Inverse-iteration sweeps of the banded rank test: a null vector's share grows by
+#: ``σ²/(SHIFT·trace)`` per sweep over the smallest nonzero singular value's, which
+#: 12 sweeps take far below :data:`RANK_TOL` for any σ_min the loader accepts.
+RANK_SWEEPS = 12
+
+
+def _passive_null_program(mech: Mechanism, start):
+    """``(J x, λ_max)``: the passive Jacobian at rest times an orthonormal block ``x``
+    ``(S, k)`` holding its ``k`` smallest right singular vectors (block inverse
+    iteration on the band from ``start``), and ``JᵀJ``'s largest eigenvalue."""
+    geom = geometry(mech)
+    state = rest_state(mech)
+    band = banded.passive_normal(mech, geom, state)
+    block = banded_sigma.smallest_subspace(band, start, RANK_SWEEPS)
+    where = banded.passive_layout(mech, geom)
+    vectors = jax.vmap(lambda x: banded.unpermute(where, x), in_axes=2, out_axes=1)(
+        block
+    )
+
+    def image(v):
+        return jax.jvp(lambda s: passive_residual(mech, geom, s), (state,), (v,))[1]
+
+    images = jax.vmap(image, in_axes=1, out_axes=1)(vectors)
+    return images, banded_sigma.largest_eigenvalue(band)
+
+
+def banded_mobility(mech: Mechanism) -> int:
+    """:func:`mobility` from the band: the singular values of ``J x`` (``x`` the
+    block of :func:`_passive_null_program`, ``k`` columns) are ``J``'s ``k``
+    smallest; those at most ``RANK_TOL·σ_max`` (``σ_max² = λ_max(JᵀJ)``) count the
+    null space, as the dense SVD's do. A null space as large as the block is tried
+    again with twice the block, so a mobility of any size is counted."""
+    k = min(mech.state_size, max(singularity.BLOCK, 2 * mech.num_motors + 2))
+    while True:
+        start = banded_sigma.start_block(mech.num_bodies, k)
+        images, top = programs.call(
+            "passive_null", mech, _passive_null_program, jnp.asarray(start)
+        )
+        values = np.linalg.svd(np.asarray(images), compute_uv=False)
+        null = int(np.sum(values <= RANK_TOL * np.sqrt(float(top))))
+        if null < k or k == mech.state_size:
+            return null
+        k = min(mech.state_size, 2 * k)
 
 
 def check_mobility(mech: Mechanism) -> None:
