@@ -18,7 +18,7 @@ from linkopt._design.conditioning import rest_conditioning
 from linkopt._engine import banded, mobility
 from linkopt._files.fields import parse_toml
 from linkopt._files.loader import build, loads
-from linkopt._files.topology import MAX_BODIES
+from linkopt._files.topology import DENSE_MAX_BODIES, MAX_BODIES
 
 
 def _with_factor(mech, factor: str):
@@ -116,3 +116,39 @@ def test_a_file_of_too_many_bodies_is_refused_in_one_line_naming_file_and_count(
     assert text.startswith("big.toml: [[bodies]]: ")
     assert re.search(rf"\b{MAX_BODIES + 1} bodies\b", text)
     assert f"at most {MAX_BODIES} bodies" in text
+
+
+def _tangle(bodies: int, seed: int = 0) -> dict:
+    """``bodies`` bodies each pinned to three others drawn at random: no order keeps
+    the bodies that share a joint near each other (a random graph's band is a good
+    part of it wide)."""
+    rng = np.random.default_rng(seed)
+    joints = []
+    for k in range(1, bodies):
+        for other in {int(rng.integers(0, k)) for _ in range(3)}:
+            joints.append(
+                {
+                    "name": f"j{len(joints)}",
+                    "type": "revolute",
+                    "bodies": [f"b{other}", f"b{k}"],
+                    "anchor": [float(k), float(other), 0.0],
+                    "axis": [0.0, 0.0, 1.0],
+                }
+            )
+    return {
+        "mechanism": {"name": "tangle", "ground": "b0", "units": "mm"},
+        "bodies": [{"name": f"b{k}"} for k in range(bodies)],
+        "joints": joints,
+        "motors": [{"name": "m", "joint": "j0"}],
+        "outputs": [{"name": "o", "joint": "j1", "min": -0.3, "max": 0.3}],
+    }
+
+
+def test_a_large_file_whose_bodies_fall_into_no_band_is_refused_in_one_line():
+    count = DENSE_MAX_BODIES + 10
+    with pytest.raises(MechanismFileError) as err:
+        build(_tangle(count), "tangle.toml")
+    text = str(err.value)
+    assert "\n" not in text
+    assert text.startswith(f"tangle.toml: [[bodies]]: {count} bodies whose joints ")
+    assert f"at most {DENSE_MAX_BODIES} such bodies" in text
