@@ -12,10 +12,12 @@ import numpy as np
 import pytest
 from conftest import MECHANISMS
 from long_linkages import ladder
+from strandbeest import strandbeest
 
 from linkopt import MechanismFileError
 from linkopt._design.conditioning import rest_conditioning
 from linkopt._engine import banded, mobility
+from linkopt._engine.geometry import geometry
 from linkopt._files.fields import parse_toml
 from linkopt._files.loader import build, loads
 from linkopt._files.topology import DENSE_MAX_BODIES, MAX_BODIES
@@ -152,3 +154,17 @@ def test_a_large_file_whose_bodies_fall_into_no_band_is_refused_in_one_line():
     assert "\n" not in text
     assert text.startswith(f"tangle.toml: [[bodies]]: {count} bodies whose joints ")
     assert f"at most {DENSE_MAX_BODIES} such bodies" in text
+
+
+def test_the_arrowhead_counts_the_mobility_and_conditions_the_rest_pose_as_dense():
+    """A walker of four legs: its ground and crank are hubs of the passive rows too,
+    so the mobility test factors an arrowhead."""
+    dense, band = _both(tomllib.loads(strandbeest(4)), "walker")
+    assert banded.passive_layout(band, geometry(band)).hubs == 2
+    assert mobility.mobility(band) == mobility.mobility(dense) == 1
+    expected, found = rest_conditioning(dense), rest_conditioning(band)
+    np.testing.assert_allclose(
+        [found.sigma_fk, found.sigma_bk, *found.jacobian_sigmas],
+        [expected.sigma_fk, expected.sigma_bk, *expected.jacobian_sigmas],
+        rtol=1e-9,
+    )
