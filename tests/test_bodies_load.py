@@ -13,6 +13,8 @@ import pytest
 from conftest import MECHANISMS
 from long_linkages import ladder
 from strandbeest import strandbeest
+from test_design_roundtrip import AXES
+from test_mobility_change import TILTED
 
 from linkopt import MechanismFileError
 from linkopt._design.conditioning import rest_conditioning
@@ -168,3 +170,28 @@ def test_the_arrowhead_counts_the_mobility_and_conditions_the_rest_pose_as_dense
         [expected.sigma_fk, expected.sigma_bk, *expected.jacobian_sigmas],
         rtol=1e-9,
     )
+
+
+@pytest.mark.parametrize(
+    "text, designs",
+    [
+        (TILTED, lambda p0: [p0, p0 + np.array([0, 0, 0, 0.2])]),
+        (AXES, lambda p0: [p0, [0.1, 1.7]]),
+    ],
+    ids=["four-bar-locks", "spherical-five-bar-couples"],
+)
+def test_the_band_finds_the_designs_that_change_the_mobility_as_the_dense_path(
+    text, designs
+):
+    """``mobility_changes`` on the band (the optimiser's and ``--design``'s test):
+    the same mobility, locked motors and words as the dense SVD for a design that
+    locks a four-bar's motor and one that couples a five-bar's two motors."""
+    mech = loads(text, "file.toml")
+    rows = designs(mech.design.p0)
+    expected = mobility.mobility_changes(mech, rows)
+    band = _with_factor(mech, "banded")
+    found = mobility.mobility_changes(band, rows)
+    assert expected[0] is None and found[0] is None
+    assert found[1].mobility == expected[1].mobility
+    assert found[1].locked == expected[1].locked
+    assert found[1].words(band) == expected[1].words(mech)

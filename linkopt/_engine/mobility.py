@@ -120,12 +120,11 @@ def mobility(mech: Mechanism) -> int:
 RANK_SWEEPS = 12
 
 
-def _passive_null_program(mech: Mechanism, start):
-    """``(J x, λ_max)``: the passive Jacobian at rest times an orthonormal block ``x``
-    ``(S, k)`` holding its ``k`` smallest right singular vectors (block inverse
-    iteration on the band from ``start``), and ``JᵀJ``'s largest eigenvalue."""
-    geom = geometry(mech)
-    state = rest_state(mech)
+def _null_block(mech: Mechanism, geom, state, start):
+    """``(x, J x, λ_max)``: an orthonormal block ``x`` ``(S, k)`` holding the passive
+    Jacobian's ``k`` smallest right singular vectors at ``state`` (block inverse
+    iteration on the band from ``start``), its image ``J x`` and ``JᵀJ``'s largest
+    eigenvalue."""
     band = banded.passive_normal(mech, geom, state)
     block = banded_sigma.smallest_subspace(band, start, RANK_SWEEPS)
     where = banded.passive_layout(mech, geom)
@@ -137,7 +136,26 @@ def _passive_null_program(mech: Mechanism, start):
         return jax.jvp(lambda s: passive_residual(mech, geom, s), (state,), (v,))[1]
 
     images = jax.vmap(image, in_axes=1, out_axes=1)(vectors)
-    return images, banded_sigma.largest_eigenvalue(band)
+    return vectors, images, banded_sigma.largest_eigenvalue(band)
+
+
+def _passive_null_program(mech: Mechanism, start):
+    """``(J x, λ_max)`` of :func:`_null_block` at the file's rest pose."""
+    _, images, top = _null_block(mech, geometry(mech), rest_state(mech), start)
+    return images, top
+
+
+def _null_count(images: np.ndarray, top) -> int:
+    """How many singular values of ``J x`` are at most ``RANK_TOL·σ_max``
+    (``σ_max² = λ_max``)."""
+    values = np.linalg.svd(images, compute_uv=False)
+    return int(np.sum(values <= RANK_TOL * np.sqrt(float(top))))
+
+
+def _first_block(mech: Mechanism) -> int:
+    """Columns of the first block of the banded rank test: the motors' null space
+    and room to spare."""
+    return min(mech.state_size, max(singularity.BLOCK, 2 * mech.num_motors + 2))
 
 
 def banded_mobility(mech: Mechanism) -> int:
@@ -146,14 +164,13 @@ def banded_mobility(mech: Mechanism) -> int:
     smallest; those at most ``RANK_TOL·σ_max`` (``σ_max² = λ_max(JᵀJ)``) count the
     null space, as the dense SVD's do. A null space as large as the block is tried
     again with twice the block, so a mobility of any size is counted."""
-    k = min(mech.state_size, max(singularity.BLOCK, 2 * mech.num_motors + 2))
+    k = _first_block(mech)
     while True:
         start = banded_sigma.start_block(mech.num_bodies, k)
         images, top = programs.call(
             "passive_null", mech, _passive_null_program, jnp.asarray(start)
         )
-        values = np.linalg.svd(np.asarray(images), compute_uv=False)
-        null = int(np.sum(values <= RANK_TOL * np.sqrt(float(top))))
+        null = _null_count(np.asarray(images), top)
         if null < k or k == mech.state_size:
             return null
         k = min(mech.state_size, 2 * k)
@@ -263,6 +280,8 @@ def mobility_changes(mech: Mechanism, designs) -> list[MobilityChange | None]:
     mobility the motors number (the file's, checked on loading), else what changed
     (a design that turns a spherical loop into a general spatial one that locks)."""
     designs = np.atleast_2d(np.asarray(designs, dtype=np.float64))
+    if banded.serves(mech):
+        return _banded_changes(mech, designs)
     passive, motors = _rest_jacobians_of(mech, padded_design(mech, designs))
     values = np.linalg.svd(passive, compute_uv=False)  # (N, min(P, S)), batched
     ranks = np.sum(values > RANK_TOL * values[:, :1], axis=1)
@@ -283,21 +302,77 @@ MOBILITY_BATCH = 8
 def _rest_jacobians_of(mech: Mechanism, padded: np.ndarray) -> tuple:
     """The passive and motor Jacobians at rest of each padded design ``(N, P)``, as
     numpy arrays, in batches of :data:`MOBILITY_BATCH`."""
+    return _in_batches(mech, padded, "design_mobility", _design_rest_program)
+
+
+def _in_batches(mech: Mechanism, padded: np.ndarray, name: str, fn, *args) -> tuple:
+    """``programs.call(name, mech, fn, batch, *args)`` over the padded designs ``(N,
+    P)`` in batches of :data:`MOBILITY_BATCH` (the last padded by repeating its last
+    design), each output as one numpy array over the ``N`` designs."""
     count = len(padded)
     total = -(-count // MOBILITY_BATCH) * MOBILITY_BATCH
     padded = np.concatenate([padded, np.repeat(padded[-1:], total - count, axis=0)])
     parts = [
-        programs.call(
-            "design_mobility",
-            mech,
-            _design_rest_program,
-            padded[start : start + MOBILITY_BATCH],
-        )
+        programs.call(name, mech, fn, padded[start : start + MOBILITY_BATCH], *args)
         for start in range(0, total, MOBILITY_BATCH)
     ]
     return tuple(
-        np.concatenate([np.asarray(p[k]) for p in parts])[:count] for k in (0, 1)
+        np.concatenate([np.asarray(p[k]) for p in parts])[:count]
+        for k in range(len(parts[0]))
     )
+
+
+def _design_null_program(mech: Mechanism, designs, start):
+    """Per design: :func:`_null_block` at the rest pose and the motors' rates along
+    the block ``(M, k)`` (forward-mode products, never a dense Jacobian)."""
+    state = rest_state(mech)
+
+    def one(design):
+        geom = geometry(mech, design)
+        vectors, images, top = _null_block(mech, geom, state, start)
+
+        def rate(v):
+            return jax.jvp(
+                lambda s: homogenised_motor_values(mech, geom, s), (state,), (v,)
+            )[1]
+
+        return images, top, jax.vmap(rate, in_axes=1, out_axes=1)(vectors)
+
+    return jax.vmap(one)(designs)
+
+
+def _banded_changes(mech: Mechanism, designs) -> list[MobilityChange | None]:
+    """:func:`mobility_changes` on the band: per design the rank test of
+    :func:`banded_mobility` (the block widened while a design's null space fills
+    it), the locked motors from the null directions found in the block."""
+    padded = padded_design(mech, designs)
+    k = _first_block(mech)
+    while True:
+        start = jnp.asarray(banded_sigma.start_block(mech.num_bodies, k))
+        parts = _in_batches(mech, padded, "design_null", _design_null_program, start)
+        images, tops, rates = parts
+        counts = [_null_count(i, t) for i, t in zip(images, tops)]
+        if max(counts) < k or k == mech.state_size:
+            break
+        k = min(mech.state_size, 2 * k)
+    return [
+        None if count == mech.num_motors else _banded_change(mech, d, i, r, count)
+        for d, i, r, count in zip(designs, images, rates, counts)
+    ]
+
+
+def _banded_change(mech, design, images, rates, count: int) -> MobilityChange:
+    """:func:`_change` from the block: the null directions are ``x w`` for the right
+    singular vectors ``w`` of ``J x`` of its ``count`` smallest values, the motors'
+    rates along them ``rates w``."""
+    _, _, wt = np.linalg.svd(images)
+    null = wt[wt.shape[0] - count :].T  # (k, count)
+    locked = tuple(
+        name
+        for name, row in zip(mech.motor_names, rates @ null)
+        if np.linalg.norm(row) <= LOCKED_TOL
+    )
+    return MobilityChange(np.asarray(design), count, locked)
 
 
 def _change(mech: Mechanism, design, passive, motors) -> MobilityChange:
