@@ -48,13 +48,16 @@ def start_block(bodies: int, k: int) -> np.ndarray:
     return start.reshape(bodies, 7, k)
 
 
-def smallest_subspace(band, start: Float[Array, "B 7 k"], iterations: int):
+def smallest_subspace(band, start: Float[Array, "B 7 k"], iterations: int, shift=None):
     """Block inverse iteration on ``H = JᵀJ`` (band or arrowhead storage; the factor
-    of ``H + SHIFT·trace·I``), ``iterations`` sweeps from ``start``: an orthonormal
-    block ``(B, 7, k)`` (the layout's order) that holds the right singular vectors of
-    ``J``'s ``k`` smallest singular values once converged."""
-    trace = banded.trace(band)
-    lower = banded.factor(band, SHIFT * trace)
+    of ``H + shift·I``, ``shift`` by default ``SHIFT·trace``), ``iterations`` sweeps
+    from ``start``: an orthonormal block ``(B, 7, k)`` (the layout's order) that holds
+    the right singular vectors of ``J``'s ``k`` smallest singular values once
+    converged."""
+    if shift is None:
+        trace = banded.trace(band)
+        shift = SHIFT * trace
+    lower = banded.factor(band, shift)
     solve = jax.vmap(lambda b: banded.cho_solve(lower, b), in_axes=2, out_axes=2)
     return jax.lax.fori_loop(
         0, iterations, lambda _, x: _orthonormalise(solve(x)), _orthonormalise(start)

@@ -114,10 +114,16 @@ def mobility(mech: Mechanism) -> int:
     return mech.state_size - rank
 
 
-#: Inverse-iteration sweeps of the banded rank test: a null vector's share grows by
-#: ``σ²/(SHIFT·trace)`` per sweep over the smallest nonzero singular value's, which
-#: 12 sweeps take far below :data:`RANK_TOL` for any σ_min the loader accepts.
+#: Inverse-iteration sweeps of the banded rank test: per sweep, the block's error
+#: shrinks by ``(λ_k + shift)/(λ_k+1 + shift)`` (the eigenvalues of ``JᵀJ``).
 RANK_SWEEPS = 12
+#: The rank test factors ``JᵀJ + RANK_SHIFT·λ_max·I``: far above the factor's
+#: rounding (about ``7(w + 1)·ε·λ_max``), and, unlike σ_min's ``SHIFT·trace``, not
+#: growing with the bodies: a long truss has many singular values of ``J`` near
+#: ``1e-5`` (a 1000-body ladder's σ_min at rest: 1.9e-5), and a shift above their
+#: squares would blur the null space into them (a 3000-body ladder then counted no
+#: null space at all).
+RANK_SHIFT = 1e-13
 
 
 def _null_block(mech: Mechanism, geom, state, start):
@@ -126,7 +132,8 @@ def _null_block(mech: Mechanism, geom, state, start):
     iteration on the band from ``start``), its image ``J x`` and ``JᵀJ``'s largest
     eigenvalue."""
     band = banded.passive_normal(mech, geom, state)
-    block = banded_sigma.smallest_subspace(band, start, RANK_SWEEPS)
+    top = banded_sigma.largest_eigenvalue(band)
+    block = banded_sigma.smallest_subspace(band, start, RANK_SWEEPS, RANK_SHIFT * top)
     where = banded.passive_layout(mech, geom)
     vectors = jax.vmap(lambda x: banded.unpermute(where, x), in_axes=2, out_axes=1)(
         block
@@ -136,7 +143,7 @@ def _null_block(mech: Mechanism, geom, state, start):
         return jax.jvp(lambda s: passive_residual(mech, geom, s), (state,), (v,))[1]
 
     images = jax.vmap(image, in_axes=1, out_axes=1)(vectors)
-    return vectors, images, banded_sigma.largest_eigenvalue(band)
+    return vectors, images, top
 
 
 def _passive_null_program(mech: Mechanism, start):
