@@ -222,6 +222,14 @@ def trace(band) -> Float[Array, ""]:
     return jnp.sum(jnp.trace(band[:, 0], axis1=1, axis2=2))
 
 
+def largest_block_trace(band) -> Float[Array, ""]:
+    """``max_i tr(H_ii)`` over the diagonal ``7 x 7`` blocks (a body's)."""
+    if isinstance(band, arrowhead.Arrow):
+        hubs = jnp.trace(jnp.diagonal(band.corner, axis1=0, axis2=1), axis1=0, axis2=1)
+        return jnp.maximum(largest_block_trace(band.band), jnp.max(hubs))
+    return jnp.max(jnp.trace(band[:, 0], axis1=1, axis2=2))
+
+
 def size(band) -> int:
     """The bodies ``B`` of ``H``."""
     if isinstance(band, arrowhead.Arrow):

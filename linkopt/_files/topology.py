@@ -14,13 +14,16 @@ from .fields import Reader, shown
 #: Most bodies of a mechanism (:func:`check_size`). Where the bodies fall into a narrow
 #: band (:func:`linkopt._engine.banded.serves`) the solves, the design evaluation and
 #: the load-time checks (mobility, σ_min at rest: :mod:`linkopt._engine.mobility`)
-#: all work on the banded factor, so time and memory grow about linearly with the
-#: bodies: a 1000-body ladder loads in about 33 s (compiling its programs; the
-#: checks themselves take well under a second) and solves FK from rest in about
-#: 0.13 s, with a band of a few kB per body. What limits the size is then the
-#: evaluation's time (several seconds per sample at 1000 bodies:
-#: ``benchmarks/bench_bodies.py``), about ten times that at the limit.
-MAX_BODIES = 10000
+#: all work on the banded factor, linear in the bodies, and what limits a file is
+#: memory and time. Measured on generated ladders (2-core machine, loaded): at 1000
+#: bodies ``linkopt check`` takes 62 s wall (10 s CPU, mostly compiling) and 455 MB,
+#: an FK solve from rest 0.13-0.5 s, an evaluated sample 17 s and the evaluation 1.4
+#: GB; at 3000 bodies loading takes 135 s and 1.4 GB and an FK solve 8 s (44 LM
+#: iterations: the far end magnifies the motor's turn). About 0.5 MB per body
+#: loading and 1 MB per body evaluating: 5000 bodies load in a few minutes and
+#: evaluate in about 5 GB, minutes per sample; beyond that a file no longer fits a
+#: sitting.
+MAX_BODIES = 5000
 #: Most bodies of a mechanism whose bodies fall into no narrow band
 #: (:func:`check_band`): its checks and solves factor dense ``7B x 7B`` matrices
 #: (an SVD at load: a 300-body ladder forced dense loaded in about 200 s and 0.9 GB).
