@@ -22,7 +22,8 @@ their slopes; ``--skip-fk`` times only the evaluation and keeps the FK figures o
 last results file; ``--keep`` keeps the last file's records of the linkages and sizes
 not timed in this run (each with its own ``measured`` date), so the slow 1000-body
 runs can be made alone. Beside each banded wall time, the process CPU time (all
-threads) of the same runs, which a loaded machine's other work disturbs less. Writes ``benchmarks/results/bench_bodies.json`` and draws
+threads) of the same runs, which a loaded machine's other work disturbs less (dotted
+in the figure). Writes ``benchmarks/results/bench_bodies.json`` and draws
 ``figures/bench_bodies.png``.
 """
 
@@ -273,11 +274,12 @@ def draw(records: list[dict], evaluations: list[dict], path: Path) -> None:
 
 
 def _panel(ax, records: list[dict], suffix: str, ylabel: str) -> None:
-    """Log-log time against bodies, dense dashed and banded solid, per linkage: the
-    records' ``dense_<suffix>`` and ``banded_<suffix>`` where they have them."""
+    """Log-log time against bodies, dense dashed, banded solid and the banded runs'
+    CPU time dotted, per linkage: the records' ``dense_<suffix>``,
+    ``banded_<suffix>`` and ``banded_cpu_<suffix>`` where they have them."""
     for kind, marker in (("chain", "o"), ("ladder", "s")):
         rows = [r for r in records if r["linkage"] == kind]
-        for name, style in (("dense", "--"), ("banded", "-")):
+        for name, style in (("dense", "--"), ("banded", "-"), ("banded_cpu", ":")):
             key = f"{name}_{suffix}"
             pts = [(r["bodies"], r[key]) for r in rows if key in r]
             if pts:
