@@ -2,7 +2,7 @@
 ladders of closed loops (``tests/long_linkages.py``), dense factor against banded.
 
 Run: ``.venv/bin/python benchmarks/bench_bodies.py [--sizes 10,30,100,300,1000]
-[--dense-max 100] [--rows 16] [--repeats 3]``
+[--dense-max 100] [--rows 16] [--repeats 3] [--keep]``
 
 For each linkage and size: the time per solve of ``linkopt.solve_fk`` from the rest
 pose (continuation, then Levenberg–Marquardt) for a batch of motor rows uniform
@@ -12,13 +12,19 @@ within ±``SPAN`` rad of rest, seed 0, with the dense factor of ``JᵀJ``
 median kept) after one compiling call each, so a loaded machine slows both alike. The
 dense factor runs up to ``--dense-max`` bodies (its assembly and factor grow with the
 square and the cube of the bodies: at 300 bodies a solve takes minutes). The two
-answers are compared where both run. Prints the log-log slope of time per solve
-against bodies from 30 bodies on (issue 43's target: at most 1.2). Before that, the
-evaluation time per sample (``--eval-sizes``, default 10-300 bodies:
-:func:`measure_evaluation`, dense and banded alike up to ``--eval-dense-max``) and its
-slopes; ``--skip-fk`` times only the evaluation and keeps the FK figures of the last
-results file. Writes
-``benchmarks/results/bench_bodies.json`` and draws ``figures/bench_bodies.png``.
+answers are compared where both run. Prints the log-log slope of time per solve, per
+LM iteration and of the iterations per solve against bodies from 30 bodies on (issue
+43's target: at most 1.2). Before that, the evaluation time per sample
+(``--eval-sizes``: :func:`measure_evaluation`, dense and banded alike up to
+``--eval-dense-max``), per sample step, and the fixed work of one step without its
+solve (:func:`measure_point`: σ_min, its gradient and ``ds/da`` on the band), with
+their slopes; ``--skip-fk`` times only the evaluation and keeps the FK figures of the
+last results file; ``--keep`` keeps the last file's records of the linkages and sizes
+not timed in this run (each with its own ``measured`` date), so the slow 1000-body
+runs can be made alone. Beside each banded wall time, the process CPU time (all
+threads) of the same runs, which a loaded machine's other work disturbs less (dotted
+in the figure). Writes ``benchmarks/results/bench_bodies.json`` and draws
+``figures/bench_bodies.png``.
 """
 
 from __future__ import annotations
@@ -46,9 +52,10 @@ TARGET_SLOPE = 1.2
 #: prediction's error with it, so a wider span adds LM iterations as they grow; the
 #: records keep the iterations per solve and the time per iteration beside it.
 SPAN = 0.05
-#: Why ``--chain-max`` is 300: lazy tongs of 500 scissors magnify a motor's turn so
-#: much that the continuation needs hundreds of LM iterations per solve (measured: 564,
-#: 23.5 s per solve at 1000 bodies), which times the mechanism, not the factor.
+#: Lazy tongs of 500 scissors magnify a motor's turn so much that the continuation
+#: needs hundreds of LM iterations per solve (measured: 564, 23.5 s per solve at 1000
+#: bodies), which times the mechanism more than the factor: ``--rows-1000`` keeps that
+#: run short (the records keep the iterations and the time per iteration).
 CHAIN_MAX_NOTE = "lazy tongs of 1000 bodies need ~560 LM iterations per solve"
 
 
@@ -101,11 +108,14 @@ def measure(kind: str, bodies: int, rows: int, repeats: int, dense: bool) -> dic
     motors = rng.uniform(-SPAN, SPAN, size=(rows, mech.num_motors))
     runs = {f: _solver(m, motors) for f, m in mechs.items()}
     compile_s = {f: _timed(run) for f, run in runs.items()}
-    times = {f: [] for f in factors}
+    times, cpu, answers = {f: [] for f in factors}, [], {}
     for _ in range(repeats):  # alternate, so load hits both alike
         for f in factors:
-            times[f].append(_timed(runs[f]) / rows)
-    answers = {f: runs[f]() for f in factors}
+            start, start_cpu = time.perf_counter(), time.process_time()
+            answers[f] = runs[f]()
+            times[f].append((time.perf_counter() - start) / rows)
+            if f == "banded":
+                cpu.append((time.process_time() - start_cpu) / rows)
     record = {
         "linkage": kind,
         "bodies": mech.num_bodies,
@@ -113,6 +123,7 @@ def measure(kind: str, bodies: int, rows: int, repeats: int, dense: bool) -> dic
         "converged": float(np.mean(np.asarray(answers["banded"].converged))),
         "iterations": float(np.mean(np.asarray(answers["banded"].iterations))),
         "banded_s": statistics.median(times["banded"]),
+        "banded_cpu_s": statistics.median(cpu),
         "banded_first_call_s": compile_s["banded"],
     }
     record["banded_per_iteration_s"] = record["banded_s"] / record["iterations"]
@@ -146,12 +157,14 @@ def measure_evaluation(kind: str, bodies: int, repeats: int, dense: bool) -> dic
     mechs = {f: _mechanism(kind, bodies, f, True) for f in factors}
     runs = {f: _evaluation(m) for f, m in mechs.items()}
     compile_s = {f: _timed(run) for f, run in runs.items()}
-    times, answers = {f: [] for f in factors}, {}
+    times, cpu, answers = {f: [] for f in factors}, [], {}
     for _ in range(repeats):  # alternate, so load hits both alike
         for f in factors:
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             answers[f] = runs[f]()
             times[f].append(time.perf_counter() - start)
+            if f == "banded":
+                cpu.append(time.process_time() - start_cpu)
     ev = answers["banded"]
     samples = int(ev.ik_iterations.size)
     steps = int(np.sum(ev.ik_iterations) + np.sum(ev.adv_iterations))
@@ -165,6 +178,7 @@ def measure_evaluation(kind: str, bodies: int, repeats: int, dense: bool) -> dic
         "banded_first_call_s": compile_s["banded"],
     }
     record["banded_per_sample_s"] = record["banded_s"] / samples
+    record["banded_cpu_per_sample_s"] = statistics.median(cpu) / samples
     record["banded_per_step_s"] = record["banded_s"] / steps
     if dense:
         other = answers["dense"]
@@ -182,6 +196,55 @@ def measure_evaluation(kind: str, bodies: int, repeats: int, dense: bool) -> dic
             np.max(gap / np.abs(other.adv_f_sing))
         )
     return record
+
+
+def measure_point(kind: str, bodies: int, repeats: int) -> dict:
+    """The fixed work of one sample step on the band, its solve apart: σ_min of the
+    FK and BK Jacobians with its gradient in the state, and ``ds/da``
+    (:func:`linkopt._design.sampling.evaluate_point` with an objective that only
+    returns them), at the rest pose; the median of ``repeats`` calls after the
+    compiling one. What the per-step slope of the evaluation has beyond this is the
+    solves' LM iterations."""
+    import jax
+
+    from linkopt._design.sampling import evaluate_point
+    from linkopt._engine.geometry import geometry, rest_state
+
+    mech = _mechanism(kind, bodies, "banded", True)
+    geom, state = geometry(mech), rest_state(mech)
+    motors = jax.numpy.zeros(mech.num_motors)
+
+    def objective(motors, state, ds_da, f_sing, d_f_sing):
+        return f_sing, d_f_sing @ ds_da, ds_da.T @ ds_da
+
+    point = jax.jit(lambda s: evaluate_point(objective, mech, geom, motors, s))
+    first = _timed(lambda: jax.block_until_ready(point(state)))
+    times = [
+        _timed(lambda: jax.block_until_ready(point(state))) for _ in range(repeats)
+    ]
+    return {
+        "linkage": kind,
+        "bodies": mech.num_bodies,
+        "banded_point_s": statistics.median(times),
+        "banded_point_first_call_s": first,
+    }
+
+
+def keep_last(records: list[dict], key: str) -> list[dict]:
+    """``records`` and the last results file's ``key`` records of the linkages and
+    sizes not in them (each with the ``measured`` date of that file, or its own)."""
+    path = _results.RESULTS / "bench_bodies.json"
+    if not path.exists():
+        return records
+    last = json.loads(path.read_text())
+    done = {(r["linkage"], r["bodies"]) for r in records}
+    kept = [
+        {"measured": last["date"]} | r
+        for r in last.get(key, [])
+        if (r["linkage"], r["bodies"]) not in done
+    ]
+    order = lambda r: (r["linkage"], r["bodies"])  # noqa: E731
+    return sorted(records + kept, key=order)
 
 
 def slope(records: list[dict], key: str, smallest: int = 30) -> float | None:
@@ -211,11 +274,12 @@ def draw(records: list[dict], evaluations: list[dict], path: Path) -> None:
 
 
 def _panel(ax, records: list[dict], suffix: str, ylabel: str) -> None:
-    """Log-log time against bodies, dense dashed and banded solid, per linkage: the
-    records' ``dense_<suffix>`` and ``banded_<suffix>`` where they have them."""
+    """Log-log time against bodies, dense dashed, banded solid and the banded runs'
+    CPU time dotted, per linkage: the records' ``dense_<suffix>``,
+    ``banded_<suffix>`` and ``banded_cpu_<suffix>`` where they have them."""
     for kind, marker in (("chain", "o"), ("ladder", "s")):
         rows = [r for r in records if r["linkage"] == kind]
-        for name, style in (("dense", "--"), ("banded", "-")):
+        for name, style in (("dense", "--"), ("banded", "-"), ("banded_cpu", ":")):
             key = f"{name}_{suffix}"
             pts = [(r["bodies"], r[key]) for r in rows if key in r]
             if pts:
@@ -227,31 +291,18 @@ def _panel(ax, records: list[dict], suffix: str, ylabel: str) -> None:
     ax.legend()
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", default="10,30,100,300,1000")
-    parser.add_argument("--kinds", default="chain,ladder")
-    parser.add_argument("--dense-max", type=int, default=100)
-    parser.add_argument(
-        "--chain-max",
-        type=int,
-        default=300,
-        help=f"largest lazy tongs timed ({CHAIN_MAX_NOTE})",
-    )
-    parser.add_argument("--rows", type=int, default=16)
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--eval-sizes", default="10,30,100,300")
-    parser.add_argument("--eval-dense-max", type=int, default=30)
-    parser.add_argument("--eval-repeats", type=int, default=2)
-    parser.add_argument("--skip-fk", action="store_true", help="time evaluation only")
-    args = parser.parse_args()
-    evaluations = []
-    for kind in args.kinds.split(","):
-        for size in (int(s) for s in args.eval_sizes.split(",") if s):
+def _sizes(text: str) -> list[int]:
+    return [int(v) for v in text.split(",") if v]
+
+
+def _evaluations(args, kinds: list[str]) -> list[dict]:
+    records = []
+    for kind in kinds:
+        for size in _sizes(args.eval_sizes):
             rec = measure_evaluation(
                 kind, size, args.eval_repeats, size <= args.eval_dense_max
             )
-            evaluations.append(rec)
+            records.append(rec)
             line = f"{kind:6s} {rec['bodies']:5d} bodies: evaluate banded "
             line += f"{rec['banded_per_sample_s'] * 1e3:9.1f} ms/sample "
             line += f"({rec['sample_steps']} steps, first call "
@@ -261,22 +312,31 @@ def main() -> None:
                 line += f"(x{rec['ratio']:.2f}, same steps {rec['same_steps']}, "
                 line += f"f_sing rel. {rec['max_f_sing_relative_difference']:.1e})"
             print(line, flush=True)
-    eval_slopes = {}
-    for kind in args.kinds.split(","):
-        rows = [r for r in evaluations if r["linkage"] == kind]
-        eval_slopes[kind] = {
-            "per_sample": slope(rows, "banded_per_sample_s"),
-            "per_step": slope(rows, "banded_per_step_s"),
-        }
-        print(f"{kind}: evaluation log-log slope from 30 bodies: {eval_slopes[kind]}")
+    return records
+
+
+def _points(args, kinds: list[str]) -> list[dict]:
     records = []
-    if args.skip_fk:
-        args.kinds = ""
-    for kind in (k for k in args.kinds.split(",") if k):
-        for size in (int(s) for s in args.sizes.split(",")):
+    for kind in kinds:
+        for size in _sizes(args.point_sizes):
+            rec = measure_point(kind, size, args.repeats)
+            records.append(rec)
+            print(
+                f"{kind:6s} {rec['bodies']:5d} bodies: one step's σ_min, gradient "
+                f"and ds/da {rec['banded_point_s'] * 1e3:8.2f} ms",
+                flush=True,
+            )
+    return records
+
+
+def _fk(args, kinds: list[str]) -> list[dict]:
+    records = []
+    for kind in kinds:
+        for size in _sizes(args.sizes):
             if kind == "chain" and size > args.chain_max:
                 continue
-            rec = measure(kind, size, args.rows, args.repeats, size <= args.dense_max)
+            rows = args.rows if size < 1000 else args.rows_1000
+            rec = measure(kind, size, rows, args.repeats, size <= args.dense_max)
             records.append(rec)
             line = f"{kind:6s} {rec['bodies']:5d} bodies: banded "
             line += (
@@ -285,24 +345,95 @@ def main() -> None:
             if "dense_s" in rec:
                 line += f", dense {rec['dense_s'] * 1e3:9.2f} ms/solve "
                 line += f"(x{rec['ratio']:.2f}, |Δs| {rec['max_state_difference']:.1e})"
-            print(
-                line,
-                flush=True,
-            )
-    slopes = {}
-    for kind in (k for k in args.kinds.split(",") if k):
-        rows = [r for r in records if r["linkage"] == kind]
-        slopes[kind] = {
-            "banded": slope(rows, "banded_s"),
-            "banded_per_iteration": slope(rows, "banded_per_iteration_s"),
-            "dense": slope(rows, "dense_s"),
+            print(line, flush=True)
+    return records
+
+
+def _slopes(records: list[dict], keys: dict[str, str]) -> dict:
+    """Per linkage, the slope from 30 bodies on of each record key in ``keys``."""
+    return {
+        kind: {
+            name: slope([r for r in records if r["linkage"] == kind], key)
+            for name, key in keys.items()
         }
-        print(f"{kind}: log-log slope from 30 bodies: {slopes[kind]} (target <= 1.2)")
+        for kind in ("chain", "ladder")
+    }
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", default="10,30,100,300,1000")
+    parser.add_argument("--kinds", default="chain,ladder")
+    parser.add_argument("--dense-max", type=int, default=100)
+    parser.add_argument(
+        "--chain-max",
+        type=int,
+        default=1000,
+        help=f"largest lazy tongs timed ({CHAIN_MAX_NOTE})",
+    )
+    parser.add_argument("--rows", type=int, default=16)
+    parser.add_argument(
+        "--rows-1000",
+        type=int,
+        default=16,
+        help="motor rows at 1000 bodies and more (the tongs were timed with 2)",
+    )
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--eval-sizes", default="10,30,100,300,1000")
+    parser.add_argument("--point-sizes", default="30,100,300,1000")
+    parser.add_argument("--eval-dense-max", type=int, default=30)
+    parser.add_argument("--eval-repeats", type=int, default=1)
+    parser.add_argument("--skip-fk", action="store_true", help="time evaluation only")
+    parser.add_argument(
+        "--keep",
+        action="store_true",
+        help="keep the last results file's records of what this run does not time",
+    )
+    return parser
+
+
+def main() -> None:
+    args = _parser().parse_args()
+    kinds = [k for k in args.kinds.split(",") if k]
+    evaluations = _evaluations(args, kinds)
+    points = _points(args, kinds)
+    records = [] if args.skip_fk else _fk(args, kinds)
     fk_from = None  # the FK figures are this run's
     if args.skip_fk:  # the FK figures of the last full run stay
         kept = json.loads((_results.RESULTS / "bench_bodies.json").read_text())
-        records, slopes = kept["fk_per_solve"], kept["slope_from_30_bodies"]
+        records = kept["fk_per_solve"]
         fk_from = kept.get("fk_measured") or {k: kept[k] for k in ("date", "commit")}
+    if args.keep:
+        evaluations = keep_last(evaluations, "evaluation_per_sample")
+        points = keep_last(points, "evaluation_step_without_solve")
+        records = records if args.skip_fk else keep_last(records, "fk_per_solve")
+    eval_slopes = _slopes(
+        evaluations,
+        {
+            "per_sample": "banded_per_sample_s",
+            "cpu_per_sample": "banded_cpu_per_sample_s",
+            "per_step": "banded_per_step_s",
+        },
+    )
+    eval_slopes = {
+        kind: v | _slopes(points, {"step_without_solve": "banded_point_s"})[kind]
+        for kind, v in eval_slopes.items()
+    }
+    slopes = _slopes(
+        records,
+        {
+            "banded": "banded_s",
+            "banded_cpu": "banded_cpu_s",
+            "banded_per_iteration": "banded_per_iteration_s",
+            "iterations": "iterations",
+            "dense": "dense_s",
+        },
+    )
+    for kind in kinds:
+        print(f"{kind}: evaluation log-log slope from 30 bodies: {eval_slopes[kind]}")
+        print(
+            f"{kind}: FK log-log slope from 30 bodies: {slopes[kind]} (target <= 1.2)"
+        )
     draw(records, evaluations, ROOT / "figures" / "bench_bodies.png")
     _results.write(
         "bench_bodies",
@@ -312,6 +443,7 @@ def main() -> None:
             "slope_from_30_bodies": slopes,
             "target_slope": TARGET_SLOPE,
             "evaluation_per_sample": evaluations,
+            "evaluation_step_without_solve": points,
             "evaluation_slope_from_30_bodies": eval_slopes,
         },
     )

@@ -75,9 +75,13 @@ def input_output_jacobian(
 def rest_conditioning(mech: Mechanism) -> RestConditioning:
     """:class:`RestConditioning` of the file's initial design."""
     rest = rest_jacobians(mech)
-    sigmas, (jac_fk, jac_bk) = rest.sigmas, rest.stacked
-    jac = input_output_jacobian(mech, np.asarray(jac_fk), np.asarray(jac_bk))
-    sigma_fk, sigma_bk = (float(v) for v in np.asarray(sigmas))
+    if rest.rates is not None:  # on the band: no dense Jacobian formed
+        rates = np.asarray(rest.rates)
+        jac = mech.output_scale[:, None] * rates / mech.motor_scale[None, :]
+    else:
+        jac_fk, jac_bk = rest.stacked
+        jac = input_output_jacobian(mech, np.asarray(jac_fk), np.asarray(jac_bk))
+    sigma_fk, sigma_bk = (float(v) for v in np.asarray(rest.sigmas))
     return RestConditioning(sigma_fk, sigma_bk, np.linalg.svd(jac, compute_uv=False))
 
 

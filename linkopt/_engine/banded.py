@@ -175,6 +175,24 @@ def layout(mech: Mechanism, geom, kind: str) -> Layout:
     return body_order(mech.num_bodies, _pairs(passive + tail))
 
 
+def passive_normal(mech: Mechanism, geom, state):
+    """``JᵀJ`` of the passive rows alone (:func:`~.constraints.passive_residual`,
+    motors as passive joints: the mobility test's matrix) in band or arrowhead
+    storage, in :func:`passive_layout`'s order."""
+    passive, _, _ = row_groups(mech, geom, "fk", jnp.zeros(mech.num_motors), state)
+    where = body_order(mech.num_bodies, _pairs(passive))
+    if where.hubs:
+        return _arrow_blocks(passive, where, mech.num_bodies)[0]
+    return _band_blocks(passive, where, mech.num_bodies)[0]
+
+
+def passive_layout(mech: Mechanism, geom) -> Layout:
+    """The :class:`Layout` of :func:`passive_normal` (static)."""
+    state = jnp.zeros(mech.state_size)
+    passive, _, _ = row_groups(mech, geom, "fk", jnp.zeros(mech.num_motors), state)
+    return body_order(mech.num_bodies, _pairs(passive))
+
+
 def factor(band, damping):
     """The block Cholesky factor of ``band + damping I``: :func:`band_factor.factor`
     for a plain band, :func:`arrowhead.factor` for an :class:`arrowhead.Arrow`."""
@@ -202,6 +220,14 @@ def trace(band) -> Float[Array, ""]:
     if isinstance(band, arrowhead.Arrow):
         return arrowhead.trace(band)
     return jnp.sum(jnp.trace(band[:, 0], axis1=1, axis2=2))
+
+
+def largest_block_trace(band) -> Float[Array, ""]:
+    """``max_i tr(H_ii)`` over the diagonal ``7 x 7`` blocks (a body's)."""
+    if isinstance(band, arrowhead.Arrow):
+        hubs = jnp.trace(jnp.diagonal(band.corner, axis1=0, axis2=1), axis1=0, axis2=1)
+        return jnp.maximum(largest_block_trace(band.band), jnp.max(hubs))
+    return jnp.max(jnp.trace(band[:, 0], axis1=1, axis2=2))
 
 
 def size(band) -> int:

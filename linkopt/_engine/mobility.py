@@ -5,12 +5,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
 from .._errors import InputError, MechanismFileError
-from . import programs
-from .constraints import homogenised_motor_values, passive_residual
+from . import banded, banded_sigma, programs, singularity
+from .constraints import (
+    bk_residual,
+    fk_residual,
+    homogenised_motor_values,
+    passive_residual,
+)
 from .geometry import geometry, rest_state
 from .jacobian import state_jacobian
 from .lifting import padded_design
@@ -28,11 +34,15 @@ class RestJacobians:
     """What the load-time checks and α₋ read at the rest pose, homogenised. The FK
     and BK Jacobians have one row per motor and per output on top of the passive
     rows, so a file whose motor and output counts differ (refused by
-    :func:`check_mobility`) has ``sigmas`` and ``stacked`` None."""
+    :func:`check_mobility`) has ``sigmas`` and ``stacked`` None. On the band
+    (:func:`linkopt._engine.banded.serves`) no dense Jacobian is formed: ``passive``
+    and ``stacked`` are None and ``rates`` holds what the input-output Jacobian
+    needs (:func:`_banded_rest_program`); on the dense path ``rates`` is None."""
 
-    passive: Float[Array, "P S"]  # ∂C_passive/∂s (motors as passive joints)
+    passive: Float[Array, "P S"] | None  # ∂C_passive/∂s (motors as passive joints)
     sigmas: Float[Array, 2] | None  # (σ_min^FK, σ_min^BK)
     stacked: Float[Array, "2 R S"] | None  # [∂C_FK/∂s, ∂C_BK/∂s]
+    rates: Float[Array, "K M"] | None = None  # homogenised ∂b/∂a, on the band
 
 
 def _rest_program(mech: Mechanism) -> tuple:
@@ -49,21 +59,128 @@ def _rest_program(mech: Mechanism) -> tuple:
     return passive, sigmas_of(stacked), stacked
 
 
+def _banded_rest_program(mech: Mechanism) -> tuple:
+    """``(σ_min^FK, σ_min^BK)`` on the band (:mod:`.banded_sigma`) and the
+    homogenised ``∂b/∂a``: the state velocity of a unit motor velocity is the least
+    squares solution of ``∂C_FK/∂s ṡ = (0, e_i)`` (``(JᵀJ)⁻¹Jᵀ``, one banded factor),
+    the outputs' velocity the output rows of ``∂C_BK/∂s ṡ`` (a forward-mode product);
+    what :func:`linkopt._design.conditioning.input_output_jacobian` gives from the
+    dense Jacobians."""
+    geom = geometry(mech)
+    state = rest_state(mech)
+    motors, outputs = jnp.zeros(mech.num_motors), jnp.zeros(mech.num_outputs)
+    _, pull = jax.vjp(lambda s: fk_residual(mech, geom, motors, s), state)
+    rows = jax.eval_shape(lambda: fk_residual(mech, geom, motors, state)).shape[0]
+    unit = (
+        jnp.zeros((rows, mech.num_motors))
+        .at[rows - mech.num_motors :]
+        .set(jnp.eye(mech.num_motors))
+    )
+    projected = jax.vmap(lambda c: pull(c)[0], in_axes=1, out_axes=1)(unit)
+    velocity = banded.normal_solve(mech, "fk", geom, state, projected)
+
+    def output_rates(v):
+        return jax.jvp(lambda s: bk_residual(mech, geom, outputs, s), (state,), (v,))[1]
+
+    rates = jax.vmap(output_rates, in_axes=1, out_axes=1)(velocity)
+    sigmas = banded_sigma.sigma_min_pair(mech, geom, state)
+    return sigmas, rates[rates.shape[0] - mech.num_outputs :]
+
+
 def rest_jacobians(mech: Mechanism) -> RestJacobians:
     """:class:`RestJacobians` of the file's initial design: one program for every
     check that loading runs and for α₋ (:mod:`.programs`: each new structure compiles
     it once, where three separate programs compiled the shared Jacobian rows three
-    times)."""
-    return RestJacobians(*programs.call("rest_jacobians", mech, _rest_program))
+    times). On the band: σ_min and ``∂b/∂a`` only (the mobility is
+    :func:`banded_mobility`'s)."""
+    if not banded.serves(mech):
+        return RestJacobians(*programs.call("rest_jacobians", mech, _rest_program))
+    if mech.num_motors != mech.num_outputs:
+        return RestJacobians(None, None, None)
+    sigmas, rates = programs.call("banded_rest", mech, _banded_rest_program)
+    return RestJacobians(None, sigmas, None, rates)
 
 
 def mobility(mech: Mechanism) -> int:
     """Degrees of freedom at rest: ``|s| - rank(∂C_passive/∂s)`` (motors as passive
     joints). Idle spins are not counted: the passive rows include their gauge rows
-    (:func:`linkopt._engine.constraints.gauge_rows`)."""
+    (:func:`linkopt._engine.constraints.gauge_rows`). On the band
+    (:func:`linkopt._engine.banded.serves`): :func:`banded_mobility`, linear in the
+    bodies, where the SVD of the dense passive Jacobian is cubic."""
+    if banded.serves(mech):
+        return banded_mobility(mech)
     values = np.linalg.svd(np.asarray(rest_jacobians(mech).passive), compute_uv=False)
     rank = int(np.sum(values > RANK_TOL * values[0]))
     return mech.state_size - rank
+
+
+#: Inverse-iteration sweeps of the banded rank test: per sweep, the block's error
+#: shrinks by ``(λ_k + shift)/(λ_k+1 + shift)`` (the eigenvalues of ``JᵀJ``).
+RANK_SWEEPS = 12
+#: The rank test factors ``JᵀJ + RANK_SHIFT·λ_max·I``: far above the factor's
+#: rounding (about ``7(w + 1)·ε·λ_max``), and, unlike σ_min's ``SHIFT·trace``, not
+#: growing with the bodies: a long truss has many singular values of ``J`` near
+#: ``1e-5`` (a 1000-body ladder's σ_min at rest: 1.9e-5), and a shift above their
+#: squares would blur the null space into them (a 3000-body ladder then counted no
+#: null space at all).
+RANK_SHIFT = 1e-13
+
+
+def _null_block(mech: Mechanism, geom, state, start):
+    """``(x, J x, λ_max)``: an orthonormal block ``x`` ``(S, k)`` holding the passive
+    Jacobian's ``k`` smallest right singular vectors at ``state`` (block inverse
+    iteration on the band from ``start``), its image ``J x`` and ``JᵀJ``'s largest
+    eigenvalue."""
+    band = banded.passive_normal(mech, geom, state)
+    top = banded_sigma.largest_eigenvalue(band)
+    block = banded_sigma.smallest_subspace(band, start, RANK_SWEEPS, RANK_SHIFT * top)
+    where = banded.passive_layout(mech, geom)
+    vectors = jax.vmap(lambda x: banded.unpermute(where, x), in_axes=2, out_axes=1)(
+        block
+    )
+
+    def image(v):
+        return jax.jvp(lambda s: passive_residual(mech, geom, s), (state,), (v,))[1]
+
+    images = jax.vmap(image, in_axes=1, out_axes=1)(vectors)
+    return vectors, images, top
+
+
+def _passive_null_program(mech: Mechanism, start):
+    """``(J x, λ_max)`` of :func:`_null_block` at the file's rest pose."""
+    _, images, top = _null_block(mech, geometry(mech), rest_state(mech), start)
+    return images, top
+
+
+def _null_count(images: np.ndarray, top) -> int:
+    """How many singular values of ``J x`` are at most ``RANK_TOL·σ_max``
+    (``σ_max² = λ_max``)."""
+    values = np.linalg.svd(images, compute_uv=False)
+    return int(np.sum(values <= RANK_TOL * np.sqrt(float(top))))
+
+
+def _first_block(mech: Mechanism) -> int:
+    """Columns of the first block of the banded rank test: the motors' null space
+    and room to spare."""
+    return min(mech.state_size, max(singularity.BLOCK, 2 * mech.num_motors + 2))
+
+
+def banded_mobility(mech: Mechanism) -> int:
+    """:func:`mobility` from the band: the singular values of ``J x`` (``x`` the
+    block of :func:`_passive_null_program`, ``k`` columns) are ``J``'s ``k``
+    smallest; those at most ``RANK_TOL·σ_max`` (``σ_max² = λ_max(JᵀJ)``) count the
+    null space, as the dense SVD's do. A null space as large as the block is tried
+    again with twice the block, so a mobility of any size is counted."""
+    k = _first_block(mech)
+    while True:
+        start = banded_sigma.start_block(mech.num_bodies, k)
+        images, top = programs.call(
+            "passive_null", mech, _passive_null_program, jnp.asarray(start)
+        )
+        null = _null_count(np.asarray(images), top)
+        if null < k or k == mech.state_size:
+            return null
+        k = min(mech.state_size, 2 * k)
 
 
 def check_mobility(mech: Mechanism) -> None:
@@ -170,6 +287,8 @@ def mobility_changes(mech: Mechanism, designs) -> list[MobilityChange | None]:
     mobility the motors number (the file's, checked on loading), else what changed
     (a design that turns a spherical loop into a general spatial one that locks)."""
     designs = np.atleast_2d(np.asarray(designs, dtype=np.float64))
+    if banded.serves(mech):
+        return _banded_changes(mech, designs)
     passive, motors = _rest_jacobians_of(mech, padded_design(mech, designs))
     values = np.linalg.svd(passive, compute_uv=False)  # (N, min(P, S)), batched
     ranks = np.sum(values > RANK_TOL * values[:, :1], axis=1)
@@ -190,21 +309,77 @@ MOBILITY_BATCH = 8
 def _rest_jacobians_of(mech: Mechanism, padded: np.ndarray) -> tuple:
     """The passive and motor Jacobians at rest of each padded design ``(N, P)``, as
     numpy arrays, in batches of :data:`MOBILITY_BATCH`."""
+    return _in_batches(mech, padded, "design_mobility", _design_rest_program)
+
+
+def _in_batches(mech: Mechanism, padded: np.ndarray, name: str, fn, *args) -> tuple:
+    """``programs.call(name, mech, fn, batch, *args)`` over the padded designs ``(N,
+    P)`` in batches of :data:`MOBILITY_BATCH` (the last padded by repeating its last
+    design), each output as one numpy array over the ``N`` designs."""
     count = len(padded)
     total = -(-count // MOBILITY_BATCH) * MOBILITY_BATCH
     padded = np.concatenate([padded, np.repeat(padded[-1:], total - count, axis=0)])
     parts = [
-        programs.call(
-            "design_mobility",
-            mech,
-            _design_rest_program,
-            padded[start : start + MOBILITY_BATCH],
-        )
+        programs.call(name, mech, fn, padded[start : start + MOBILITY_BATCH], *args)
         for start in range(0, total, MOBILITY_BATCH)
     ]
     return tuple(
-        np.concatenate([np.asarray(p[k]) for p in parts])[:count] for k in (0, 1)
+        np.concatenate([np.asarray(p[k]) for p in parts])[:count]
+        for k in range(len(parts[0]))
     )
+
+
+def _design_null_program(mech: Mechanism, designs, start):
+    """Per design: :func:`_null_block` at the rest pose and the motors' rates along
+    the block ``(M, k)`` (forward-mode products, never a dense Jacobian)."""
+    state = rest_state(mech)
+
+    def one(design):
+        geom = geometry(mech, design)
+        vectors, images, top = _null_block(mech, geom, state, start)
+
+        def rate(v):
+            return jax.jvp(
+                lambda s: homogenised_motor_values(mech, geom, s), (state,), (v,)
+            )[1]
+
+        return images, top, jax.vmap(rate, in_axes=1, out_axes=1)(vectors)
+
+    return jax.vmap(one)(designs)
+
+
+def _banded_changes(mech: Mechanism, designs) -> list[MobilityChange | None]:
+    """:func:`mobility_changes` on the band: per design the rank test of
+    :func:`banded_mobility` (the block widened while a design's null space fills
+    it), the locked motors from the null directions found in the block."""
+    padded = padded_design(mech, designs)
+    k = _first_block(mech)
+    while True:
+        start = jnp.asarray(banded_sigma.start_block(mech.num_bodies, k))
+        parts = _in_batches(mech, padded, "design_null", _design_null_program, start)
+        images, tops, rates = parts
+        counts = [_null_count(i, t) for i, t in zip(images, tops)]
+        if max(counts) < k or k == mech.state_size:
+            break
+        k = min(mech.state_size, 2 * k)
+    return [
+        None if count == mech.num_motors else _banded_change(mech, d, i, r, count)
+        for d, i, r, count in zip(designs, images, rates, counts)
+    ]
+
+
+def _banded_change(mech, design, images, rates, count: int) -> MobilityChange:
+    """:func:`_change` from the block: the null directions are ``x w`` for the right
+    singular vectors ``w`` of ``J x`` of its ``count`` smallest values, the motors'
+    rates along them ``rates w``."""
+    _, _, wt = np.linalg.svd(images)
+    null = wt[wt.shape[0] - count :].T  # (k, count)
+    locked = tuple(
+        name
+        for name, row in zip(mech.motor_names, rates @ null)
+        if np.linalg.norm(row) <= LOCKED_TOL
+    )
+    return MobilityChange(np.asarray(design), count, locked)
 
 
 def _change(mech: Mechanism, design, passive, motors) -> MobilityChange:

@@ -41,6 +41,7 @@ from .synthesis import read_synthesis, synthesis_names
 from .topology import (
     body_fields,
     body_origins,
+    check_band,
     check_size,
     joint_fields,
     read_bodies,
@@ -93,6 +94,7 @@ def build(data: dict, source: str, check: bool = True) -> Mechanism:
     if check:
         from .._engine.mobility import check_mobility  # needs JAX; not for parsing
 
+        check_band(mech)
         check_mobility(mech)
     return mech
 

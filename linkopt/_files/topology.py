@@ -7,36 +7,59 @@ import numpy as np
 from jaxtyping import Float
 
 from .._engine.model import AXIAL_JOINTS, JOINT_ROWS
+from .._errors import MechanismFileError
 from .bounds import ORTHOGONAL_TOL, position
 from .fields import Reader, shown
 
-#: Most bodies of a mechanism (:func:`check_size`). The FK/BK solves factor ``JᵀJ`` in
-#: band storage (:mod:`linkopt._engine.banded`): their time and memory grow about
-#: linearly with the bodies (a 1000-body ladder: about 0.13 s per solve from rest,
-#: a band of a few MB), so they would take far more. What sets the limit is what is
-#: still dense: loading checks the mobility and σ_min at the rest pose on the full
-#: ``7B x 7B`` Jacobians (an SVD and dense factors, cubic in the bodies: a 300-body
-#: ladder loads in about 200 s and 0.9 GB on a loaded 2-core machine, a 1000-body one
-#: in more than 10 minutes), and the design evaluation's σ_min per sample holds two
-#: such Jacobians (784 MB at 1000 bodies). 1000 bodies is the most a user can still
-#: load and solve in a sitting; evaluating and optimising is practical to a few
-#: hundred.
-MAX_BODIES = 1000
+#: Most bodies of a mechanism (:func:`check_size`). Where the bodies fall into a narrow
+#: band (:func:`linkopt._engine.banded.serves`) the solves, the design evaluation and
+#: the load-time checks (mobility, σ_min at rest: :mod:`linkopt._engine.mobility`)
+#: all work on the banded factor, linear in the bodies, and what limits a file is
+#: memory and time. Measured on generated ladders (2-core machine, loaded): at 1000
+#: bodies ``linkopt check`` takes 62 s wall (10 s CPU, mostly compiling) and 455 MB,
+#: an FK solve from rest 0.13-0.5 s, an evaluated sample 17 s and the evaluation 1.4
+#: GB; at 3000 bodies loading takes 135 s and 1.4 GB and an FK solve 8 s (44 LM
+#: iterations: the far end magnifies the motor's turn). About 0.5 MB per body
+#: loading and 1 MB per body evaluating: 5000 bodies load in a few minutes and
+#: evaluate in about 5 GB, minutes per sample; beyond that a file no longer fits a
+#: sitting.
+MAX_BODIES = 5000
+#: Most bodies of a mechanism whose bodies fall into no narrow band
+#: (:func:`check_band`): its checks and solves factor dense ``7B x 7B`` matrices
+#: (an SVD at load: a 300-body ladder forced dense loaded in about 200 s and 0.9 GB).
+DENSE_MAX_BODIES = 300
 
 
 def check_size(rd: Reader, data: dict) -> None:
-    """Refuse, before any work, a mechanism too large for the dense checks at load:
-    the state has 7 numbers per body and loading factors its square."""
+    """Refuse, before any work, a mechanism of more than :data:`MAX_BODIES` bodies."""
     bodies = data.get("bodies")
     if not isinstance(bodies, list) or len(bodies) <= MAX_BODIES:
         return
-    size = 7 * len(bodies)
-    matrix = 8.0 * size * size
     raise rd.fail(
         "[[bodies]]",
-        f"{len(bodies)} bodies make a state of {size} numbers: loading checks the "
-        f"mobility on a {size} x {size} matrix ({matrix / 2**20:.0f} MB, cubic time "
-        f"in the bodies); linkopt takes at most {MAX_BODIES} bodies",
+        f"{len(bodies)} bodies make a state of {7 * len(bodies)} numbers; linkopt "
+        f"takes at most {MAX_BODIES} bodies (time per solve and per evaluated sample "
+        "grow with the bodies)",
+    )
+
+
+def check_band(mech) -> None:
+    """Refuse a mechanism of more than :data:`DENSE_MAX_BODIES` bodies that the banded
+    factor does not serve (:func:`linkopt._engine.banded.serves`): its load-time
+    checks and solves are dense, cubic in the bodies."""
+    from .._engine import banded  # needs JAX; not for parsing
+
+    if mech.num_bodies <= DENSE_MAX_BODIES or banded.serves(mech):
+        return
+    size = mech.state_size
+    raise MechanismFileError(
+        mech.source,
+        "[[bodies]]",
+        f"{mech.num_bodies} bodies whose joints fall into no narrow band (no order "
+        f"keeps the bodies that share a joint within 1/8 of the bodies of each "
+        f"other): loading checks them on a dense {size} x {size} matrix "
+        f"({8.0 * size * size / 2**20:.0f} MB, cubic time in the bodies); linkopt "
+        f"takes at most {DENSE_MAX_BODIES} such bodies",
     )
 
 
