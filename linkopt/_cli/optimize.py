@@ -204,6 +204,7 @@ def _run_optimize(args) -> int:
 
     check_mechanism(args, mech)
     settings = settings_from_args(args, args.seed)
+    _initial_ahead(args, mech, settings)
     with locked_run_folder(args.out, args.resume, "--out"):
         run = _optimize(args, mech, settings)
         print(
@@ -243,6 +244,19 @@ def _run_optimize(args) -> int:
         )
         return 1
     return 0
+
+
+def _initial_ahead(args, mech, settings) -> None:
+    """Have the worker process that the optimiser hands back make the file's design's
+    verification and space plot while this one runs the last verification round
+    (:func:`linkopt._design.run.initial_outputs`; ``write_outputs`` takes them)."""
+    if args.scheduler is not None:
+        return
+    from .._design.run import initial_outputs, swarm_rows
+    from .._draw.run_folder import draw_run_figures
+
+    rows = swarm_rows(settings.particles, args.workers)
+    ahead.early(initial_outputs, mech, rows, args.resolution, None, draw_run_figures)
 
 
 def _optimize(args, mech, settings):
