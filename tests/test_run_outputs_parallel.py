@@ -268,3 +268,31 @@ def test_an_error_in_the_outputs_made_ahead_names_the_output(
         ahead.close()
     assert str(raised.value) == "spaces_initial.png: ValueError: no cells to draw"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_view_drawn_beside_the_figures_is_the_command_lines(tmp_path, five_bar):
+    """``draw_run_figures_and_view`` (what ``linkopt optimize`` passes) writes the run
+    folder's ``view.html`` with the motions, the same bytes as the page
+    ``linkopt view DIR`` writes from the finished folder
+    (:func:`linkopt._cli.view.write_run_view`); a folder without ``optimized.toml``
+    gets none, and False says so (the command line then writes it or warns)."""
+    from linkopt._cli.view import write_run_view
+    from linkopt._draw.run_folder import VIEW_FILE, draw_run_figures_and_view, run_view
+
+    out = tmp_path / "run"
+    run_folder.write_outputs(
+        five_bar,
+        out,
+        _finished_run(five_bar),
+        SETTINGS,
+        figures=draw_run_figures_and_view,
+        workers=1,
+    )
+    drawn = (out / VIEW_FILE).read_bytes()
+    (out / VIEW_FILE).unlink()
+    write_run_view(out)
+    assert (out / VIEW_FILE).read_bytes() == drawn
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert not run_view(five_bar, empty)
+    assert list(empty.iterdir()) == []

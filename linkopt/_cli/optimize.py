@@ -200,7 +200,7 @@ def run_optimize(args) -> int:
 def _run_optimize(args) -> int:
     mech = load(args.file)
     from .._design.run import locked_run_folder, write_outputs
-    from .._draw.run_folder import draw_run_figures
+    from .._draw.run_folder import VIEW_FILE, draw_run_figures_and_view
 
     check_mechanism(args, mech)
     settings = settings_from_args(args, args.seed)
@@ -212,19 +212,23 @@ def _run_optimize(args) -> int:
             file=sys.stderr,
             flush=True,
         )
+        # view.html is drawn beside the figures (draw_run_figures_and_view); an
+        # earlier run's would stand for this one's where it could not be
+        (Path(args.out) / VIEW_FILE).unlink(missing_ok=True)
         summary = write_outputs(
             mech,
             args.out,
             run,
             settings,
-            figures=draw_run_figures,
+            figures=draw_run_figures_and_view,
             resolution=args.resolution,
             workers=args.workers,
             progress=map_progress(),
         )
-        from .view import write_run_view
+        if not (Path(args.out) / VIEW_FILE).is_file():  # written here, or a warning
+            from .view import write_run_view
 
-        write_run_view(Path(args.out))
+            write_run_view(Path(args.out))
     print(json.dumps({k: summary[k] for k in _SUMMARY_KEYS}, indent=2))
     out = Path(args.out)
     names = ("spaces_optimized.png", "convergence.png", "mechanism.png", "view.html")
@@ -253,10 +257,11 @@ def _initial_ahead(args, mech, settings) -> None:
     if args.scheduler is not None:
         return
     from .._design.run import initial_outputs, swarm_rows
-    from .._draw.run_folder import draw_run_figures
+    from .._draw.run_folder import draw_run_figures_and_view
 
     rows = swarm_rows(settings.particles, args.workers)
-    ahead.early(initial_outputs, mech, rows, args.resolution, None, draw_run_figures)
+    figures = draw_run_figures_and_view  # the one write_outputs gets
+    ahead.early(initial_outputs, mech, rows, args.resolution, None, figures)
 
 
 def _optimize(args, mech, settings):

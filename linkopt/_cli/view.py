@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._draw.view import write_page
 from .._errors import InputError, LinkoptError
 from .values import design_arg, load
 
@@ -88,27 +89,6 @@ def _designs(args):
     design = design_arg(mech, args.design)
     label = "file's design" if design is None else f"design {args.design}"
     return mech, [(label, design)], Path(VIEW_FILE)
-
-
-def write_page(mech, designs, out: Path, resolution, progress=None) -> dict:
-    """Solve each design's grid and write the page; returns a summary."""
-    from .._design.view_grid import check_view_grid, view_grid
-    from .._draw.view import Shown, write_view
-
-    resolution = check_view_grid(mech, resolution, len(designs))
-    shown = []
-    for label, design in designs:
-        if progress is not None:
-            progress(f"solving {resolution}^{mech.num_motors} configurations: {label}")
-        shown.append(Shown(label, design, view_grid(mech, resolution, design)))
-    size = write_view(mech, shown, out)
-    return {
-        "out": str(out),
-        "bytes": size,
-        "resolution": resolution,
-        "cells": int(len(shown[0].grid.feasible)),
-        "reached": {s.label: int(np.count_nonzero(s.grid.feasible)) for s in shown},
-    }
 
 
 def write_run_view(out: Path) -> None:

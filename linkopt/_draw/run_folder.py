@@ -49,6 +49,48 @@ def draw_run_figures(job: run_folder.RunFigures) -> None:
         _optimized(job)
 
 
+#: The run folder's browser view (:func:`draw_run_figures_and_view`).
+VIEW_FILE = "view.html"
+
+
+def draw_run_figures_and_view(job: run_folder.RunFigures) -> None:
+    """:func:`draw_run_figures`, and on the motions' job (the side process's, with
+    workers) ``view.html`` too (:func:`run_view`): ``linkopt optimize`` passes it, so
+    the page's grids are solved beside this process's figures rather than after
+    them."""
+    draw_run_figures(job)
+    if job.design is None and job.optimized is not None:
+        run_view(job.mech, job.out)
+
+
+def run_view(mech: Mechanism, out: Path) -> bool:
+    """``view.html`` in the run folder (or stage) ``out`` that holds
+    ``optimized.toml``: the page of that file's mechanism at the initial design
+    (``mech``'s, the file the run started from: ``summary.json``'s
+    ``initial_design``) and at the optimised one, at the default resolution, as
+    ``linkopt view DIR`` draws it. One that cannot be written (an error naming its
+    file) is not: False, and the caller writes it or says why
+    (:func:`linkopt._cli.view.write_run_view`)."""
+    import numpy as np
+
+    from .._errors import LinkoptError
+    from .._files.fields import parse_text
+    from .._files.loader import build
+    from .view import write_page
+
+    optimized = out / "optimized.toml"
+    try:
+        shown = build(parse_text(optimized), str(optimized))
+        initial = dict(zip(mech.design.names, map(float, mech.design.p0)))
+        p0 = np.array([initial[name] for name in shown.design.names])
+        designs = [("initial", p0), ("optimised", np.asarray(shown.design.p0))]
+        write_page(shown, designs, out / VIEW_FILE, None)
+    except (LinkoptError, ImportError, KeyError):
+        (out / VIEW_FILE).unlink(missing_ok=True)
+        return False
+    return True
+
+
 def _initial(job: run_folder.RunFigures) -> None:
     """The file's design's space plot (``spaces_initial.png``), evaluated here."""
     if has_space_plots(job.mech):
