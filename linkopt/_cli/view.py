@@ -19,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .._draw.view import write_page
 from .._errors import InputError, LinkoptError
 from .values import design_arg, load
 
@@ -89,6 +88,14 @@ def _designs(args):
     design = design_arg(mech, args.design)
     label = "file's design" if design is None else f"design {args.design}"
     return mech, [(label, design)], Path(VIEW_FILE)
+
+
+def write_page(mech, designs, out: Path, resolution, progress=None) -> dict:
+    """:func:`linkopt._draw.view.write_page`, imported when called: building the
+    parser imports no JAX (:mod:`linkopt._cli.main`)."""
+    from .._draw.view import write_page as write
+
+    return write(mech, designs, out, resolution, progress)
 
 
 def write_run_view(out: Path) -> None:
