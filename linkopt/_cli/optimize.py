@@ -251,17 +251,17 @@ def _run_optimize(args) -> int:
 
 
 def _initial_ahead(args, mech, settings) -> None:
-    """Have the worker process that the optimiser hands back make the file's design's
-    verification and space plot while this one runs the last verification round
-    (:func:`linkopt._design.run.initial_outputs`; ``write_outputs`` takes them)."""
+    """Have the worker process that the optimiser hands back draw the file's design's
+    space plot while this one runs the last verification round
+    (:func:`linkopt._design.run.initial_figures`; ``write_outputs`` takes it)."""
     if args.scheduler is not None:
         return
-    from .._design.run import initial_outputs, swarm_rows
+    from .._design.run import initial_figures, swarm_rows
     from .._draw.run_folder import draw_run_figures_and_view
 
     rows = swarm_rows(settings.particles, args.workers)
     figures = draw_run_figures_and_view  # the one write_outputs gets
-    ahead.early(initial_outputs, mech, rows, args.resolution, None, figures)
+    ahead.early(initial_figures, mech, rows, args.resolution, figures)
 
 
 def _optimize(args, mech, settings):

@@ -11,8 +11,8 @@ that finishes hands its processes back (:func:`keep`) instead of ending them: th
 round's ``Workers`` adopts them, or the run's final outputs take one for the work they
 do beside this process (:func:`side`; :mod:`linkopt._design.run`), warm, with JAX
 imported and the evaluation's programs loaded. A job handed to :func:`early` (the
-final outputs' part that does not depend on the run: the file's design's verification
-and space plot) starts in the first process held that way, while this one runs the
+final outputs' part that does not depend on the run: the file's design's space
+plot) starts in the first process held that way, while this one runs the
 run's last verification round, where that process would otherwise wait; its future is
 :func:`early_result`'s. This module imports neither JAX nor the engine, so that the
 processes start before the caller's own imports.

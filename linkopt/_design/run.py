@@ -33,13 +33,13 @@ motions, and the optimised design's figures (its space plot, convergence, mechan
 The work is split between two processes: with ``workers`` > 1 a side process (one the
 optimiser's ``Workers`` handed back warm, :func:`linkopt._design.ahead.side`, else a
 spawned one) draws the motions while this one draws the optimised design's figures.
-The file's design's verification and figures (:func:`initial_outputs`) depend on the
-file alone: the command line has the side process make them while this one runs the
-run's last verification round (:func:`linkopt._design.ahead.early`, where that process
-would otherwise wait), and :func:`write_outputs` takes them from there; without them
-this process makes them too. The files are the same with one process; an error in an
-output is raised here as :class:`OutputError` naming it (:func:`writing`), whichever
-process made it.
+The file's design's own figures (:func:`initial_figures`: its space plot) depend on
+the file alone: the command line has the side process draw them while this one runs
+the run's last verification round (:func:`linkopt._design.ahead.early`, where that
+process would otherwise wait), and :func:`write_outputs` takes them from there;
+without them this process draws them too. The files are the same with one process;
+an error in an output is raised here as :class:`OutputError` naming it
+(:func:`writing`), whichever process made it.
 """
 
 from __future__ import annotations
@@ -54,7 +54,6 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -277,42 +276,24 @@ def swarm_rows(particles: int, workers: int) -> int:
     return first.stop - first.start
 
 
-@dataclass(frozen=True)
-class InitialOutputs:
-    """The file's design's part of a run folder (:func:`initial_outputs`): its
-    verification (``verification.json``'s ``"initial"``) and its figures' bytes by
-    file name."""
-
-    verification: dict
-    files: dict[str, bytes]
-
-
-def initial_outputs(
-    mech: Mechanism,
-    rows: int,
-    resolution: int | None,
-    verify_resolution: int | None,
-    figures: Figures | None,
-) -> InitialOutputs:
-    """The file's design's verification and figures (the call of ``figures`` with
-    ``design`` and ``optimized`` None), which depend on the file alone, not on the run:
-    made before the run ends where a process is free for them
-    (:func:`linkopt._design.ahead.early`), else by :func:`write_outputs`. The figures
-    are drawn into a temporary folder and returned as bytes."""
+def initial_figures(
+    mech: Mechanism, rows: int, resolution: int | None, figures: Figures
+) -> dict[str, bytes]:
+    """The file's design's own figures (the call of ``figures`` with ``design`` and
+    ``optimized`` None: its space plot), which depend on the file alone, not on the
+    run: drawn before the run ends where a process is free for them
+    (:func:`linkopt._design.ahead.early`: the command line's worker, during the last
+    verification round), else by :func:`write_outputs`. They are drawn into a
+    temporary folder and returned as bytes by file name."""
     with one_blas_thread():
-        with writing("verification.json (initial design)"):
-            verification = _verification(mech, None, verify_resolution)
-        if figures is None:
-            return InitialOutputs(verification, {})
         with tempfile.TemporaryDirectory(prefix="linkopt-initial-") as folder:
             folder = Path(folder)
             figures(RunFigures(mech, mech, folder, None, None, rows, (), resolution))
-            files = {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
-    return InitialOutputs(verification, files)
+            return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
 
 
 def _early_initial(args: tuple) -> Future | None:
-    """The future of :func:`initial_outputs` started ahead with ``args``
+    """The future of :func:`initial_figures` started ahead with ``args``
     (:func:`linkopt._design.ahead.early_result`), if it was started with those; the
     mechanism must be the same object."""
     started = ahead.early_result()
@@ -320,20 +301,18 @@ def _early_initial(args: tuple) -> Future | None:
         return None
     given, future = started
     if len(given) != len(args) or given[0] is not args[0] or given[1:] != args[1:]:
-        future.cancel()  # another run's, or other settings: made here instead
+        future.cancel()  # another run's, or other settings: drawn here instead
         return None
     return future
 
 
-def _initial_result(future: Future | None, args: tuple) -> InitialOutputs:
-    """:func:`initial_outputs`: ``future``'s result (an error there is raised here,
-    naming its output), or made here when there is no future or its process died."""
-    if future is not None:
-        try:
-            return future.result()
-        except BrokenProcessPool:
-            pass
-    return initial_outputs(*args)
+def _initial_files(future: Future, args: tuple) -> dict[str, bytes]:
+    """:func:`initial_figures`: ``future``'s result (an error there is raised here,
+    naming its output), or drawn here when its process died."""
+    try:
+        return future.result()
+    except BrokenProcessPool:
+        return initial_figures(*args)
 
 
 def _design_outputs(
@@ -351,14 +330,15 @@ def _design_outputs(
 ) -> tuple[dict, Evaluation]:
     """Both designs' verifications (``{"initial": ..., "optimized": ...}``), the
     optimised design's evaluation (with the targets of ``current``: the file's and the
-    run's rounds'), and the figures: the file's design's job (the motions of both
-    designs) in the ``side`` process while this one verifies both
-    designs (this process has the verification's programs loaded from the run's last
-    round) and draws the optimised design's; without ``side`` all here, in the same
-    order. The figures are the same either way."""
+    run's rounds'), and the figures: the motions of both designs in the ``side``
+    process while this one verifies both designs (it has the verification's programs
+    loaded from the run's last round) and draws the optimised design's; the file's
+    design's own figures made ahead (:func:`initial_figures`), else drawn here after
+    the optimised design's; without ``side`` all here. The figures are the same
+    either way."""
     rows = swarm_rows(len(run.position), workers)
-    initial_args = (mech, rows, resolution, verify_resolution, figures)
-    early = _early_initial(initial_args)
+    initial_args = (mech, rows, resolution, figures)
+    early = _early_initial(initial_args) if figures is not None else None
     side_job = None
     if figures is not None:
         side_job = RunFigures(mech, current, out, None, None, rows, (), resolution)
@@ -370,25 +350,23 @@ def _design_outputs(
             if checked is None:
                 _announce(progress, "verifying the optimised design")
                 checked = _verification(current, design, verify_resolution)
-        if early is None:
+        with writing("verification.json (initial design)"):
             _announce(progress, "verifying the initial design")
-            initial = initial_outputs(mech, rows, resolution, verify_resolution, None)
+            initial = _verification(mech, None, verify_resolution)
         with writing("summary.json (the optimised design's evaluation)"):
             final = evaluate_in_batch(current, design, rows)
     if figures is not None:
         job = RunFigures(mech, current, out, design, final, rows, run.history)
         figures(dataclasses.replace(job, resolution=resolution, progress=progress))
-        if early is None:  # the file's design's figures, here
+        if early is None:  # the file's design's own figures, here
             own = dataclasses.replace(side_job, optimized=None, progress=progress)
             with one_blas_thread():
                 figures(own)
-    if early is not None:
-        initial = _initial_result(early, initial_args)
-        for name, data in initial.files.items():
-            (out / name).write_bytes(data)
-    if figures is not None:
+        else:
+            for name, data in _initial_files(early, initial_args).items():
+                (out / name).write_bytes(data)
         _side_result(future, figures, side_job, progress)
-    return {"initial": initial.verification, "optimized": checked}, final
+    return {"initial": initial, "optimized": checked}, final
 
 
 def _summary(

@@ -5,7 +5,7 @@ The run folder is written by the design layer
 the drawing as an argument, and :func:`draw_run_figures` is the one call it makes,
 three times: the file's design's call draws ``spaces_initial.png`` (made ahead, while
 the run's last verification round runs, where the command line has a process free:
-:func:`linkopt._design.run.initial_outputs`); the motions' call draws
+:func:`linkopt._design.run.initial_figures`); the motions' call draws
 ``motion_initial.gif`` / ``motion_optimized.gif`` (mechanisms with 1-3 motors; in a
 side process when the run has workers); the optimised design's draws
 ``spaces_optimized.png``, ``convergence.png`` and ``mechanism.png`` (both designs
@@ -54,12 +54,11 @@ VIEW_FILE = "view.html"
 
 
 def draw_run_figures_and_view(job: run_folder.RunFigures) -> None:
-    """:func:`draw_run_figures`, and on the motions' job (the side process's, with
-    workers) ``view.html`` too (:func:`run_view`): ``linkopt optimize`` passes it, so
-    the page's grids are solved beside this process's figures rather than after
-    them."""
+    """:func:`draw_run_figures`, and on the optimised design's job ``view.html`` too
+    (:func:`run_view`): ``linkopt optimize`` passes it, so the page's grids are solved
+    while the side process draws the motions rather than after them."""
     draw_run_figures(job)
-    if job.design is None and job.optimized is not None:
+    if job.design is not None:
         run_view(job.mech, job.out)
 
 
