@@ -10,8 +10,10 @@ runs alternate before/after, so a machine whose load changes affects both alike.
 
 Each run is split by its progress lines' arrival: **start** (process start to the
 first iteration's line less that iteration's own time), **optimiser** (its last
-iteration line's ``elapsed``, the figure the issue quotes), and **outputs** (from the
-``writing the optimised file ...`` line to the process's exit: the verification, the
+iteration line's ``elapsed``, the figure the issue quotes), **round** (from the last
+iteration's line to the ``writing the optimised file ...`` line: the verification
+round(s); the command line's side process makes the file's design's outputs meanwhile)
+and **outputs** (from that line to the process's exit: the verification, the
 optimised file, MJCF, figures, GIFs and ``view.html``). Also CPU seconds (the process
 and its children). The medians over the repeats and their after/before ratios are
 printed and written to ``benchmarks/results/bench_main_command.json``; every run's
@@ -59,13 +61,14 @@ def run_once(tree: Path, cache: Path, out: Path) -> dict:
         stderr=subprocess.PIPE,
         text=True,
     )
-    first_line = writing = None
+    first_line = writing = last_line = None
     elapsed = []
     for line in proc.stderr:
         now = time.perf_counter() - began
         match = ELAPSED.match(line)
         if match:
             elapsed.append(float(match[1]))
+            last_line = now
             if first_line is None:
                 first_line = now
         elif line.startswith(WRITING):
@@ -80,6 +83,7 @@ def run_once(tree: Path, cache: Path, out: Path) -> dict:
         "whole_s": whole,
         "start_s": first_line - elapsed[0],
         "optimiser_s": elapsed[-1],
+        "round_s": writing - last_line,
         "outputs_s": whole - writing,
         "cpu_s": _children_cpu() - cpu,
         "iterations": summary["iterations"],
@@ -113,7 +117,7 @@ def main() -> None:
                 result = run_once(tree, tmp / f"cache_{name}", tmp / f"{name}_{i}")
                 runs[name].append(result)
                 print(f"{name:<6} warm  " + _line(result), flush=True)
-    keys = ("whole_s", "start_s", "optimiser_s", "outputs_s", "cpu_s")
+    keys = ("whole_s", "start_s", "optimiser_s", "round_s", "outputs_s", "cpu_s")
     medians = {n: {k: _median(r, k) for k in keys} for n, r in runs.items()}
     print(
         f"\nmedians of {args.repeat} warm runs (load at start {_results.LOAD_AT_START})"
@@ -141,7 +145,8 @@ def main() -> None:
 def _line(r: dict) -> str:
     return (
         f"whole {r['whole_s']:6.2f} s  start {r['start_s']:5.2f}  optimiser "
-        f"{r['optimiser_s']:5.2f}  outputs {r['outputs_s']:5.2f}  CPU {r['cpu_s']:6.1f}"
+        f"{r['optimiser_s']:5.2f}  round {r['round_s']:5.2f}  outputs "
+        f"{r['outputs_s']:5.2f}  CPU {r['cpu_s']:6.1f}"
         f"  ({r['iterations']} it, f_design {r['f_design']!r}, verified "
         f"{r['verified']})"
     )

@@ -228,11 +228,11 @@ def test_a_failing_write_outputs_leaves_the_earlier_outputs(
 def test_the_run_folder_asks_the_drawing_layer_once_per_design(
     tmp_path, five_bar, monkeypatch
 ):
-    """The design layer draws nothing itself: ``write_outputs`` hands each design's
-    numbers to its ``figures`` in one call (the file's design unevaluated, the
-    optimised one with its evaluation and the history), and with ``figures=None``
-    the folder gets no figure. (Verification is stood in for: not this test's
-    subject.)"""
+    """The design layer draws nothing itself: ``write_outputs`` hands the numbers to
+    its ``figures`` in three calls (the file's design's own figures, unevaluated; both
+    designs' motions, with the optimised design; the optimised design's figures, with
+    its evaluation and the history), and with ``figures=None`` the folder gets no
+    figure. (Verification is stood in for: not this test's subject.)"""
     from linkopt._design import run as run_folder
 
     settings = OptimizerSettings(particles=2, iterations=1)
@@ -252,15 +252,19 @@ def test_the_run_folder_asks_the_drawing_layer_once_per_design(
     run_folder.write_outputs(
         five_bar, tmp_path / "a", run, settings, figures=calls.append
     )
-    assert sorted(job.design is None for job in calls) == [False, True]
-    initial, optimised = sorted(calls, key=lambda job: job.design is not None)
+    assert len(calls) == 3
+    (optimised,) = [job for job in calls if job.design is not None]
+    (motions,) = [job for job in calls if job.optimized is not None]
+    (initial,) = [job for job in calls if job.design is job.optimized is None]
+    np.testing.assert_array_equal(motions.optimized, design)
+    assert motions.design is None and motions.mech is five_bar
     assert initial.evaluation is None and initial.mech is five_bar
     np.testing.assert_array_equal(optimised.design, design)
     assert optimised.history == run.history and optimised.mech is five_bar
     assert float(optimised.evaluation.f_design) == pytest.approx(
         float(linkopt.evaluate(five_bar, design).f_design), rel=1e-9, abs=1e-30
     )
-    assert initial.rows == optimised.rows > 0
+    assert initial.rows == motions.rows == optimised.rows > 0
     run_folder.write_outputs(five_bar, tmp_path / "b", run, settings, figures=None)
     written = {p.suffix for p in (tmp_path / "b").iterdir()}
     assert ".png" not in written and ".gif" not in written

@@ -184,3 +184,109 @@ def test_the_optimisers_processes_serve_the_outputs_only_where_asked(five_bar):
     finally:
         ahead.close()
     assert ahead.side() is None and side._shutdown_thread
+
+
+def _held_with_initial(mech, rows: int, figures, resolution=None) -> None:
+    """As ``linkopt optimize`` does: processes spawned ahead, the file's design's
+    figures asked for ahead (:func:`ahead.early`), and a finished ``Workers`` that
+    hands its process back, which then starts them."""
+    ahead.start(2)
+    ahead.early(run_folder.initial_figures, mech, rows, resolution, figures)
+    with Workers(mech, 2):
+        pass
+
+
+def test_the_file_designs_outputs_made_ahead_are_those_made_here(tmp_path, five_bar):
+    """The file's design's space plot, drawn ahead by the process the optimiser
+    handed back (:func:`run_folder.initial_figures`), is taken by ``write_outputs``
+    (which then does not map that design itself: no such progress record) and gives
+    the files one process makes alone. Drawn ahead with other arguments (another
+    resolution), it is not taken: drawn here."""
+    run = _finished_run(five_bar)
+    rows = run_folder.swarm_rows(len(run.position), 2)
+    folders, stages = {}, {}
+    for name in ("serial", "ahead", "other"):
+        folders[name], records = tmp_path / name, []
+        try:
+            if name != "serial":
+                resolution = None if name == "ahead" else 8
+                _held_with_initial(five_bar, rows, draw_run_figures, resolution)
+            run_folder.write_outputs(
+                five_bar,
+                folders[name],
+                run,
+                SETTINGS,
+                figures=draw_run_figures,
+                workers=1 if name == "serial" else 2,
+                progress=records.append,
+            )
+            assert ahead.early_result() is None  # taken by write_outputs
+        finally:
+            ahead.close()
+        stages[name] = {r["stage"].split(",")[0] for r in records}
+    assert "initial design" in stages["serial"] and "initial design" in stages["other"]
+    assert "initial design" not in stages["ahead"]
+    assert "optimised design" in stages["ahead"]
+    serial, made_ahead = _files(folders["serial"]), _files(folders["ahead"])
+    assert serial.keys() == made_ahead.keys() == _files(folders["other"]).keys()
+    for name in serial.keys() - MAPS:
+        assert serial[name] == made_ahead[name], name
+    for name in MAPS:
+        a, b = (_pixels(files[name]) for files in (serial, made_ahead))
+        assert a.shape == b.shape and np.mean(np.any(a != b, axis=-1)) < 1e-3, name
+
+
+def _fail_initial(job) -> None:  # module level: it runs in the process held ahead
+    if job.design is None and job.optimized is None:
+        with writing("spaces_initial.png"):
+            raise ValueError("no cells to draw")
+
+
+def test_an_error_in_the_outputs_made_ahead_names_the_output(
+    tmp_path, five_bar, monkeypatch
+):
+    """A figure of the file's design that fails in the process that made it ahead is
+    raised by ``write_outputs`` as :class:`OutputError` naming it, and the folder gets
+    none of the outputs. (The optimised design's verification is stood in for.)"""
+    monkeypatch.setattr(run_folder, "_verification", lambda *_: {"passed": True})
+    run = _finished_run(five_bar)
+    try:
+        _held_with_initial(
+            five_bar, run_folder.swarm_rows(len(run.position), 2), _fail_initial
+        )
+        with pytest.raises(OutputError) as raised:
+            run_folder.write_outputs(
+                five_bar, tmp_path, run, SETTINGS, figures=_fail_initial, workers=2
+            )
+    finally:
+        ahead.close()
+    assert str(raised.value) == "spaces_initial.png: ValueError: no cells to draw"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_view_drawn_beside_the_figures_is_the_command_lines(tmp_path, five_bar):
+    """``draw_run_figures_and_view`` (what ``linkopt optimize`` passes) writes the run
+    folder's ``view.html`` with the motions, the same bytes as the page
+    ``linkopt view DIR`` writes from the finished folder
+    (:func:`linkopt._cli.view.write_run_view`); a folder without ``optimized.toml``
+    gets none, and False says so (the command line then writes it or warns)."""
+    from linkopt._cli.view import write_run_view
+    from linkopt._draw.run_folder import VIEW_FILE, draw_run_figures_and_view, run_view
+
+    out = tmp_path / "run"
+    run_folder.write_outputs(
+        five_bar,
+        out,
+        _finished_run(five_bar),
+        SETTINGS,
+        figures=draw_run_figures_and_view,
+        workers=1,
+    )
+    drawn = (out / VIEW_FILE).read_bytes()
+    (out / VIEW_FILE).unlink()
+    write_run_view(out)
+    assert (out / VIEW_FILE).read_bytes() == drawn
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert not run_view(five_bar, empty)
+    assert list(empty.iterdir()) == []

@@ -200,10 +200,11 @@ def run_optimize(args) -> int:
 def _run_optimize(args) -> int:
     mech = load(args.file)
     from .._design.run import locked_run_folder, write_outputs
-    from .._draw.run_folder import draw_run_figures
+    from .._draw.run_folder import VIEW_FILE, draw_run_figures_and_view
 
     check_mechanism(args, mech)
     settings = settings_from_args(args, args.seed)
+    _initial_ahead(args, mech, settings)
     with locked_run_folder(args.out, args.resume, "--out"):
         run = _optimize(args, mech, settings)
         print(
@@ -211,19 +212,23 @@ def _run_optimize(args) -> int:
             file=sys.stderr,
             flush=True,
         )
+        # view.html is drawn beside the figures (draw_run_figures_and_view); an
+        # earlier run's would stand for this one's where it could not be
+        (Path(args.out) / VIEW_FILE).unlink(missing_ok=True)
         summary = write_outputs(
             mech,
             args.out,
             run,
             settings,
-            figures=draw_run_figures,
+            figures=draw_run_figures_and_view,
             resolution=args.resolution,
             workers=args.workers,
             progress=map_progress(),
         )
-        from .view import write_run_view
+        if not (Path(args.out) / VIEW_FILE).is_file():  # written here, or a warning
+            from .view import write_run_view
 
-        write_run_view(Path(args.out))
+            write_run_view(Path(args.out))
     print(json.dumps({k: summary[k] for k in _SUMMARY_KEYS}, indent=2))
     out = Path(args.out)
     names = ("spaces_optimized.png", "convergence.png", "mechanism.png", "view.html")
@@ -243,6 +248,20 @@ def _run_optimize(args) -> int:
         )
         return 1
     return 0
+
+
+def _initial_ahead(args, mech, settings) -> None:
+    """Have the worker process that the optimiser hands back draw the file's design's
+    space plot while this one runs the last verification round
+    (:func:`linkopt._design.run.initial_figures`; ``write_outputs`` takes it)."""
+    if args.scheduler is not None:
+        return
+    from .._design.run import initial_figures, swarm_rows
+    from .._draw.run_folder import draw_run_figures_and_view
+
+    rows = swarm_rows(settings.particles, args.workers)
+    figures = draw_run_figures_and_view  # the one write_outputs gets
+    ahead.early(initial_figures, mech, rows, args.resolution, figures)
 
 
 def _optimize(args, mech, settings):

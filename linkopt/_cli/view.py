@@ -91,24 +91,11 @@ def _designs(args):
 
 
 def write_page(mech, designs, out: Path, resolution, progress=None) -> dict:
-    """Solve each design's grid and write the page; returns a summary."""
-    from .._design.view_grid import check_view_grid, view_grid
-    from .._draw.view import Shown, write_view
+    """:func:`linkopt._draw.view.write_page`, imported when called: building the
+    parser imports no JAX (:mod:`linkopt._cli.main`)."""
+    from .._draw.view import write_page as write
 
-    resolution = check_view_grid(mech, resolution, len(designs))
-    shown = []
-    for label, design in designs:
-        if progress is not None:
-            progress(f"solving {resolution}^{mech.num_motors} configurations: {label}")
-        shown.append(Shown(label, design, view_grid(mech, resolution, design)))
-    size = write_view(mech, shown, out)
-    return {
-        "out": str(out),
-        "bytes": size,
-        "resolution": resolution,
-        "cells": int(len(shown[0].grid.feasible)),
-        "reached": {s.label: int(np.count_nonzero(s.grid.feasible)) for s in shown},
-    }
+    return write(mech, designs, out, resolution, progress)
 
 
 def write_run_view(out: Path) -> None:

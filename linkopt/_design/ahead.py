@@ -10,15 +10,20 @@ file that fails to load, a finished run resumed). After :func:`start`, a ``Worke
 that finishes hands its processes back (:func:`keep`) instead of ending them: the next
 round's ``Workers`` adopts them, or the run's final outputs take one for the work they
 do beside this process (:func:`side`; :mod:`linkopt._design.run`), warm, with JAX
-imported and the evaluation's programs loaded. This module imports neither JAX nor
-the engine, so that the processes start before the caller's own imports.
+imported and the evaluation's programs loaded. A job handed to :func:`early` (the
+final outputs' part that does not depend on the run: the file's design's space
+plot) starts in the first process held that way, while this one runs the
+run's last verification round, where that process would otherwise wait; its future is
+:func:`early_result`'s. This module imports neither JAX nor the engine, so that the
+processes start before the caller's own imports.
 """
 
 from __future__ import annotations
 
 import importlib
 import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
 from .. import _cache
@@ -30,6 +35,9 @@ _AHEAD: tuple[int, ProcessPoolExecutor] | None = None
 _KEEP = False
 #: Modules a held process imports as soon as it is held (:func:`start`'s ``warm``).
 _WARM: tuple[str, ...] = ()
+#: The job of :func:`early` (function, arguments), and its future once submitted.
+_EARLY: tuple[Callable, tuple] | None = None
+_FUTURE: Future | None = None
 
 
 def initialise(caches: _cache.Use | None = None) -> None:
@@ -89,16 +97,39 @@ def keep(count: int, pool: ProcessPoolExecutor) -> bool:
     for :func:`side` (the run's final outputs): their imports and loaded programs are
     what a fresh process would spend its first seconds on. Only after :func:`start`
     and while nothing is held; False: not held, the caller ends them."""
-    global _AHEAD
+    global _AHEAD, _FUTURE
     if not _KEEP or _AHEAD is not None:
         return False
     _AHEAD = (count, pool)
-    if _WARM:
-        try:
+    try:
+        if _WARM:
             pool.submit(_import, _WARM)
-        except (BrokenProcessPool, RuntimeError):  # its next user replaces it
-            pass
+        if _EARLY is not None and _FUTURE is None:
+            _FUTURE = pool.submit(_EARLY[0], *_EARLY[1])
+    except (BrokenProcessPool, RuntimeError):  # its next user replaces it
+        pass
     return True
+
+
+def early(fn: Callable, *args) -> None:
+    """Have the first process that :func:`keep` holds run ``fn(*args)`` (a module-level
+    function, to pickle) once, as soon as it is held, after :func:`start`'s ``warm``
+    imports; a pool that adopts the process later queues its tasks behind it. Nothing
+    runs without :func:`start` (the library's runs hold no process)."""
+    global _EARLY
+    _EARLY = (fn, args)
+
+
+def early_result() -> tuple[tuple, Future] | None:
+    """The arguments and the future of :func:`early`'s job, if it started (and then no
+    longer held here: the caller checks that the arguments are the ones it would pass,
+    and waits for the result), else None."""
+    global _EARLY, _FUTURE
+    if _EARLY is None or _FUTURE is None:
+        return None
+    (_, args), future = _EARLY, _FUTURE
+    _EARLY = _FUTURE = None
+    return args, future
 
 
 def _import(names: tuple[str, ...]) -> None:
@@ -119,8 +150,8 @@ def side() -> ProcessPoolExecutor | None:
 
 def close() -> None:
     """End the processes of :func:`start` (or :func:`keep`) that nothing adopted."""
-    global _AHEAD, _KEEP, _WARM
-    _KEEP, _WARM = False, ()
+    global _AHEAD, _KEEP, _WARM, _EARLY, _FUTURE
+    _KEEP, _WARM, _EARLY, _FUTURE = False, (), None, None
     if _AHEAD is not None:
         _AHEAD[1].shutdown(wait=False, cancel_futures=True)
         _AHEAD = None

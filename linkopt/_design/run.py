@@ -28,14 +28,18 @@ Outputs: ``optimized.toml`` (a mechanism file every command accepts), ``history.
 :mod:`linkopt._export.mjcf`), and the figures that :func:`write_outputs`'s ``figures``
 draws from a :class:`RunFigures` per design. This layer draws nothing: the drawing layer
 sits above it (:mod:`linkopt._draw.run_folder`, whose ``write_outputs`` is the public
-one). The figures are made in two halves of about equal time: with ``workers`` > 1 a
-side process (one the optimiser's ``Workers`` handed back warm,
-:func:`linkopt._design.ahead.side`, else a spawned one) draws the file's design's call
-(both designs' motions) while this one verifies both designs (it holds the
-verification's programs from the run's last round) and draws the optimised design's
-call (both space plots, whose programs it shares, convergence, mechanism). The files
-are the same with one process; an error in an output is raised here as
-:class:`OutputError` naming it (:func:`writing`), whichever process made it.
+one), in three calls: the file's design's own figures (its space plot), both designs'
+motions, and the optimised design's figures (its space plot, convergence, mechanism).
+The work is split between two processes: with ``workers`` > 1 a side process (one the
+optimiser's ``Workers`` handed back warm, :func:`linkopt._design.ahead.side`, else a
+spawned one) draws the motions while this one draws the optimised design's figures.
+The file's design's own figures (:func:`initial_figures`: its space plot) depend on
+the file alone: the command line has the side process draw them while this one runs
+the run's last verification round (:func:`linkopt._design.ahead.early`, where that
+process would otherwise wait), and :func:`write_outputs` takes them from there;
+without them this process draws them too. The files are the same with one process;
+an error in an output is raised here as :class:`OutputError` naming it
+(:func:`writing`), whichever process made it.
 """
 
 from __future__ import annotations
@@ -44,12 +48,12 @@ import dataclasses
 import json
 import math
 import multiprocessing
+import tempfile
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -57,7 +61,7 @@ import numpy as np
 from .._cache import requested
 from .._config import adopt, one_blas_thread
 from .._engine.model import Mechanism
-from .._errors import InputError, LinkoptError
+from .._errors import InputError
 from .._files.writer import write_design
 from .._folders import check_path, run_folder, staged, write_atomic
 from . import ahead
@@ -66,6 +70,7 @@ from .collision import history_fields, summary_entry
 from .evaluation import Evaluation, alpha_minus, capped, evaluate_in_batch, targets
 from .on_bounds import BOUND_TOLERANCE, on_bounds
 from .optimizer import OptimizerSettings, SwarmRun, best_design, start, step
+from .outputs import Figures, OutputError, RunFigures, writing  # noqa: F401 (their home)
 from .rounds import verification_round, wants_round, with_targets
 from .workers import Workers, chunk_slices
 
@@ -190,56 +195,6 @@ def optimize(
                 progress(run.rounds[-1])
 
 
-@dataclass(frozen=True)
-class RunFigures:
-    """What one design's figures in a run folder are drawn from: ``mech`` is the file's
-    mechanism, ``current`` the run's (with the verification rounds' targets),
-    ``design`` the optimised design or None for the file's, ``evaluation`` that
-    design's with ``current`` (None for the file's design: evaluate it with
-    :func:`~linkopt._design.evaluation.evaluate_in_batch` in blocks of ``rows``, the
-    swarm program's shape, if a figure needs it), ``history`` the run's records.
-    ``optimized``: on the file's design's job, the optimised design, for the figures
-    that show both designs (the motions), which that job then draws and the optimised
-    design's job does not."""
-
-    mech: Mechanism
-    current: Mechanism
-    out: Path
-    design: np.ndarray | None
-    evaluation: Evaluation | None
-    rows: int
-    history: tuple[dict, ...] = ()
-    resolution: int | None = None
-    progress: Callable[[dict], None] | None = None
-    optimized: np.ndarray | None = None
-
-
-#: The drawing of a run folder's figures (:mod:`linkopt._draw.run_folder`), called
-#: once per design; it must pickle (a module-level function) to run in another
-#: process.
-Figures = Callable[[RunFigures], None]
-
-
-class OutputError(RuntimeError):
-    """An output of a run folder that could not be written: the message names it and
-    says what failed (an internal error, not the user's input, whatever process
-    made the output)."""
-
-
-@contextmanager
-def writing(name: str) -> Iterator[None]:
-    """Name the output ``name`` in an error raised while it is made
-    (:class:`OutputError`; a :class:`~linkopt.LinkoptError` names its file already and
-    passes unchanged)."""
-    try:
-        yield
-    except (LinkoptError, OutputError):
-        raise
-    except Exception as err:
-        text = " ".join(str(err).split())
-        raise OutputError(f"{name}: {type(err).__name__}: {text}") from err
-
-
 def _verification(mech: Mechanism, design, resolution: int | None) -> dict:
     from .verify import verify
 
@@ -314,6 +269,52 @@ def last_round_verification(
     return last["verification"] if last["design"] == design.tolist() else None
 
 
+def swarm_rows(particles: int, workers: int) -> int:
+    """The rows of the swarm's evaluation program with ``workers`` processes (its first
+    chunk's), the shape the final outputs evaluate designs in, to share it."""
+    first = chunk_slices(particles, workers)[0]
+    return first.stop - first.start
+
+
+def initial_figures(
+    mech: Mechanism, rows: int, resolution: int | None, figures: Figures
+) -> dict[str, bytes]:
+    """The file's design's own figures (the call of ``figures`` with ``design`` and
+    ``optimized`` None: its space plot), which depend on the file alone, not on the
+    run: drawn before the run ends where a process is free for them
+    (:func:`linkopt._design.ahead.early`: the command line's worker, during the last
+    verification round), else by :func:`write_outputs`. They are drawn into a
+    temporary folder and returned as bytes by file name."""
+    with one_blas_thread():
+        with tempfile.TemporaryDirectory(prefix="linkopt-initial-") as folder:
+            folder = Path(folder)
+            figures(RunFigures(mech, mech, folder, None, None, rows, (), resolution))
+            return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+
+
+def _early_initial(args: tuple) -> Future | None:
+    """The future of :func:`initial_figures` started ahead with ``args``
+    (:func:`linkopt._design.ahead.early_result`), if it was started with those; the
+    mechanism must be the same object."""
+    started = ahead.early_result()
+    if started is None:
+        return None
+    given, future = started
+    if len(given) != len(args) or given[0] is not args[0] or given[1:] != args[1:]:
+        future.cancel()  # another run's, or other settings: drawn here instead
+        return None
+    return future
+
+
+def _initial_files(future: Future, args: tuple) -> dict[str, bytes]:
+    """:func:`initial_figures`: ``future``'s result (an error there is raised here,
+    naming its output), or drawn here when its process died."""
+    try:
+        return future.result()
+    except BrokenProcessPool:
+        return initial_figures(*args)
+
+
 def _design_outputs(
     mech: Mechanism,
     current: Mechanism,
@@ -329,13 +330,15 @@ def _design_outputs(
 ) -> tuple[dict, Evaluation]:
     """Both designs' verifications (``{"initial": ..., "optimized": ...}``), the
     optimised design's evaluation (with the targets of ``current``: the file's and the
-    run's rounds'), and the figures: the file's design's job (the motions of both
-    designs) in the ``side`` process while this one verifies both
-    designs (this process has the verification's programs loaded from the run's last
-    round) and draws the optimised design's; without ``side`` all here, in the same
-    order. The figures are the same either way."""
-    first = chunk_slices(len(run.position), workers)[0]  # the swarm's program's shape
-    rows = first.stop - first.start
+    run's rounds'), and the figures: the motions of both designs in the ``side``
+    process while this one verifies both designs (it has the verification's programs
+    loaded from the run's last round) and draws the optimised design's; the file's
+    design's own figures made ahead (:func:`initial_figures`), else drawn here after
+    the optimised design's; without ``side`` all here. The figures are the same
+    either way."""
+    rows = swarm_rows(len(run.position), workers)
+    initial_args = (mech, rows, resolution, figures)
+    early = _early_initial(initial_args) if figures is not None else None
     side_job = None
     if figures is not None:
         side_job = RunFigures(mech, current, out, None, None, rows, (), resolution)
@@ -355,6 +358,13 @@ def _design_outputs(
     if figures is not None:
         job = RunFigures(mech, current, out, design, final, rows, run.history)
         figures(dataclasses.replace(job, resolution=resolution, progress=progress))
+        if early is None:  # the file's design's own figures, here
+            own = dataclasses.replace(side_job, optimized=None, progress=progress)
+            with one_blas_thread():
+                figures(own)
+        else:
+            for name, data in _initial_files(early, initial_args).items():
+                (out / name).write_bytes(data)
         _side_result(future, figures, side_job, progress)
     return {"initial": initial, "optimized": checked}, final
 

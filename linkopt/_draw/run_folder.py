@@ -2,14 +2,16 @@
 
 The run folder is written by the design layer
 (:func:`linkopt._design.run.write_outputs`), which may not import this layer; it takes
-the drawing as an argument, and :func:`draw_run_figures` is the one call it makes, once
-per design. The initial design's
-call draws ``motion_initial.gif`` / ``motion_optimized.gif`` (mechanisms with 1-3
-motors; in a side process when the run has workers); the optimised design's draws
-``spaces_optimized.png``, ``spaces_initial.png``, ``convergence.png`` and
-``mechanism.png`` (both designs overlaid). An error in a figure names it
-(:func:`linkopt._design.run.writing`), in whichever process it was drawn. Space plots
-are drawn for 2 or 3 motors and as many outputs.
+the drawing as an argument, and :func:`draw_run_figures` is the one call it makes,
+three times: the file's design's call draws ``spaces_initial.png`` (made ahead, while
+the run's last verification round runs, where the command line has a process free:
+:func:`linkopt._design.run.initial_figures`); the motions' call draws
+``motion_initial.gif`` / ``motion_optimized.gif`` (mechanisms with 1-3 motors; in a
+side process when the run has workers); the optimised design's draws
+``spaces_optimized.png``, ``convergence.png`` and ``mechanism.png`` (both designs
+overlaid). An error in a figure names it (:func:`linkopt._design.run.writing`), in
+whichever process it was drawn. Space plots are drawn for 2 or 3 motors and as many
+outputs.
 """
 
 from __future__ import annotations
@@ -37,37 +39,85 @@ def _prefixed(progress, prefix: str):
 
 
 def draw_run_figures(job: run_folder.RunFigures) -> None:
-    """The figures of ``job``'s design in ``job.out`` (module docstring)."""
-    if job.design is None:
+    """The figures of ``job`` in ``job.out`` (module docstring): the motions when it
+    has ``optimized``, else its design's own."""
+    if job.design is None and job.optimized is not None:
+        _motions(job)
+    elif job.design is None:
         _initial(job)
     else:
         _optimized(job)
 
 
+#: The run folder's browser view (:func:`draw_run_figures_and_view`).
+VIEW_FILE = "view.html"
+
+
+def draw_run_figures_and_view(job: run_folder.RunFigures) -> None:
+    """:func:`draw_run_figures`, and on the optimised design's job ``view.html`` too
+    (:func:`run_view`): ``linkopt optimize`` passes it, so the page's grids are solved
+    while the side process draws the motions rather than after them."""
+    draw_run_figures(job)
+    if job.design is not None:
+        run_view(job.mech, job.out)
+
+
+def run_view(mech: Mechanism, out: Path) -> bool:
+    """``view.html`` in the run folder (or stage) ``out`` that holds
+    ``optimized.toml``: the page of that file's mechanism at the initial design
+    (``mech``'s, the file the run started from: ``summary.json``'s
+    ``initial_design``) and at the optimised one, at the default resolution, as
+    ``linkopt view DIR`` draws it. One that cannot be written (an error naming its
+    file) is not: False, and the caller writes it or says why
+    (:func:`linkopt._cli.view.write_run_view`)."""
+    import numpy as np
+
+    from .._errors import LinkoptError
+    from .._files.fields import parse_text
+    from .._files.loader import build
+    from .view import write_page
+
+    optimized = out / "optimized.toml"
+    try:
+        shown = build(parse_text(optimized), str(optimized))
+        initial = dict(zip(mech.design.names, map(float, mech.design.p0)))
+        p0 = np.array([initial[name] for name in shown.design.names])
+        designs = [("initial", p0), ("optimised", np.asarray(shown.design.p0))]
+        write_page(shown, designs, out / VIEW_FILE, None)
+    except (LinkoptError, ImportError, KeyError):
+        (out / VIEW_FILE).unlink(missing_ok=True)
+        return False
+    return True
+
+
 def _initial(job: run_folder.RunFigures) -> None:
+    """The file's design's space plot (``spaces_initial.png``), evaluated here."""
+    if has_space_plots(job.mech):
+        with one_blas_thread():
+            _space_plot(job, None, None, "initial design")
+
+
+def _motions(job: run_folder.RunFigures) -> None:
     """The motions of both designs (given the optimised design, ``job.optimized``):
     with workers, the run's side process draws them while the main one draws
-    :func:`_optimized`'s figures (:func:`linkopt._design.run.write_outputs`); the two
-    take about as long."""
-    if job.optimized is not None:
-        from .animation import write_run_motions
+    :func:`_optimized`'s figures (:func:`linkopt._design.run.write_outputs`)."""
+    from .animation import write_run_motions
 
-        with writing("motion_initial.gif, motion_optimized.gif"):
-            write_run_motions(job.mech, job.current, job.out, job.optimized)
+    with writing("motion_initial.gif, motion_optimized.gif"):
+        write_run_motions(job.mech, job.current, job.out, job.optimized)
 
 
 def _optimized(job: run_folder.RunFigures) -> None:
-    """Both designs' space plots, the convergence and the mechanism figures. The space
-    plots solve with the file's mechanism: the rounds' targets, which the figure does
-    not use, are part of the fingerprint that keys every compiled program, so the two
-    share their programs."""
+    """The optimised design's space plot, the convergence and the mechanism figures.
+    The space plot solves with the file's mechanism: the rounds' targets, which the
+    figure does not use, are part of the fingerprint that keys every compiled program,
+    so it shares the file's design's programs."""
     from .plots import plot_convergence, plot_mechanism
 
     current = job.current
     with one_blas_thread():
         if has_space_plots(current):
             _space_plot(job, job.evaluation, job.design, "optimised design")
-            _space_plot(job, None, None, "initial design")
         with writing("convergence.png"):
             plot_convergence(
                 job.history,

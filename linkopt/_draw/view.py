@@ -224,3 +224,23 @@ def write_view(mech: Mechanism, shown: list[Shown], path) -> int:
     text = view_html(mech, shown)
     write_atomic(Path(path), text)
     return len(text.encode("utf-8"))
+
+
+def write_page(mech, designs, out: Path, resolution, progress=None) -> dict:
+    """Solve each design's grid and write the page; returns a summary."""
+    from .._design.view_grid import check_view_grid, view_grid
+
+    resolution = check_view_grid(mech, resolution, len(designs))
+    shown = []
+    for label, design in designs:
+        if progress is not None:
+            progress(f"solving {resolution}^{mech.num_motors} configurations: {label}")
+        shown.append(Shown(label, design, view_grid(mech, resolution, design)))
+    size = write_view(mech, shown, out)
+    return {
+        "out": str(out),
+        "bytes": size,
+        "resolution": resolution,
+        "cells": int(len(shown[0].grid.feasible)),
+        "reached": {s.label: int(np.count_nonzero(s.grid.feasible)) for s in shown},
+    }
