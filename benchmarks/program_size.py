@@ -34,6 +34,8 @@ from jax._src import source_info_util  # noqa: E402
 
 from linkopt._config import COMPILER_OPTIONS  # noqa: E402
 from linkopt._engine import programs  # noqa: E402
+from linkopt._engine.lifting import padded  # noqa: E402
+from linkopt._engine.structure import flatten, unflatten  # noqa: E402
 
 PROGRAMS: dict[tuple, dict] = {}
 ORIGINS: collections.Counter = collections.Counter()
@@ -63,7 +65,7 @@ def _count(jaxpr, origins: collections.Counter) -> int:
 
 def _measure(name, structure, fn, leaves, args, compile_it: bool) -> dict:
     def program(leaves, *args):
-        return fn(programs.unflatten(structure, leaves), *args)
+        return fn(unflatten(structure, leaves), *args)
 
     start = time.perf_counter()
     jaxpr = jax.make_jaxpr(program)(leaves, *args)
@@ -82,16 +84,22 @@ def _measure(name, structure, fn, leaves, args, compile_it: bool) -> dict:
 
 
 def _hook(compile_it: bool):
-    original = programs._program_locked
+    """Measure each program :func:`linkopt._engine.programs.call` is asked for, once
+    per name, structure and argument shapes, before the call runs it."""
+    original = programs.call
 
-    def hooked(name, mech, fn, args):
-        leaves, structure, numbers = programs._numbers(mech)
-        key = (name, structure, (numbers, programs._signature(args)))
-        if key not in programs.PROGRAMS and key not in PROGRAMS:
+    def hooked(name, mech, fn, *args):
+        leaves, structure = flatten(padded(mech))
+        shapes = tuple(
+            (jax.numpy.shape(x), str(jax.numpy.result_type(x)))
+            for x in jax.tree_util.tree_leaves((leaves, args))
+        )
+        key = (name, structure, shapes)
+        if key not in PROGRAMS:
             PROGRAMS[key] = _measure(name, structure, fn, leaves, args, compile_it)
-        return original(name, mech, fn, args)
+        return original(name, mech, fn, *args)
 
-    programs._program_locked = hooked
+    programs.call = hooked
 
 
 def main() -> None:

@@ -103,9 +103,18 @@ def read_evaluation(
         raise rd.fail(
             "[evaluation].samples_per_dimension",
             f"{settings.samples_per_dimension} per output for {len(outputs)} outputs "
-            f"makes {grid} targets; expected at most {MAX_TARGETS} in all",
+            f"makes {_count(grid)} targets; expected at most {MAX_TARGETS} in all",
         )
     return settings
+
+
+def _count(n: int) -> str:
+    """``n`` in digits, or as a power of ten past twelve digits (a grid of many
+    outputs: 3 per output for 1000 outputs is a 478-digit count)."""
+    digits = str(n)
+    if len(digits) <= 12:
+        return digits
+    return f"about {digits[0]}.{digits[1]}e{len(digits) - 1}"
 
 
 def _read_targets(
