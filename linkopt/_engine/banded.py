@@ -175,22 +175,16 @@ def layout(mech: Mechanism, geom, kind: str) -> Layout:
     return body_order(mech.num_bodies, _pairs(passive + tail))
 
 
-def passive_normal(mech: Mechanism, geom, state):
-    """``JᵀJ`` of the passive rows alone (:func:`~.constraints.passive_residual`,
-    motors as passive joints: the mobility test's matrix) in band or arrowhead
-    storage, in :func:`passive_layout`'s order."""
+def passive_normal(mech: Mechanism, geom, state) -> tuple:
+    """``(JᵀJ, layout)``: ``JᵀJ`` of the passive rows alone
+    (:func:`~.constraints.passive_residual`, motors as passive joints: the mobility
+    test's matrix) in band or arrowhead storage, and the :class:`Layout` of its order
+    (static)."""
     passive, _, _ = row_groups(mech, geom, "fk", jnp.zeros(mech.num_motors), state)
     where = body_order(mech.num_bodies, _pairs(passive))
     if where.hubs:
-        return _arrow_blocks(passive, where, mech.num_bodies)[0]
-    return _band_blocks(passive, where, mech.num_bodies)[0]
-
-
-def passive_layout(mech: Mechanism, geom) -> Layout:
-    """The :class:`Layout` of :func:`passive_normal` (static)."""
-    state = jnp.zeros(mech.state_size)
-    passive, _, _ = row_groups(mech, geom, "fk", jnp.zeros(mech.num_motors), state)
-    return body_order(mech.num_bodies, _pairs(passive))
+        return _arrow_blocks(passive, where, mech.num_bodies)[0], where
+    return _band_blocks(passive, where, mech.num_bodies)[0], where
 
 
 def factor(band, damping):

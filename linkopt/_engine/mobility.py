@@ -69,8 +69,8 @@ def _banded_rest_program(mech: Mechanism) -> tuple:
     geom = geometry(mech)
     state = rest_state(mech)
     motors, outputs = jnp.zeros(mech.num_motors), jnp.zeros(mech.num_outputs)
-    _, pull = jax.vjp(lambda s: fk_residual(mech, geom, motors, s), state)
-    rows = jax.eval_shape(lambda: fk_residual(mech, geom, motors, state)).shape[0]
+    residual, pull = jax.vjp(lambda s: fk_residual(mech, geom, motors, s), state)
+    rows = residual.shape[0]
     unit = (
         jnp.zeros((rows, mech.num_motors))
         .at[rows - mech.num_motors :]
@@ -131,10 +131,9 @@ def _null_block(mech: Mechanism, geom, state, start):
     Jacobian's ``k`` smallest right singular vectors at ``state`` (block inverse
     iteration on the band from ``start``), its image ``J x`` and ``JᵀJ``'s largest
     eigenvalue."""
-    band = banded.passive_normal(mech, geom, state)
+    band, where = banded.passive_normal(mech, geom, state)
     top = banded_sigma.largest_eigenvalue(band)
     block = banded_sigma.smallest_subspace(band, start, RANK_SWEEPS, RANK_SHIFT * top)
-    where = banded.passive_layout(mech, geom)
     vectors = jax.vmap(lambda x: banded.unpermute(where, x), in_axes=2, out_axes=1)(
         block
     )
