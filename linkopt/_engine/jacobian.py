@@ -345,10 +345,11 @@ def _local_row(angles, qi, qj, e1, e2, which: np.ndarray, target):
     return value, q_block(dqi), q_block(dqj)
 
 
-def _split(state):
-    """Positions ``(B, 3)``, quaternions ``(B, 4)`` and :class:`Turn` of the bodies."""
+def _split(state, unrolled: bool = False):
+    """Positions ``(B, 3)``, quaternions ``(B, 4)`` and :class:`Turn` of the bodies
+    (``unrolled``: :attr:`.turns.Turn.unrolled`, for the solves' linearisations)."""
     bodies = state.reshape(-1, 7)
-    return bodies[:, :3], bodies[:, 3:], body_turns(bodies[:, 3:])
+    return bodies[:, :3], bodies[:, 3:], body_turns(bodies[:, 3:], unrolled)
 
 
 def _tail_groups(mech: Mechanism, geom: Geometry, kind: str, x, q, turns, values):
@@ -441,6 +442,17 @@ def stacked_jacobians(
     return jnp.stack(out)
 
 
+def tail_rows(
+    mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]
+):
+    """``(C_tail, ∂C_tail/∂s)``: the motor (``kind="fk"``) or output (``"bk"``) rows
+    alone, the last rows of :func:`linearise`, in index order."""
+    x, q, t = _split(state, unrolled=True)
+    tail, order = _tail_groups(mech, geom, kind, x, q, t, values)
+    residual, jac = _dense(tail, mech.num_bodies)
+    return _permute_tail(residual, jac, 0, order)
+
+
 # ---------------------------------------------------------------------------------
 # Normal equations for Levenberg–Marquardt.
 
@@ -454,7 +466,7 @@ def normal_equations(
     ``C`` is in the row order of ``fk_residual``/``bk_residual``; ``JᵀJ`` and ``JᵀC``
     equal the dense products up to rounding (summation order differs).
     """
-    x, q, t = _split(state)
+    x, q, t = _split(state, unrolled=True)
     groups = _passive_groups(mech, geom, x, q, t)
     tail, order = _tail_groups(mech, geom, kind, x, q, t, values)
     groups = groups + tail

@@ -170,6 +170,20 @@ def predict(mech: Mechanism, kind: str, geom: Geometry, values, state):
     return state - dense.damped_solve(hessian, 1e-12, gradient)
 
 
+def _predict_known(mech: Mechanism, kind: str, geom: Geometry, values, state, known):
+    """:func:`predict` (dense) from ``known = (C, (JᵀJ, JᵀC))`` at ``state`` for other
+    values (the last corrector's linearisation, which its loop built anyway): only the
+    motor or output rows change with the values, so ``Jᵀ C(values, s)`` is ``JᵀC`` plus
+    their Jacobian's transpose times their change, and ``JᵀJ`` is the same. One
+    linearisation less per continuation step; equal to :func:`predict` up to
+    rounding."""
+    residual, (hessian, gradient) = known
+    tail, jac = jacobian.tail_rows(mech, geom, kind, values, state)
+    change = tail - residual[residual.shape[0] - tail.shape[0] :]
+    gradient = gradient + jnp.sum(jac * change[:, None], axis=0)
+    return state - dense.damped_solve(hessian, 1e-12, gradient)
+
+
 @jax.tree_util.register_dataclass
 @dataclass(frozen=True)
 class _Walk:
@@ -181,6 +195,9 @@ class _Walk:
     iterations: Int[Array, ""]
     steps: Int[Array, ""]
     stuck: Bool[Array, ""]
+    #: the dense solves' ``(C, (JᵀJ, JᵀC))`` at ``state`` and the values reached
+    #: (:func:`_predict_known`); None on the band
+    known: object = None
 
 
 def _advance(mech, kind, geom, v_from, delta, bounds, walk: _Walk) -> _Walk:
@@ -189,7 +206,10 @@ def _advance(mech, kind, geom, v_from, delta, bounds, walk: _Walk) -> _Walk:
     smallest, largest = bounds
     target = jnp.minimum(walk.fraction + walk.step, 1.0)
     values = v_from + target * delta
-    predicted = predict(mech, kind, geom, values, walk.state)
+    if walk.known is None:
+        predicted = predict(mech, kind, geom, values, walk.state)
+    else:
+        predicted = _predict_known(mech, kind, geom, values, walk.state, walk.known)
     result = _lm(mech, kind, geom, values, predicted)
     correction = jnp.max(jnp.abs(result.x - predicted))
     move = jnp.max(jnp.abs(predicted - walk.state))
@@ -203,7 +223,22 @@ def _advance(mech, kind, geom, v_from, delta, bounds, walk: _Walk) -> _Walk:
         iterations=walk.iterations + result.iterations,
         steps=walk.steps + 1,
         stuck=(~ok) & (step < smallest),
+        known=None
+        if walk.known is None
+        else jax.tree.map(
+            lambda new, old: jnp.where(ok, new, old), result.linearisation, walk.known
+        ),
     )
+
+
+def _known(mech: Mechanism, kind: str, geom: Geometry, values, state):
+    """:class:`_Walk`'s ``known`` at the walk's start (None on the band)."""
+    if banded.serves(mech):
+        return None
+    residual, hessian, gradient = jacobian.normal_equations(
+        mech, geom, kind, values, state
+    )
+    return residual, (hessian, gradient)
 
 
 def continue_to(
@@ -229,6 +264,7 @@ def continue_to(
         iterations=jnp.zeros((), dtype=jnp.int32),
         steps=jnp.zeros((), dtype=jnp.int32),
         stuck=jnp.zeros((), dtype=bool),
+        known=_known(mech, kind, fixed_geom, v_from, jax.lax.stop_gradient(state)),
     )
     walk = jax.lax.while_loop(
         lambda w: (w.fraction < 1.0) & ~w.stuck & (w.steps < MAX_STEPS),

@@ -31,75 +31,127 @@ from .. import _config  # noqa: F401  (float64 on before any array)
 from .rotations import QUADRATIC, quadratic_matrix
 from .row_algebra import take
 
-#: ``∂R/∂q = q · _SLOPES``: ``(4, 36)``, index ``(i, j, a)`` of ``∂R_ij/∂q_a``.
-_SLOPES = (2.0 * QUADRATIC).transpose(3, 0, 1, 2).reshape(4, 36).copy()
+#: ``∂R/∂q = q · _SLOPES``: ``(4, 36)``, index ``(j, i, a)`` of ``∂R_ij/∂q_a``
+#: (column ``j`` of ``R`` first: see :class:`Turn`).
+_SLOPES = (2.0 * QUADRATIC).transpose(3, 1, 0, 2).reshape(4, 36).copy()
 
 
 @dataclass(frozen=True)
 class Turn:
-    """Rotation matrices ``(..., 3, 3)`` and their derivatives ``(..., 3, 3, 4)``
-    (``[..., i, j, a] = ∂R_ij/∂q_a``) of a set of bodies."""
+    """Rotation matrices ``(..., 3, 3)`` of a set of bodies and their derivatives
+    ``(..., 3, 12)``, column by column of ``R``: ``slope[..., j, 4 i + a] =
+    ∂R_ij/∂q_a``. ``unrolled`` (static) picks how a :class:`Side` applies them
+    (module docstring)."""
 
     matrix: Float[Array, "... 3 3"]
-    slope: Float[Array, "... 3 3 4"]
+    slope: Float[Array, "... 3 12"]
+    unrolled: bool = False
 
 
-def body_turns(q: Float[Array, "B 4"]) -> Turn:
+def body_turns(q: Float[Array, "B 4"], unrolled: bool = False) -> Turn:
     """The :class:`Turn` of every body from its quaternion (homogeneous, any norm)."""
-    slope = (q @ jnp.asarray(_SLOPES)).reshape(q.shape[:-1] + (3, 3, 4))
-    return Turn(quadratic_matrix(q), slope)
+    slope = (q @ jnp.asarray(_SLOPES)).reshape(q.shape[:-1] + (3, 12))
+    return Turn(quadratic_matrix(q), slope, unrolled)
 
 
 def take_turn(turn: Turn, index: np.ndarray) -> Turn:
     """The turns of bodies ``index`` (static), along axis 0."""
-    return Turn(take(turn.matrix, index), take(turn.slope, index))
+    return Turn(take(turn.matrix, index), take(turn.slope, index), turn.unrolled)
 
 
 def turned(turn: Turn, v: Float[Array, "... 3"]) -> Float[Array, "... 3"]:
     """``R v`` (:func:`.rotations.rotate` of the body's quaternion and ``v``)."""
-    return jnp.einsum("...ij,...j->...i", turn.matrix, v)
+    return Side(turn).rot(v)
 
 
 def turned_slope(turn: Turn, v: Float[Array, "... 3"]) -> Float[Array, "... 3 4"]:
     """``∂(R v)/∂q`` for ``v`` held fixed."""
-    return jnp.einsum("...ija,...j->...ia", turn.slope, v)
+    return Side(turn).slope(v)
 
 
-def along(a: Float[Array, "... 3"], slope: Float[Array, "... 3 4"]):
-    """``a · ∂(R v)/∂q`` from ``slope`` = :func:`turned_slope`: ``∂(a · R v)/∂q`` for
-    ``a`` held fixed, shape ``(..., 4)``."""
-    return jnp.einsum("...i,...ia->...a", a, slope)
+def _parts(v: Float[Array, "... 3"]) -> tuple:
+    """The three entries of ``v``, ``(..., 1)`` each."""
+    return tuple(v[..., j : j + 1] for j in range(3))
+
+
+def _combine(columns: tuple, parts: tuple):
+    """``Σ_j columns[j] parts[j]``, unrolled."""
+    return columns[0] * parts[0] + columns[1] * parts[1] + columns[2] * parts[2]
+
+
+def _columns(matrix: Float[Array, "... k 3"]) -> tuple:
+    """The three columns (last axis) of ``matrix``, ``(..., k)`` each."""
+    return tuple(matrix[..., j] for j in range(3))
 
 
 class Side:
     """One side (``i`` or ``j``) of a group of joints: the gathered turns of its
     bodies and, per body-local vector asked for, its rotation and slope, each built
-    once per trace (a joint family asks for ``R_i n`` in several rows)."""
+    once per trace (a joint family asks for ``R_i n`` in several rows). Unrolled
+    (:attr:`Turn.unrolled`), the columns of the turns are split once per side and
+    the entries of a vector once per vector."""
 
     def __init__(self, turn: Turn):
         self.turn = turn
-        self._made: list[tuple] = []  # (v, R v, ∂(R v)/∂q or None)
+        # [v, its entries or None, R v, flat ∂(R v)/∂q, the same (G, 3, 4)]
+        self._made: list[list] = []
+        self._parts: list[tuple] = []  # (a, its entries) of the vectors dotted with
+        self._split: tuple | None = None  # unrolled: (columns of R, of the slope)
 
-    def _find(self, v):
-        for k, (known, *_) in enumerate(self._made):
-            if known is v:
-                return k
-        self._made.append((v, turned(self.turn, v), None))
-        return len(self._made) - 1
+    def _columns(self) -> tuple:
+        if self._split is None:
+            self._split = (_columns(self.turn.matrix), _slope_columns(self.turn))
+        return self._split
+
+    def _find(self, v) -> list:
+        for made in self._made:
+            if made[0] is v:
+                return made
+        if self.turn.unrolled:
+            parts = _parts(v)
+            rotated = _combine(self._columns()[0], parts)
+        else:
+            parts, rotated = None, jnp.einsum("...ij,...j->...i", self.turn.matrix, v)
+        self._made.append([v, parts, rotated, None, None])
+        return self._made[-1]
+
+    def _flat_slope(self, v) -> Float[Array, "G 12"]:
+        made = self._find(v)
+        if made[3] is None:
+            if self.turn.unrolled:
+                made[3] = _combine(self._columns()[1], made[1])
+            else:
+                made[3] = jnp.einsum("...jk,...j->...k", self.turn.slope, v)
+        return made[3]
+
+    def _parts_of(self, a) -> tuple:
+        for known, parts in self._parts:
+            if known is a:
+                return parts
+        self._parts.append((a, _parts(a)))
+        return self._parts[-1][1]
 
     def rot(self, v: Float[Array, "G 3"]) -> Float[Array, "G 3"]:
         """``R v`` per member."""
-        return self._made[self._find(v)][1]
+        return self._find(v)[2]
 
     def slope(self, v: Float[Array, "G 3"]) -> Float[Array, "G 3 4"]:
         """``∂(R v)/∂q`` per member."""
-        k = self._find(v)
-        known, rotated, slope = self._made[k]
-        if slope is None:
-            slope = turned_slope(self.turn, v)
-            self._made[k] = (known, rotated, slope)
-        return slope
+        made = self._find(v)
+        if made[4] is None:
+            flat = self._flat_slope(v)
+            made[4] = flat.reshape(flat.shape[:-1] + (3, 4))
+        return made[4]
 
     def dot_grad(self, v: Float[Array, "G 3"], a: Float[Array, "G 3"]):
         """``∂(a · R v)/∂q`` for ``a`` held fixed, ``(G, 4)``."""
-        return along(a, self.slope(v))
+        if not self.turn.unrolled:
+            return jnp.einsum("...i,...ia->...a", a, self.slope(v))
+        flat = self._flat_slope(v)
+        rows = tuple(flat[..., 4 * i : 4 * i + 4] for i in range(3))
+        return _combine(rows, self._parts_of(a))
+
+
+def _slope_columns(turn: Turn) -> tuple:
+    """``∂R[:, j]/∂q`` flattened to ``(..., 12)`` (index ``4 i + a``), per ``j``."""
+    return tuple(turn.slope[..., j, :] for j in range(3))

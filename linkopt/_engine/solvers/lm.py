@@ -78,6 +78,10 @@ class LMResult:
     converged: Bool[Array, ""]
     residual: Float[Array, ""]  # max |C| at x
     iterations: Int[Array, ""]
+    #: ``(C(x), model)``: the method's linearisation at ``x``, for a caller that goes
+    #: on from ``x`` (:func:`linkopt._engine.kinematics.continue_to`'s next
+    #: prediction); unused, it costs nothing (the loop carries it anyway)
+    linearisation: Any = None
 
 
 class Method(Protocol):
@@ -221,4 +225,5 @@ def solve(
         converged,
         jnp.where(jnp.isfinite(error), error, jnp.inf),
         state.iteration,
+        (state.residual, state.model),
     )

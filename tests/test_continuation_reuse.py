@@ -1,0 +1,84 @@
+"""The continuation's prediction from the corrector's last linearisation
+(:func:`linkopt._engine.kinematics._predict_known`) against the prediction built from
+scratch (:func:`~linkopt._engine.kinematics.predict`), the rows it updates
+(:func:`linkopt._engine.jacobian.tail_rows`) against the full linearisation, and the
+linearisation that an LM solve hands back against one built at its answer."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import linkopt
+from linkopt._engine import jacobian, kinematics
+from linkopt._engine.constraints import (
+    homogenised_motor_values,
+    homogenised_output_values,
+)
+from linkopt._engine.geometry import design_vector, geometry, rest_state
+
+VALUES = {"fk": homogenised_motor_values, "bk": homogenised_output_values}
+TOL = 1e-12
+
+
+def _setup(name: str, kind: str, seed: int):
+    mech = linkopt.load(f"mechanisms/{name}.toml")
+    geom = geometry(mech, design_vector(mech, None))
+    state = rest_state(mech)
+    v0 = VALUES[kind](mech, geom, state)
+    step = np.random.default_rng(seed).uniform(-0.08, 0.08, v0.shape)
+    return mech, geom, state, v0, v0 + jnp.asarray(step)
+
+
+@pytest.mark.parametrize("kind", ["fk", "bk"])
+@pytest.mark.parametrize("name", ["five_bar", "jansen_2dof"])
+def test_tail_rows_are_the_last_rows_of_the_linearisation(name, kind):
+    mech, geom, state, _, values = _setup(name, kind, 0)
+    state = state + 1e-3 * jnp.asarray(np.random.default_rng(1).normal(size=state.size))
+    residual, jac = jacobian.linearise(mech, geom, kind, values, state)
+    tail, tail_jac = jacobian.tail_rows(mech, geom, kind, values, state)
+    assert tail.shape[0] == values.shape[0]
+    np.testing.assert_allclose(tail, residual[-tail.shape[0] :], rtol=0, atol=TOL)
+    np.testing.assert_allclose(tail_jac, jac[-tail.shape[0] :], rtol=0, atol=TOL)
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize(
+    ("name", "kind"), [("five_bar", "fk"), ("five_bar", "bk"), ("jansen_2dof", "fk")]
+)
+def test_prediction_from_the_last_linearisation_equals_a_fresh_one(name, kind, seed):
+    """A state solved at ``v0`` (the rest state, and a state that LM solved at
+    ``v1``), predicted at other values both ways."""
+    mech, geom, state, v0, v1 = _setup(name, kind, seed)
+    residual, hessian, gradient = jacobian.normal_equations(mech, geom, kind, v0, state)
+    known = (residual, (hessian, gradient))
+    fresh = kinematics.predict(mech, kind, geom, v1, state)
+    reused = kinematics._predict_known(mech, kind, geom, v1, state, known)
+    assert float(jnp.max(jnp.abs(fresh - state))) > 1e-3  # a real move
+    np.testing.assert_allclose(reused, fresh, rtol=0, atol=1e-10)
+
+    result = kinematics._lm(mech, kind, geom, v1, fresh)
+    assert bool(result.converged)
+    v2 = v1 + (v1 - v0)
+    fresh = kinematics.predict(mech, kind, geom, v2, result.x)
+    reused = kinematics._predict_known(
+        mech, kind, geom, v2, result.x, result.linearisation
+    )
+    np.testing.assert_allclose(reused, fresh, rtol=0, atol=1e-10)
+
+
+def test_lm_hands_back_the_linearisation_at_its_answer():
+    mech, geom, state, _, v1 = _setup("five_bar", "fk", 4)
+    result = kinematics._lm(mech, "fk", geom, v1, state)
+    assert bool(result.converged) and int(result.iterations) > 1
+    residual, (hessian, gradient) = result.linearisation
+    fresh = jacobian.normal_equations(mech, geom, "fk", v1, result.x)
+    for got, want in zip((residual, hessian, gradient), fresh, strict=True):
+        np.testing.assert_allclose(got, want, rtol=0, atol=TOL)
+
+
+def test_walk_starts_from_the_linearisation_at_its_start():
+    mech, geom, state, v0, _ = _setup("five_bar", "fk", 5)
+    residual, (hessian, gradient) = kinematics._known(mech, "fk", geom, v0, state)
+    jac = jacobian.state_jacobian(mech, geom, "fk", state)
+    np.testing.assert_allclose(hessian, jac.T @ jac, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(gradient, jac.T @ residual, rtol=0, atol=TOL)
