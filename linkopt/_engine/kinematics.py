@@ -25,6 +25,7 @@ the formula is the least-squares tangent. Both forward and reverse mode work thr
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from functools import partial
 
@@ -375,7 +376,30 @@ def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
             design,
         )
 
-    return solve(values) if values.ndim == 1 else in_blocks(solve, (values,), one=solve)
+    if values.ndim == 1:
+        return solve(values)
+    order = _by_span(mech, kind, values)
+    solved = in_blocks(solve, (values[order],), one=solve)
+    return jax.tree.map(lambda a: a[np.argsort(order)], solved)
+
+
+def _by_span(mech: Mechanism, kind: str, values: np.ndarray) -> np.ndarray:
+    """The rows of a concrete batch in the order of their distance from the rest
+    pose's values (the continuation's span, at the file's design): a vmapped chunk's
+    loops run until its slowest lane is done, and rows of like span take like numbers
+    of continuation steps and iterations (in random order, nearly every chunk of the
+    sweep from rest took the two steps of its farthest row). Each row's solve is the
+    same; only its neighbours in the chunk change."""
+    rest = _rest_values(mech, kind)
+    span = np.max(np.abs(values / np.asarray(value_scale(mech, kind)) - rest), axis=-1)
+    return np.argsort(span, kind="stable")
+
+
+@functools.cache
+def _rest_values(mech: Mechanism, kind: str) -> np.ndarray:
+    """Homogenised motor or output values of the rest state at the file's design."""
+    geom = geometry(mech, design_vector(mech, None))
+    return np.asarray(_VALUES[kind](mech, geom, rest_state(mech)))
 
 
 def _along(mech: Mechanism, kind: str, values, start, design) -> Solution:

@@ -82,3 +82,28 @@ def test_walk_starts_from_the_linearisation_at_its_start():
     jac = jacobian.state_jacobian(mech, geom, "fk", state)
     np.testing.assert_allclose(hessian, jac.T @ jac, rtol=0, atol=1e-10)
     np.testing.assert_allclose(gradient, jac.T @ residual, rtol=0, atol=TOL)
+
+
+def test_a_batch_from_rest_is_solved_in_span_order_and_put_back():
+    """The rows go through the chunks sorted by span (``kinematics._by_span``), and
+    come back in the caller's order: each state carries its own row's motor values,
+    and a reversed batch gives the same states reversed, bit for bit (a row's solve
+    does not depend on its neighbours)."""
+    mech = linkopt.load("mechanisms/five_bar.toml")
+    rest = np.asarray(linkopt.motor_values(mech, linkopt.rest_state(mech)))
+    rng = np.random.default_rng(3)
+    rows = rest + rng.uniform(-0.3, 0.3, (150, rest.size)) * mech.motor_scale
+    order = kinematics._by_span(mech, "fk", rows)
+    span = np.max(np.abs(rows - rest) / mech.motor_scale, axis=1)
+    assert np.all(np.diff(span[order]) >= -1e-12)
+    assert not np.array_equal(order, np.arange(len(rows)))  # a real shuffle
+
+    solution = linkopt.solve_fk(mech, rows)
+    assert np.all(np.asarray(solution.converged))
+    read = np.asarray(linkopt.motor_values(mech, solution.state))
+    np.testing.assert_allclose(read, rows, rtol=0, atol=1e-9)
+    reverse = linkopt.solve_fk(mech, rows[::-1])
+    np.testing.assert_array_equal(np.asarray(reverse.state)[::-1], solution.state)
+    np.testing.assert_array_equal(
+        np.asarray(reverse.iterations)[::-1], solution.iterations
+    )
