@@ -1,8 +1,10 @@
 """Kinematics solve speed: linkopt's LM against scipy and optimistix on the same
 residual.
 
-Run: ``.venv/bin/python benchmarks/bench_kinematics.py [--quick]`` (the optimistix
-comparison needs ``pip install -e '.[bench]'``)
+Run: ``.venv/bin/python benchmarks/bench_kinematics.py [--quick] [--wide-only]
+[--before TREE]`` (the optimistix comparison needs ``pip install -e '.[bench]'``;
+``--before`` runs the sweep from rest, :data:`WIDE`, on another checkout's code too,
+alternating with this one's, and prints the ratios)
 
 Prints, for the five-bar and the Jansen leg: a single warm-started solve, solves per
 second in batches of 1, 1 000 and 100 000 configurations, compile time with a cold and
@@ -22,6 +24,7 @@ what would make it faster: the documentation's Architecture page.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -195,6 +198,11 @@ def main() -> None:
     parser.add_argument(
         "--wide-only", action="store_true", help="only the sweep from rest (WIDE)"
     )
+    parser.add_argument(
+        "--before",
+        type=Path,
+        help="another checkout: the sweep from rest with its code too, alternating",
+    )
     parser.add_argument("--out", default=str(_results.RESULTS))
     args = parser.parse_args()
     sizes = [1, 1000] if args.quick else [1, 1000, 100_000]
@@ -204,7 +212,7 @@ def main() -> None:
 
     print(f"jax {jax.__version__}, devices {jax.devices()}, {os.cpu_count()} CPU cores")
     figures = {"jax": jax.__version__, "solves": [], "batches": [], "baselines": []}
-    figures["wide"] = _wide()
+    figures["wide"] = _wide() if args.before is None else _wide_against(args.before)
     if args.wide_only:
         _results.write(__file__, figures, args.out)
         return
@@ -243,6 +251,53 @@ def _wide() -> list[dict]:
             {"mechanism": name, "solves_per_s": rate, "target": target,
              "converged": converged}
         )  # fmt: skip
+    return rows
+
+
+def _wide_run(tree: Path, path: Path, cache: str) -> dict:
+    """:func:`bench_wide` of ``path`` in a fresh process on ``tree``'s code (this
+    file's functions, ``tree``'s package), with the load average before it."""
+    code = (
+        f"import sys, json; sys.path.insert(0, {str(Path(__file__).parent)!r});"
+        "import linkopt, bench_kinematics as b; linkopt.use_cache();"
+        f"print(json.dumps(b.bench_wide(linkopt.load({str(path)!r}))))"
+    )
+    env = dict(os.environ, PYTHONPATH=str(tree), LINKOPT_CACHE_DIR=cache)
+    load = os.getloadavg()[0]
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, cwd=tree, capture_output=True,
+        text=True, check=True,
+    )  # fmt: skip
+    rate, converged = json.loads(out.stdout.strip().splitlines()[-1])
+    return {"solves_per_s": rate, "converged": converged, "load": load}
+
+
+def _wide_against(before: Path, rounds: int = 3) -> list[dict]:
+    """:data:`WIDE` on ``before``'s code and this checkout's, alternating in each of
+    ``rounds`` (each tree keeps its own cache folder, so only the first round
+    compiles), printed with the after/before ratio of the best rates."""
+    rows = []
+    print(f"\nsolve_fk from rest, 1000 rows within ±{WIDE_SPAN} rad, against {before}:")
+    with tempfile.TemporaryDirectory() as old, tempfile.TemporaryDirectory() as new:
+        for name, (path, target) in WIDE.items():
+            runs = {"before": [], "after": []}
+            for _ in range(rounds):
+                runs["before"].append(_wide_run(before.resolve(), path, old))
+                runs["after"].append(_wide_run(ROOT, path, new))
+            best = {k: max(r["solves_per_s"] for r in v) for k, v in runs.items()}
+            loads = [r["load"] for v in runs.values() for r in v]
+            ratio = best["after"] / best["before"]
+            print(
+                f"  {name:<12} {best['after']:10.0f} solves/s (target {target:,.0f}),"
+                f" before {best['before']:.0f}, ratio {ratio:.2f}"
+                f" (load {min(loads):.1f}-{max(loads):.1f})"
+            )
+            rows.append(
+                {"mechanism": name, "solves_per_s": best["after"], "target": target,
+                 "converged": runs["after"][-1]["converged"],
+                 "before": best["before"], "before_tree": str(before.resolve()),
+                 "runs": runs}
+            )  # fmt: skip
     return rows
 
 
