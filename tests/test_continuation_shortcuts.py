@@ -1,5 +1,5 @@
 """The continuation's prediction from the corrector's last linearisation
-(:func:`linkopt._engine.kinematics._predict_known`) against the prediction built from
+(:func:`linkopt._engine.kinematics.predict_from`) against the prediction built from
 scratch (:func:`~linkopt._engine.kinematics.predict`), the rows it updates
 (:func:`linkopt._engine.jacobian.tail_rows`) against the full linearisation, and the
 linearisation that an LM solve hands back against one built at its answer."""
@@ -52,15 +52,15 @@ def test_prediction_from_the_last_linearisation_equals_a_fresh_one(name, kind, s
     residual, hessian, gradient = jacobian.normal_equations(mech, geom, kind, v0, state)
     known = (residual, (hessian, gradient))
     fresh = kinematics.predict(mech, kind, geom, v1, state)
-    reused = kinematics._predict_known(mech, kind, geom, v1, state, known)
+    reused = kinematics.predict_from(mech, kind, geom, v1, state, known)
     assert float(jnp.max(jnp.abs(fresh - state))) > 1e-3  # a real move
     np.testing.assert_allclose(reused, fresh, rtol=0, atol=1e-10)
 
-    result = kinematics._lm(mech, kind, geom, v1, fresh)
+    result = kinematics.corrector(mech, kind, geom, v1, fresh)
     assert bool(result.converged)
     v2 = v1 + (v1 - v0)
     fresh = kinematics.predict(mech, kind, geom, v2, result.x)
-    reused = kinematics._predict_known(
+    reused = kinematics.predict_from(
         mech, kind, geom, v2, result.x, result.linearisation
     )
     np.testing.assert_allclose(reused, fresh, rtol=0, atol=1e-10)
@@ -68,7 +68,7 @@ def test_prediction_from_the_last_linearisation_equals_a_fresh_one(name, kind, s
 
 def test_lm_hands_back_the_linearisation_at_its_answer():
     mech, geom, state, _, v1 = _setup("five_bar", "fk", 4)
-    result = kinematics._lm(mech, "fk", geom, v1, state)
+    result = kinematics.corrector(mech, "fk", geom, v1, state)
     assert bool(result.converged) and int(result.iterations) > 1
     residual, (hessian, gradient) = result.linearisation
     fresh = jacobian.normal_equations(mech, geom, "fk", v1, result.x)
@@ -78,14 +78,16 @@ def test_lm_hands_back_the_linearisation_at_its_answer():
 
 def test_walk_starts_from_the_linearisation_at_its_start():
     mech, geom, state, v0, _ = _setup("five_bar", "fk", 5)
-    residual, (hessian, gradient) = kinematics._known(mech, "fk", geom, v0, state)
+    residual, (hessian, gradient) = kinematics.start_linearisation(
+        mech, "fk", geom, v0, state
+    )
     jac = jacobian.state_jacobian(mech, geom, "fk", state)
     np.testing.assert_allclose(hessian, jac.T @ jac, rtol=0, atol=1e-10)
     np.testing.assert_allclose(gradient, jac.T @ residual, rtol=0, atol=TOL)
 
 
 def test_a_batch_from_rest_is_solved_in_span_order_and_put_back():
-    """The rows go through the chunks sorted by span (``kinematics._by_span``), and
+    """The rows go through the chunks sorted by span (``kinematics.span_order``), and
     come back in the caller's order: each state carries its own row's motor values,
     and a reversed batch gives the same states reversed, bit for bit (a row's solve
     does not depend on its neighbours)."""
@@ -93,7 +95,7 @@ def test_a_batch_from_rest_is_solved_in_span_order_and_put_back():
     rest = np.asarray(linkopt.motor_values(mech, linkopt.rest_state(mech)))
     rng = np.random.default_rng(3)
     rows = rest + rng.uniform(-0.3, 0.3, (150, rest.size)) * mech.motor_scale
-    order = kinematics._by_span(mech, "fk", rows)
+    order = kinematics.span_order(mech, "fk", rows)
     span = np.max(np.abs(rows - rest) / mech.motor_scale, axis=1)
     assert np.all(np.diff(span[order]) >= -1e-12)
     assert not np.array_equal(order, np.arange(len(rows)))  # a real shuffle

@@ -117,7 +117,7 @@ def solve_single(
 ) -> Solution:
     """One LM solve of ``C(values, s) = 0`` from ``start`` (all homogenised); the
     iteration cap defaults to the file's ``[solver] max_iterations``."""
-    result = _lm(
+    result = corrector(
         mech,
         kind,
         jax.lax.stop_gradient(geom),
@@ -132,7 +132,7 @@ def solve_single(
     )
 
 
-def _lm(
+def corrector(
     mech: Mechanism,
     kind: str,
     geom: Geometry,
@@ -171,13 +171,11 @@ def predict(mech: Mechanism, kind: str, geom: Geometry, values, state):
     return state - dense.damped_solve(hessian, 1e-12, gradient)
 
 
-def _predict_known(mech: Mechanism, kind: str, geom: Geometry, values, state, known):
-    """:func:`predict` (dense) from ``known = (C, (JᵀJ, JᵀC))`` at ``state`` for other
-    values (the last corrector's linearisation, which its loop built anyway): only the
-    motor or output rows change with the values, so ``Jᵀ C(values, s)`` is ``JᵀC`` plus
-    their Jacobian's transpose times their change, and ``JᵀJ`` is the same. One
-    linearisation less per continuation step; equal to :func:`predict` up to
-    rounding."""
+def predict_from(mech: Mechanism, kind: str, geom: Geometry, values, state, known):
+    """:func:`predict` (dense) from ``known = (C, (JᵀJ, JᵀC))`` at ``state``, the last
+    corrector's linearisation: only the motor or output rows change with the values,
+    so ``Jᵀ C(values, s)`` is ``JᵀC`` plus their Jacobian's transpose times their
+    change. One linearisation less per step; equal to :func:`predict` to rounding."""
     residual, (hessian, gradient) = known
     tail, jac = jacobian.tail_rows(mech, geom, kind, values, state)
     change = tail - residual[residual.shape[0] - tail.shape[0] :]
@@ -197,7 +195,7 @@ class _Walk:
     steps: Int[Array, ""]
     stuck: Bool[Array, ""]
     #: the dense solves' ``(C, (JᵀJ, JᵀC))`` at ``state`` and the values reached
-    #: (:func:`_predict_known`); None on the band
+    #: (:func:`predict_from`); None on the band
     known: object = None
 
 
@@ -210,8 +208,8 @@ def _advance(mech, kind, geom, v_from, delta, bounds, walk: _Walk) -> _Walk:
     if walk.known is None:
         predicted = predict(mech, kind, geom, values, walk.state)
     else:
-        predicted = _predict_known(mech, kind, geom, values, walk.state, walk.known)
-    result = _lm(mech, kind, geom, values, predicted)
+        predicted = predict_from(mech, kind, geom, values, walk.state, walk.known)
+    result = corrector(mech, kind, geom, values, predicted)
     correction = jnp.max(jnp.abs(result.x - predicted))
     move = jnp.max(jnp.abs(predicted - walk.state))
     limit = PREDICTION_RATIO * move + PREDICTION_SLACK
@@ -232,7 +230,7 @@ def _advance(mech, kind, geom, v_from, delta, bounds, walk: _Walk) -> _Walk:
     )
 
 
-def _known(mech: Mechanism, kind: str, geom: Geometry, values, state):
+def start_linearisation(mech: Mechanism, kind: str, geom: Geometry, values, state):
     """:class:`_Walk`'s ``known`` at the walk's start (None on the band)."""
     if banded.serves(mech):
         return None
@@ -265,7 +263,9 @@ def continue_to(
         iterations=jnp.zeros((), dtype=jnp.int32),
         steps=jnp.zeros((), dtype=jnp.int32),
         stuck=jnp.zeros((), dtype=bool),
-        known=_known(mech, kind, fixed_geom, v_from, jax.lax.stop_gradient(state)),
+        known=start_linearisation(
+            mech, kind, fixed_geom, v_from, jax.lax.stop_gradient(state)
+        ),
     )
     walk = jax.lax.while_loop(
         lambda w: (w.fraction < 1.0) & ~w.stuck & (w.steps < MAX_STEPS),
@@ -378,18 +378,16 @@ def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
 
     if values.ndim == 1:
         return solve(values)
-    order = _by_span(mech, kind, values)
+    order = span_order(mech, kind, values)
     solved = in_blocks(solve, (values[order],), one=solve)
     return jax.tree.map(lambda a: a[np.argsort(order)], solved)
 
 
-def _by_span(mech: Mechanism, kind: str, values: np.ndarray) -> np.ndarray:
-    """The rows of a concrete batch in the order of their distance from the rest
-    pose's values (the continuation's span, at the file's design): a vmapped chunk's
-    loops run until its slowest lane is done, and rows of like span take like numbers
-    of continuation steps and iterations (in random order, nearly every chunk of the
-    sweep from rest took the two steps of its farthest row). Each row's solve is the
-    same; only its neighbours in the chunk change."""
+def span_order(mech: Mechanism, kind: str, values: np.ndarray) -> np.ndarray:
+    """The rows of a concrete batch by distance from the rest values (the file's
+    design): a vmapped chunk's loops run until its slowest lane is done, and rows of
+    like span take like numbers of steps and iterations (in random order, nearly every
+    chunk took the two steps of its farthest row). Each row's solve is the same."""
     rest = _rest_values(mech, kind)
     span = np.max(np.abs(values / np.asarray(value_scale(mech, kind)) - rest), axis=-1)
     return np.argsort(span, kind="stable")
