@@ -507,6 +507,9 @@ def jansen_write(path: Path) -> None:
 
     mech = linkopt.loads(jansen_text(path), source=str(path))
     design = jansen_design(jansen_joints(jansen_perturbed()))
+    # write_design keeps the source file's header below this one: the source is the
+    # file being replaced, whose header is this one already (it was kept three times)
+    path.unlink(missing_ok=True)
     header = (
         "Issue 41's Jansen case: mechanisms/jansen_1dof.toml with each of its link\n"
         f"lengths a..g, j..m scaled by a factor in 1 +- {JANSEN_PERTURBATION:g} (seed "

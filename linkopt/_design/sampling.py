@@ -51,7 +51,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from .._engine import banded, dense
-from .._engine.constraints import fk_residual
+from .._engine.constraints import motor_residual
 from .._engine.geometry import Geometry
 from .._engine.jacobian import state_jacobian
 from .._engine.kinematics import solve_single
@@ -97,8 +97,17 @@ def state_motor_jacobian(
     if banded.serves(mech):
         return banded.motor_tangent(mech, geom, motors, state)
     jac_s = state_jacobian(mech, geom, "fk", state)
-    jac_a = jax.jacfwd(lambda a: fk_residual(mech, geom, a, state))(motors)
-    return -dense.solve_spd(jac_s.T @ jac_s, jac_s.T @ jac_a)
+    return -dense.solve_spd(
+        jac_s.T @ jac_s, _motor_rows_product(mech, geom, motors, state, jac_s)
+    )
+
+
+def _motor_rows_product(mech: Mechanism, geom: Geometry, motors, state, jac_s):
+    """``Jᵀ ∂C_FK/∂a`` from the motor rows alone: ``∂C_FK/∂a`` is zero in the
+    passive rows (they do not read the motors), so only the last ``M`` rows of ``J``
+    and the motor rows' own derivative (forward mode through them) take part."""
+    jac_m = jax.jacfwd(lambda a: motor_residual(mech, geom, a, state))(motors)
+    return jac_s[jac_s.shape[0] - mech.num_motors :].T @ jac_m
 
 
 #: An objective maps ``(motors, state, ds/da, f_sing, ∂f_sing/∂s)`` at a solved state to
@@ -122,8 +131,8 @@ def evaluate_point(
     f_sing, d_jac = jax.value_and_grad(lambda j: jnp.sum(1.0 / sigmas_of(j)))(jac)
     (d_f_sing,) = pullback(d_jac)
     jac_s = jac[0]
-    jac_a = jax.jacfwd(lambda a: fk_residual(mech, geom, a, state))(motors)
-    ds_da = -dense.solve_spd(jac_s.T @ jac_s, jac_s.T @ jac_a)
+    projected = _motor_rows_product(mech, geom, motors, state, jac_s)
+    ds_da = -dense.solve_spd(jac_s.T @ jac_s, projected)
     value, gradient, model = objective(motors, state, ds_da, f_sing, d_f_sing)
     return value, gradient, model, ds_da, f_sing
 

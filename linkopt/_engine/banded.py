@@ -46,7 +46,7 @@ from jaxtyping import Array, Float
 from .._config import jit
 from . import arrowhead, band_factor
 from .body_order import Layout, body_order
-from .constraints import fk_residual
+from .constraints import fk_residual, motor_residual
 from .jacobian import row_groups
 from .model import Mechanism
 
@@ -319,13 +319,24 @@ def normal_solve(mech: Mechanism, kind: str, geom, state, rhs: Float[Array, "S k
     return jax.vmap(column, in_axes=1, out_axes=1)(rhs)
 
 
+def motor_rows_transposed(
+    mech: Mechanism, geom, motors, state, columns: Float[Array, "M k"]
+) -> Float[Array, "S k"]:
+    """``Jᵀ c`` (``J = ∂C_FK/∂s``) for columns ``c`` that are zero outside the motor
+    rows, given by their motor rows: reverse mode through the motor rows alone. The
+    passive rows' share is exactly zero, so the product equals the one through the
+    whole residual, without its reverse pass (most of the residual's operations)."""
+    _, pull = jax.vjp(lambda s: motor_residual(mech, geom, motors, s), state)
+    return jax.vmap(lambda c: pull(c)[0], in_axes=1, out_axes=1)(columns)
+
+
 def motor_tangent(mech: Mechanism, geom, motors, state) -> Float[Array, "S M"]:
     """``ds/da = -(JᵀJ)⁻¹ Jᵀ ∂C_FK/∂a`` at a solved state on the band (the dense
-    :func:`linkopt._design.sampling.state_motor_jacobian`): ``∂C_FK/∂a`` by forward
-    mode, ``Jᵀ`` by reverse mode through the residual, never a dense ``J``."""
-    jac_a = jax.jacfwd(lambda a: fk_residual(mech, geom, a, state))(motors)
-    _, pull = jax.vjp(lambda s: fk_residual(mech, geom, motors, s), state)
-    projected = jax.vmap(lambda c: pull(c)[0], in_axes=1, out_axes=1)(jac_a)
+    :func:`linkopt._design.sampling.state_motor_jacobian`): ``∂C_FK/∂a`` (nonzero in
+    the motor rows only) by forward mode, ``Jᵀ`` by reverse mode through the motor
+    rows (:func:`motor_rows_transposed`), never a dense ``J``."""
+    jac_a = jax.jacfwd(lambda a: motor_residual(mech, geom, a, state))(motors)
+    projected = motor_rows_transposed(mech, geom, motors, state, jac_a)
     return -normal_solve(mech, "fk", geom, state, projected)
 
 

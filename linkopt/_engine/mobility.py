@@ -12,9 +12,8 @@ from jaxtyping import Array, Float
 from .._errors import InputError, MechanismFileError
 from . import banded, banded_sigma, programs, singularity
 from .constraints import (
-    bk_residual,
-    fk_residual,
     homogenised_motor_values,
+    output_residual,
     passive_residual,
 )
 from .geometry import geometry, rest_state
@@ -63,28 +62,25 @@ def _banded_rest_program(mech: Mechanism) -> tuple:
     """``(σ_min^FK, σ_min^BK)`` on the band (:mod:`.banded_sigma`) and the
     homogenised ``∂b/∂a``: the state velocity of a unit motor velocity is the least
     squares solution of ``∂C_FK/∂s ṡ = (0, e_i)`` (``(JᵀJ)⁻¹Jᵀ``, one banded factor),
-    the outputs' velocity the output rows of ``∂C_BK/∂s ṡ`` (a forward-mode product);
+    the outputs' velocity the output rows of ``∂C_BK/∂s ṡ`` (a forward-mode product
+    through those rows alone);
     what :func:`linkopt._design.conditioning.input_output_jacobian` gives from the
     dense Jacobians."""
     geom = geometry(mech)
     state = rest_state(mech)
     motors, outputs = jnp.zeros(mech.num_motors), jnp.zeros(mech.num_outputs)
-    residual, pull = jax.vjp(lambda s: fk_residual(mech, geom, motors, s), state)
-    rows = residual.shape[0]
-    unit = (
-        jnp.zeros((rows, mech.num_motors))
-        .at[rows - mech.num_motors :]
-        .set(jnp.eye(mech.num_motors))
-    )
-    projected = jax.vmap(lambda c: pull(c)[0], in_axes=1, out_axes=1)(unit)
+    unit = jnp.eye(mech.num_motors)
+    projected = banded.motor_rows_transposed(mech, geom, motors, state, unit)
     velocity = banded.normal_solve(mech, "fk", geom, state, projected)
 
     def output_rates(v):
-        return jax.jvp(lambda s: bk_residual(mech, geom, outputs, s), (state,), (v,))[1]
+        return jax.jvp(
+            lambda s: output_residual(mech, geom, outputs, s), (state,), (v,)
+        )[1]
 
     rates = jax.vmap(output_rates, in_axes=1, out_axes=1)(velocity)
     sigmas = banded_sigma.sigma_min_pair(mech, geom, state)
-    return sigmas, rates[rates.shape[0] - mech.num_outputs :]
+    return sigmas, rates
 
 
 def rest_jacobians(mech: Mechanism) -> RestJacobians:
