@@ -7,6 +7,8 @@ handed back warm where the command line asks for it (:mod:`linkopt._design.ahead
 
 import dataclasses
 import io
+import os
+from functools import partial
 
 import numpy as np
 import pytest
@@ -290,3 +292,35 @@ def test_the_view_drawn_beside_the_figures_is_the_command_lines(tmp_path, five_b
     empty.mkdir()
     assert not run_view(five_bar, empty)
     assert list(empty.iterdir()) == []
+
+
+def _pid_file(path) -> None:  # module level: a drawing left to the side process
+    path.write_text(str(os.getpid()))
+
+
+def _leave_two(job):
+    """Figures whose motions job leaves two drawings, each writing its process id."""
+    if job.design is None and job.optimized is not None:
+        return tuple(partial(_pid_file, job.out / n) for n in ("first", "last"))
+    return None
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_drawings_a_call_leaves_are_shared_between_the_processes(
+    tmp_path, five_bar, monkeypatch, workers
+):
+    """The drawings the motions' call leaves (the two GIFs) run at once: with a side
+    process, all but the last there and the last here; without one, all here. Both
+    are written in the run folder either way. (Verification is stood in for.)"""
+    monkeypatch.setattr(run_folder, "_verification", lambda *_: {"passed": True})
+    run_folder.write_outputs(
+        five_bar,
+        tmp_path,
+        _finished_run(five_bar),
+        SETTINGS,
+        figures=_leave_two,
+        workers=workers,
+    )
+    pids = {n: int((tmp_path / n).read_text()) for n in ("first", "last")}
+    assert pids["last"] == os.getpid()
+    assert (pids["first"] != os.getpid()) == (workers == 2)

@@ -47,8 +47,11 @@ class RunFigures:
 
 #: The drawing of a run folder's figures (:mod:`linkopt._draw.run_folder`), called
 #: once per design; it must pickle (a module-level function) to run in another
-#: process.
-Figures = Callable[[RunFigures], None]
+#: process. A call may return the drawings it left (zero-argument picklable calls,
+#: each writing its files; None or empty: none), which then run in two processes at
+#: once (:func:`linkopt._design.run.write_outputs`): the motions' call solves both
+#: designs' motions, whose GIFs share a colour scale, and leaves one GIF each.
+Figures = Callable[[RunFigures], "tuple[Callable[[], None], ...] | None"]
 
 
 class OutputError(RuntimeError):

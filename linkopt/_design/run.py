@@ -32,7 +32,9 @@ one), in three calls: the file's design's own figures (its space plot), both des
 motions, and the optimised design's figures (its space plot, convergence, mechanism).
 The work is split between two processes: with ``workers`` > 1 a side process (one the
 optimiser's ``Workers`` handed back warm, :func:`linkopt._design.ahead.side`, else a
-spawned one) draws the motions while this one draws the optimised design's figures.
+spawned one) solves both designs' motions while this one draws the optimised design's
+figures; the motions' call leaves their two GIFs to draw (:data:`Figures`), and each
+process draws one (:func:`_share`).
 The file's design's own figures (:func:`initial_figures`: its space plot) depend on
 the file alone: the command line has the side process draw them while this one runs
 the run's last verification round (:func:`linkopt._design.ahead.early`, where that
@@ -221,35 +223,68 @@ def _side_pool(workers: int) -> ProcessPoolExecutor | None:
     )
 
 
-def _draw_side(figures: Figures, job: RunFigures) -> None:
-    """The file's design's figures (:data:`Figures`), with OpenBLAS held to one thread
-    (:mod:`linkopt._config`); run in the side process or, without one, here."""
+def _draw_side(figures: Figures, job: RunFigures) -> tuple:
+    """The call of ``figures`` with ``job``, with OpenBLAS held to one thread
+    (:mod:`linkopt._config`); run in the side process or, without one, here. Returns
+    the drawings it left (:data:`Figures`)."""
     with one_blas_thread():
-        figures(job)
+        return tuple(figures(job) or ())
 
 
-def _submit(side: ProcessPoolExecutor | None, figures: Figures, job: RunFigures):
-    """The side process's future of ``job``, or None: no side process, or it died
-    before taking the job (then :func:`_side_result` draws here)."""
+def _drawn(drawing: Callable[[], None]) -> None:
+    """One drawing left by a call of the figures (:data:`Figures`), with OpenBLAS held
+    to one thread; in the side process or here."""
+    with one_blas_thread():
+        drawing()
+
+
+def _submit(side: ProcessPoolExecutor | None, fn, *args):
+    """The side process's future of ``fn(*args)``, or None: no side process, or it
+    died before taking the job (then the caller runs it here)."""
     if side is None:
         return None
     try:
-        return side.submit(_draw_side, figures, job)
+        return side.submit(fn, *args)
     except (BrokenProcessPool, RuntimeError):  # broken, or shut down
         return None
 
 
-def _side_result(future, figures: Figures, job: RunFigures, progress=None) -> None:
-    """Wait for the side process's figures; an error there is raised here as it was
-    raised there (naming its output, :func:`writing`). When that process died
-    (killed, or crashed), or there was none, the figures are drawn here: a lost side
-    process costs time, never the run."""
+def _side_result(
+    future, figures: Figures, job: RunFigures, progress=None, side=None
+) -> None:
+    """Wait for the side process's call of ``figures`` with ``job``; an error there is
+    raised here as it was raised there (naming its output, :func:`writing`). When
+    that process died (killed, or crashed), or there was none, the call is made here:
+    a lost side process costs time, never the run. The drawings the call left
+    (:data:`Figures`: the motions' GIFs) are shared: the last here, the others in the
+    ``side`` process at the same time (:func:`_share`)."""
+    left = None
     if future is not None:
         try:
-            return future.result()
+            left = future.result()
         except BrokenProcessPool:
             pass
-    _draw_side(figures, dataclasses.replace(job, progress=progress))
+    if left is None:
+        left = _draw_side(figures, dataclasses.replace(job, progress=progress))
+    _share(side, left)
+
+
+def _share(side: ProcessPoolExecutor | None, drawings: tuple) -> None:
+    """Run ``drawings``: all but the last in the ``side`` process while this one runs
+    the last, then wait for them (each one whose process died is run here)."""
+    if not drawings:
+        return
+    *there, here = drawings
+    futures = [_submit(side, _drawn, drawing) for drawing in there]
+    _drawn(here)
+    for future, drawing in zip(futures, there):
+        if future is not None:
+            try:
+                future.result()
+                continue
+            except BrokenProcessPool:
+                pass
+        _drawn(drawing)
 
 
 def last_round_verification(
@@ -343,7 +378,9 @@ def _design_outputs(
     if figures is not None:
         side_job = RunFigures(mech, current, out, None, None, rows, (), resolution)
         side_job = dataclasses.replace(side_job, optimized=design)
-    future = _submit(side, figures, side_job) if side_job is not None else None
+    future = None
+    if side_job is not None:
+        future = _submit(side, _draw_side, figures, side_job)
     with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._config
         with writing("verification.json (optimised design)"):
             checked = last_round_verification(current, run, design, verify_resolution)
@@ -365,7 +402,7 @@ def _design_outputs(
         else:
             for name, data in _initial_files(early, initial_args).items():
                 (out / name).write_bytes(data)
-        _side_result(future, figures, side_job, progress)
+        _side_result(future, figures, side_job, progress, side)
     return {"initial": initial, "optimized": checked}, final
 
 
