@@ -26,7 +26,8 @@ class RunFigures:
     """What one design's figures in a run folder are drawn from: ``mech`` is the file's
     mechanism, ``current`` the run's (with the verification rounds' targets),
     ``design`` the optimised design or None for the file's, ``evaluation`` that
-    design's with ``current`` (None for the file's design: evaluate it with
+    design's with ``current`` (for the file's design, None where the run did not hand
+    it over: evaluate it with
     :func:`~linkopt._design.evaluation.evaluate_in_batch` in blocks of ``rows``, the
     swarm program's shape, if a figure needs it), ``history`` the run's records.
     ``optimized``: on a job with ``design`` None, the optimised design, for the

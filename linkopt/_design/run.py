@@ -183,7 +183,10 @@ def optimize(
                 chunks = Workers(current, workers) if pool is None else pool(current)
                 with chunks:
                     while not run.finished:
+                        fresh = run.iteration == 0 and current is mech
                         run = step(current, run, settings, chunks)
+                        if fresh:
+                            _give_file_design(mech, chunks)
                         run = _timed(run, offset + time.perf_counter() - began)
                         save_checkpoint(out, run, mech, settings)
                         if progress is not None:
@@ -195,6 +198,19 @@ def optimize(
             save_checkpoint(out, run, mech, settings)
             if progress is not None:
                 progress(run.rounds[-1])
+
+
+def _give_file_design(mech: Mechanism, chunks) -> None:
+    """The first iteration's evaluation of the file's design (the swarm's first
+    particle is ``p₀`` exactly, and a design's lanes do not depend on the others in a
+    batch: :func:`~linkopt._design.evaluation.evaluate_in_batch`) to the file's
+    design's figures made ahead (:func:`initial_figures`,
+    :func:`linkopt._design.ahead.early_given`), which then do not evaluate it again
+    in the process that draws them. Only from this process's own chunk of a
+    :class:`Workers`; nothing when that chunk did not start at ``p₀``."""
+    first = chunks.first if isinstance(chunks, Workers) else None
+    if first is not None and np.array_equal(first[0], mech.design.p0):
+        ahead.early_given(evaluation=first[1])
 
 
 def _verification(mech: Mechanism, design, resolution: int | None) -> dict:
@@ -312,18 +328,25 @@ def swarm_rows(particles: int, workers: int) -> int:
 
 
 def initial_figures(
-    mech: Mechanism, rows: int, resolution: int | None, figures: Figures
+    mech: Mechanism,
+    rows: int,
+    resolution: int | None,
+    figures: Figures,
+    evaluation: Evaluation | None = None,
 ) -> dict[str, bytes]:
     """The file's design's own figures (the call of ``figures`` with ``design`` and
     ``optimized`` None: its space plot), which depend on the file alone, not on the
     run: drawn before the run ends where a process is free for them
     (:func:`linkopt._design.ahead.early`: the command line's worker, during the last
     verification round), else by :func:`write_outputs`. They are drawn into a
-    temporary folder and returned as bytes by file name."""
+    temporary folder and returned as bytes by file name. ``evaluation``: the file's
+    design's, where the run has it (:func:`_give_file_design`); else the figures
+    evaluate it."""
     with one_blas_thread():
         with tempfile.TemporaryDirectory(prefix="linkopt-initial-") as folder:
             folder = Path(folder)
-            figures(RunFigures(mech, mech, folder, None, None, rows, (), resolution))
+            job = RunFigures(mech, mech, folder, None, evaluation, rows, (), resolution)
+            figures(job)
             return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
 
 

@@ -95,10 +95,11 @@ def run_view(mech: Mechanism, out: Path) -> bool:
 
 
 def _initial(job: run_folder.RunFigures) -> None:
-    """The file's design's space plot (``spaces_initial.png``), evaluated here."""
+    """The file's design's space plot (``spaces_initial.png``), with the job's
+    evaluation of that design, else evaluated here."""
     if has_space_plots(job.mech):
         with one_blas_thread():
-            _space_plot(job, None, None, "initial design")
+            _space_plot(job, job.evaluation, None, "initial design")
 
 
 def _motions(job: run_folder.RunFigures) -> tuple:
@@ -140,7 +141,8 @@ def _optimized(job: run_folder.RunFigures) -> None:
 
 def _space_plot(job: run_folder.RunFigures, evaluation, design, label: str) -> None:
     """``spaces_optimized.png`` (``design``, with its ``evaluation``) or
-    ``spaces_initial.png`` (``design`` None: the file's, evaluated here)."""
+    ``spaces_initial.png`` (``design`` None: the file's, evaluated here when
+    ``evaluation`` is None)."""
     from .._design.evaluation import evaluate_in_batch
     from .space_plots import plot_spaces
 
