@@ -358,3 +358,50 @@ def test_the_run_hands_the_file_designs_evaluation_to_the_figures_made_ahead(
         nan = np.issubdtype(b.dtype, np.inexact)
         assert a.dtype == b.dtype, field.name
         assert np.array_equal(a, b, equal_nan=nan), field.name
+
+
+class _ShutdownSpy:
+    """A side pool that records how it was shut down."""
+
+    def __init__(self, pool):
+        self.pool, self.waited = pool, []
+
+    def submit(self, *args, **kwargs):
+        return self.pool.submit(*args, **kwargs)
+
+    def shutdown(self, wait=True, cancel_futures=False):
+        self.waited.append(wait)
+        self.pool.shutdown(wait=wait, cancel_futures=cancel_futures)
+
+
+@pytest.mark.parametrize("fails", [False, True])
+def test_the_side_process_is_waited_for_only_after_an_error(
+    tmp_path, five_bar, monkeypatch, fails
+):
+    """Outputs that were all written leave the side process to exit on its own (its
+    JAX teardown, about a second, is not the run's to wait for); after an error it is
+    waited for, so nothing of it still writes into the staged outputs."""
+    monkeypatch.setattr(run_folder, "_verification", lambda *_: {"passed": True})
+    spies = []
+    side_pool = run_folder._side_pool
+
+    def spied(workers):
+        spies.append(_ShutdownSpy(side_pool(workers)))
+        return spies[-1]
+
+    monkeypatch.setattr(run_folder, "_side_pool", spied)
+    call = partial(
+        run_folder.write_outputs,
+        five_bar,
+        tmp_path,
+        _finished_run(five_bar),
+        SETTINGS,
+        figures=_fail_side if fails else _leave_two,
+        workers=2,
+    )
+    if fails:
+        with pytest.raises(OutputError):
+            call()
+    else:
+        call()
+    assert [spy.waited for spy in spies] == [[fails]]
