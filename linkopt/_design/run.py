@@ -469,19 +469,12 @@ def _summary(
 
 @contextmanager
 def _ending(pool: ProcessPoolExecutor | None) -> Iterator[ProcessPoolExecutor | None]:
-    """``pool`` for the block, ended after it (its queued work cancelled). After a
-    block that succeeded its process has done all its work, and it is left to exit
-    on its own: its exit, the interpreter's teardown of JAX, takes about a second
-    that the run's outputs need not wait for. After an error it is waited for, so
-    that no drawing of its is still writing when the staged outputs are removed."""
+    """``pool`` for the block, ended after it (its queued work cancelled)."""
     try:
         yield pool
-    except BaseException:
+    finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)
-        raise
-    if pool is not None:
-        pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _design_files(mech, current, design, stage: Path, settings, run) -> None:
