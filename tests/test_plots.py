@@ -7,6 +7,7 @@ from five_bar_closed_form import L2, elbows, forward
 from scipy import ndimage
 
 import linkopt
+from linkopt._design import maps
 from linkopt._design.maps import motor_map
 
 
@@ -31,6 +32,37 @@ def test_motor_map_matches_closed_form_feasibility(five_bar):
     np.testing.assert_array_equal(grid.feasible[clear], expected[clear])
     tips = grid.outputs[expected & clear]
     np.testing.assert_allclose(tips, forward(motors[expected & clear]), atol=1e-8)
+
+
+def test_a_map_reads_its_feasible_cells_only(five_bar, monkeypatch):
+    """finish_map reads f_sing and the motor and output values of the feasible cells
+    (equal to reading every state one batch), NaN elsewhere, whatever an infeasible
+    cell holds; with no feasible cell it reads nothing."""
+    rng = np.random.default_rng(0)
+    rest = np.asarray(linkopt.rest_state(five_bar))
+    motors = rng.uniform(-0.2, 0.2, (12, 2))
+    states = np.asarray(linkopt.solve_fk(five_bar, motors, start=rest).state)
+    states = states.reshape(3, 4, -1).copy()
+    feasible = rng.random((3, 4)) < 0.6
+    states[~feasible] = np.nan  # what a failed cell holds must not matter
+    axes = [np.arange(3.0), np.arange(4.0)]
+    grid = maps.finish_map(five_bar, axes, states, feasible, None)
+    ok = states[feasible]
+    np.testing.assert_array_equal(grid.f_sing[feasible], linkopt.f_sing(five_bar, ok))
+    np.testing.assert_allclose(grid.motors[feasible], motors.reshape(3, 4, 2)[feasible])
+    np.testing.assert_array_equal(
+        grid.outputs[feasible], linkopt.output_values(five_bar, ok)
+    )
+    assert np.isnan(grid.f_sing[~feasible]).all()
+    assert np.isnan(grid.outputs[~feasible]).all()
+
+    def unread(*_, **__):
+        raise AssertionError("read with no feasible cell")
+
+    monkeypatch.setattr(maps, "f_sing", unread)
+    monkeypatch.setattr(maps, "output_values", unread)
+    none = maps.finish_map(five_bar, axes, states, np.zeros((3, 4), bool), None)
+    assert np.isnan(none.f_sing).all() and np.isnan(none.outputs).all()
 
 
 def test_three_output_sections_match_direct_solves(tmp_path):

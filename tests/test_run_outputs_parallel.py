@@ -7,12 +7,15 @@ handed back warm where the command line asks for it (:mod:`linkopt._design.ahead
 
 import dataclasses
 import io
+import os
+from functools import partial
 
 import numpy as np
 import pytest
 
 from linkopt._design import ahead
 from linkopt._design import run as run_folder
+from linkopt._design.evaluation import evaluate_in_batch
 from linkopt._design.optimizer import OptimizerSettings, start
 from linkopt._design.run import OutputError, writing
 from linkopt._design.workers import Workers
@@ -290,3 +293,68 @@ def test_the_view_drawn_beside_the_figures_is_the_command_lines(tmp_path, five_b
     empty.mkdir()
     assert not run_view(five_bar, empty)
     assert list(empty.iterdir()) == []
+
+
+def _pid_file(path) -> None:  # module level: a drawing left to the side process
+    path.write_text(str(os.getpid()))
+
+
+def _leave_two(job):
+    """Figures whose motions job leaves two drawings, each writing its process id."""
+    if job.design is None and job.optimized is not None:
+        return tuple(partial(_pid_file, job.out / n) for n in ("first", "last"))
+    return None
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_drawings_a_call_leaves_are_shared_between_the_processes(
+    tmp_path, five_bar, monkeypatch, workers
+):
+    """The drawings the motions' call leaves (the two GIFs) run at once: with a side
+    process, all but the last there and the last here; without one, all here. Both
+    are written in the run folder either way. (Verification is stood in for.)"""
+    monkeypatch.setattr(run_folder, "_verification", lambda *_: {"passed": True})
+    run_folder.write_outputs(
+        five_bar,
+        tmp_path,
+        _finished_run(five_bar),
+        SETTINGS,
+        figures=_leave_two,
+        workers=workers,
+    )
+    pids = {n: int((tmp_path / n).read_text()) for n in ("first", "last")}
+    assert pids["last"] == os.getpid()
+    assert (pids["first"] != os.getpid()) == (workers == 2)
+
+
+def _keep_evaluation(job) -> None:  # module level: it runs in the process held ahead
+    import pickle
+
+    (job.out / "evaluation.pickle").write_bytes(pickle.dumps(job.evaluation))
+
+
+def test_the_run_hands_the_file_designs_evaluation_to_the_figures_made_ahead(
+    tmp_path, five_bar
+):
+    """A fresh run gives the file's design's figures made ahead its first iteration's
+    evaluation of that design (its first particle), which is, field by field and bit
+    for bit, the one those figures would compute themselves."""
+    import pickle
+
+    settings = OptimizerSettings(particles=2, iterations=1, verify_rounds=0)
+    rows = run_folder.swarm_rows(settings.particles, 2)
+    try:
+        ahead.start(2)
+        ahead.early(run_folder.initial_figures, five_bar, rows, None, _keep_evaluation)
+        run_folder.optimize(five_bar, tmp_path / "run", settings, workers=2)
+        _, future = ahead.early_result()
+        given = pickle.loads(future.result()["evaluation.pickle"])
+    finally:
+        ahead.close()
+    assert given is not None
+    own = evaluate_in_batch(five_bar, None, rows)
+    for field in dataclasses.fields(own):
+        a, b = (np.asarray(getattr(e, field.name)) for e in (given, own))
+        nan = np.issubdtype(b.dtype, np.inexact)
+        assert a.dtype == b.dtype, field.name
+        assert np.array_equal(a, b, equal_nan=nan), field.name

@@ -37,6 +37,8 @@ _KEEP = False
 _WARM: tuple[str, ...] = ()
 #: The job of :func:`early` (function, arguments), and its future once submitted.
 _EARLY: tuple[Callable, tuple] | None = None
+#: Keyword arguments the job gets too (:func:`early_given`).
+_GIVEN: dict = {}
 _FUTURE: Future | None = None
 
 
@@ -105,7 +107,7 @@ def keep(count: int, pool: ProcessPoolExecutor) -> bool:
         if _WARM:
             pool.submit(_import, _WARM)
         if _EARLY is not None and _FUTURE is None:
-            _FUTURE = pool.submit(_EARLY[0], *_EARLY[1])
+            _FUTURE = pool.submit(_EARLY[0], *_EARLY[1], **_GIVEN)
     except (BrokenProcessPool, RuntimeError):  # its next user replaces it
         pass
     return True
@@ -118,6 +120,16 @@ def early(fn: Callable, *args) -> None:
     runs without :func:`start` (the library's runs hold no process)."""
     global _EARLY
     _EARLY = (fn, args)
+    _GIVEN.clear()
+
+
+def early_given(**kwargs) -> None:
+    """Keyword arguments for :func:`early`'s job, found after it was asked for (the
+    run's evaluation of the file's design, :func:`linkopt._design.run.optimize`),
+    if it has not started; the caller's :func:`early_result` check compares the
+    positional arguments only, so these must be what the job would compute itself."""
+    if _EARLY is not None and _FUTURE is None:
+        _GIVEN.update(kwargs)
 
 
 def early_result() -> tuple[tuple, Future] | None:
@@ -129,6 +141,7 @@ def early_result() -> tuple[tuple, Future] | None:
         return None
     (_, args), future = _EARLY, _FUTURE
     _EARLY = _FUTURE = None
+    _GIVEN.clear()
     return args, future
 
 
@@ -152,6 +165,7 @@ def close() -> None:
     """End the processes of :func:`start` (or :func:`keep`) that nothing adopted."""
     global _AHEAD, _KEEP, _WARM, _EARLY, _FUTURE
     _KEEP, _WARM, _EARLY, _FUTURE = False, (), None, None
+    _GIVEN.clear()
     if _AHEAD is not None:
         _AHEAD[1].shutdown(wait=False, cancel_futures=True)
         _AHEAD = None

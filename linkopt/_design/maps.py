@@ -273,28 +273,38 @@ def grid_axes(low, high, resolution):
 
 
 def finish_map(mech, axes, states, feasible, design) -> Map2D:
-    flat = states.reshape(-1, states.shape[-1])
-    shape = feasible.shape
-    fs = np.asarray(f_sing(mech, flat, design=design)).reshape(shape)
-    motors = np.asarray(motor_values(mech, flat, design=design)).reshape(shape + (-1,))
-    outputs = np.asarray(output_values(mech, flat, design=design)).reshape(
-        shape + (-1,)
-    )
-    nan = np.where(feasible, 1.0, np.nan)
-    reported = None
-    if mech.reported_table.size:  # a read-out of the solved states: no solve
-        values = np.asarray(reported_values(mech, flat, design=design))
-        reported = values.reshape(shape + (-1,)) * nan[..., None]
+    """The map of a solved grid: ``f_sing`` and the read-outs of its feasible cells
+    (each a batched call over those cells only: a map's unreached and failed cells,
+    a sixth of the five-bar's, are NaN whatever they would read), NaN elsewhere."""
+    reached = states[feasible]
+    sing = _on_cells(feasible, reached, lambda s: f_sing(mech, s, design=design), ())
+    read = [
+        _on_cells(feasible, reached, lambda s, f=f: f(mech, s, design=design), (n,))
+        for f, n in (
+            (motor_values, mech.num_motors),
+            (output_values, mech.num_outputs),
+            (reported_values, mech.reported_table.size),
+        )
+    ]
     return Map2D(
         axes[0],
         axes[1],
-        fs * nan,
-        motors * nan[..., None],
-        outputs * nan[..., None],
+        sing,
+        read[0],
+        read[1],
         feasible,
-        reported,
+        read[2] if mech.reported_table.size else None,  # a read-out: no solve
         least_clearance(mech, states, feasible, design),
     )
+
+
+def _on_cells(feasible, reached, read, tail: tuple[int, ...]) -> np.ndarray:
+    """``read(reached)`` (one row per feasible cell) placed on the grid, NaN in the
+    other cells; no call when no cell is feasible or a row has no values."""
+    out = np.full(feasible.shape + tail, np.nan)
+    if len(reached) and math.prod(tail):
+        out[feasible] = np.asarray(read(reached))
+    return out
 
 
 def least_clearance(mech: Mechanism, states, feasible, design) -> np.ndarray | None:

@@ -26,7 +26,8 @@ class RunFigures:
     """What one design's figures in a run folder are drawn from: ``mech`` is the file's
     mechanism, ``current`` the run's (with the verification rounds' targets),
     ``design`` the optimised design or None for the file's, ``evaluation`` that
-    design's with ``current`` (None for the file's design: evaluate it with
+    design's with ``current`` (for the file's design, None where the run did not hand
+    it over: evaluate it with
     :func:`~linkopt._design.evaluation.evaluate_in_batch` in blocks of ``rows``, the
     swarm program's shape, if a figure needs it), ``history`` the run's records.
     ``optimized``: on a job with ``design`` None, the optimised design, for the
@@ -47,8 +48,11 @@ class RunFigures:
 
 #: The drawing of a run folder's figures (:mod:`linkopt._draw.run_folder`), called
 #: once per design; it must pickle (a module-level function) to run in another
-#: process.
-Figures = Callable[[RunFigures], None]
+#: process. A call may return the drawings it left (zero-argument picklable calls,
+#: each writing its files; None or empty: none), which then run in two processes at
+#: once (:func:`linkopt._design.run.write_outputs`): the motions' call solves both
+#: designs' motions, whose GIFs share a colour scale, and leaves one GIF each.
+Figures = Callable[[RunFigures], "tuple[Callable[[], None], ...] | None"]
 
 
 class OutputError(RuntimeError):

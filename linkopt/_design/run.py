@@ -32,7 +32,9 @@ one), in three calls: the file's design's own figures (its space plot), both des
 motions, and the optimised design's figures (its space plot, convergence, mechanism).
 The work is split between two processes: with ``workers`` > 1 a side process (one the
 optimiser's ``Workers`` handed back warm, :func:`linkopt._design.ahead.side`, else a
-spawned one) draws the motions while this one draws the optimised design's figures.
+spawned one) solves both designs' motions while this one draws the optimised design's
+figures; the motions' call leaves their two GIFs to draw (:data:`Figures`), and each
+process draws one (:func:`_share`).
 The file's design's own figures (:func:`initial_figures`: its space plot) depend on
 the file alone: the command line has the side process draw them while this one runs
 the run's last verification round (:func:`linkopt._design.ahead.early`, where that
@@ -181,7 +183,10 @@ def optimize(
                 chunks = Workers(current, workers) if pool is None else pool(current)
                 with chunks:
                     while not run.finished:
+                        fresh = run.iteration == 0 and current is mech
                         run = step(current, run, settings, chunks)
+                        if fresh:
+                            _give_file_design(mech, chunks)
                         run = _timed(run, offset + time.perf_counter() - began)
                         save_checkpoint(out, run, mech, settings)
                         if progress is not None:
@@ -193,6 +198,19 @@ def optimize(
             save_checkpoint(out, run, mech, settings)
             if progress is not None:
                 progress(run.rounds[-1])
+
+
+def _give_file_design(mech: Mechanism, chunks) -> None:
+    """The first iteration's evaluation of the file's design (the swarm's first
+    particle is ``p₀`` exactly, and a design's lanes do not depend on the others in a
+    batch: :func:`~linkopt._design.evaluation.evaluate_in_batch`) to the file's
+    design's figures made ahead (:func:`initial_figures`,
+    :func:`linkopt._design.ahead.early_given`), which then do not evaluate it again
+    in the process that draws them. Only from this process's own chunk of a
+    :class:`Workers`; nothing when that chunk did not start at ``p₀``."""
+    first = chunks.first if isinstance(chunks, Workers) else None
+    if first is not None and np.array_equal(first[0], mech.design.p0):
+        ahead.early_given(evaluation=first[1])
 
 
 def _verification(mech: Mechanism, design, resolution: int | None) -> dict:
@@ -221,35 +239,68 @@ def _side_pool(workers: int) -> ProcessPoolExecutor | None:
     )
 
 
-def _draw_side(figures: Figures, job: RunFigures) -> None:
-    """The file's design's figures (:data:`Figures`), with OpenBLAS held to one thread
-    (:mod:`linkopt._config`); run in the side process or, without one, here."""
+def _draw_side(figures: Figures, job: RunFigures) -> tuple:
+    """The call of ``figures`` with ``job``, with OpenBLAS held to one thread
+    (:mod:`linkopt._config`); run in the side process or, without one, here. Returns
+    the drawings it left (:data:`Figures`)."""
     with one_blas_thread():
-        figures(job)
+        return tuple(figures(job) or ())
 
 
-def _submit(side: ProcessPoolExecutor | None, figures: Figures, job: RunFigures):
-    """The side process's future of ``job``, or None: no side process, or it died
-    before taking the job (then :func:`_side_result` draws here)."""
+def _drawn(drawing: Callable[[], None]) -> None:
+    """One drawing left by a call of the figures (:data:`Figures`), with OpenBLAS held
+    to one thread; in the side process or here."""
+    with one_blas_thread():
+        drawing()
+
+
+def _submit(side: ProcessPoolExecutor | None, fn, *args):
+    """The side process's future of ``fn(*args)``, or None: no side process, or it
+    died before taking the job (then the caller runs it here)."""
     if side is None:
         return None
     try:
-        return side.submit(_draw_side, figures, job)
+        return side.submit(fn, *args)
     except (BrokenProcessPool, RuntimeError):  # broken, or shut down
         return None
 
 
-def _side_result(future, figures: Figures, job: RunFigures, progress=None) -> None:
-    """Wait for the side process's figures; an error there is raised here as it was
-    raised there (naming its output, :func:`writing`). When that process died
-    (killed, or crashed), or there was none, the figures are drawn here: a lost side
-    process costs time, never the run."""
+def _side_result(
+    future, figures: Figures, job: RunFigures, progress=None, side=None
+) -> None:
+    """Wait for the side process's call of ``figures`` with ``job``; an error there is
+    raised here as it was raised there (naming its output, :func:`writing`). When
+    that process died (killed, or crashed), or there was none, the call is made here:
+    a lost side process costs time, never the run. The drawings the call left
+    (:data:`Figures`: the motions' GIFs) are shared: the last here, the others in the
+    ``side`` process at the same time (:func:`_share`)."""
+    left = None
     if future is not None:
         try:
-            return future.result()
+            left = future.result()
         except BrokenProcessPool:
             pass
-    _draw_side(figures, dataclasses.replace(job, progress=progress))
+    if left is None:
+        left = _draw_side(figures, dataclasses.replace(job, progress=progress))
+    _share(side, left)
+
+
+def _share(side: ProcessPoolExecutor | None, drawings: tuple) -> None:
+    """Run ``drawings``: all but the last in the ``side`` process while this one runs
+    the last, then wait for them (each one whose process died is run here)."""
+    if not drawings:
+        return
+    *there, here = drawings
+    futures = [_submit(side, _drawn, drawing) for drawing in there]
+    _drawn(here)
+    for future, drawing in zip(futures, there):
+        if future is not None:
+            try:
+                future.result()
+                continue
+            except BrokenProcessPool:
+                pass
+        _drawn(drawing)
 
 
 def last_round_verification(
@@ -277,18 +328,25 @@ def swarm_rows(particles: int, workers: int) -> int:
 
 
 def initial_figures(
-    mech: Mechanism, rows: int, resolution: int | None, figures: Figures
+    mech: Mechanism,
+    rows: int,
+    resolution: int | None,
+    figures: Figures,
+    evaluation: Evaluation | None = None,
 ) -> dict[str, bytes]:
     """The file's design's own figures (the call of ``figures`` with ``design`` and
     ``optimized`` None: its space plot), which depend on the file alone, not on the
     run: drawn before the run ends where a process is free for them
     (:func:`linkopt._design.ahead.early`: the command line's worker, during the last
     verification round), else by :func:`write_outputs`. They are drawn into a
-    temporary folder and returned as bytes by file name."""
+    temporary folder and returned as bytes by file name. ``evaluation``: the file's
+    design's, where the run has it (:func:`_give_file_design`); else the figures
+    evaluate it."""
     with one_blas_thread():
         with tempfile.TemporaryDirectory(prefix="linkopt-initial-") as folder:
             folder = Path(folder)
-            figures(RunFigures(mech, mech, folder, None, None, rows, (), resolution))
+            job = RunFigures(mech, mech, folder, None, evaluation, rows, (), resolution)
+            figures(job)
             return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
 
 
@@ -343,7 +401,9 @@ def _design_outputs(
     if figures is not None:
         side_job = RunFigures(mech, current, out, None, None, rows, (), resolution)
         side_job = dataclasses.replace(side_job, optimized=design)
-    future = _submit(side, figures, side_job) if side_job is not None else None
+    future = None
+    if side_job is not None:
+        future = _submit(side, _draw_side, figures, side_job)
     with one_blas_thread():  # OpenBLAS's spinning threads: linkopt._config
         with writing("verification.json (optimised design)"):
             checked = last_round_verification(current, run, design, verify_resolution)
@@ -365,7 +425,7 @@ def _design_outputs(
         else:
             for name, data in _initial_files(early, initial_args).items():
                 (out / name).write_bytes(data)
-        _side_result(future, figures, side_job, progress)
+        _side_result(future, figures, side_job, progress, side)
     return {"initial": initial, "optimized": checked}, final
 
 

@@ -113,6 +113,8 @@ class Workers:
         self._pool = None
         # (designs, evaluation, alpha, gradient) of a first chunk
         self._early: tuple | None = None
+        #: The first design of the last :meth:`evaluate` and its evaluation (numpy).
+        self.first: tuple[np.ndarray, Evaluation] | None = None
         self.restarts = 0  # worker pools replaced after a worker died
         # a worker's compilation of the partial gradients on a cold start
         self._compiling: Future | None = None
@@ -210,6 +212,7 @@ class Workers:
         )
         with one_blas_thread():
             first = jax.tree_util.tree_map(np.asarray, evaluate(self.mech, chunks[0]))
+            self.first = (chunks[0][0], jax.tree_util.tree_map(lambda a: a[0], first))
             if pending is not None and not all(f.done() for f in pending):
                 # idle until they answer
                 alpha = alpha_minus(self.mech)

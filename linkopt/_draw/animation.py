@@ -20,6 +20,7 @@ named point when all outputs are angles
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import matplotlib
@@ -35,6 +36,7 @@ from .._design.motion import (
     motion,
     unreached_message,
 )
+from .._design.outputs import writing
 from .._engine.model import Mechanism
 from . import figures
 from .planar import plane_basis
@@ -352,9 +354,24 @@ def write_run_motions(
 ) -> list[str]:
     """``motion_initial.gif`` (``initial``, its file's design) and
     ``motion_optimized.gif`` (``design``, along the default loop through the targets
-    of ``current``, the run's mechanism) in ``out``, on one colour scale; both are
-    solved with ``initial``, so they share its compiled programs (:func:`motion`);
-    returns the names written."""
+    of ``current``, the run's mechanism) in ``out``, on one colour scale
+    (:func:`run_motion_drawings`, drawn here); returns the names written."""
+    drawings = run_motion_drawings(initial, current, out, design, frames)
+    for drawing in drawings:
+        drawing()
+    return [drawing.args[0] for drawing in drawings]
+
+
+def run_motion_drawings(
+    initial: Mechanism, current: Mechanism, out: Path, design, frames=DEFAULT_FRAMES
+) -> tuple[partial, ...]:
+    """The motions of :func:`write_run_motions`, solved, and their GIFs left to draw:
+    one picklable call per file (``motion_initial.gif``, then
+    ``motion_optimized.gif``), each naming its file in an error
+    (:func:`linkopt._design.run.writing`). Both motions are solved with ``initial``,
+    so they share its compiled programs (:func:`motion`), and before either is drawn,
+    as their colour scale is over both; the drawings are then independent, so two
+    processes can draw one each (:func:`linkopt._design.run.write_outputs`)."""
     items = {
         "motion_initial.gif": (initial, None, "initial design"),
         "motion_optimized.gif": (initial, design, "optimised design"),
@@ -365,13 +382,22 @@ def write_run_motions(
         for name, (m, d, _) in items.items()
     }
     norm = colour_norm(np.concatenate([m.f_sing for m in motions.values()]))
-    for name, (m, d, label) in items.items():
-        draw(
+    return tuple(
+        partial(
+            _draw_file,
+            name,
             m,
             motions[name],
             out / name,
-            design=d,
-            f_sing_range=(norm.vmin, norm.vmax),
-            title=f"{m.name}, {label}",
+            d,
+            (norm.vmin, norm.vmax),
+            f"{m.name}, {label}",
         )
-    return list(items)
+        for name, (m, d, label) in items.items()
+    )
+
+
+def _draw_file(name: str, mech, item, path, design, f_sing_range, title) -> None:
+    """:func:`draw` of one file of :func:`run_motion_drawings`, an error naming it."""
+    with writing(name):
+        draw(mech, item, path, design=design, f_sing_range=f_sing_range, title=title)

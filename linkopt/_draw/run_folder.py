@@ -6,8 +6,9 @@ the drawing as an argument, and :func:`draw_run_figures` is the one call it make
 three times: the file's design's call draws ``spaces_initial.png`` (made ahead, while
 the run's last verification round runs, where the command line has a process free:
 :func:`linkopt._design.run.initial_figures`); the motions' call draws
-``motion_initial.gif`` / ``motion_optimized.gif`` (mechanisms with 1-3 motors; in a
-side process when the run has workers); the optimised design's draws
+``motion_initial.gif`` / ``motion_optimized.gif`` (mechanisms with 1-3 motors; solved
+in a side process when the run has workers, which then draws the first GIF while the
+main process draws the second); the optimised design's draws
 ``spaces_optimized.png``, ``convergence.png`` and ``mechanism.png`` (both designs
 overlaid). An error in a figure names it (:func:`linkopt._design.run.writing`), in
 whichever process it was drawn. Space plots are drawn for 2 or 3 motors and as many
@@ -38,28 +39,31 @@ def _prefixed(progress, prefix: str):
     return lambda record: progress({**record, "stage": prefix + record["stage"]})
 
 
-def draw_run_figures(job: run_folder.RunFigures) -> None:
+def draw_run_figures(job: run_folder.RunFigures) -> tuple:
     """The figures of ``job`` in ``job.out`` (module docstring): the motions when it
-    has ``optimized``, else its design's own."""
+    has ``optimized`` (returned as the drawings left, :data:`~.run_folder.Figures`),
+    else its design's own."""
     if job.design is None and job.optimized is not None:
-        _motions(job)
-    elif job.design is None:
+        return _motions(job)
+    if job.design is None:
         _initial(job)
     else:
         _optimized(job)
+    return ()
 
 
 #: The run folder's browser view (:func:`draw_run_figures_and_view`).
 VIEW_FILE = "view.html"
 
 
-def draw_run_figures_and_view(job: run_folder.RunFigures) -> None:
+def draw_run_figures_and_view(job: run_folder.RunFigures) -> tuple:
     """:func:`draw_run_figures`, and on the optimised design's job ``view.html`` too
     (:func:`run_view`): ``linkopt optimize`` passes it, so the page's grids are solved
-    while the side process draws the motions rather than after them."""
-    draw_run_figures(job)
+    while the side process solves the motions rather than after them."""
+    left = draw_run_figures(job)
     if job.design is not None:
         run_view(job.mech, job.out)
+    return left
 
 
 def run_view(mech: Mechanism, out: Path) -> bool:
@@ -91,20 +95,23 @@ def run_view(mech: Mechanism, out: Path) -> bool:
 
 
 def _initial(job: run_folder.RunFigures) -> None:
-    """The file's design's space plot (``spaces_initial.png``), evaluated here."""
+    """The file's design's space plot (``spaces_initial.png``), with the job's
+    evaluation of that design, else evaluated here."""
     if has_space_plots(job.mech):
         with one_blas_thread():
-            _space_plot(job, None, None, "initial design")
+            _space_plot(job, job.evaluation, None, "initial design")
 
 
-def _motions(job: run_folder.RunFigures) -> None:
-    """The motions of both designs (given the optimised design, ``job.optimized``):
-    with workers, the run's side process draws them while the main one draws
-    :func:`_optimized`'s figures (:func:`linkopt._design.run.write_outputs`)."""
-    from .animation import write_run_motions
+def _motions(job: run_folder.RunFigures) -> tuple:
+    """The motions of both designs (given the optimised design, ``job.optimized``),
+    solved, and their GIFs left to draw (:func:`.animation.run_motion_drawings`): with
+    workers, the run's side process solves them while the main one draws
+    :func:`_optimized`'s figures, then each process draws one GIF
+    (:func:`linkopt._design.run.write_outputs`)."""
+    from .animation import run_motion_drawings
 
     with writing("motion_initial.gif, motion_optimized.gif"):
-        write_run_motions(job.mech, job.current, job.out, job.optimized)
+        return run_motion_drawings(job.mech, job.current, job.out, job.optimized)
 
 
 def _optimized(job: run_folder.RunFigures) -> None:
@@ -134,7 +141,8 @@ def _optimized(job: run_folder.RunFigures) -> None:
 
 def _space_plot(job: run_folder.RunFigures, evaluation, design, label: str) -> None:
     """``spaces_optimized.png`` (``design``, with its ``evaluation``) or
-    ``spaces_initial.png`` (``design`` None: the file's, evaluated here)."""
+    ``spaces_initial.png`` (``design`` None: the file's, evaluated here when
+    ``evaluation`` is None)."""
     from .._design.evaluation import evaluate_in_batch
     from .space_plots import plot_spaces
 
@@ -166,8 +174,8 @@ def write_outputs(
 ) -> dict:
     """Optimised file, verification, summary and figures for a finished run.
 
-    With ``workers`` > 1 a side process draws the motions while this one verifies both
-    designs and draws the rest. ``out`` is
+    With ``workers`` > 1 a side process solves the motions while this one verifies
+    both designs and draws the rest, then each draws one motion GIF. ``out`` is
     locked for the call, and the files are staged: they replace the folder's earlier
     ones only once all are written, ``summary.json`` last
     (:func:`linkopt._folders.staged`), so a failure leaves no ``optimized.toml`` that
