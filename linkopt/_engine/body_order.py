@@ -19,8 +19,6 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse
-from scipy.sparse.csgraph import breadth_first_order, reverse_cuthill_mckee
 
 #: Fewest distinct neighbours of a hub candidate. A ladder's rungs have 6 and a lazy
 #: tongs' links 4, and they stay in the band; a walker's ground and crank have two per
@@ -46,6 +44,8 @@ def _peripheral_order(graph, num_bodies: int) -> np.ndarray:
     """Breadth-first order from a pseudo-peripheral body of each component (two
     sweeps: the last body reached from the first, then from that one), reversed:
     Cuthill–McKee's level structure from a far end."""
+    from scipy.sparse.csgraph import breadth_first_order
+
     seen = np.zeros(num_bodies, dtype=bool)
     parts = []
     for root in range(num_bodies):
@@ -67,6 +67,11 @@ def _width(edges: np.ndarray, order: np.ndarray) -> int:
 
 
 def _graph(edges: np.ndarray, num_bodies: int):
+    """The bodies' adjacency (CSR). scipy.sparse is imported here, not with the
+    module: only files that take the band need it, and its import was 0.1-0.2 s of
+    every command's start (and of each worker's)."""
+    import scipy.sparse
+
     graph = scipy.sparse.coo_matrix(
         (np.ones(len(edges)), (edges[:, 0], edges[:, 1])), (num_bodies,) * 2
     ).tocsr()
@@ -77,6 +82,8 @@ def _band_order(num_bodies: int, edges: np.ndarray) -> tuple[np.ndarray, int]:
     """The narrowest band of three orders: the file's, scipy's reverse Cuthill–McKee
     (which starts from a body of least degree, in the middle of a long ladder) and
     reverse Cuthill–McKee levels from a pseudo-peripheral body; and its width."""
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
     graph = _graph(edges, num_bodies)
     candidates = [
         np.arange(num_bodies),
