@@ -30,6 +30,26 @@ def test_shipped_file_assembles_and_closes_loops(path):
     )
 
 
+def _header_paragraphs(text: str) -> list[str]:
+    """The leading comment block's paragraphs (split at lines holding ``#`` alone)."""
+    lines = []
+    for line in text.splitlines():
+        if line.strip() and not line.lstrip().startswith("#"):
+            break
+        lines.append(line.rstrip())
+    return [p.strip() for p in "\n".join(lines).split("\n#\n") if p.strip()]
+
+
+def test_no_shipped_header_repeats_a_paragraph():
+    """A generator that rewrites its own output keeps the old file's header below
+    its new one (``write_design``): ``jansen_foot_path.toml`` carried its header three
+    times."""
+    assert _header_paragraphs("# a\n# b\n#\n# a\n# b\n\nx = 1\n") == ["# a\n# b"] * 2
+    for path in SHIPPED:
+        paragraphs = _header_paragraphs(path.read_text())
+        assert len(paragraphs) == len(set(paragraphs)), path.name
+
+
 def test_five_bar_sizes(five_bar):
     assert five_bar.state_size == 35
     assert five_bar.design.size == 3
