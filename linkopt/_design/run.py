@@ -274,15 +274,20 @@ def _side_result(
     a lost side process costs time, never the run. The drawings the call left
     (:data:`Figures`: the motions' GIFs) are shared: the last here, the others in the
     ``side`` process at the same time (:func:`_share`)."""
-    left = None
+    job = dataclasses.replace(job, progress=progress)  # where it is drawn here
+    _share(side, _there_or_here(future, _draw_side, figures, job))
+
+
+def _there_or_here(future, fn, *args):
+    """``future``'s result, the side process's call of ``fn(*args)`` (an error there
+    is raised here as it was raised there), or ``fn(*args)`` called here when there
+    was no such call (``future`` None) or its process died."""
     if future is not None:
         try:
-            left = future.result()
+            return future.result()
         except BrokenProcessPool:
             pass
-    if left is None:
-        left = _draw_side(figures, dataclasses.replace(job, progress=progress))
-    _share(side, left)
+    return fn(*args)
 
 
 def _share(side: ProcessPoolExecutor | None, drawings: tuple) -> None:
@@ -294,13 +299,7 @@ def _share(side: ProcessPoolExecutor | None, drawings: tuple) -> None:
     futures = [_submit(side, _drawn, drawing) for drawing in there]
     _drawn(here)
     for future, drawing in zip(futures, there):
-        if future is not None:
-            try:
-                future.result()
-                continue
-            except BrokenProcessPool:
-                pass
-        _drawn(drawing)
+        _there_or_here(future, _drawn, drawing)
 
 
 def last_round_verification(
@@ -367,10 +366,7 @@ def _early_initial(args: tuple) -> Future | None:
 def _initial_files(future: Future, args: tuple) -> dict[str, bytes]:
     """:func:`initial_figures`: ``future``'s result (an error there is raised here,
     naming its output), or drawn here when its process died."""
-    try:
-        return future.result()
-    except BrokenProcessPool:
-        return initial_figures(*args)
+    return _there_or_here(future, initial_figures, *args)
 
 
 def _design_outputs(
