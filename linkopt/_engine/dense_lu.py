@@ -50,8 +50,15 @@ def lu_factor(
 
 
 def lu_solve(lu, perm, b: Float[Array, "n ..."]):
-    """``x`` with ``a x = b`` from :func:`lu_factor` (not differentiable in ``lu``)."""
-    return solve_upper(jnp.triu(lu), solve_lower(lu, b[perm], unit_diagonal=True))
+    """``x`` with ``a x = b`` from :func:`lu_factor` (not differentiable in ``lu``).
+
+    ``L``'s unit diagonal is written into ``lu`` rather than assumed: a solve with
+    stored pivots of one runs in the compiled kernels (:func:`.dense.solve_lower`),
+    where the assumed one ran the plain-JAX panels, several hundred operations per
+    solve in each program (``y / 1`` is ``y``: without the kernels, the same
+    numbers)."""
+    unit = jnp.where(jnp.eye(lu.shape[-1], dtype=bool), 1.0, lu)
+    return solve_upper(jnp.triu(lu), solve_lower(unit, b[perm]))
 
 
 def solve(a: Float[Array, "n n"], b: Float[Array, "n ..."]):
