@@ -1,8 +1,10 @@
-"""End-to-end five-bar optimisation (paper Sec. VI-A, Table I): iterations, time,
+"""End-to-end optimisation of a paper example (Sec. VI, Table I): iterations, time,
 result.
 
 Run:
-``.venv/bin/python benchmarks/bench_optimizer.py [--seeds 0,1,...,7] [--workers 1,2]``
+``.venv/bin/python benchmarks/bench_optimizer.py [--mechanism five_bar] [--seeds
+0,1,...,7] [--workers 1,2]`` (``--mechanism``: ``five_bar``, ``finger`` or
+``neck_2dof``, the file of that name in ``mechanisms/``)
 
 For each worker count, with a fresh compilation cache: runs ``linkopt optimize`` for the
 first seed twice (cold cache, then warm) and every other seed once (warm), each in a
@@ -11,8 +13,10 @@ and prints the iterations and design evaluations, the optimiser's wall time (and
 much of it iteration 0, which carries the start-up, took, and the mean of the others),
 the whole command's wall time (compilation, verification, plots), the final ``f_design``
 and whether ``linkopt verify`` passes on the result, then the median over the warm runs.
-Baseline: the paper's Table I, five-bar (``PAPER_ITERATIONS``, ``PAPER_SECONDS``; C++, 4
-cores). Writes every run and the medians to ``benchmarks/results/bench_optimizer.json``.
+Baseline: the paper's Table I for that mechanism (:data:`PAPER`: iterations and
+seconds; C++, 4 cores). Writes every run and the medians to
+``benchmarks/results/bench_optimizer.json`` (the five-bar) or
+``bench_optimizer_<mechanism>.json``.
 
 The number of swarm iterations a seed needs varies a lot from seed to seed, and a change
 anywhere in the evaluation can move every seed's count, so compare medians over many
@@ -36,10 +40,14 @@ import _results
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
+#: The paper's Table I: swarm iterations and seconds of each example measured here.
+PAPER = {
+    "five_bar": (8, 15 * 60),
+    "finger": (21, 65 * 60),
+    "neck_2dof": (25, 55 * 60),
+}
+PAPER_ITERATIONS, PAPER_SECONDS = PAPER["five_bar"]
 FILE = ROOT / "mechanisms/five_bar.toml"
-#: The paper's Table I, five-bar: swarm iterations and seconds.
-PAPER_ITERATIONS = 8
-PAPER_SECONDS = 15 * 60
 
 
 def run(seed: int, workers: int, cache: Path) -> dict:
@@ -105,13 +113,17 @@ def _line(workers: int, label: str, r: dict) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser()
+    parser.add_argument("--mechanism", default="five_bar", choices=sorted(PAPER))
     parser.add_argument("--seeds", default="0,1,2,3,4,5,6,7")
     parser.add_argument(
         "--workers", default="1,2", help="comma-separated worker counts to compare"
     )
     args = parser.parse_args()
+    global FILE, PAPER_ITERATIONS, PAPER_SECONDS
+    FILE = ROOT / "mechanisms" / f"{args.mechanism}.toml"
+    PAPER_ITERATIONS, PAPER_SECONDS = PAPER[args.mechanism]
     print(
-        f"five-bar optimisation; paper: {PAPER_ITERATIONS} iterations,"
+        f"{args.mechanism} optimisation; paper: {PAPER_ITERATIONS} iterations,"
         f" {PAPER_SECONDS / 60:.0f} min"
     )
     runs, medians = [], []
@@ -150,10 +162,13 @@ def main() -> None:
                     "verified": verified,
                 }
             )
+    name = "bench_optimizer" + (
+        "" if args.mechanism == "five_bar" else f"_{args.mechanism}"
+    )
     _results.write(
-        __file__,
+        Path(__file__).with_name(f"{name}.py"),
         {
-            "mechanism": "five_bar",
+            "mechanism": args.mechanism,
             "paper": {"iterations": PAPER_ITERATIONS, "seconds": PAPER_SECONDS},
             "medians_of_warm_runs": medians,
             "runs": runs,
