@@ -58,7 +58,7 @@ def dense_curve(task: TraceTask, total: int = 4000) -> Float[np.ndarray, "N 2"]:
     counts = np.maximum(16, (total * lengths / lengths.sum()).astype(int))
     return np.concatenate(
         [
-            np.asarray(geo.points(p, jnp.linspace(0.0, 1.0, c)))
+            geo.points(p, np.linspace(0.0, 1.0, c))
             for p, c in zip(task.primitives, counts)
         ]
     )

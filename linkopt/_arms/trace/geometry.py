@@ -1,37 +1,49 @@
 """Planar geometry of shape primitives and 2-/3-link arms (paper 002, Sec. II, III-C,
 Table I).
 
-Pure ``jax.numpy`` functions, differentiable in the origin, link lengths and angles; a
+Pure array functions, differentiable in the origin, link lengths and angles; a
 :class:`~linkopt._arms.trace.task.Primitive` is static (its numbers are constants at
-trace time). Conventions: the elbow branch ``sigma = +1`` puts the elbow to the *left*
-of the vector from the distal origin ``s_{n-1}`` to the end-effector (the paper's
-"upwards" configuration, positive cross product in eq. 5), ``sigma = -1`` to the right.
+trace time). Inside a JAX trace (the synthesis' jitted constraints) they are
+``jax.numpy``; called on concrete arrays (verification, export, figures) they are the
+same operations in numpy (:func:`_xp`), which run at once where ``jax.numpy``
+compiled a small program for each operation and shape (a small task's ``linkopt arm
+trace`` compiled some four hundred).
+
+Conventions: the elbow branch ``sigma = +1`` puts the elbow to the *left* of the
+vector from the distal origin ``s_{n-1}`` to the end-effector (the paper's "upwards"
+configuration, positive cross product in eq. 5), ``sigma = -1`` to the right.
 """
 
 from __future__ import annotations
 
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
-from ... import _config  # noqa: F401  (float64 on before any array)
+from ..._config import traced
 from .task import Primitive
 
 TINY = 1e-30  # keeps sqrt differentiable at 0 without biasing lengths >= 1e-15
 
 
+def _xp(*arrays):
+    """``jax.numpy`` where any of ``arrays`` is traced, else numpy."""
+    return jnp if traced(*arrays) else np
+
+
 def _norm(v: Float[Array, "... 2"]) -> Float[Array, ...]:
     """NaN-safe Euclidean norm (zero gradient at 0 rather than NaN)."""
-    return jnp.sqrt(jnp.sum(v * v, axis=-1) + TINY)
+    xp = _xp(v)
+    return xp.sqrt(xp.sum(v * v, axis=-1) + TINY)
 
 
 def unit_vector(v: Float[Array, 2]) -> Float[Array, 2]:
     """``v / |v|``, and the x-axis for ``v = 0`` (where every direction is as good, e.g.
     a circle seen from its centre), with finite gradients everywhere."""
-    n2 = jnp.sum(v * v)
+    xp = _xp(v)
+    n2 = xp.sum(v * v)
     safe = n2 > 1e-30
-    return jnp.where(
-        safe, v / jnp.sqrt(jnp.where(safe, n2, 1.0)), jnp.array([1.0, 0.0])
-    )
+    return xp.where(safe, v / xp.sqrt(xp.where(safe, n2, 1.0)), xp.array([1.0, 0.0]))
 
 
 def cross(a: Float[Array, "... 2"], b: Float[Array, "... 2"]) -> Float[Array, ...]:
@@ -39,12 +51,13 @@ def cross(a: Float[Array, "... 2"], b: Float[Array, "... 2"]) -> Float[Array, ..
 
 
 def unit(angle: Float[Array, ...]) -> Float[Array, "... 2"]:
-    return jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=-1)
+    xp = _xp(angle)
+    return xp.stack([xp.cos(angle), xp.sin(angle)], axis=-1)
 
 
 def points(prim: Primitive, t: Float[Array, " N"]) -> Float[Array, "N 2"]:
     """``p(t)`` of Table I for ``t ∈ [0, 1]`` (lines affine, arcs/circles by angle)."""
-    t = jnp.asarray(t)
+    t = _xp(t).asarray(t)
     if prim.kind == "line":
         return prim.start + t[:, None] * (prim.end - prim.start)
     return prim.center + prim.radius * unit(prim.angle0 + prim.sweep * t)
@@ -55,12 +68,11 @@ def arc_parameter(
 ) -> tuple[Float[Array, ...], Float[Array, ...]]:
     """For a point on an arc/circle's circle: its parameter ``t`` (may exceed 1) and
     whether it lies on the arc (``0 <= t <= 1``)."""
+    xp = _xp(p)
     d = p - prim.center
-    ang = jnp.arctan2(d[..., 1], d[..., 0])
-    offset = jnp.mod((ang - prim.angle0) * jnp.sign(prim.sweep), 2 * jnp.pi)
-    offset = jnp.where(
-        offset > 2 * jnp.pi - 1e-9, 0.0, offset
-    )  # the start, rounded past 2π
+    ang = xp.arctan2(d[..., 1], d[..., 0])
+    offset = xp.mod((ang - prim.angle0) * np.sign(prim.sweep), 2 * np.pi)
+    offset = xp.where(offset > 2 * np.pi - 1e-9, 0.0, offset)  # the start, past 2π
     t = offset / abs(prim.sweep)
     return t, t <= 1.0 + 1e-12
 
@@ -75,14 +87,15 @@ def critical_points(
     to the segment, the farther end point. Circles: ``c ∓ r (s - c)/|s - c|``. Arcs:
     those two points when they lie on the arc, else the nearer/farther end point.
     """
+    xp = _xp(origin)
     cands, valid = _candidates(prim, origin)
     dist = _norm(cands - origin)
     big = 1e30
-    closest = cands[jnp.argmin(jnp.where(valid, dist, big))]
-    farthest = cands[jnp.argmax(jnp.where(valid, dist, -big))]
+    closest = cands[xp.argmin(xp.where(valid, dist, big))]
+    farthest = cands[xp.argmax(xp.where(valid, dist, -big))]
     return {
-        "initial": jnp.asarray(prim.start),
-        "final": jnp.asarray(prim.end),
+        "initial": xp.asarray(prim.start),
+        "final": xp.asarray(prim.end),
         "closest": closest,
         "farthest": farthest,
     }
@@ -91,17 +104,18 @@ def critical_points(
 def _candidates(
     prim: Primitive, origin: Float[Array, 2]
 ) -> tuple[Float[Array, "K 2"], Float[Array, " K"]]:
-    ends = jnp.stack([jnp.asarray(prim.start), jnp.asarray(prim.end)])
+    xp = _xp(origin)
+    ends = xp.stack([xp.asarray(prim.start), xp.asarray(prim.end)])
     if prim.kind == "line":
         d = prim.end - prim.start
-        s = jnp.clip(jnp.dot(origin - prim.start, d) / jnp.dot(d, d), 0.0, 1.0)
-        return jnp.concatenate([ends, (prim.start + s * d)[None]]), jnp.ones(3, bool)
+        s = xp.clip(xp.dot(origin - prim.start, d) / xp.dot(d, d), 0.0, 1.0)
+        return xp.concatenate([ends, (prim.start + s * d)[None]]), xp.ones(3, bool)
     u = unit_vector(origin - prim.center)
-    ray = jnp.stack([prim.center + prim.radius * u, prim.center - prim.radius * u])
+    ray = xp.stack([prim.center + prim.radius * u, prim.center - prim.radius * u])
     if prim.kind == "circle":
-        return ray, jnp.ones(2, bool)
+        return ray, xp.ones(2, bool)
     _, on_arc = arc_parameter(prim, ray)
-    return jnp.concatenate([ends, ray]), jnp.concatenate([jnp.ones(2, bool), on_arc])
+    return xp.concatenate([ends, ray]), xp.concatenate([xp.ones(2, bool), on_arc])
 
 
 def distance_range(
@@ -115,32 +129,34 @@ def distance_range(
 def critical_parameters(prim: Primitive, origin: Float[Array, 2]) -> Float[Array, 4]:
     """Path parameters ``t`` of (initial, final, closest, farthest); circles end at
     1."""
+    xp = _xp(origin)
     cp = critical_points(prim, origin)
     if prim.kind == "line":
         d = prim.end - prim.start
         tt = [
-            jnp.dot(cp[k] - prim.start, d) / jnp.dot(d, d)
+            xp.dot(cp[k] - prim.start, d) / xp.dot(d, d)
             for k in ("closest", "farthest")
         ]
     else:
         tt = [
-            jnp.clip(arc_parameter(prim, cp[k])[0], 0.0, 1.0)
+            xp.clip(arc_parameter(prim, cp[k])[0], 0.0, 1.0)
             for k in ("closest", "farthest")
         ]
-    return jnp.stack([jnp.asarray(0.0), jnp.asarray(1.0), *tt])
+    return xp.stack([xp.asarray(0.0), xp.asarray(1.0), *tt])
 
 
 def support(prim: Primitive, dirs: Float[Array, "K 2"]) -> Float[Array, " K"]:
     """Support function ``h(u) = max_{p ∈ SP} u·p`` of the primitive (exact per
     type)."""
-    ends = jnp.maximum(dirs @ prim.start, dirs @ prim.end)
+    xp = _xp(dirs)
+    ends = xp.maximum(dirs @ prim.start, dirs @ prim.end)
     if prim.kind == "line":
         return ends
     top = dirs @ prim.center + prim.radius
     if prim.kind == "circle":
         return top
     _, on_arc = arc_parameter(prim, prim.center + dirs)
-    return jnp.where(on_arc, top, ends)
+    return xp.where(on_arc, top, ends)
 
 
 def reachable(
@@ -148,8 +164,9 @@ def reachable(
 ) -> Float[Array, ...]:
     """Eq. 2: ``|a - b| <= |p - s| <= a + b`` (the 2-link annulus), with slack
     ``tol``."""
-    d = jnp.sqrt(jnp.sum((p - origin) ** 2, axis=-1))
-    return (d >= jnp.abs(a - b) - tol) & (d <= a + b + tol)
+    xp = _xp(origin, a, b, p)
+    d = xp.sqrt(xp.sum((p - origin) ** 2, axis=-1))
+    return (d >= xp.abs(a - b) - tol) & (d <= a + b + tol)
 
 
 def ik_elbow(
@@ -162,10 +179,11 @@ def ik_elbow(
     ``sigma · arccos((a² + d² - b²) / (2 a d))``; outside the annulus the cosine is
     clipped (fully stretched/folded), so callers check :func:`reachable` first.
     """
+    xp = _xp(origin, a, b, p, sigma)
     v = p - origin
     d = _norm(v)
-    cos_a = jnp.clip((a * a + d * d - b * b) / (2 * a * d), -1.0 + 1e-12, 1.0 - 1e-12)
-    ang = jnp.arctan2(v[..., 1], v[..., 0]) + sigma * jnp.arccos(cos_a)
+    cos_a = xp.clip((a * a + d * d - b * b) / (2 * a * d), -1.0 + 1e-12, 1.0 - 1e-12)
+    ang = xp.arctan2(v[..., 1], v[..., 0]) + sigma * xp.arccos(cos_a)
     return origin + a * unit(ang)
 
 
@@ -182,13 +200,14 @@ def arm_states(
     is held at the absolute angle ``proximal_angle`` (Sec. III-A), ``s_2 = base + r_1
     u(angle)``, and the distal pair is solved from ``s_2``.
     """
-    p = jnp.atleast_2d(p)
+    xp = _xp(base, lengths, proximal_angle, p, sigma)
+    p = xp.atleast_2d(p)
     origin = distal_origin(base, lengths, proximal_angle)
     elbow = ik_elbow(origin, lengths[-2], lengths[-1], p, sigma)
-    rows = [jnp.broadcast_to(base, p.shape)]
+    rows = [xp.broadcast_to(base, p.shape)]
     if lengths.shape[0] == 3:
-        rows.append(jnp.broadcast_to(origin, p.shape))
-    return jnp.stack(rows + [elbow, p], axis=1)
+        rows.append(xp.broadcast_to(origin, p.shape))
+    return xp.stack(rows + [elbow, p], axis=1)
 
 
 def distal_origin(
@@ -196,28 +215,30 @@ def distal_origin(
 ) -> Float[Array, 2]:
     """``s_{n-1}``: the base for 2 links, the end of the static proximal link for 3."""
     if lengths.shape[0] == 2:
-        return jnp.asarray(base)
+        return _xp(base, lengths).asarray(base)
     return base + lengths[0] * unit(proximal_angle)
 
 
 def joint_angles(states: Float[Array, "N n+1 2"]) -> Float[Array, "N n"]:
     """DH joint angles: ``θ_1`` from the global x-axis, then each link relative to the
     previous one, wrapped to (-π, π]."""
+    xp = _xp(states)
     links = states[:, 1:] - states[:, :-1]
-    absolute = jnp.arctan2(links[..., 1], links[..., 0])
-    rel = jnp.concatenate([absolute[:, :1], jnp.diff(absolute, axis=1)], axis=1)
-    return jnp.arctan2(jnp.sin(rel), jnp.cos(rel))
+    absolute = xp.arctan2(links[..., 1], links[..., 0])
+    rel = xp.concatenate([absolute[:, :1], xp.diff(absolute, axis=1)], axis=1)
+    return xp.arctan2(xp.sin(rel), xp.cos(rel))
 
 
 def forward(
     base: Float[Array, 2], lengths: Float[Array, " n"], angles: Float[Array, "N n"]
 ) -> Float[Array, "N n+1 2"]:
     """Forward kinematics from DH joint angles (inverse of :func:`joint_angles`)."""
-    absolute = jnp.cumsum(angles, axis=1)
+    xp = _xp(base, lengths, angles)
+    absolute = xp.cumsum(angles, axis=1)
     steps = lengths * unit(absolute).transpose(2, 0, 1)
-    pts = jnp.cumsum(steps.transpose(1, 2, 0), axis=1)
-    return jnp.concatenate(
-        [jnp.broadcast_to(base, (angles.shape[0], 1, 2)), base + pts], axis=1
+    pts = xp.cumsum(steps.transpose(1, 2, 0), axis=1)
+    return xp.concatenate(
+        [xp.broadcast_to(base, (angles.shape[0], 1, 2)), base + pts], axis=1
     )
 
 
@@ -225,8 +246,9 @@ def segment_distance(
     x: Float[Array, "... 2"], a: Float[Array, "... 2"], b: Float[Array, "... 2"]
 ) -> Float[Array, ...]:
     """Distance from points ``x`` to segments ``[a, b]`` (broadcast)."""
+    xp = _xp(x, a, b)
     d = b - a
-    s = jnp.clip(
-        jnp.sum((x - a) * d, axis=-1) / (jnp.sum(d * d, axis=-1) + TINY), 0.0, 1.0
+    s = xp.clip(
+        xp.sum((x - a) * d, axis=-1) / (xp.sum(d * d, axis=-1) + TINY), 0.0, 1.0
     )
     return _norm(x - (a + s[..., None] * d))

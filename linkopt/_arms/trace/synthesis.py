@@ -242,10 +242,7 @@ def _bounds(task: TraceTask, n: int, region: int) -> list[tuple]:
 
 def _path_points(task: TraceTask, per: int = 64) -> np.ndarray:
     return np.concatenate(
-        [
-            np.asarray(geo.points(p, jnp.linspace(0.0, 1.0, per)))
-            for p in task.primitives
-        ]
+        [geo.points(p, np.linspace(0.0, 1.0, per)) for p in task.primitives]
     )
 
 

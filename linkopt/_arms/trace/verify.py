@@ -24,8 +24,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import partial
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Float
 
@@ -82,11 +80,11 @@ def primitive_states(
     task: TraceTask, design: PlanarArm, j: int, t: np.ndarray
 ) -> np.ndarray:
     """``(N, n_links+1, 2)`` states along primitive ``j`` at path parameters ``t``."""
-    p = geo.points(task.primitives[j], jnp.asarray(t))
+    p = geo.points(task.primitives[j], np.asarray(t))
     return np.asarray(
         geo.arm_states(
             design.base,
-            jnp.asarray(design.lengths),
+            np.asarray(design.lengths),
             _proximal(design, j),
             p,
             design.sigma,
@@ -100,16 +98,13 @@ def transition_states(
     """States of the transition from primitive ``j`` to ``j+1`` at fractions ``tau``:
     the end-effector stays at the transition point, ``θ_1`` moves linearly (3 links);
     a 2-link arm has no transition motion (mobility 0), its state is repeated."""
-    point = jnp.asarray(task.primitives[j].end)[None]
-    lengths = jnp.asarray(design.lengths)
-    theta = _proximal(design, j) + jnp.asarray(tau) * (
+    theta = _proximal(design, j) + np.asarray(tau, dtype=float) * (
         _proximal(design, j + 1) - _proximal(design, j)
     )
-
-    def one(th):
-        return geo.arm_states(design.base, lengths, th, point, design.sigma)[0]
-
-    return np.asarray(jax.vmap(one)(theta))
+    # one row per angle: the proximal link's end and the end-effector's point per row
+    point = np.broadcast_to(task.primitives[j].end, theta.shape + (2,))
+    lengths = np.asarray(design.lengths, dtype=float)
+    return geo.arm_states(design.base, lengths, theta, point, design.sigma)
 
 
 def dense_states(fn, n: int, target: float) -> tuple[np.ndarray, np.ndarray]:
@@ -135,11 +130,11 @@ def critical_states(task: TraceTask, design: PlanarArm) -> list[np.ndarray]:
     """States at (initial, final, closest, farthest) of every primitive, ``(4, n+1, 2)``
     each."""
     out = []
-    lengths = jnp.asarray(design.lengths)
+    lengths = np.asarray(design.lengths)
     for j, prim in enumerate(task.primitives):
         origin = geo.distal_origin(design.base, lengths, _proximal(design, j))
         cp = geo.critical_points(prim, origin)
-        pts = jnp.stack([cp[k] for k in ("initial", "final", "closest", "farthest")])
+        pts = np.stack([cp[k] for k in ("initial", "final", "closest", "farthest")])
         out.append(
             np.asarray(
                 geo.arm_states(
@@ -179,7 +174,7 @@ def _clearance(task: TraceTask, states: np.ndarray) -> np.ndarray:
         return np.full((len(states), states.shape[1] - 1, 0), np.inf)
     c = task.obstacles[:, :2][None, None]
     a, b = states[:, :-1, None], states[:, 1:, None]
-    d = np.asarray(geo.segment_distance(jnp.asarray(c), jnp.asarray(a), jnp.asarray(b)))
+    d = np.asarray(geo.segment_distance(np.asarray(c), np.asarray(a), np.asarray(b)))
     return (
         d
         - task.obstacles[:, 2]
@@ -190,10 +185,10 @@ def _clearance(task: TraceTask, states: np.ndarray) -> np.ndarray:
 
 def _self_distance(states: np.ndarray) -> np.ndarray:
     """End-effector to every link but the last (eqs. 8-9), ``(N, links-1)``."""
-    ee = jnp.asarray(states[:, -1:])
+    ee = np.asarray(states[:, -1:])
     return np.asarray(
         geo.segment_distance(
-            ee, jnp.asarray(states[:, :-2]), jnp.asarray(states[:, 1:-1])
+            ee, np.asarray(states[:, :-2]), np.asarray(states[:, 1:-1])
         )
     )
 
@@ -208,7 +203,7 @@ def _check(
     clear = _clearance(task, states)
     selfd = _self_distance(states) - task.link_diameter
     reach = _reach_margin(task, design, states)
-    angles = np.asarray(geo.joint_angles(jnp.asarray(states)))
+    angles = np.asarray(geo.joint_angles(np.asarray(states)))
     jstep = (
         np.abs(np.angle(np.exp(1j * np.diff(angles, axis=0)))).max()
         if len(states) > 1

@@ -8,7 +8,6 @@ Plotting depends on the synthesis modules, never the reverse; every function tak
 
 from __future__ import annotations
 
-import jax.numpy as jnp
 import matplotlib
 import numpy as np
 from matplotlib.animation import FuncAnimation, PillowWriter
@@ -27,9 +26,9 @@ PATH = dict(color="0.45", lw=2.0, zorder=3)
 def draw_task(ax, task: TraceTask) -> None:
     """Path (grey, arrow at the start), obstacles (red), base rectangles (black)."""
     for p in task.primitives:
-        pts = np.asarray(geo.points(p, jnp.linspace(0.0, 1.0, 200)))
+        pts = np.asarray(geo.points(p, np.linspace(0.0, 1.0, 200)))
         ax.plot(pts[:, 0], pts[:, 1], **PATH)
-    first = np.asarray(geo.points(task.primitives[0], jnp.array([0.0, 0.05])))
+    first = np.asarray(geo.points(task.primitives[0], np.array([0.0, 0.05])))
     ax.annotate(
         "", first[1], first[0], arrowprops=dict(arrowstyle="->", color="0.2"), zorder=4
     )
@@ -89,23 +88,23 @@ def reachable_grid(
     lo, hi = pts.min(0), pts.max(0)
     xs, ys = np.linspace(lo[0], hi[0], res), np.linspace(lo[1], hi[1], res)
     grid = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
-    lengths = jnp.asarray(design.lengths)
+    lengths = np.asarray(design.lengths)
     origin = np.asarray(geo.distal_origin(design.base, lengths, proximal_angle))
-    ok = np.asarray(geo.reachable(origin, *design.lengths[-2:], jnp.asarray(grid)))
+    ok = np.asarray(geo.reachable(origin, *design.lengths[-2:], np.asarray(grid)))
     free = np.zeros(len(grid), bool)
     for sigma in (1, -1):
         states = np.asarray(
             geo.arm_states(
-                design.base, lengths, proximal_angle, jnp.asarray(grid), sigma
+                design.base, lengths, proximal_angle, np.asarray(grid), sigma
             )
         )
         clear = np.ones(len(grid), bool)
         for x, y, r in task.obstacles:
             d = np.asarray(
                 geo.segment_distance(
-                    jnp.array([x, y]),
-                    jnp.asarray(states[:, :-1]),
-                    jnp.asarray(states[:, 1:]),
+                    np.array([x, y]),
+                    np.asarray(states[:, :-1]),
+                    np.asarray(states[:, 1:]),
                 )
             )
             clear &= (d > r + task.link_diameter / 2).all(axis=1)
@@ -115,7 +114,7 @@ def reachable_grid(
 
 def _view_points(task: TraceTask, design: PlanarArm | None) -> np.ndarray:
     pts = [
-        np.asarray(geo.points(p, jnp.linspace(0.0, 1.0, 50))) for p in task.primitives
+        np.asarray(geo.points(p, np.linspace(0.0, 1.0, 50))) for p in task.primitives
     ]
     pts.append(task.obstacles[:, :2] + task.obstacles[:, 2:3])
     pts.append(task.obstacles[:, :2] - task.obstacles[:, 2:3])
@@ -182,7 +181,7 @@ def swept_figure(
         for s in seg.states[:: max(1, len(seg.states) // 120)]:
             ax.plot(s[:, 0], s[:, 1], color="0.6", lw=0.4, alpha=0.5, zorder=1)
     draw_task(ax, task)
-    lengths = jnp.asarray(design.lengths)
+    lengths = np.asarray(design.lengths)
     colors = matplotlib.colormaps["tab10"](np.arange(len(task.primitives)) % 10)
     for j, prim in enumerate(task.primitives):
         phi = design.proximal_angles[j] if design.n_links == 3 else 0.0
