@@ -162,7 +162,9 @@ def test_fk_and_bk_on_the_banded_path_equal_the_dense_path(index):
 def test_banded_sensitivities_match_finite_differences_and_the_dense_path():
     mech = _with_factor(linkopt.load(MECHANISMS / "five_bar.toml"), "banded")
     dense = _with_factor(mech, "dense")
-    state = np.asarray(linkopt.solve_fk(mech, np.array([0.1, -0.1])).state)
+    # solved in a batch of three rows, the block program the FK test above compiles
+    rows = np.array([[0.1, -0.1], [0.05, -0.05], [0.1, 0.1]])
+    state = np.asarray(linkopt.solve_fk(mech, rows).state)[0]
     p0 = np.asarray(mech.design.p0)
     got = np.asarray(linkopt.sensitivity(mech, state, "design"))
     np.testing.assert_allclose(
@@ -239,12 +241,15 @@ def check_band_sigma_min(mech):
     def dense_sigmas(m, g, s):  # the dense Jacobians whatever the factor setting
         return singularity.sigmas_of(singularity.stacked_jacobians(m, g, s))
 
+    def f_sing_and_sigmas(s):  # the band's σ_min from its gradient's program
+        sigmas = banded_sigma.sigma_min_pair(mech, geom, s)
+        return jnp.sum(1.0 / sigmas), sigmas
+
     dense = jax.jit(jax.value_and_grad(partial(f_sing, dense_sigmas)))
-    band = jax.jit(jax.value_and_grad(partial(f_sing, banded_sigma.sigma_min_pair)))
-    (value, grad), (value_b, grad_b) = dense(state), band(state)
+    band = jax.jit(jax.value_and_grad(f_sing_and_sigmas, has_aux=True))
+    (value, grad), ((value_b, sigmas), grad_b) = dense(state), band(state)
     jac = np.asarray(jacobian.stacked_jacobians(mech, geom, state))
     exact = [np.linalg.svd(j, compute_uv=False)[-1] for j in jac]
-    sigmas = jax.jit(partial(banded_sigma.sigma_min_pair, mech))(geom, state)
     np.testing.assert_allclose(sigmas, exact, rtol=1e-7)  # both iterate 6 sweeps
     np.testing.assert_allclose(value_b, value, rtol=1e-7)
     np.testing.assert_allclose(grad_b, grad, atol=5e-4 * np.abs(grad).max())

@@ -91,18 +91,30 @@ def _design(mech, fraction):
     return d.p0 + fraction * (d.upper - d.p0) if d.size else None
 
 
+def _fk(mech, motors, design=None) -> np.ndarray:
+    """linkopt's FK state at ``motors`` ``(M,)`` from rest, converged (asserted).
+
+    Solved in a batch with half the motor values: a batch from rest runs the 64-row
+    block program, which test_reference_values.py compiles for every shipped mechanism
+    anyway, where one row alone would compile the one-row program beside it (2-8 CPU s
+    per mechanism, cold)."""
+    motors = np.asarray(motors, dtype=np.float64)
+    sol = linkopt.solve_fk(mech, np.stack([motors, 0.5 * motors]), design=design)
+    assert np.asarray(sol.converged).all()
+    return np.asarray(sol.state[0])
+
+
 def _posed(mech, motors, design):
-    """MuJoCo model and data at linkopt's FK solution, and the solution."""
+    """MuJoCo model and data at linkopt's FK solution, and the solution's state."""
     text, summary = mjcf.mjcf_text(mech, design)
     model = mujoco.MjModel.from_xml_string(text)
     data = mujoco.MjData(model)
-    sol = linkopt.solve_fk(mech, np.asarray(motors), design=design)
-    assert bool(sol.converged)
-    for name, value in mjcf.joint_values(mech, sol.state, design).items():
+    state = _fk(mech, motors, design)
+    for name, value in mjcf.joint_values(mech, state, design).items():
         address = model.joint(name).qposadr[0]
         data.qpos[address : address + len(value)] = value
     mujoco.mj_forward(model, data)
-    return model, data, sol, summary["metres_per_unit"]
+    return model, data, state, summary["metres_per_unit"]
 
 
 def _site_error(mech, data, points) -> float:
@@ -116,10 +128,10 @@ def _site_error(mech, data, points) -> float:
 def test_mujoco_kinematics_match_fk(name, motors, fraction):
     mech = _mechanism(name)
     design = _design(mech, fraction)
-    model, data, sol, s = _posed(mech, motors, design)
-    points = np.asarray(linkopt.point_positions(mech, sol.state, design=design)) * s
+    model, data, state, s = _posed(mech, motors, design)
+    points = np.asarray(linkopt.point_positions(mech, state, design=design)) * s
     assert _site_error(mech, data, points) < 1e-9
-    bodies = np.asarray(sol.state).reshape(-1, 7)
+    bodies = np.asarray(state).reshape(-1, 7)
     for b, body in enumerate(mech.body_names):
         assert (
             np.abs(data.body(body).xpos - bodies[b, :3] * mech.length_scale * s).max()
@@ -147,7 +159,7 @@ def test_wedge_closure_body_and_closed_form():
     """The prismatic loop closes through a closure body welded to the ground, and the
     lifter rises by the push (closed form: ``y = 3 + a`` cm)."""
     mech = _mechanism("wedge")
-    model, data, sol, s = _posed(mech, [0.7], None)
+    model, data, state, s = _posed(mech, [0.7], None)
     assert model.body("guide_closure").id > 0
     assert model.eq("guide").type == mujoco.mjtEq.mjEQ_WELD
     assert data.site("top").xpos[1] == pytest.approx((3.0 + 0.7) * s, abs=1e-12)
@@ -157,8 +169,8 @@ def test_wedge_closure_body_and_closed_form():
 def test_mujoco_settles_onto_fk(name, motors, fraction):
     mech = _mechanism(name)
     design = _design(mech, fraction)
-    model, data, sol, s = _posed(mech, motors, design)
-    points = np.asarray(linkopt.point_positions(mech, sol.state, design=design)) * s
+    model, data, state, s = _posed(mech, motors, design)
+    points = np.asarray(linkopt.point_positions(mech, state, design=design)) * s
     kick = np.random.default_rng(0).normal(scale=0.02, size=model.nv)
     mujoco.mj_integratePos(model, data.qpos, kick, 1.0)
     data.ctrl[:] = np.asarray(motors) * np.where(mech.motor_linear, s, 1.0)
@@ -277,8 +289,7 @@ def test_driven_from_rest_settles_onto_fk(name):
     else:
         mech = _mechanism(name)
     motors = _offsets(mech)
-    sol = linkopt.solve_fk(mech, motors)
-    assert bool(sol.converged)
+    state = _fk(mech, motors)
     text, summary = mjcf.mjcf_text(mech)
     assert summary["warnings"] == [] and "warning" not in text
     model = mujoco.MjModel.from_xml_string(text)
@@ -287,9 +298,9 @@ def test_driven_from_rest_settles_onto_fk(name):
     size = mech.length_scale * s
     data.ctrl[:] = motors * np.where(mech.motor_linear, s, 1.0)
     mujoco.mj_forward(model, data)
-    assert _settling_error(mech, data, sol.state, s) > 1e-2 * size  # it starts away
+    assert _settling_error(mech, data, state, s) > 1e-2 * size  # it starts away
     mujoco.mj_step(model, data, nstep=int(5.0 / model.opt.timestep))
-    error = _settling_error(mech, data, sol.state, s) / size
+    error = _settling_error(mech, data, state, s) / size
     equality = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
     print(f"{name}: settled to {error:.1e} reference lengths")
     assert error < 1e-3

@@ -217,10 +217,11 @@ def test_ss_and_su_describe_the_same_motion(ss, su):
             rtol=1e-9,
             atol=1e-9,
         )
-    rest = _sigmas(ss, np.zeros((1, 3))) / _sigmas(su, np.zeros((1, 3)))
-    np.testing.assert_allclose(rest, 1.0, rtol=1e-5)
-    ratio = _sigmas(ss, MOTORS) / _sigmas(su, MOTORS)
-    np.testing.assert_allclose(ratio, 1.0, rtol=2e-2)
+    # the rest pose first, in the batch of the samples: one σ_min program each
+    motors = np.vstack([np.zeros((1, 3)), MOTORS])
+    ratio = _sigmas(ss, motors) / _sigmas(su, motors)
+    np.testing.assert_allclose(ratio[0], 1.0, rtol=1e-5)
+    np.testing.assert_allclose(ratio[1:], 1.0, rtol=2e-2)
 
 
 def test_ss_and_su_become_singular_together(ss, su):
@@ -230,12 +231,14 @@ def test_ss_and_su_become_singular_together(ss, su):
     theta = dc.backward_singular_angle()
     gaps = np.array([1e-1, 1e-2, 1e-3, 1e-4])
     motors = (theta - gaps)[:, None] * np.ones(3)
-    ss_bk, su_bk = _sigmas(ss, motors)[:, 1], _sigmas(su, motors)[:, 1]
+    # the rest pose last, in the same batch: the same σ_min program
+    ss_all = _sigmas(ss, np.vstack([motors, np.zeros((1, 3))]))
+    ss_bk, su_bk, rest_bk = ss_all[:-1, 1], _sigmas(su, motors)[:, 1], ss_all[-1, 1]
     _, alignment = dc.textbook_jacobians(motors)
     for sigma in (ss_bk, su_bk):
         slope = sigma / np.abs(alignment[:, 0])
         np.testing.assert_allclose(slope / slope[-1], 1.0, rtol=0.1)
-        assert sigma[-1] < 1e-3 * _sigmas(ss, np.zeros((1, 3)))[0, 1]
+        assert sigma[-1] < 1e-3 * rest_bk
     ratio = ss_bk / su_bk
     np.testing.assert_allclose(ratio / ratio[-1], 1.0, rtol=1e-2)
 

@@ -38,11 +38,15 @@ def test_delta_tcp_stays_at_the_centre_of_the_wrists_for_every_design(delta):
     """The file puts ``tcp`` at the centroid of the six wrist anchors; a longer or
     shorter rod or arm keeps it there (it ended 23.7 mm off for a rod of 210)."""
     assert delta.design.names == ("arm", "rod")
-    for design in DESIGNS:
-        state = linkopt.solve_fk(delta, np.zeros(3), design=design).state
-        joints = np.asarray(linkopt.joint_positions(delta, state, design=design))
-        tcp = np.asarray(linkopt.point_positions(delta, state, design=design))[0]
-        np.testing.assert_allclose(tcp, joints[wrists(delta)].mean(0), atol=1e-9)
+    for design in DESIGNS:  # at rest and two poses: the block programs of a batch
+        solution = linkopt.solve_fk(delta, MOTORS, design=design)
+        assert np.all(np.asarray(solution.converged))
+        states = solution.state
+        joints = np.asarray(linkopt.joint_positions(delta, states, design=design))
+        tcp = np.asarray(linkopt.point_positions(delta, states, design=design))[:, 0]
+        np.testing.assert_allclose(
+            tcp, joints[:, wrists(delta)].mean(1), rtol=0, atol=1e-9
+        )
 
 
 def test_delta_tcp_is_the_closed_form_platform_centre_at_every_design(delta):
@@ -74,10 +78,10 @@ def test_written_design_puts_the_point_where_the_design_did(delta, tmp_path):
         rtol=0,
         atol=1e-9,
     )
-    state = linkopt.solve_fk(written, np.zeros(3)).state
-    joints = np.asarray(linkopt.joint_positions(written, state))
-    tcp = np.asarray(linkopt.point_positions(written, state))[0]
-    np.testing.assert_allclose(tcp, joints[wrists(written)].mean(0), atol=1e-9)
+    states = linkopt.solve_fk(written, MOTORS).state
+    joints = np.asarray(linkopt.joint_positions(written, states))
+    tcp = np.asarray(linkopt.point_positions(written, states))[:, 0]
+    np.testing.assert_allclose(tcp, joints[:, wrists(written)].mean(1), atol=1e-9)
 
 
 TURNED_PLATFORM = """

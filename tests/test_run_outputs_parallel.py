@@ -62,25 +62,39 @@ def _fail_main(job) -> None:
             raise ValueError("no records to plot")
 
 
-def test_the_outputs_of_two_processes_are_the_serial_ones(tmp_path, five_bar):
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory, five_bar):
+    """The files of :func:`_finished_run`'s outputs made by this process alone
+    (``workers=1``) and their progress stages, made once for the tests that compare
+    other ways of making them with these."""
+    folder, records = tmp_path_factory.mktemp("serial") / "run", []
+    run_folder.write_outputs(
+        five_bar,
+        folder,
+        _finished_run(five_bar),
+        SETTINGS,
+        figures=draw_run_figures,
+        workers=1,
+        progress=records.append,
+    )
+    return _files(folder), {r["stage"].split(",")[0] for r in records}
+
+
+def test_the_outputs_of_two_processes_are_the_serial_ones(tmp_path, five_bar, serial):
     """``workers=2`` (the side process draws both designs' motions), at the default
     resolutions (shared with the other run-folder tests' programs), writes the same
     files as ``workers=1`` (all here): the same verification numbers, summary,
     optimised file and MJCF, the same GIF and PNG bytes (the space maps to a few
     pixels: :data:`MAPS`); and every figure of a run folder is there."""
-    run = _finished_run(five_bar)
-    folders = {}
-    for workers in (1, 2):
-        folders[workers] = tmp_path / f"w{workers}"
-        run_folder.write_outputs(
-            five_bar,
-            folders[workers],
-            run,
-            SETTINGS,
-            figures=draw_run_figures,
-            workers=workers,
-        )
-    serial, parallel = _files(folders[1]), _files(folders[2])
+    run_folder.write_outputs(
+        five_bar,
+        tmp_path / "w2",
+        _finished_run(five_bar),
+        SETTINGS,
+        figures=draw_run_figures,
+        workers=2,
+    )
+    serial, parallel = serial[0], _files(tmp_path / "w2")
     assert {
         "optimized.toml",
         "optimized.xml",
@@ -199,7 +213,9 @@ def _held_with_initial(mech, rows: int, figures, resolution=None) -> None:
         pass
 
 
-def test_the_file_designs_outputs_made_ahead_are_those_made_here(tmp_path, five_bar):
+def test_the_file_designs_outputs_made_ahead_are_those_made_here(
+    tmp_path, five_bar, serial
+):
     """The file's design's space plot, drawn ahead by the process the optimiser
     handed back (:func:`run_folder.initial_figures`), is taken by ``write_outputs``
     (which then does not map that design itself: no such progress record) and gives
@@ -207,20 +223,19 @@ def test_the_file_designs_outputs_made_ahead_are_those_made_here(tmp_path, five_
     resolution), it is not taken: drawn here."""
     run = _finished_run(five_bar)
     rows = run_folder.swarm_rows(len(run.position), 2)
-    folders, stages = {}, {}
-    for name in ("serial", "ahead", "other"):
+    folders, stages = {}, {"serial": serial[1]}
+    for name in ("ahead", "other"):
         folders[name], records = tmp_path / name, []
         try:
-            if name != "serial":
-                resolution = None if name == "ahead" else 8
-                _held_with_initial(five_bar, rows, draw_run_figures, resolution)
+            resolution = None if name == "ahead" else 8
+            _held_with_initial(five_bar, rows, draw_run_figures, resolution)
             run_folder.write_outputs(
                 five_bar,
                 folders[name],
                 run,
                 SETTINGS,
                 figures=draw_run_figures,
-                workers=1 if name == "serial" else 2,
+                workers=2,
                 progress=records.append,
             )
             assert ahead.early_result() is None  # taken by write_outputs
@@ -230,7 +245,7 @@ def test_the_file_designs_outputs_made_ahead_are_those_made_here(tmp_path, five_
     assert "initial design" in stages["serial"] and "initial design" in stages["other"]
     assert "initial design" not in stages["ahead"]
     assert "optimised design" in stages["ahead"]
-    serial, made_ahead = _files(folders["serial"]), _files(folders["ahead"])
+    serial, made_ahead = serial[0], _files(folders["ahead"])
     assert serial.keys() == made_ahead.keys() == _files(folders["other"]).keys()
     for name in serial.keys() - MAPS:
         assert serial[name] == made_ahead[name], name

@@ -116,8 +116,9 @@ def test_open_sweep_over_a_span_and_function_targets(crank_rocker):
     angle -= np.arctan2(rest[1], rest[0] - 60.0)
     assert np.all(np.linalg.norm(rocker - pin, axis=1) - 70.0 < 1e-9)
     targets = Targets("function", "rocker", angle, None, False, 1e-4)
-    report = sweep_cycle(crank_rocker, None, targets, steps=200, span=(0.0, 1.2))
-    assert report.traced.shape == (200,) and report.defect is None
+    # 360 steps: the 512-row path program of the full turn above (fine_turn)
+    report = sweep_cycle(crank_rocker, None, targets, steps=360, span=(0.0, 1.2))
+    assert report.traced.shape == (360,) and report.defect is None
     np.testing.assert_allclose(report.motors[[0, -1], 0], [0.0, 1.2])
     assert report.distances.max() < 1e-4
 
@@ -194,7 +195,8 @@ def test_two_motor_sweeps_with_timing_and_by_reaching_each_target():
 def test_open_sweep_spans_the_motor_limits():
     limited = four_bar(*GRASHOF, motor="min = -0.5\nmax = 1.0\n")
     targets = _path(_curve(GRASHOF, np.array([-0.4, 0.9])), False, tolerance=0.01)
-    report = sweep_cycle(limited, None, targets, steps=50, span=(0.0, 3.0))
+    # 360 steps: the crank-rocker's full-turn path program (limits are numbers)
+    report = sweep_cycle(limited, None, targets, steps=360, span=(0.0, 3.0))
     np.testing.assert_allclose(report.motors[[0, -1], 0], [-0.5, 1.0])
     assert report.defect is None and report.in_order
     late = _path(targets.values, closed=False, motors=np.array([[0.0], [2.0]]))

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -143,9 +144,19 @@ def test_bad_export_and_resume_flags_are_one_line(tmp_path, capsys, extra, words
     assert not (tmp_path / "run" / "checkpoint.json").exists()
 
 
-def _checkpointed(tmp_path):
-    out = tmp_path / "run"
+@pytest.fixture(scope="module")
+def two_iterations(tmp_path_factory):
+    """A run folder after two iterations, made once for the tests that copy it."""
+    out = tmp_path_factory.mktemp("checkpointed") / "run"
     assert _run(out, "--iterations", "2", "--export", "none") == 0
+    return out
+
+
+def _checkpointed(tmp_path, run):
+    """A copy of ``run`` (the run folder of :func:`two_iterations`) in ``tmp_path``
+    and its checkpoint."""
+    out = tmp_path / "run"
+    shutil.copytree(run, out)
     return out, json.loads((out / "checkpoint.json").read_text())
 
 
@@ -160,8 +171,10 @@ def _checkpointed(tmp_path):
         (lambda d: d.pop("run"), "run: expected a checkpoint written by"),
     ],
 )
-def test_a_bad_checkpoint_is_refused_naming_the_field(tmp_path, capsys, edit, words):
-    out, data = _checkpointed(tmp_path)
+def test_a_bad_checkpoint_is_refused_naming_the_field(
+    tmp_path, capsys, two_iterations, edit, words
+):
+    out, data = _checkpointed(tmp_path, two_iterations)
     edit(data)
     (out / "checkpoint.json").write_text(json.dumps(data))
     capsys.readouterr()
@@ -170,8 +183,8 @@ def test_a_bad_checkpoint_is_refused_naming_the_field(tmp_path, capsys, edit, wo
     assert words in err and err.count("\n") == 1 and "checkpoint.json" in err
 
 
-def test_another_seed_does_not_resume_the_run(tmp_path, capsys):
-    out, _ = _checkpointed(tmp_path)
+def test_another_seed_does_not_resume_the_run(tmp_path, capsys, two_iterations):
+    out, _ = _checkpointed(tmp_path, two_iterations)
     capsys.readouterr()
     flags = ["--iterations", "2", "--export", "none", "--resume", "--seed", "4"]
     assert main(["synthesize", str(FILE), "--out", str(out), *FLAGS[:4], *flags]) == 2

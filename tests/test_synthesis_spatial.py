@@ -65,7 +65,8 @@ def _rssr_closed_form(mech, design, inputs):
 
 
 def test_rssr_output_follows_the_closed_form_input_output_equation(rssr):
-    inputs = np.linspace(-np.pi, np.pi, 61)
+    # 241 inputs: the 256-row path program of the 240-step cycle sweep below
+    inputs = np.linspace(-np.pi, np.pi, 241)
     w = dict(zip(rssr.joint_names, rssr.axes))["D"]
     assert abs(w @ [0.0, 0.0, 1.0]) < 1e-12  # the output axis is skew to the input's
     for design in (rssr.design.p0, gen.RSSR_TARGET):
@@ -105,7 +106,8 @@ def test_spherical_four_bar_axes_meet_at_the_centre(spherical):
 
 
 def test_spherical_coupler_curve_is_on_the_sphere_and_the_closed_form(spherical):
-    thetas = np.linspace(0.0, 2.0 * np.pi, 73)
+    # 241 angles: the 256-row path program of the 240-step cycle sweep below
+    thetas = np.linspace(0.0, 2.0 * np.pi, 241)
     point = dict(zip(spherical.point_names, spherical.point_positions))["coupler_point"]
     for design in (spherical.design.p0, gen.SPHERICAL_TARGET):
         sol = linkopt.solve_fk_path(spherical, thetas[:, None], design=design)
