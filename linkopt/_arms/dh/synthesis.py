@@ -233,6 +233,15 @@ def minimise(
     return result.x
 
 
+@partial(jit, static_argnums=0)
+def _tips(
+    types: str, table: dh.DHTable, pool: Float[Array, "P N"]
+) -> Float[Array, "P 3"]:
+    """The tip positions of the joint values ``pool``: one compiled program (an eager
+    vmap compiled each of its operations alone, in every process)."""
+    return jax.vmap(lambda v: dh.tip_position(types, table, v))(pool)
+
+
 def initial_guess(
     types: str, targets: np.ndarray, rng: np.random.Generator
 ) -> np.ndarray:
@@ -251,9 +260,7 @@ def initial_guess(
         rng.uniform(-scale, scale, (_POOL, n)),
     )
     table = dh.DHTable(jnp.asarray(a), jnp.asarray(alpha), jnp.asarray(offset))
-    tips = np.asarray(
-        jax.vmap(lambda v: dh.tip_position(types, table, v))(jnp.asarray(pool))
-    )
+    tips = np.asarray(_tips(types, table, jnp.asarray(pool)))
     nearest = np.argmin(np.linalg.norm(tips[None] - targets[:, None], axis=-1), axis=1)
     return _pack(table, pool[nearest])
 

@@ -138,6 +138,16 @@ def tip_jacobian(
     return jax.jacfwd(lambda v: tip_position(types, table, v))(q)
 
 
+@partial(jit, static_argnums=0)
+def frames_and_jacobian(
+    types: str, table: DHTable, q: Float[Array, " N"]
+) -> tuple[Float[Array, "N+1 4 4"], Float[Array, "3 N"]]:
+    """:func:`frames` and :func:`tip_jacobian` at ``q`` in one compiled program (run
+    op by op on concrete arrays they compiled some ninety small ones, in every
+    process: too small for the disk cache)."""
+    return frames(types, table, q), tip_jacobian(types, table, q)
+
+
 def size(types: str, table: DHTable) -> Float[Array, ""]:
     """Σ|a_j| + Σ|d_j| over the constant offsets only (paper eq. 9: ``d_j ∉ q``)."""
     revolute = np.array([c == "R" for c in types])
@@ -262,9 +272,8 @@ def mechanism_definition(
     a non-singular configuration (the loader rejects a singular rest pose).
     """
     q_rest = jnp.asarray(q_rest, dtype=float)
-    poses = np.asarray(frames(types, table, q_rest))
+    poses, jac = (np.asarray(a) for a in frames_and_jacobian(types, table, q_rest))
     origins, z_axes = poses[:, :3, 3], poses[:, :3, 2]
-    jac = np.asarray(tip_jacobian(types, table, q_rest))
     n = len(types)
     return chain_definition(
         name,

@@ -52,7 +52,9 @@ def _draw_poses(ax, synthesis: DHSynthesis, count: int) -> list[np.ndarray]:
     )
     drawn = []
     for k, i in enumerate(picks):
-        origins = np.asarray(dh.frames(types, table, synthesis.q[i]))[:, :3, 3]
+        origins = np.asarray(dh.frames_and_jacobian(types, table, synthesis.q[i])[0])[
+            :, :3, 3
+        ]
         drawn.append(origins)
         ax.plot(
             *origins.T,
