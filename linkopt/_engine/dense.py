@@ -417,6 +417,60 @@ def smallest_right(
     )
 
 
+def serves_block_normal(rows: Float[Array, "m 14"], size: int) -> bool:
+    """Whether :func:`block_normal` runs in the compiled kernel for these rows and a
+    state of ``size`` coordinates."""
+    return size <= _kernel_state()["KERNEL_MAX_N"] and _use_kernel(rows)
+
+
+def block_normal(
+    rows: Float[Array, "m 14"],
+    residual: Float[Array, " m"],
+    pairs: np.ndarray,
+    size: int,
+) -> tuple[Float[Array, "n n"], Float[Array, " n"]]:
+    """``(JᵀJ, Jᵀc)`` of the ``(m, size)`` matrix ``J`` whose row ``r`` holds
+    ``rows[r, :7]`` in the 7 columns of body ``pairs[r, 0]`` and ``rows[r, 7:]`` in
+    those of body ``pairs[r, 1]`` (static, ``-1`` for none), in one call of the
+    compiled kernel (``LkNormalEquations``; where :func:`serves_block_normal`): the
+    constraint solves' normal equations without the mostly-zero dense ``J``. Its
+    derivative is that of the dense product."""
+    pairs = np.ascontiguousarray(pairs, dtype=np.int32).reshape(-1)
+    return _block_normal(rows, residual, pairs.tobytes(), size)
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(2, 3))
+def _block_normal(rows, residual, pairs: bytes, size: int):
+    batch = rows.shape[:-2]
+    return jax.ffi.ffi_call(
+        _kernel_state()["TARGETS"]["normal_equations"],
+        (
+            jax.ShapeDtypeStruct(batch + (size, size), rows.dtype),
+            jax.ShapeDtypeStruct(batch + (size,), rows.dtype),
+        ),
+        vmap_method="broadcast_all",
+    )(rows, residual, pairs=np.frombuffer(pairs, dtype=np.int32))
+
+
+@_block_normal.defjvp
+def _block_normal_jvp(pairs, size, primals, tangents):
+    def plain(rows, residual):
+        jac = _rows_matrix(rows, np.frombuffer(pairs, np.int32).reshape(-1, 2), size)
+        return jac.T @ jac, jac.T @ residual
+
+    return _block_normal(*primals, pairs, size), jax.jvp(plain, primals, tangents)[1]
+
+
+def _rows_matrix(rows: Float[Array, "m 14"], pairs: np.ndarray, size: int):
+    """The dense ``J`` (:func:`block_normal`) of ``rows``."""
+    onehot = np.zeros((rows.shape[0], 2, size // 7))
+    for side in range(2):
+        used = np.flatnonzero(pairs[:, side] >= 0)
+        onehot[used, side, pairs[used, side]] = 1.0
+    blocks = rows.reshape(-1, 2, 1, 7) * jnp.asarray(onehot)[..., None]
+    return (blocks[:, 0] + blocks[:, 1]).reshape(-1, size)
+
+
 def lower_inverse(lower: Float[Array, "n n"]) -> Float[Array, "n n"]:
     """``L⁻¹`` of a lower-triangular matrix."""
     if _use_kernel(lower):

@@ -44,6 +44,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import jit
+from . import dense
 from . import joints as joint_types
 from .constraints import gauge_rows
 from .geometry import Geometry
@@ -466,11 +467,52 @@ def normal_equations(
     ``C`` is in the row order of ``fk_residual``/``bk_residual``; ``JᵀJ`` and ``JᵀC``
     equal the dense products up to rounding (summation order differs).
     """
+    return normal_system(mech, geom, kind, values, state)
+
+
+def normal_system(
+    mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]
+):
+    """:func:`normal_equations` traced in place (not a program of its own). The rows'
+    ``7``-blocks are laid out two bodies wide (:func:`_layout`) and assembled in one
+    call of the compiled kernel (:func:`.dense.block_normal`), where it serves them;
+    else summed block by block in plain JAX (:func:`_block_sums`)."""
     x, q, t = _split(state, unrolled=True)
     groups = _passive_groups(mech, geom, x, q, t)
     tail, order = _tail_groups(mech, geom, kind, x, q, t, values)
     groups = groups + tail
     nb = mech.num_bodies
+    residual, rows, pairs = _layout(groups)
+    if dense.serves_block_normal(rows, 7 * nb):
+        hessian, gradient = dense.block_normal(rows, residual, pairs, 7 * nb)
+    else:
+        hessian, gradient = _block_sums(groups, nb)
+    head = sum(int(np.prod(g.values.shape)) for g in groups[: len(groups) - len(tail)])
+    if order:
+        perm = np.argsort(np.concatenate(order), kind="stable")
+        if not np.array_equal(perm, np.arange(perm.size)):
+            residual = take(residual, np.concatenate([np.arange(head), head + perm]))
+    return residual, hessian, gradient
+
+
+def _layout(groups: list[_Rows]):
+    """The rows of ``groups`` as ``(values (m,), rows (m, 14), pairs (m, 2))``: each
+    row's two ``7``-blocks side by side and their static bodies (``-1`` and a zero
+    block for a row on one body)."""
+    values, rows, pairs = [], [], []
+    for group in groups:
+        count, m = group.values.shape
+        values.append(group.values.reshape(-1))
+        (first, block), *rest = group.blocks
+        second, other = rest[0] if rest else (np.full(count, -1), jnp.zeros_like(block))
+        rows.append(jnp.concatenate([block, other], axis=-1).reshape(count * m, 14))
+        pairs.append(np.repeat(np.stack([first, second], axis=1), m, axis=0))
+    return jnp.concatenate(values), jnp.concatenate(rows), np.concatenate(pairs)
+
+
+def _block_sums(groups: list[_Rows], nb: int):
+    """``(JᵀJ, JᵀC)`` of ``groups`` summed from ``7 x 7`` body blocks in plain JAX
+    (the path without the compiled kernels)."""
     hess: dict[tuple[int, int], list] = {}
     grad: dict[int, list] = {}
     for group in groups:
@@ -499,10 +541,4 @@ def normal_equations(
     gradient = jnp.concatenate(
         [sum(grad[i][1:], grad[i][0]) if i in grad else jnp.zeros(7) for i in range(nb)]
     )
-    residual = jnp.concatenate([g.values.reshape(-1) for g in groups])
-    head = sum(int(np.prod(g.values.shape)) for g in groups[: len(groups) - len(tail)])
-    if order:
-        perm = np.argsort(np.concatenate(order), kind="stable")
-        if not np.array_equal(perm, np.arange(perm.size)):
-            residual = take(residual, np.concatenate([np.arange(head), head + perm]))
-    return residual, hessian, gradient
+    return hessian, gradient
