@@ -496,6 +496,77 @@ bool has_avx2() {
 #endif
 #endif  // LK_LANES
 
+#ifdef LK_LANES
+// LkNormalEquations of the lanes<V>() consecutive matrices from rows on (their c, h,
+// g), the same operations as normal_one lane by lane (so bitwise its results), on
+// the lower triangle packed side by side in scratch (tri(n) + n vectors).
+template <class V>
+LK_INLINE void normal_group(const double* rows, const double* c, const int32_t* pairs,
+                            int64_t m, int64_t n, double* h, double* g, double* scratch) {
+  constexpr int L = lanes<V>();
+  V* p = reinterpret_cast<V*>(scratch);
+  V* gv = p + tri(n);
+  for (int64_t i = 0; i < tri(n) + n; ++i)
+    for (int w = 0; w < L; ++w) p[i][w] = 0.0;
+  for (int64_t r = 0; r < m; ++r) {
+    V a[14], cr;
+    for (int w = 0; w < L; ++w) {
+      for (int k = 0; k < 14; ++k) a[k][w] = rows[(w * m + r) * 14 + k];
+      cr[w] = c[w * m + r];
+    }
+    const int64_t b0 = pairs[2 * r], b1 = pairs[2 * r + 1];
+    for (int s = 0; s < 2; ++s) {
+      const int64_t bs = s == 0 ? b0 : b1;
+      if (bs < 0) continue;
+      const V* as = a + 7 * s;
+      for (int k = 0; k < 7; ++k) gv[bs * 7 + k] += as[k] * cr;
+      for (int k = 0; k < 7; ++k) {
+        V* __restrict row = p + tri(bs * 7 + k) + bs * 7;
+        for (int l = 0; l <= k; ++l) row[l] += as[k] * as[l];
+      }
+    }
+    if (b0 < 0 || b1 < 0) continue;
+    if (b0 == b1) {
+      for (int k = 0; k < 7; ++k) {
+        V* __restrict row = p + tri(b0 * 7 + k) + b0 * 7;
+        for (int l = 0; l <= k; ++l) row[l] += a[k] * a[7 + l] + a[7 + k] * a[l];
+      }
+      continue;
+    }
+    const bool first_high = b0 > b1;
+    const V* ah = first_high ? a : a + 7;
+    const V* al = first_high ? a + 7 : a;
+    const int64_t hi = first_high ? b0 : b1, lo = first_high ? b1 : b0;
+    for (int k = 0; k < 7; ++k) {
+      V* __restrict row = p + tri(hi * 7 + k) + lo * 7;
+      for (int l = 0; l < 7; ++l) row[l] += ah[k] * al[l];
+    }
+  }
+  for (int w = 0; w < L; ++w) {
+    double* __restrict hw = h + w * n * n;
+    for (int64_t i = 0; i < n; ++i) {
+      const V* row = p + tri(i);
+      for (int64_t j = 0; j <= i; ++j) hw[i * n + j] = hw[j * n + i] = row[j][w];
+      g[w * n + i] = gv[i][w];
+    }
+  }
+}
+
+void normal_group2(const double* rows, const double* c, const int32_t* pairs, int64_t m,
+                   int64_t n, double* h, double* g, double* scratch) {
+  normal_group<V2>(rows, c, pairs, m, n, h, g, scratch);
+}
+
+#ifdef LK_AVX2
+__attribute__((target("avx2"))) void normal_group4(const double* rows, const double* c,
+                                                   const int32_t* pairs, int64_t m,
+                                                   int64_t n, double* h, double* g,
+                                                   double* scratch) {
+  normal_group<V4>(rows, c, pairs, m, n, h, g, scratch);
+}
+#endif
+#endif  // LK_LANES
+
 // n and the batch size of a (..., n, n) operand, n <= kMaxN.
 ffi::Error square_dims(const ffi::Buffer<ffi::F64>& a, int64_t* n, int64_t* batch) {
   auto dims = a.dimensions();
@@ -1046,9 +1117,28 @@ ffi::Error NormalEquationsImpl(ffi::Buffer<ffi::F64> rows, ffi::Buffer<ffi::F64>
   const double* cp = c.typed_data();
   double* hp = h->typed_data();
   double* gp = g->typed_data();
-  for (int64_t b = 0; b < batch; ++b)
-    normal_one(rp + b * m * 14, cp + b * m, pairs.begin(), m, n, hp + b * n * n,
-               gp + b * n);
+  const int32_t* pp = pairs.begin();
+  int64_t b = 0;
+#ifdef LK_LANES
+  if (batch >= 2) {
+    const int64_t wide = batch >= 4 ? 4 : 2;
+    auto groups = [&](double* scratch) {
+#ifdef LK_AVX2
+      if (has_avx2())
+        for (; b + 4 <= batch; b += 4)
+          normal_group4(rp + b * m * 14, cp + b * m, pp, m, n, hp + b * n * n,
+                        gp + b * n, scratch);
+#endif
+      for (; b + 2 <= batch; b += 2)
+        normal_group2(rp + b * m * 14, cp + b * m, pp, m, n, hp + b * n * n,
+                      gp + b * n, scratch);
+      return ffi::Error::Success();
+    };
+    if (auto e = with_scratch((tri(n) + n) * wide, groups); e.failure()) return e;
+  }
+#endif
+  for (; b < batch; ++b)
+    normal_one(rp + b * m * 14, cp + b * m, pp, m, n, hp + b * n * n, gp + b * n);
   return ffi::Error::Success();
 }
 }  // namespace
