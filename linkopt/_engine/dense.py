@@ -24,7 +24,8 @@ made by ``pip install`` with the machine's C++ compiler) and the program runs on
 float64, :func:`cholesky`, :func:`solve_lower`, :func:`solve_lower_transpose`,
 :func:`cho_solve`, :func:`damped_solve` and :func:`lower_inverse` call its XLA FFI
 handlers instead (and :func:`smallest_right` is σ_min's iteration as one handler,
-:mod:`linkopt._engine.singularity`): the same algorithms as plain loops over one
+:mod:`linkopt._engine.singularity`; :func:`block_normal` the constraint solves' ``JᵀJ``
+and ``Jᵀr`` from their two-body row blocks): the same algorithms as plain loops over one
 matrix at a time (the Cholesky factor and :func:`damped_solve` over two or four of a
 batch side by side, in the same operations), several times faster than XLA:CPU's loops
 over the batch, and a custom call is a single instruction where the loops were

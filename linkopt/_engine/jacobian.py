@@ -18,10 +18,12 @@ body index of each of its ``G`` members and the ``(G, m, 7)`` block of the Jacob
 From these come the dense Jacobian (:func:`linearise`, :func:`state_jacobian`,
 :func:`stacked_jacobians`) or, for Levenberg–Marquardt, directly the normal equations
 ``JᵀJ`` and ``Jᵀr`` assembled from ``7 x 7`` body blocks (:func:`normal_equations`),
-never forming the mostly-zero dense ``J``. Everything is plain ``jax.numpy`` without
-scatters (static indices become slices or gathers with constant indices), so it is
-jit/vmap friendly and differentiable again in the state and the geometry (``f_sing``
-needs ``∂J/∂s``, ``∂J/∂p``).
+never forming the mostly-zero dense ``J``: the rows' blocks laid out two bodies wide
+and summed in one call of the compiled kernel (:func:`.dense.block_normal`) where it is
+built, else block by block in plain JAX. Everything else is plain ``jax.numpy``
+without scatters (static indices become slices or gathers with constant indices), so
+it is jit/vmap friendly and differentiable again in the state and the geometry
+(``f_sing`` needs ``∂J/∂s``, ``∂J/∂p``).
 
 The row order and values are those of :func:`linkopt._engine.constraints.fk_residual` /
 ``bk_residual`` (same formulas, so equal up to rounding), and the Jacobians equal
@@ -51,13 +53,13 @@ from .geometry import Geometry
 from .model import JOINT_ROWS, Mechanism
 from .row_algebra import (
     Frames,
+    block_sums,
     dot,
     frames,
-    gram,
     q_block,
     stack_rows,
-    sum_rows,
     take,
+    two_body_layout,
     xq_block,
 )
 from .turns import Side, Turn, body_turns, take_turn
@@ -474,71 +476,23 @@ def normal_system(
     mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]
 ):
     """:func:`normal_equations` traced in place (not a program of its own). The rows'
-    ``7``-blocks are laid out two bodies wide (:func:`_layout`) and assembled in one
-    call of the compiled kernel (:func:`.dense.block_normal`), where it serves them;
-    else summed block by block in plain JAX (:func:`_block_sums`)."""
+    ``7``-blocks are laid out two bodies wide (:func:`.row_algebra.two_body_layout`)
+    and assembled in one call of the compiled kernel (:func:`.dense.block_normal`),
+    where it serves them; else summed block by block in plain JAX
+    (:func:`.row_algebra.block_sums`)."""
     x, q, t = _split(state, unrolled=True)
     groups = _passive_groups(mech, geom, x, q, t)
     tail, order = _tail_groups(mech, geom, kind, x, q, t, values)
     groups = groups + tail
     nb = mech.num_bodies
-    residual, rows, pairs = _layout(groups)
+    residual, rows, pairs = two_body_layout(groups)
     if dense.serves_block_normal(rows, 7 * nb):
         hessian, gradient = dense.block_normal(rows, residual, pairs, 7 * nb)
     else:
-        hessian, gradient = _block_sums(groups, nb)
+        hessian, gradient = block_sums(groups, nb)
     head = sum(int(np.prod(g.values.shape)) for g in groups[: len(groups) - len(tail)])
     if order:
         perm = np.argsort(np.concatenate(order), kind="stable")
         if not np.array_equal(perm, np.arange(perm.size)):
             residual = take(residual, np.concatenate([np.arange(head), head + perm]))
     return residual, hessian, gradient
-
-
-def _layout(groups: list[_Rows]):
-    """The rows of ``groups`` as ``(values (m,), rows (m, 14), pairs (m, 2))``: each
-    row's two ``7``-blocks side by side and their static bodies (``-1`` and a zero
-    block for a row on one body)."""
-    values, rows, pairs = [], [], []
-    for group in groups:
-        count, m = group.values.shape
-        values.append(group.values.reshape(-1))
-        (first, block), *rest = group.blocks
-        second, other = rest[0] if rest else (np.full(count, -1), jnp.zeros_like(block))
-        rows.append(jnp.concatenate([block, other], axis=-1).reshape(count * m, 14))
-        pairs.append(np.repeat(np.stack([first, second], axis=1), m, axis=0))
-    return jnp.concatenate(values), jnp.concatenate(rows), np.concatenate(pairs)
-
-
-def _block_sums(groups: list[_Rows], nb: int):
-    """``(JᵀJ, JᵀC)`` of ``groups`` summed from ``7 x 7`` body blocks in plain JAX
-    (the path without the compiled kernels)."""
-    hess: dict[tuple[int, int], list] = {}
-    grad: dict[int, list] = {}
-    for group in groups:
-        r = group.values
-        for a, (bodies_a, jac_a) in enumerate(group.blocks):
-            ga = sum_rows(jac_a * r[:, :, None])  # (G, 7)
-            for k, b in enumerate(bodies_a):
-                grad.setdefault(int(b), []).append(ga[k])
-            for bodies_b, jac_b in group.blocks[a:]:
-                prod = gram(jac_a, jac_b)  # (G, 7, 7)
-                same = jac_b is jac_a
-                for k in range(len(bodies_a)):
-                    i, j = int(bodies_a[k]), int(bodies_b[k])
-                    hess.setdefault((i, j), []).append(prod[k])
-                    if not same:
-                        hess.setdefault((j, i), []).append(prod[k].T)
-    zero = jnp.zeros((7, 7))
-    blocks = [
-        [
-            sum(hess[(i, j)][1:], hess[(i, j)][0]) if (i, j) in hess else zero
-            for j in range(nb)
-        ]
-        for i in range(nb)
-    ]
-    hessian = jnp.block(blocks)
-    gradient = jnp.concatenate(
-        [sum(grad[i][1:], grad[i][0]) if i in grad else jnp.zeros(7) for i in range(nb)]
-    )
-    return hessian, gradient
