@@ -461,6 +461,23 @@ def test_block_normal_under_vmap_jit_and_its_derivative():
     np.testing.assert_allclose(d_jtj, d_jac.T @ jac[0] + jac[0].T @ d_jac, atol=1e-12)
     np.testing.assert_allclose(d_jtc, d_jac.T @ c[0] + jac[0].T @ d_c, atol=1e-12)
 
+    def loss(normal):  # reverse mode too: the JVP rule transposes
+        return lambda r, v: sum(jnp.sum(x**2) for x in normal(r, v))
+
+    def dense_normal(r, v):
+        # J[r] = Σ_k rows[r, k] J_k[r], J_k the dense rows of the unit block e_k
+        units = np.stack(
+            [_dense_rows(np.tile(e, (30, 1)), pairs, 6) for e in np.eye(14)]
+        )
+        j = jnp.einsum("rk,krn->rn", r, jnp.asarray(units))
+        return j.T @ j, j.T @ v
+
+    kernel = jax.grad(loss(lambda r, v: dense.block_normal(r, v, pairs, size)), (0, 1))
+    for a, b in zip(
+        kernel(rows[0], c[0]), jax.grad(loss(dense_normal), (0, 1))(rows[0], c[0])
+    ):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-10)
+
 
 def test_normal_equations_refuse_bad_operands(ffi):
     rows, c, pairs = _two_body_rows((), 3, 6)
