@@ -456,14 +456,14 @@ def _block_normal(rows, residual, pairs: bytes, size: int):
 @_block_normal.defjvp
 def _block_normal_jvp(pairs, size, primals, tangents):
     def plain(rows, residual):
-        jac = _rows_matrix(rows, np.frombuffer(pairs, np.int32).reshape(-1, 2), size)
+        jac = rows_matrix(rows, np.frombuffer(pairs, np.int32).reshape(-1, 2), size)
         return jac.T @ jac, jac.T @ residual
 
     return _block_normal(*primals, pairs, size), jax.jvp(plain, primals, tangents)[1]
 
 
-def _rows_matrix(rows: Float[Array, "m 14"], pairs: np.ndarray, size: int):
-    """The dense ``J`` (:func:`block_normal`) of ``rows``."""
+def rows_matrix(rows: Float[Array, "m 14"], pairs: np.ndarray, size: int):
+    """The dense ``J`` ``(m, size)`` of :func:`block_normal`'s rows and pairs."""
     onehot = np.zeros((rows.shape[0], 2, size // 7))
     for side in range(2):
         used = np.flatnonzero(pairs[:, side] >= 0)

@@ -445,17 +445,6 @@ def stacked_jacobians(
     return jnp.stack(out)
 
 
-def tail_rows(
-    mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]
-):
-    """``(C_tail, ∂C_tail/∂s)``: the motor (``kind="fk"``) or output (``"bk"``) rows
-    alone, the last rows of :func:`linearise`, in index order."""
-    x, q, t = _split(state, unrolled=True)
-    tail, order = _tail_groups(mech, geom, kind, x, q, t, values)
-    residual, jac = _dense(tail, mech.num_bodies)
-    return _permute_tail(residual, jac, 0, order)
-
-
 # ---------------------------------------------------------------------------------
 # Normal equations for Levenberg–Marquardt.
 
@@ -472,8 +461,24 @@ def normal_equations(
     return normal_system(mech, geom, kind, values, state)
 
 
-def normal_system(
+@partial(jit, static_argnums=2)
+def normal_equations_tail(
     mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]
+):
+    """``(C, JᵀJ, JᵀC, J_tail)``: :func:`normal_equations` and the Jacobian of the
+    motor (``kind="fk"``) or output (``"bk"``) rows, ``(k, S)`` in index order, the
+    last rows of :func:`linearise`'s (what a continuation's next prediction needs,
+    :func:`.kinematics.predict_from`)."""
+    return normal_system(mech, geom, kind, values, state, with_tail=True)
+
+
+def normal_system(
+    mech: Mechanism,
+    geom: Geometry,
+    kind: str,
+    values,
+    state: Float[Array, " S"],
+    with_tail: bool = False,
 ):
     """:func:`normal_equations` traced in place (not a program of its own). The rows'
     ``7``-blocks are laid out two bodies wide (:func:`.row_algebra.two_body_layout`)
@@ -491,8 +496,10 @@ def normal_system(
     else:
         hessian, gradient = block_sums(groups, nb)
     head = sum(int(np.prod(g.values.shape)) for g in groups[: len(groups) - len(tail)])
-    if order:
-        perm = np.argsort(np.concatenate(order), kind="stable")
-        if not np.array_equal(perm, np.arange(perm.size)):
-            residual = take(residual, np.concatenate([np.arange(head), head + perm]))
-    return residual, hessian, gradient
+    perm = np.argsort(np.concatenate(order), kind="stable") if order else np.arange(0)
+    if not np.array_equal(perm, np.arange(perm.size)):
+        residual = take(residual, np.concatenate([np.arange(head), head + perm]))
+    if not with_tail:
+        return residual, hessian, gradient
+    rows, pairs = take(rows, head + perm), pairs[head + perm]
+    return residual, hessian, gradient, dense.rows_matrix(rows, pairs, 7 * nb)
