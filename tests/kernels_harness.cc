@@ -5,7 +5,8 @@
 // batches 0-9, random positive definite, singular, indefinite, NaN, Inf, huge and tiny
 // matrices, operands at an address off the usual 16/32/64-byte alignment, empty
 // operands with null data, results written over an operand, refused shapes, six
-// threads at once. tests/test_kernel_sanitizers.py builds it under AddressSanitizer and
+// threads at once, and normal_equations on random two-body rows for every order that
+// is a multiple of 7. tests/test_kernel_sanitizers.py builds it under AddressSanitizer and
 // UndefinedBehaviorSanitizer (-fno-sanitize-recover: any report ends it with a failure).
 // Besides the sanitizers' reports it checks that a handler refuses what it must, and
 // that every matrix of a batch gets bitwise the result it gets alone (the handlers'
@@ -109,6 +110,41 @@ bool same_bits(const double* a, const double* b, int64_t count) {
   return count == 0 || std::memcmp(a, b, sizeof(double) * count) == 0;
 }
 
+// normal_equations for a state of order n (a multiple of 7) and random two-body rows:
+// each matrix of the batch bitwise as alone, JᵀJ symmetric, refused pairs refused.
+void normal_case(int64_t n, int64_t batch, bool batched, bool misaligned,
+                 std::mt19937_64& rng) {
+  if (n % 7 != 0 || n > kMaxN) return;
+  const int64_t bodies = n / 7, m = 5 * bodies + 1;
+  std::vector<int32_t> pairs(2 * m);
+  std::uniform_int_distribution<int32_t> body(-1, static_cast<int32_t>(bodies) - 1);
+  for (auto& p : pairs) p = body(rng);
+  Operand rows(shape(batch, batched, {m, 14}), misaligned), c(shape(batch, batched, {m}), misaligned);
+  Operand h(shape(batch, batched, {n, n}), misaligned), g(shape(batch, batched, {n}), misaligned);
+  fill(rows, rng);
+  fill(c, rng);
+  const ffi::Span<const int32_t> span(pairs.data(), pairs.size());
+  if (NormalEquationsImpl(rows.arg(), c.arg(), h.ret(), g.ret(), span).failure())
+    fail("normal_equations", n, batch);
+  for (int64_t b = 0; b < batch && batched; ++b) {
+    Operand r1({1, m, 14}, false), c1({1, m}, false), h1({1, n, n}, false), g1({1, n}, false);
+    copy(r1.data, rows.data + b * m * 14, m * 14);
+    copy(c1.data, c.data + b * m, m);
+    if (NormalEquationsImpl(r1.arg(), c1.arg(), h1.ret(), g1.ret(), span).failure() ||
+        !same_bits(h1.data, h.data + b * n * n, n * n) ||
+        !same_bits(g1.data, g.data + b * n, n))
+      fail("normal_equations of a batch is each matrix's", n, batch);
+    for (int64_t i = 0; i < n; ++i)
+      for (int64_t j = 0; j < i; ++j)
+        if (h1.data[i * n + j] != h1.data[j * n + i]) fail("JᵀJ symmetric", n, batch);
+  }
+  std::vector<int32_t> bad(pairs);
+  if (!bad.empty()) bad[0] = static_cast<int32_t>(bodies);
+  const ffi::Span<const int32_t> wrong(bad.data(), bad.size() - (bad.empty() ? 0 : 1));
+  if (n > 0 && NormalEquationsImpl(rows.arg(), c.arg(), h.ret(), g.ret(), wrong).success())
+    fail("normal_equations with bad pairs", n, batch);
+}
+
 // Every handler on one (n, batch, kind); `batched`: a leading batch dimension (else a
 // single matrix, batch 1).
 void run_case(int64_t n, int64_t batch, Kind kind, bool batched, bool misaligned,
@@ -204,6 +240,7 @@ void run_case(int64_t n, int64_t batch, Kind kind, bool batched, bool misaligned
           fail("smallest_right of a batch is each matrix's", n, batch);
       }
   }
+  normal_case(n, batch, batched, misaligned, rng);
   Operand start(shape(batch, batched, {n, 1}), misaligned), v(shape(batch, batched, {n}), misaligned);
   if (n > 0 && !refused &&
       SmallestRightImpl(a.arg(), start.arg(), v.ret(), -1, 8, 0.0).success())

@@ -1,8 +1,9 @@
 """The continuation's prediction from the corrector's last linearisation
 (:func:`linkopt._engine.kinematics.predict_from`) against the prediction built from
-scratch (:func:`~linkopt._engine.kinematics.predict`), the rows it updates
-(:func:`linkopt._engine.jacobian.tail_rows`) against the full linearisation, and the
-linearisation that an LM solve hands back against one built at its answer."""
+scratch (:func:`~linkopt._engine.kinematics.predict`), the Jacobian of the rows it
+updates (:func:`linkopt._engine.jacobian.normal_equations_tail`) against the full
+linearisation, and the linearisation that an LM solve hands back against one built at
+its answer."""
 
 import jax.numpy as jnp
 import numpy as np
@@ -31,14 +32,16 @@ def _setup(name: str, kind: str, seed: int):
 
 @pytest.mark.parametrize("kind", ["fk", "bk"])
 @pytest.mark.parametrize("name", ["five_bar", "jansen_2dof"])
-def test_tail_rows_are_the_last_rows_of_the_linearisation(name, kind):
+def test_tail_jacobian_is_the_last_rows_of_the_linearisation(name, kind):
     mech, geom, state, _, values = _setup(name, kind, 0)
     state = state + 1e-3 * jnp.asarray(np.random.default_rng(1).normal(size=state.size))
     residual, jac = jacobian.linearise(mech, geom, kind, values, state)
-    tail, tail_jac = jacobian.tail_rows(mech, geom, kind, values, state)
-    assert tail.shape[0] == values.shape[0]
-    np.testing.assert_allclose(tail, residual[-tail.shape[0] :], rtol=0, atol=TOL)
-    np.testing.assert_allclose(tail_jac, jac[-tail.shape[0] :], rtol=0, atol=TOL)
+    *normal, tail_jac = jacobian.normal_equations_tail(mech, geom, kind, values, state)
+    assert tail_jac.shape == (values.shape[0], state.size)
+    np.testing.assert_allclose(tail_jac, jac[-tail_jac.shape[0] :], rtol=0, atol=TOL)
+    plain = jacobian.normal_equations(mech, geom, kind, values, state)
+    for got, want in zip(normal, plain, strict=True):
+        np.testing.assert_array_equal(got, want)
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -49,20 +52,17 @@ def test_prediction_from_the_last_linearisation_equals_a_fresh_one(name, kind, s
     """A state solved at ``v0`` (the rest state, and a state that LM solved at
     ``v1``), predicted at other values both ways."""
     mech, geom, state, v0, v1 = _setup(name, kind, seed)
-    residual, hessian, gradient = jacobian.normal_equations(mech, geom, kind, v0, state)
-    known = (residual, (hessian, gradient))
+    known = kinematics.start_linearisation(mech, kind, geom, v0, state)
     fresh = kinematics.predict(mech, kind, geom, v1, state)
-    reused = kinematics.predict_from(mech, kind, geom, v1, state, known)
+    reused = kinematics.predict_from(state, known, v1 - v0)
     assert float(jnp.max(jnp.abs(fresh - state))) > 1e-3  # a real move
     np.testing.assert_allclose(reused, fresh, rtol=0, atol=1e-10)
 
-    result = kinematics.corrector(mech, kind, geom, v1, fresh)
+    result = kinematics.corrector(mech, kind, geom, v1, fresh, with_tail=True)
     assert bool(result.converged)
     v2 = v1 + (v1 - v0)
     fresh = kinematics.predict(mech, kind, geom, v2, result.x)
-    reused = kinematics.predict_from(
-        mech, kind, geom, v2, result.x, result.linearisation
-    )
+    reused = kinematics.predict_from(result.x, result.linearisation, v2 - v1)
     np.testing.assert_allclose(reused, fresh, rtol=0, atol=1e-10)
 
 
@@ -78,10 +78,11 @@ def test_lm_hands_back_the_linearisation_at_its_answer():
 
 def test_walk_starts_from_the_linearisation_at_its_start():
     mech, geom, state, v0, _ = _setup("five_bar", "fk", 5)
-    residual, (hessian, gradient) = kinematics.start_linearisation(
+    residual, (hessian, gradient, tail) = kinematics.start_linearisation(
         mech, "fk", geom, v0, state
     )
     jac = jacobian.state_jacobian(mech, geom, "fk", state)
+    np.testing.assert_allclose(tail, jac[-tail.shape[0] :], rtol=0, atol=TOL)
     np.testing.assert_allclose(hessian, jac.T @ jac, rtol=0, atol=1e-10)
     np.testing.assert_allclose(gradient, jac.T @ residual, rtol=0, atol=TOL)
 

@@ -11,8 +11,14 @@ import pytest
 from conftest import MECHANISMS, ROOT
 
 import linkopt
+from linkopt._engine import dense
 from linkopt._engine.constraints import bk_residual, fk_residual
-from linkopt._engine.jacobian import linearise, normal_equations, state_jacobian
+from linkopt._engine.jacobian import (
+    linearise,
+    normal_equations,
+    normal_system,
+    state_jacobian,
+)
 from linkopt._files.loader import build
 
 FILES = [
@@ -94,6 +100,34 @@ def _linearised_and_reference(mech, kind, residual):
         )
 
     return jax.jit(both)
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: p.stem)
+@pytest.mark.parametrize("kind", ["fk", "bk"])
+def test_normal_equations_paths_agree(path, kind, monkeypatch):
+    """The compiled kernel's assembly (where built) and the plain-JAX block sums (the
+    fallback) give the same normal equations, at an off-manifold state."""
+    mech = build(tomllib.loads(path.read_text()), str(path), check=False)
+    geom = linkopt.geometry(mech, None)
+    rng = np.random.default_rng(7)
+    state = np.asarray(linkopt.rest_state(mech))
+    state = state + 0.05 * rng.normal(size=state.shape)
+    values = 0.1 * rng.normal(
+        size=(mech.num_motors if kind == "fk" else mech.num_outputs)
+    )
+
+    def program():
+        fn = jax.jit(lambda s: normal_system(mech, geom, kind, values, s))
+        return fn(state), str(jax.make_jaxpr(fn)(state))
+
+    served = dense.serves_block_normal(jnp.zeros((1, 14)), mech.state_size)
+    kernel, kernel_jaxpr = program()
+    monkeypatch.setattr(dense, "serves_block_normal", lambda *a: False)
+    plain, plain_jaxpr = program()
+    for a, b in zip(kernel, plain, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
+    assert "normal_equations" not in plain_jaxpr
+    assert ("normal_equations" in kernel_jaxpr) == served
 
 
 def test_jacobian_is_differentiable_in_design():

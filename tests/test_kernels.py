@@ -73,6 +73,16 @@ class Handlers:
     def damped_solve(self, a, d, b, shape=None):
         return self._call("damped_solve", shape or np.shape(b), a, d, b)
 
+    def normal_equations(self, rows, c, pairs, n, shapes=None):
+        batch = np.shape(rows)[:-2]
+        shapes = shapes or (batch + (n, n), batch + (n,))
+        results = tuple(jax.ShapeDtypeStruct(s, jnp.float64) for s in shapes)
+        call = jax.ffi.ffi_call(
+            PREFIX + "normal_equations", results, vmap_method="broadcast_all"
+        )
+        pairs = np.asarray(pairs, dtype=np.int32).reshape(-1)
+        return tuple(np.asarray(r) for r in call(rows, c, pairs=pairs))
+
     def smallest_right(self, a, start, shape=None, iterations=6, sweeps=8):
         return self._call(
             "smallest_right",
@@ -391,3 +401,98 @@ def test_smallest_right_vectors_differentiate_as_the_plain_code():
     sign = np.sign(np.sum(value * expected, axis=1))[:, None]
     np.testing.assert_allclose(value, sign * expected, atol=1e-10)
     np.testing.assert_allclose(derivative, expected_derivative, atol=1e-8)
+
+
+def _two_body_rows(batch, bodies: int, m: int, seed: int = 0):
+    """Random row blocks ``batch + (m, 14)``, residuals and static body pairs: rows on
+    two bodies in either order, on one body (``-1`` second), on one body twice, and
+    rows that name no body at all."""
+    rng = np.random.default_rng(seed)
+    rows = rng.normal(size=batch + (m, 14))
+    c = rng.normal(size=batch + (m,))
+    pairs = rng.integers(0, bodies, size=(m, 2))
+    pairs[1::5, 1] = -1
+    pairs[2::5, 0] = -1
+    pairs[3::7, 1] = pairs[3::7, 0]
+    pairs[m // 2] = -1
+    return rows, c, pairs
+
+
+def _dense_rows(rows, pairs, bodies: int):
+    """The dense ``J`` of :func:`dense.block_normal`'s layout, by numpy."""
+    jac = np.zeros(rows.shape[:-1] + (7 * bodies,))
+    for r, (i, j) in enumerate(pairs):
+        if i >= 0:
+            jac[..., r, 7 * i : 7 * i + 7] += rows[..., r, :7]
+        if j >= 0:
+            jac[..., r, 7 * j : 7 * j + 7] += rows[..., r, 7:]
+    return jac
+
+
+@pytest.mark.parametrize("batch", [*BATCHES, (5,)], ids=str)
+@pytest.mark.parametrize("bodies,m", [(1, 3), (5, 38), (10, 72), (40, 200)])
+def test_normal_equations_are_the_dense_products(ffi, bodies, m, batch):
+    rows, c, pairs = _two_body_rows(batch, bodies, m)
+    jtj, jtc = ffi.normal_equations(rows, c, pairs, 7 * bodies)
+    jac = _dense_rows(rows, pairs, bodies)
+    jt = np.swapaxes(jac, -1, -2)
+    np.testing.assert_allclose(jtj, jt @ jac, rtol=1e-13, atol=1e-12)
+    np.testing.assert_allclose(jtc, (jt @ c[..., None])[..., 0], rtol=1e-13, atol=1e-12)
+    assert np.array_equal(jtj, np.swapaxes(jtj, -1, -2))  # symmetric exactly
+
+
+def test_block_normal_under_vmap_jit_and_its_derivative():
+    """dense.block_normal (the kernel where built) equals the dense product batched,
+    and its JVP is the dense product's."""
+    rows, c, pairs = _two_body_rows((4,), 6, 30, seed=3)
+    size = 42
+    fn = jax.jit(jax.vmap(lambda r, v: dense.block_normal(r, v, pairs, size)))
+    jtj, jtc = fn(rows, c)
+    jac = _dense_rows(rows, pairs, 6)
+    np.testing.assert_allclose(jtj, np.swapaxes(jac, 1, 2) @ jac, atol=1e-12)
+    np.testing.assert_allclose(jtc, np.einsum("brn,br->bn", jac, c), atol=1e-12)
+    rng = np.random.default_rng(4)
+    d_rows, d_c = rng.normal(size=rows.shape[1:]), rng.normal(size=c.shape[1:])
+    _, (d_jtj, d_jtc) = jax.jvp(
+        lambda r, v: dense.block_normal(r, v, pairs, size), (rows[0], c[0]),
+        (d_rows, d_c),
+    )  # fmt: skip
+    d_jac = _dense_rows(d_rows, pairs, 6)
+    np.testing.assert_allclose(d_jtj, d_jac.T @ jac[0] + jac[0].T @ d_jac, atol=1e-12)
+    np.testing.assert_allclose(d_jtc, d_jac.T @ c[0] + jac[0].T @ d_c, atol=1e-12)
+
+    def loss(normal):  # reverse mode too: the JVP rule transposes
+        return lambda r, v: sum(jnp.sum(x**2) for x in normal(r, v))
+
+    def dense_normal(r, v):
+        # J[r] = Σ_k rows[r, k] J_k[r], J_k the dense rows of the unit block e_k
+        units = np.stack(
+            [_dense_rows(np.tile(e, (30, 1)), pairs, 6) for e in np.eye(14)]
+        )
+        j = jnp.einsum("rk,krn->rn", r, jnp.asarray(units))
+        return j.T @ j, j.T @ v
+
+    kernel = jax.grad(loss(lambda r, v: dense.block_normal(r, v, pairs, size)), (0, 1))
+    for a, b in zip(
+        kernel(rows[0], c[0]), jax.grad(loss(dense_normal), (0, 1))(rows[0], c[0])
+    ):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-10)
+
+
+def test_normal_equations_refuse_bad_operands(ffi):
+    rows, c, pairs = _two_body_rows((), 3, 6)
+    with pytest.raises(Exception, match="out of range"):
+        ffi.normal_equations(rows, c, np.where(pairs == 0, 3, pairs), 21)
+    with pytest.raises(Exception, match="2 m body indices"):
+        ffi.normal_equations(rows, c, pairs[:-1], 21)
+    with pytest.raises(Exception, match="7 x bodies"):
+        ffi.normal_equations(rows, c, pairs, 20)
+    with pytest.raises(Exception, match="row count"):
+        ffi.normal_equations(rows, c[:-1], pairs, 21)
+    with pytest.raises(Exception, match=r"rows \(\.\.\., m, 14\)"):
+        ffi.normal_equations(rows[:, :13], c, pairs, 21)
+    with pytest.raises(Exception, match="batch dimensions"):
+        ffi.normal_equations(
+            np.stack([rows, rows]), np.stack([c, c, c]), pairs, 21,
+            shapes=((2, 21, 21), (2, 21)),
+        )  # fmt: skip

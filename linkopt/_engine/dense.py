@@ -24,7 +24,8 @@ made by ``pip install`` with the machine's C++ compiler) and the program runs on
 float64, :func:`cholesky`, :func:`solve_lower`, :func:`solve_lower_transpose`,
 :func:`cho_solve`, :func:`damped_solve` and :func:`lower_inverse` call its XLA FFI
 handlers instead (and :func:`smallest_right` is σ_min's iteration as one handler,
-:mod:`linkopt._engine.singularity`): the same algorithms as plain loops over one
+:mod:`linkopt._engine.singularity`; :func:`block_normal` the constraint solves' ``JᵀJ``
+and ``Jᵀr`` from their two-body row blocks): the same algorithms as plain loops over one
 matrix at a time (the Cholesky factor and :func:`damped_solve` over two or four of a
 batch side by side, in the same operations), several times faster than XLA:CPU's loops
 over the batch, and a custom call is a single instruction where the loops were
@@ -415,6 +416,60 @@ def smallest_right(
         sweeps=np.int32(sweeps),
         shift=np.float64(shift),
     )
+
+
+def serves_block_normal(rows: Float[Array, "m 14"], size: int) -> bool:
+    """Whether :func:`block_normal` runs in the compiled kernel for these rows and a
+    state of ``size`` coordinates."""
+    return size <= _kernel_state()["KERNEL_MAX_N"] and _use_kernel(rows)
+
+
+def block_normal(
+    rows: Float[Array, "m 14"],
+    residual: Float[Array, " m"],
+    pairs: np.ndarray,
+    size: int,
+) -> tuple[Float[Array, "n n"], Float[Array, " n"]]:
+    """``(JᵀJ, Jᵀc)`` of the ``(m, size)`` matrix ``J`` whose row ``r`` holds
+    ``rows[r, :7]`` in the 7 columns of body ``pairs[r, 0]`` and ``rows[r, 7:]`` in
+    those of body ``pairs[r, 1]`` (static, ``-1`` for none), in one call of the
+    compiled kernel (``LkNormalEquations``; where :func:`serves_block_normal`): the
+    constraint solves' normal equations without the mostly-zero dense ``J``. Its
+    derivative is that of the dense product."""
+    pairs = np.ascontiguousarray(pairs, dtype=np.int32).reshape(-1)
+    return _block_normal(rows, residual, pairs.tobytes(), size)
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(2, 3))
+def _block_normal(rows, residual, pairs: bytes, size: int):
+    batch = rows.shape[:-2]
+    return jax.ffi.ffi_call(
+        _kernel_state()["TARGETS"]["normal_equations"],
+        (
+            jax.ShapeDtypeStruct(batch + (size, size), rows.dtype),
+            jax.ShapeDtypeStruct(batch + (size,), rows.dtype),
+        ),
+        vmap_method="broadcast_all",
+    )(rows, residual, pairs=np.frombuffer(pairs, dtype=np.int32))
+
+
+@_block_normal.defjvp
+def _block_normal_jvp(pairs, size, primals, tangents):
+    def plain(rows, residual):
+        jac = rows_matrix(rows, np.frombuffer(pairs, np.int32).reshape(-1, 2), size)
+        return jac.T @ jac, jac.T @ residual
+
+    return _block_normal(*primals, pairs, size), jax.jvp(plain, primals, tangents)[1]
+
+
+def rows_matrix(rows: Float[Array, "m 14"], pairs: np.ndarray, size: int):
+    """The dense ``J`` ``(m, size)`` of :func:`block_normal`'s rows and pairs."""
+    onehot = np.zeros((rows.shape[0], 2, size // 7))
+    for side in range(2):
+        used = np.flatnonzero(pairs[:, side] >= 0)
+        onehot[used, side, pairs[used, side]] = 1.0
+    blocks = rows.reshape(-1, 2, 1, 7) * jnp.asarray(onehot)[..., None]
+    return (blocks[:, 0] + blocks[:, 1]).reshape(-1, size)
 
 
 def lower_inverse(lower: Float[Array, "n n"]) -> Float[Array, "n n"]:

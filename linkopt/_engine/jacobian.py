@@ -18,10 +18,12 @@ body index of each of its ``G`` members and the ``(G, m, 7)`` block of the Jacob
 From these come the dense Jacobian (:func:`linearise`, :func:`state_jacobian`,
 :func:`stacked_jacobians`) or, for Levenberg–Marquardt, directly the normal equations
 ``JᵀJ`` and ``Jᵀr`` assembled from ``7 x 7`` body blocks (:func:`normal_equations`),
-never forming the mostly-zero dense ``J``. Everything is plain ``jax.numpy`` without
-scatters (static indices become slices or gathers with constant indices), so it is
-jit/vmap friendly and differentiable again in the state and the geometry (``f_sing``
-needs ``∂J/∂s``, ``∂J/∂p``).
+never forming the mostly-zero dense ``J``: the rows' blocks laid out two bodies wide
+and summed in one call of the compiled kernel (:func:`.dense.block_normal`) where it is
+built, else block by block in plain JAX. Everything else is plain ``jax.numpy``
+without scatters (static indices become slices or gathers with constant indices), so
+it is jit/vmap friendly and differentiable again in the state and the geometry
+(``f_sing`` needs ``∂J/∂s``, ``∂J/∂p``).
 
 The row order and values are those of :func:`linkopt._engine.constraints.fk_residual` /
 ``bk_residual`` (same formulas, so equal up to rounding), and the Jacobians equal
@@ -44,19 +46,20 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import jit
+from . import dense
 from . import joints as joint_types
 from .constraints import gauge_rows
 from .geometry import Geometry
 from .model import JOINT_ROWS, Mechanism
 from .row_algebra import (
     Frames,
+    block_sums,
     dot,
     frames,
-    gram,
     q_block,
     stack_rows,
-    sum_rows,
     take,
+    two_body_layout,
     xq_block,
 )
 from .turns import Side, Turn, body_turns, take_turn
@@ -442,17 +445,6 @@ def stacked_jacobians(
     return jnp.stack(out)
 
 
-def tail_rows(
-    mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]
-):
-    """``(C_tail, ∂C_tail/∂s)``: the motor (``kind="fk"``) or output (``"bk"``) rows
-    alone, the last rows of :func:`linearise`, in index order."""
-    x, q, t = _split(state, unrolled=True)
-    tail, order = _tail_groups(mech, geom, kind, x, q, t, values)
-    residual, jac = _dense(tail, mech.num_bodies)
-    return _permute_tail(residual, jac, 0, order)
-
-
 # ---------------------------------------------------------------------------------
 # Normal equations for Levenberg–Marquardt.
 
@@ -466,43 +458,48 @@ def normal_equations(
     ``C`` is in the row order of ``fk_residual``/``bk_residual``; ``JᵀJ`` and ``JᵀC``
     equal the dense products up to rounding (summation order differs).
     """
+    return normal_system(mech, geom, kind, values, state)
+
+
+@partial(jit, static_argnums=2)
+def normal_equations_tail(
+    mech: Mechanism, geom: Geometry, kind: str, values, state: Float[Array, " S"]
+):
+    """``(C, JᵀJ, JᵀC, J_tail)``: :func:`normal_equations` and the Jacobian of the
+    motor (``kind="fk"``) or output (``"bk"``) rows, ``(k, S)`` in index order, the
+    last rows of :func:`linearise`'s (what a continuation's next prediction needs,
+    :func:`.kinematics.predict_from`)."""
+    return normal_system(mech, geom, kind, values, state, with_tail=True)
+
+
+def normal_system(
+    mech: Mechanism,
+    geom: Geometry,
+    kind: str,
+    values,
+    state: Float[Array, " S"],
+    with_tail: bool = False,
+):
+    """:func:`normal_equations` traced in place (not a program of its own). The rows'
+    ``7``-blocks are laid out two bodies wide (:func:`.row_algebra.two_body_layout`)
+    and assembled in one call of the compiled kernel (:func:`.dense.block_normal`),
+    where it serves them; else summed block by block in plain JAX
+    (:func:`.row_algebra.block_sums`)."""
     x, q, t = _split(state, unrolled=True)
     groups = _passive_groups(mech, geom, x, q, t)
     tail, order = _tail_groups(mech, geom, kind, x, q, t, values)
     groups = groups + tail
     nb = mech.num_bodies
-    hess: dict[tuple[int, int], list] = {}
-    grad: dict[int, list] = {}
-    for group in groups:
-        r = group.values
-        for a, (bodies_a, jac_a) in enumerate(group.blocks):
-            ga = sum_rows(jac_a * r[:, :, None])  # (G, 7)
-            for k, b in enumerate(bodies_a):
-                grad.setdefault(int(b), []).append(ga[k])
-            for bodies_b, jac_b in group.blocks[a:]:
-                prod = gram(jac_a, jac_b)  # (G, 7, 7)
-                same = jac_b is jac_a
-                for k in range(len(bodies_a)):
-                    i, j = int(bodies_a[k]), int(bodies_b[k])
-                    hess.setdefault((i, j), []).append(prod[k])
-                    if not same:
-                        hess.setdefault((j, i), []).append(prod[k].T)
-    zero = jnp.zeros((7, 7))
-    blocks = [
-        [
-            sum(hess[(i, j)][1:], hess[(i, j)][0]) if (i, j) in hess else zero
-            for j in range(nb)
-        ]
-        for i in range(nb)
-    ]
-    hessian = jnp.block(blocks)
-    gradient = jnp.concatenate(
-        [sum(grad[i][1:], grad[i][0]) if i in grad else jnp.zeros(7) for i in range(nb)]
-    )
-    residual = jnp.concatenate([g.values.reshape(-1) for g in groups])
+    residual, rows, pairs = two_body_layout(groups)
+    if dense.serves_block_normal(rows, 7 * nb):
+        hessian, gradient = dense.block_normal(rows, residual, pairs, 7 * nb)
+    else:
+        hessian, gradient = block_sums(groups, nb)
     head = sum(int(np.prod(g.values.shape)) for g in groups[: len(groups) - len(tail)])
-    if order:
-        perm = np.argsort(np.concatenate(order), kind="stable")
-        if not np.array_equal(perm, np.arange(perm.size)):
-            residual = take(residual, np.concatenate([np.arange(head), head + perm]))
-    return residual, hessian, gradient
+    perm = np.argsort(np.concatenate(order), kind="stable") if order else np.arange(0)
+    if not np.array_equal(perm, np.arange(perm.size)):
+        residual = take(residual, np.concatenate([np.arange(head), head + perm]))
+    if not with_tail:
+        return residual, hessian, gradient
+    rows, pairs = take(rows, head + perm), pairs[head + perm]
+    return residual, hessian, gradient, dense.rows_matrix(rows, pairs, 7 * nb)

@@ -139,12 +139,18 @@ def corrector(
     values,
     start,
     max_iterations: int | None = None,
+    with_tail: bool = False,
 ) -> lm.LMResult:
-    """LM on ``C(values, s)`` from ``start`` with the file's ``[solver]`` settings."""
+    """LM on ``C(values, s)`` from ``start`` with the file's ``[solver]`` settings
+    (``with_tail``: the result's linearisation holds the motor or output rows'
+    Jacobian too, for :func:`predict_from`)."""
     settings = mech.solver
+    linearise = (
+        jacobian.normal_equations_tail if with_tail else jacobian.normal_equations
+    )
     method = lm.NormalEquations(
         lambda s: _RESIDUALS[kind](mech, geom, values, s),
-        lambda s: jacobian.normal_equations(mech, geom, kind, values, s),
+        lambda s: linearise(mech, geom, kind, values, s),
     )
     if banded.serves(mech):
         method = banded.Banded(mech, geom, kind, values)
@@ -171,15 +177,16 @@ def predict(mech: Mechanism, kind: str, geom: Geometry, values, state):
     return state - dense.damped_solve(hessian, 1e-12, gradient)
 
 
-def predict_from(mech: Mechanism, kind: str, geom: Geometry, values, state, known):
-    """:func:`predict` (dense) from ``known = (C, (JᵀJ, JᵀC))`` at ``state``, the last
-    corrector's linearisation: only the motor or output rows change with the values,
-    so ``Jᵀ C(values, s)`` is ``JᵀC`` plus their Jacobian's transpose times their
-    change. One linearisation less per step; equal to :func:`predict` to rounding."""
-    residual, (hessian, gradient) = known
-    tail, jac = jacobian.tail_rows(mech, geom, kind, values, state)
-    change = tail - residual[residual.shape[0] - tail.shape[0] :]
-    gradient = gradient + jnp.sum(jac * change[:, None], axis=0)
+def predict_from(state, known, change):
+    """:func:`predict` (dense) from ``known = (C, (JᵀJ, JᵀC, J_tail))`` at ``state``,
+    the last corrector's linearisation (:func:`.jacobian.normal_equations_tail`), for
+    values moved by ``change`` (homogenised): only the motor or output rows change
+    with the values, each by ``-change`` (unit slope; a state solved at the old values
+    leaves a wrapped angle row far from ``±π``), so ``Jᵀ C(values, s)`` is ``JᵀC -
+    J_tailᵀ change``. No linearisation per step; equal to :func:`predict` to
+    rounding."""
+    _, (hessian, gradient, tail) = known
+    gradient = gradient - jnp.sum(tail * change[:, None], axis=0)
     return state - dense.damped_solve(hessian, 1e-12, gradient)
 
 
@@ -194,8 +201,8 @@ class _Walk:
     iterations: Int[Array, ""]
     steps: Int[Array, ""]
     stuck: Bool[Array, ""]
-    #: the dense solves' ``(C, (JᵀJ, JᵀC))`` at ``state`` and the values reached
-    #: (:func:`predict_from`); None on the band
+    #: the dense solves' ``(C, (JᵀJ, JᵀC, J_tail))`` at ``state`` and the values
+    #: reached (:func:`predict_from`); None on the band
     known: object = None
 
 
@@ -208,8 +215,11 @@ def _advance(mech, kind, geom, v_from, delta, bounds, walk: _Walk) -> _Walk:
     if walk.known is None:
         predicted = predict(mech, kind, geom, values, walk.state)
     else:
-        predicted = predict_from(mech, kind, geom, values, walk.state, walk.known)
-    result = corrector(mech, kind, geom, values, predicted)
+        change = values - (v_from + walk.fraction * delta)
+        predicted = predict_from(walk.state, walk.known, change)
+    result = corrector(
+        mech, kind, geom, values, predicted, with_tail=walk.known is not None
+    )
     correction = jnp.max(jnp.abs(result.x - predicted))
     move = jnp.max(jnp.abs(predicted - walk.state))
     limit = PREDICTION_RATIO * move + PREDICTION_SLACK
@@ -234,10 +244,8 @@ def start_linearisation(mech: Mechanism, kind: str, geom: Geometry, values, stat
     """:class:`_Walk`'s ``known`` at the walk's start (None on the band)."""
     if banded.serves(mech):
         return None
-    residual, hessian, gradient = jacobian.normal_equations(
-        mech, geom, kind, values, state
-    )
-    return residual, (hessian, gradient)
+    residual, *model = jacobian.normal_equations_tail(mech, geom, kind, values, state)
+    return residual, tuple(model)
 
 
 def continue_to(

@@ -1,8 +1,9 @@
 """The local algebra of the constraint rows' Jacobian blocks (:mod:`.jacobian`): static
 gathers, unrolled short dot products and sums, the derivatives of a rotated vector and
-of a dot product with one in the quaternion, row blocks, and the frames of a group of
-joints. Everything is plain ``jax.numpy`` without scatters, jit/vmap friendly and
-differentiable again."""
+of a dot product with one in the quaternion, row blocks, the frames of a group of
+joints, and the rows laid out for the normal equations (two bodies wide, or summed
+block by block). Everything is plain ``jax.numpy`` without scatters, jit/vmap
+friendly and differentiable again."""
 
 from __future__ import annotations
 
@@ -129,3 +130,53 @@ def frames(mech: Mechanism, geom: Geometry, x, q, index: np.ndarray) -> Frames:
         take(geom.helpers, index),
         take(geom.axes2, index),
     )
+
+
+def two_body_layout(groups: list):
+    """The rows of ``groups`` (each with values ``(G, m)`` and one or two blocks
+    ``(bodies (G,), jac (G, m, 7))``) as ``(values (m,), rows (m, 14), pairs (m, 2))``:
+    each row's two ``7``-blocks side by side and their static bodies (``-1`` and a
+    zero block for a row on one body), for :func:`.dense.block_normal`."""
+    values, rows, pairs = [], [], []
+    for group in groups:
+        count, m = group.values.shape
+        values.append(group.values.reshape(-1))
+        (first, block), *rest = group.blocks
+        second, other = rest[0] if rest else (np.full(count, -1), jnp.zeros_like(block))
+        rows.append(jnp.concatenate([block, other], axis=-1).reshape(count * m, 14))
+        pairs.append(np.repeat(np.stack([first, second], axis=1), m, axis=0))
+    return jnp.concatenate(values), jnp.concatenate(rows), np.concatenate(pairs)
+
+
+def block_sums(groups: list, nb: int):
+    """``(JᵀJ, JᵀC)`` of ``groups`` summed from ``7 x 7`` body blocks in plain JAX
+    (the path without the compiled kernels)."""
+    hess: dict[tuple[int, int], list] = {}
+    grad: dict[int, list] = {}
+    for group in groups:
+        r = group.values
+        for a, (bodies_a, jac_a) in enumerate(group.blocks):
+            ga = sum_rows(jac_a * r[:, :, None])  # (G, 7)
+            for k, b in enumerate(bodies_a):
+                grad.setdefault(int(b), []).append(ga[k])
+            for bodies_b, jac_b in group.blocks[a:]:
+                prod = gram(jac_a, jac_b)  # (G, 7, 7)
+                same = jac_b is jac_a
+                for k in range(len(bodies_a)):
+                    i, j = int(bodies_a[k]), int(bodies_b[k])
+                    hess.setdefault((i, j), []).append(prod[k])
+                    if not same:
+                        hess.setdefault((j, i), []).append(prod[k].T)
+    zero = jnp.zeros((7, 7))
+    blocks = [
+        [
+            sum(hess[(i, j)][1:], hess[(i, j)][0]) if (i, j) in hess else zero
+            for j in range(nb)
+        ]
+        for i in range(nb)
+    ]
+    hessian = jnp.block(blocks)
+    gradient = jnp.concatenate(
+        [sum(grad[i][1:], grad[i][0]) if i in grad else jnp.zeros(7) for i in range(nb)]
+    )
+    return hessian, gradient

@@ -33,7 +33,13 @@ order ``n`` at most ``_dense.max_n()``, 512, else an error):
   attributes ``iterations``, ``sweeps`` (int32) and ``shift`` (f64) -> the right
   singular vector of ``J``'s smallest singular value, ``(..., n)``: every step of
   :func:`linkopt._engine.singularity.smallest_right_vectors` after the Gram matrix
-  (``k`` at most ``_dense.smallest_max_k()``, 32).
+  (``k`` at most ``_dense.smallest_max_k()``, 32);
+* ``normal_equations``: ``rows (..., m, 14)``, ``c (..., m)``, attribute ``pairs``
+  (int32, ``2 m``) -> ``(JᵀJ (..., n, n), Jᵀc (..., n))`` of the ``J`` whose row ``r``
+  is ``rows[r, :7]`` in body ``pairs[2r]``'s 7 columns and ``rows[r, 7:]`` in body
+  ``pairs[2r + 1]``'s (``-1``: no body), ``n`` 7 per body: the constraint solves'
+  normal equations from their two-body row blocks
+  (:func:`linkopt._engine.dense.block_normal`).
 
 JAX-free: importing this module imports neither JAX nor the extension.
 """
@@ -51,11 +57,18 @@ from types import ModuleType
 
 #: The ABI version of the handlers this code expects (``kVersion`` in ``dense.cc``); an
 #: extension of another version (a stale build) is not used.
-VERSION = 3
+VERSION = 4
 #: The environment variable that turns the kernels off when set to ``0``.
 ENVIRONMENT = "LINKOPT_KERNELS"
 #: The handlers' names, the keys of :func:`handlers`.
-NAMES = ("cholesky", "tri_solve", "lower_inverse", "damped_solve", "smallest_right")
+NAMES = (
+    "cholesky",
+    "tri_solve",
+    "lower_inverse",
+    "damped_solve",
+    "smallest_right",
+    "normal_equations",
+)
 SOURCE = Path(__file__).with_name("dense.cc")
 #: How to rebuild the extension against the running jaxlib (in every refusal's warning).
 REBUILD = (

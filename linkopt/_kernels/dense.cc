@@ -14,6 +14,10 @@
 //                   `sweeps` (int32), `shift` (f64) -> the right singular vector of J's
 //                   smallest singular value (..., n) by block inverse iteration and
 //                   Rayleigh–Ritz (smallest_right; k <= kSmallestMaxK)
+//   LkNormalEquations rows (..., m, 14), c (..., m), attribute `pairs` (int32, 2 m)
+//                   -> JᵀJ (..., n, n), Jᵀc (..., n) of the J whose row r holds
+//                   rows[r, :7] in the 7 columns of body pairs[2r] and rows[r, 7:]
+//                   in those of body pairs[2r + 1] (-1: none), n = 7 x bodies
 // Every handler refuses n > kMaxN (LkDampedSolve n > kLanesMaxN, LkSmallestRight
 // k > kSmallestMaxK), mismatched shapes and an unknown mode with an ffi::Error; none
 // allocates but for the scratch of large orders (with_scratch); an empty operand (n or
@@ -58,7 +62,7 @@ namespace ffi = xla::ffi;
 
 namespace {
 
-constexpr long kVersion = 3;
+constexpr long kVersion = 4;
 constexpr int64_t kMaxN = 512;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -488,6 +492,77 @@ __attribute__((target("avx2"))) unsigned damped_group4(const double* a, const do
 bool has_avx2() {
   static const bool yes = __builtin_cpu_supports("avx2");
   return yes;
+}
+#endif
+#endif  // LK_LANES
+
+#ifdef LK_LANES
+// LkNormalEquations of the lanes<V>() consecutive matrices from rows on (their c, h,
+// g), the same operations as normal_one lane by lane (so bitwise its results), on
+// the lower triangle packed side by side in scratch (tri(n) + n vectors).
+template <class V>
+LK_INLINE void normal_group(const double* rows, const double* c, const int32_t* pairs,
+                            int64_t m, int64_t n, double* h, double* g, double* scratch) {
+  constexpr int L = lanes<V>();
+  V* p = reinterpret_cast<V*>(scratch);
+  V* gv = p + tri(n);
+  for (int64_t i = 0; i < tri(n) + n; ++i)
+    for (int w = 0; w < L; ++w) p[i][w] = 0.0;
+  for (int64_t r = 0; r < m; ++r) {
+    V a[14], cr;
+    for (int w = 0; w < L; ++w) {
+      for (int k = 0; k < 14; ++k) a[k][w] = rows[(w * m + r) * 14 + k];
+      cr[w] = c[w * m + r];
+    }
+    const int64_t b0 = pairs[2 * r], b1 = pairs[2 * r + 1];
+    for (int s = 0; s < 2; ++s) {
+      const int64_t bs = s == 0 ? b0 : b1;
+      if (bs < 0) continue;
+      const V* as = a + 7 * s;
+      for (int k = 0; k < 7; ++k) gv[bs * 7 + k] += as[k] * cr;
+      for (int k = 0; k < 7; ++k) {
+        V* __restrict row = p + tri(bs * 7 + k) + bs * 7;
+        for (int l = 0; l <= k; ++l) row[l] += as[k] * as[l];
+      }
+    }
+    if (b0 < 0 || b1 < 0) continue;
+    if (b0 == b1) {
+      for (int k = 0; k < 7; ++k) {
+        V* __restrict row = p + tri(b0 * 7 + k) + b0 * 7;
+        for (int l = 0; l <= k; ++l) row[l] += a[k] * a[7 + l] + a[7 + k] * a[l];
+      }
+      continue;
+    }
+    const bool first_high = b0 > b1;
+    const V* ah = first_high ? a : a + 7;
+    const V* al = first_high ? a + 7 : a;
+    const int64_t hi = first_high ? b0 : b1, lo = first_high ? b1 : b0;
+    for (int k = 0; k < 7; ++k) {
+      V* __restrict row = p + tri(hi * 7 + k) + lo * 7;
+      for (int l = 0; l < 7; ++l) row[l] += ah[k] * al[l];
+    }
+  }
+  for (int w = 0; w < L; ++w) {
+    double* __restrict hw = h + w * n * n;
+    for (int64_t i = 0; i < n; ++i) {
+      const V* row = p + tri(i);
+      for (int64_t j = 0; j <= i; ++j) hw[i * n + j] = hw[j * n + i] = row[j][w];
+      g[w * n + i] = gv[i][w];
+    }
+  }
+}
+
+void normal_group2(const double* rows, const double* c, const int32_t* pairs, int64_t m,
+                   int64_t n, double* h, double* g, double* scratch) {
+  normal_group<V2>(rows, c, pairs, m, n, h, g, scratch);
+}
+
+#ifdef LK_AVX2
+__attribute__((target("avx2"))) void normal_group4(const double* rows, const double* c,
+                                                   const int32_t* pairs, int64_t m,
+                                                   int64_t n, double* h, double* g,
+                                                   double* scratch) {
+  normal_group<V4>(rows, c, pairs, m, n, h, g, scratch);
 }
 #endif
 #endif  // LK_LANES
@@ -966,6 +1041,106 @@ ffi::Error SmallestRightImpl(ffi::Buffer<ffi::F64> a, ffi::Buffer<ffi::F64> star
     return smallest_batch(ap, sp, op, n, k, batch, iterations, sweeps, shift, scratch);
   });
 }
+
+// LkNormalEquations of one matrix: h (n x n) = JᵀJ, g (n) = Jᵀc, row by row in the
+// row order. A row adds its two 7-blocks' outer products and their products with c[r]
+// to its bodies' blocks, the lower triangle only (a diagonal block's lower half, a
+// cross block where it lies below the diagonal, transposed); the upper triangle is
+// copied from it at the end.
+void normal_one(const double* __restrict rows, const double* __restrict c,
+                const int32_t* __restrict pairs, int64_t m, int64_t n,
+                double* __restrict h, double* __restrict g) {
+  for (int64_t i = 0; i < n * n; ++i) h[i] = 0.0;
+  for (int64_t i = 0; i < n; ++i) g[i] = 0.0;
+  for (int64_t r = 0; r < m; ++r) {
+    const double* a = rows + r * 14;
+    const int64_t b0 = pairs[2 * r], b1 = pairs[2 * r + 1];
+    for (int s = 0; s < 2; ++s) {
+      const int64_t bs = s == 0 ? b0 : b1;
+      if (bs < 0) continue;
+      const double* as = a + 7 * s;
+      double* __restrict gs = g + bs * 7;
+      for (int k = 0; k < 7; ++k) gs[k] += as[k] * c[r];
+      double* __restrict d = h + bs * 7 * n + bs * 7;  // diagonal block, lower half
+      for (int k = 0; k < 7; ++k)
+        for (int l = 0; l <= k; ++l) d[k * n + l] += as[k] * a[7 * s + l];
+    }
+    if (b0 < 0 || b1 < 0) continue;
+    // the cross block at (hi, lo), hi > lo: rows of body hi's block times lo's
+    const bool first_high = b0 > b1;
+    const double* ah = first_high ? a : a + 7;
+    const double* al = first_high ? a + 7 : a;
+    const int64_t hi = first_high ? b0 : b1, lo = first_high ? b1 : b0;
+    if (hi == lo) {  // both blocks on one body: the block gets both products
+      double* __restrict d = h + hi * 7 * n + hi * 7;
+      for (int k = 0; k < 7; ++k)
+        for (int l = 0; l <= k; ++l) d[k * n + l] += a[k] * a[7 + l] + a[7 + k] * a[l];
+      continue;
+    }
+    double* __restrict x = h + hi * 7 * n + lo * 7;
+    for (int k = 0; k < 7; ++k)
+      for (int l = 0; l < 7; ++l) x[k * n + l] += ah[k] * al[l];
+  }
+  for (int64_t i = 0; i < n; ++i)
+    for (int64_t j = i + 1; j < n; ++j) h[i * n + j] = h[j * n + i];
+}
+
+ffi::Error NormalEquationsImpl(ffi::Buffer<ffi::F64> rows, ffi::Buffer<ffi::F64> c,
+                               ffi::ResultBuffer<ffi::F64> h,
+                               ffi::ResultBuffer<ffi::F64> g,
+                               ffi::Span<const int32_t> pairs) {
+  auto rd = rows.dimensions();
+  auto cd = c.dimensions();
+  auto hd = h->dimensions();
+  auto gd = g->dimensions();
+  const size_t r = rd.size();
+  if (r < 2 || rd[r - 1] != 14 || cd.size() + 1 != r || hd.size() != r ||
+      gd.size() + 1 != r)
+    return ffi::Error::InvalidArgument(
+        "expected rows (..., m, 14), c (..., m) and results (..., n, n), (..., n)");
+  const int64_t m = rd[r - 2];
+  const int64_t n = hd[r - 1];
+  if (cd[r - 2] != m || hd[r - 2] != n || gd[r - 2] != n || n % 7 != 0)
+    return ffi::Error::InvalidArgument("row count or state size mismatch (n = 7 x bodies)");
+  if (static_cast<int64_t>(pairs.size()) != 2 * m)
+    return ffi::Error::InvalidArgument("attribute pairs must hold 2 m body indices");
+  for (size_t i = 0; i < pairs.size(); ++i)
+    if (pairs[i] < -1 || pairs[i] >= n / 7)
+      return ffi::Error::InvalidArgument("a body index in pairs is out of range");
+  int64_t batch = 1;
+  for (size_t i = 0; i + 2 < r; ++i) {
+    if (cd[i] != rd[i] || hd[i] != rd[i] || gd[i] != rd[i])
+      return ffi::Error::InvalidArgument("batch dimensions differ");
+    batch *= rd[i];
+  }
+  const double* rp = rows.typed_data();
+  const double* cp = c.typed_data();
+  double* hp = h->typed_data();
+  double* gp = g->typed_data();
+  const int32_t* pp = pairs.begin();
+  int64_t b = 0;
+#ifdef LK_LANES
+  if (batch >= 2) {
+    const int64_t wide = batch >= 4 ? 4 : 2;
+    auto groups = [&](double* scratch) {
+#ifdef LK_AVX2
+      if (has_avx2())
+        for (; b + 4 <= batch; b += 4)
+          normal_group4(rp + b * m * 14, cp + b * m, pp, m, n, hp + b * n * n,
+                        gp + b * n, scratch);
+#endif
+      for (; b + 2 <= batch; b += 2)
+        normal_group2(rp + b * m * 14, cp + b * m, pp, m, n, hp + b * n * n,
+                      gp + b * n, scratch);
+      return ffi::Error::Success();
+    };
+    if (auto e = with_scratch((tri(n) + n) * wide, groups); e.failure()) return e;
+  }
+#endif
+  for (; b < batch; ++b)
+    normal_one(rp + b * m * 14, cp + b * m, pp, m, n, hp + b * n * n, gp + b * n);
+  return ffi::Error::Success();
+}
 }  // namespace
 
 XLA_FFI_DEFINE_HANDLER_SYMBOL(LkCholesky, CholeskyImpl,
@@ -1001,6 +1176,14 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(LkSmallestRight, SmallestRightImpl,
                                   .Attr<int32_t>("sweeps")
                                   .Attr<double>("shift"));
 
+XLA_FFI_DEFINE_HANDLER_SYMBOL(LkNormalEquations, NormalEquationsImpl,
+                              ffi::Ffi::Bind()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Attr<ffi::Span<const int32_t>>("pairs"));
+
 // ---- the Python extension module linkopt._kernels._dense ---------------------------
 
 #ifndef LK_NO_PYTHON
@@ -1031,7 +1214,8 @@ PyObject* capsules(PyObject*, PyObject*) {
       !add_capsule(dict, "tri_solve", LkTriSolve) ||
       !add_capsule(dict, "lower_inverse", LkLowerInverse) ||
       !add_capsule(dict, "damped_solve", LkDampedSolve) ||
-      !add_capsule(dict, "smallest_right", LkSmallestRight)) {
+      !add_capsule(dict, "smallest_right", LkSmallestRight) ||
+      !add_capsule(dict, "normal_equations", LkNormalEquations)) {
     Py_DECREF(dict);
     return nullptr;
   }
@@ -1060,7 +1244,8 @@ PyObject* jaxlib_version(PyObject*, PyObject*) {
 
 PyMethodDef methods[] = {
     {"capsules", capsules, METH_NOARGS,
-     "{'cholesky', 'tri_solve', 'lower_inverse', 'damped_solve', 'smallest_right'} -> a "
+     "{'cholesky', 'tri_solve', 'lower_inverse', 'damped_solve', 'smallest_right', "
+     "'normal_equations'} -> a "
      "PyCapsule of each "
      "XLA FFI handler, for jax.ffi.register_ffi_target(name, capsule, platform='cpu')."},
     {"version", version, METH_NOARGS, "The ABI version of the handlers (an int)."},

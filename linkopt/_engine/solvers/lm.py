@@ -96,22 +96,24 @@ class Method(Protocol):
 @dataclass(frozen=True)
 class NormalEquations:
     """``δ = -(JᵀJ + λI)⁻¹ Jᵀr`` by Cholesky. ``linearisation`` (optional) gives
-    ``(fn(x), JᵀJ, Jᵀfn(x))`` directly (the constraint solves pass
-    :func:`linkopt._engine.jacobian.normal_equations`); without it ``jax.jacfwd``."""
+    ``(fn(x), JᵀJ, Jᵀfn(x), *extra)`` directly (the constraint solves pass
+    :func:`linkopt._engine.jacobian.normal_equations`); without it ``jax.jacfwd``.
+    The model is ``(JᵀJ, Jᵀr, *extra)``: anything else the linearisation gives rides
+    along to the result's ``linearisation``."""
 
     fn: Residual
     linearisation: Linearisation | None = None
 
     def linearise(self, x):
         if self.linearisation is not None:
-            residual, hessian, gradient = self.linearisation(x)
+            residual, hessian, gradient, *extra = self.linearisation(x)
         else:
             jacobian, residual = value_and_jacobian(self.fn, x)
-            hessian, gradient = jacobian.T @ jacobian, jacobian.T @ residual
-        return residual, (hessian, gradient)
+            hessian, gradient, extra = jacobian.T @ jacobian, jacobian.T @ residual, ()
+        return residual, (hessian, gradient, *extra)
 
     def direction(self, model, residual, damping):
-        hessian, gradient = model
+        hessian, gradient = model[:2]
         delta = -dense.damped_solve(hessian, damping, gradient)  # (JᵀJ + λI)⁻¹ Jᵀr
         return delta, -(2.0 * delta @ gradient + delta @ hessian @ delta)
 
