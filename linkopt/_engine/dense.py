@@ -111,7 +111,7 @@ def _plain_cholesky(a: Float[Array, "n n"]) -> Float[Array, "n n"]:
 
 
 def _plain_solve_lower(
-    lower: Float[Array, "n n"], b: Float[Array, "n ..."], *, unit_diagonal=False
+    lower: Float[Array, "n n"], b: Float[Array, "n ..."]
 ) -> Float[Array, "n ..."]:
     """``x`` with ``L x = b`` for lower-triangular ``L`` (forward substitution by
     panels of :data:`PANEL` rows; ``b`` a vector or an ``(n, k)`` matrix; only the
@@ -130,7 +130,7 @@ def _plain_solve_lower(
         ys = []
         for c in range(PANEL):
             y = r[c] - sum((diag[c, d] * ys[d] for d in range(c)), jnp.zeros_like(r[c]))
-            ys.append(y if unit_diagonal else y / diag[c, c])
+            ys.append(y / diag[c, c])
         return jax.lax.dynamic_update_slice_in_dim(x, jnp.stack(ys), j, 0)
 
     x = jax.lax.fori_loop(0, size // PANEL, panel, jnp.zeros_like(rhs_p))[:n]
@@ -344,13 +344,13 @@ def cholesky(a: Float[Array, "n n"]) -> Float[Array, "n n"]:
 
 
 def solve_lower(
-    lower: Float[Array, "n n"], b: Float[Array, "n ..."], *, unit_diagonal=False
+    lower: Float[Array, "n n"], b: Float[Array, "n ..."]
 ) -> Float[Array, "n ..."]:
     """``x`` with ``L x = b`` for lower-triangular ``L`` (``b`` a vector or an
     ``(n, k)`` matrix; only the lower triangle of ``L`` is read)."""
-    if not unit_diagonal and _use_kernel(lower, b):
+    if _use_kernel(lower, b):
         return _KERNELS["solve_lower"](lower, b)
-    return _plain_solve_lower(lower, b, unit_diagonal=unit_diagonal)
+    return _plain_solve_lower(lower, b)
 
 
 def solve_lower_transpose(

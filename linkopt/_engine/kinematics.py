@@ -25,7 +25,7 @@ the formula is the least-squares tangent. Both forward and reverse mode work thr
 
 from __future__ import annotations
 
-import functools
+import weakref
 from dataclasses import dataclass
 from functools import partial
 
@@ -388,7 +388,8 @@ def _from_rest(mech: Mechanism, kind: str, values, design) -> Solution:
         return solve(values)
     order = span_order(mech, kind, values)
     solved = in_blocks(solve, (values[order],), one=solve)
-    return jax.tree.map(lambda a: a[np.argsort(order)], solved)
+    back = np.argsort(order)  # in numpy: a jax gather compiled per batch size
+    return jax.tree.map(lambda a: jax.device_put(np.asarray(a)[back]), solved)
 
 
 def span_order(mech: Mechanism, kind: str, values: np.ndarray) -> np.ndarray:
@@ -401,11 +402,23 @@ def span_order(mech: Mechanism, kind: str, values: np.ndarray) -> np.ndarray:
     return np.argsort(span, kind="stable")
 
 
-@functools.cache
+#: :func:`_rest_values` of each mechanism by kind, weakly held (a process that goes
+#: through many mechanisms keeps none of them alive).
+_REST_VALUES: weakref.WeakKeyDictionary[Mechanism, dict] = weakref.WeakKeyDictionary()
+
+
 def _rest_values(mech: Mechanism, kind: str) -> np.ndarray:
-    """Homogenised motor or output values of the rest state at the file's design."""
-    geom = geometry(mech, design_vector(mech, None))
-    return np.asarray(_VALUES[kind](mech, geom, rest_state(mech)))
+    """Homogenised motor or output values of the rest state at the file's design,
+    read by the stored read-out programs (op by op, a few small programs compiled in
+    every process)."""
+    from .readout import motor_values, output_values  # local: avoid an import cycle
+
+    held = _REST_VALUES.setdefault(mech, {})
+    if kind not in held:
+        read = motor_values if kind == "fk" else output_values
+        values = np.asarray(read(mech, np.asarray(rest_state(mech))))
+        held[kind] = values / np.asarray(value_scale(mech, kind))
+    return held[kind]
 
 
 def _along(mech: Mechanism, kind: str, values, start, design) -> Solution:
