@@ -248,10 +248,11 @@ def _dense_pass(line: _Line, p: _Pass) -> _Pass:
     )
 
 
-def _dense_walk(line: _Line, walk: _Walk) -> _Walk:
-    known = start_linearisation(
-        line.mech, line.kind, line.geom, line.v_from, walk.state
-    )
+def _dense_walk(line: _Line, walk: _Walk, known) -> tuple[_Walk, tuple]:
+    if known is None:
+        known = start_linearisation(
+            line.mech, line.kind, line.geom, line.v_from, walk.state
+        )
     start = _Pass(
         walk=walk,
         known=known,
@@ -265,16 +266,19 @@ def _dense_walk(line: _Line, walk: _Walk) -> _Walk:
     end = jax.lax.while_loop(
         lambda p: ~p.fresh | _going(p.walk), lambda p: _dense_pass(line, p), start
     )
-    return end.walk
+    return end.walk, end.known
 
 
 def walk(
-    mech: Mechanism, kind: str, geom: Geometry, v_from, state, v_to
-) -> tuple[Float[Array, " S"], Float[Array, ""], Int[Array, ""]]:
+    mech: Mechanism, kind: str, geom: Geometry, v_from, state, v_to, known=None
+) -> tuple[Float[Array, " S"], Float[Array, ""], Int[Array, ""], tuple | None]:
     """From ``state`` (solved at values ``v_from``) towards values ``v_to``, all
     homogenised and held constant (no derivative flows through the walk): the last
     state reached on the start's branch, the fraction of the way reached there (1 when
-    the whole way was), and the LM iterations taken."""
+    the whole way was), the LM iterations taken, and the normal equations at the state
+    reached (``known``, None on the band), which a walk that goes on from there takes
+    as its own ``known`` instead of linearising its start again (a path's next row:
+    :func:`linkopt._engine.kinematics.continue_to`)."""
     v_from = jnp.asarray(v_from, dtype=jnp.float64)
     delta = v_to - v_from
     span = jnp.maximum(jnp.max(jnp.abs(delta)), MIN_STEP)
@@ -291,5 +295,5 @@ def walk(
     if banded.serves(mech):
         end = jax.lax.while_loop(_going, lambda w: _advance(line, w), start)
     else:
-        end = _dense_walk(line, start)
-    return end.state, end.fraction, end.iterations
+        end, known = _dense_walk(line, start, known)
+    return end.state, end.fraction, end.iterations, known

@@ -126,20 +126,29 @@ def continue_to(
     Not converged when the branch has no assembly past some value, or passes a
     singularity, on the way: ``progress`` says how far it got, and ``state`` is the
     last state reached on the branch."""
+    return _continued(mech, kind, geom, v_from, state, v_to)[0]
+
+
+def _continued(
+    mech: Mechanism, kind: str, geom: Geometry, v_from, state, v_to, known=None
+):
+    """:func:`continue_to`, and the normal equations at the state reached
+    (:func:`.continuation.walk`'s ``known``, taken as given here)."""
     fixed_geom = jax.lax.stop_gradient(geom)
     fixed_to = jax.lax.stop_gradient(v_to)
-    reached, fraction, iterations = continuation.walk(
+    reached, fraction, iterations, known = continuation.walk(
         mech,
         kind,
         fixed_geom,
         jax.lax.stop_gradient(jnp.asarray(v_from, dtype=jnp.float64)),
         jax.lax.stop_gradient(state),
         fixed_to,
+        known,
     )
     residual = jnp.max(jnp.abs(_RESIDUALS[kind](mech, fixed_geom, fixed_to, reached)))
     converged = (fraction >= 1.0) & (residual <= mech.solver.tolerance)
     final = implicit_state(kind, mech, geom, v_to, reached)
-    return Solution(final, converged, residual, iterations, fraction)
+    return Solution(final, converged, residual, iterations, fraction), known
 
 
 def _prepare(mech: Mechanism, kind: str, values, start, design):
@@ -187,13 +196,19 @@ def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, start, design)
 
     def advance(carry, v):
-        v_from, state = carry
-        solution = continue_to(mech, kind, geom, v_from, state, v)
+        v_from, state, known = carry
+        solution, known = _continued(mech, kind, geom, v_from, state, v, known)
         reached = v_from + solution.progress * (v - v_from)
-        return (reached, jax.lax.stop_gradient(solution.state)), solution
+        return (reached, jax.lax.stop_gradient(solution.state), known), solution
 
+    # each row's walk starts from the normal equations the last one ended with: they
+    # are those at its state and values (the first row's, of the start, made here)
     v_start = _VALUES[kind](mech, geom, start)
-    _, solutions = jax.lax.scan(advance, (v_start, start), values)
+    fixed = jax.lax.stop_gradient
+    known = continuation.start_linearisation(
+        mech, kind, fixed(geom), fixed(v_start), fixed(start)
+    )
+    _, solutions = jax.lax.scan(advance, (v_start, start, known), values)
     return solutions
 
 
