@@ -1,6 +1,6 @@
 """The continuation's prediction from the corrector's last linearisation
-(:func:`linkopt._engine.kinematics.predict_from`) against the prediction built from
-scratch (:func:`~linkopt._engine.kinematics.predict`), the Jacobian of the rows it
+(:func:`linkopt._engine.continuation.predict_from`) against the prediction built from
+scratch (:func:`~linkopt._engine.continuation.predict`), the Jacobian of the rows it
 updates (:func:`linkopt._engine.jacobian.normal_equations_tail`) against the full
 linearisation, and the linearisation that an LM solve hands back against one built at
 its answer."""
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import linkopt
-from linkopt._engine import jacobian, kinematics
+from linkopt._engine import continuation, jacobian, kinematics
 from linkopt._engine.constraints import (
     homogenised_motor_values,
     homogenised_output_values,
@@ -52,23 +52,23 @@ def test_prediction_from_the_last_linearisation_equals_a_fresh_one(name, kind, s
     """A state solved at ``v0`` (the rest state, and a state that LM solved at
     ``v1``), predicted at other values both ways."""
     mech, geom, state, v0, v1 = _setup(name, kind, seed)
-    known = kinematics.start_linearisation(mech, kind, geom, v0, state)
-    fresh = kinematics.predict(mech, kind, geom, v1, state)
-    reused = kinematics.predict_from(state, known, v1 - v0)
+    known = continuation.start_linearisation(mech, kind, geom, v0, state)
+    fresh = continuation.predict(mech, kind, geom, v1, state)
+    reused = continuation.predict_from(state, known, v1 - v0)
     assert float(jnp.max(jnp.abs(fresh - state))) > 1e-3  # a real move
     np.testing.assert_allclose(reused, fresh, rtol=0, atol=1e-10)
 
-    result = kinematics.corrector(mech, kind, geom, v1, fresh, with_tail=True)
+    result = continuation.corrector(mech, kind, geom, v1, fresh, with_tail=True)
     assert bool(result.converged)
     v2 = v1 + (v1 - v0)
-    fresh = kinematics.predict(mech, kind, geom, v2, result.x)
-    reused = kinematics.predict_from(result.x, result.linearisation, v2 - v1)
+    fresh = continuation.predict(mech, kind, geom, v2, result.x)
+    reused = continuation.predict_from(result.x, result.linearisation, v2 - v1)
     np.testing.assert_allclose(reused, fresh, rtol=0, atol=1e-10)
 
 
 def test_lm_hands_back_the_linearisation_at_its_answer():
     mech, geom, state, _, v1 = _setup("five_bar", "fk", 4)
-    result = kinematics.corrector(mech, "fk", geom, v1, state)
+    result = continuation.corrector(mech, "fk", geom, v1, state)
     assert bool(result.converged) and int(result.iterations) > 1
     residual, (hessian, gradient) = result.linearisation
     fresh = jacobian.normal_equations(mech, geom, "fk", v1, result.x)
@@ -78,7 +78,7 @@ def test_lm_hands_back_the_linearisation_at_its_answer():
 
 def test_walk_starts_from_the_linearisation_at_its_start():
     mech, geom, state, v0, _ = _setup("five_bar", "fk", 5)
-    residual, (hessian, gradient, tail) = kinematics.start_linearisation(
+    residual, (hessian, gradient, tail) = continuation.start_linearisation(
         mech, "fk", geom, v0, state
     )
     jac = jacobian.state_jacobian(mech, geom, "fk", state)

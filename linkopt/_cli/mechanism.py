@@ -297,7 +297,7 @@ def _report_failure(
     """One line: where the continuation stopped on the rest pose's branch, and why
     when it ran out of steps (``spans``: each row's distance from its start, as
     :func:`_spans`)."""
-    from .._engine.kinematics import MAX_STEP, MAX_STEPS
+    from .._engine.continuation import MAX_STEP, MAX_STEPS
 
     first = next(k for k, rec in enumerate(records) if not rec["converged"])
     record = records[first]

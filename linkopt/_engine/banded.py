@@ -271,7 +271,7 @@ class Banded:
 
 
 def predict(mech: Mechanism, kind: str, geom, values, state):
-    """:func:`linkopt._engine.kinematics.predict` on the band."""
+    """:func:`linkopt._engine.continuation.predict` on the band."""
     _, band, grad = normal_equations(mech, geom, kind, values, state)
     where = layout(mech, geom, kind)
     return state - unpermute(where, damped_solve(band, 1e-12, grad))

@@ -468,7 +468,7 @@ def normal_equations_tail(
     """``(C, JᵀJ, JᵀC, J_tail)``: :func:`normal_equations` and the Jacobian of the
     motor (``kind="fk"``) or output (``"bk"``) rows, ``(k, S)`` in index order, the
     last rows of :func:`linearise`'s (what a continuation's next prediction needs,
-    :func:`.kinematics.predict_from`)."""
+    :func:`.continuation.predict_from`)."""
     return normal_system(mech, geom, kind, values, state, with_tail=True)
 
 

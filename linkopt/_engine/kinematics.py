@@ -36,7 +36,7 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .._config import jit, stored_record, traced
 from .._errors import InputError
-from . import banded, dense, jacobian, programs
+from . import banded, continuation, dense, jacobian, programs
 from .arguments import check_arguments, check_design, check_state, value_scale
 from .blocks import first_rows, in_blocks, path_rows
 from .constraints import (
@@ -47,24 +47,9 @@ from .constraints import (
 )
 from .geometry import Geometry, design_array, design_vector, geometry, rest_state
 from .model import Mechanism
-from .solvers import lm
 
 _RESIDUALS = {"fk": fk_residual, "bk": bk_residual}
 _VALUES = {"fk": homogenised_motor_values, "bk": homogenised_output_values}
-
-#: Largest change of any motor or output in one continuation step (homogenised: rad, or
-#: reference lengths). Small enough that the first-order prediction tells the rest
-#: branch from another assembly of the same values.
-MAX_STEP = 0.2
-#: Smallest step, same units; a continuation that must shrink below it stops there.
-MIN_STEP = 1e-6
-#: A step is accepted when the corrector moves the predicted state by at most this
-#: fraction of the predicted move (plus ``PREDICTION_SLACK``): on the branch the
-#: correction shrinks with the step squared, a jump to another assembly does not.
-PREDICTION_RATIO = 0.5
-PREDICTION_SLACK = 1e-7
-#: Cap on continuation steps (accepted and rejected) per solve.
-MAX_STEPS = 400
 
 
 @stored_record("linkopt.Solution")
@@ -117,7 +102,7 @@ def solve_single(
 ) -> Solution:
     """One LM solve of ``C(values, s) = 0`` from ``start`` (all homogenised); the
     iteration cap defaults to the file's ``[solver] max_iterations``."""
-    result = corrector(
+    result = continuation.corrector(
         mech,
         kind,
         jax.lax.stop_gradient(geom),
@@ -132,160 +117,38 @@ def solve_single(
     )
 
 
-def corrector(
-    mech: Mechanism,
-    kind: str,
-    geom: Geometry,
-    values,
-    start,
-    max_iterations: int | None = None,
-    with_tail: bool = False,
-) -> lm.LMResult:
-    """LM on ``C(values, s)`` from ``start`` with the file's ``[solver]`` settings
-    (``with_tail``: the result's linearisation holds the motor or output rows'
-    Jacobian too, for :func:`predict_from`)."""
-    settings = mech.solver
-    linearise = (
-        jacobian.normal_equations_tail if with_tail else jacobian.normal_equations
-    )
-    method = lm.NormalEquations(
-        lambda s: _RESIDUALS[kind](mech, geom, values, s),
-        lambda s: linearise(mech, geom, kind, values, s),
-    )
-    if banded.serves(mech):
-        method = banded.Banded(mech, geom, kind, values)
-    return lm.solve(
-        method,
-        start,
-        tolerance=settings.tolerance,
-        max_iterations=max_iterations or settings.max_iterations,
-        initial_damping=settings.initial_damping,
-    )
-
-
-def predict(mech: Mechanism, kind: str, geom: Geometry, values, state):
-    """First-order prediction of the state solved at ``values``, from a state solved
-    at nearby values: ``s + ds = s - (JᵀJ)⁻¹ Jᵀ C(values, s)``.
-
-    The residual is affine in the values (unit slope on the motor or output rows) and
-    ``C`` vanishes at the old values, so ``Jᵀ C(values, s) = Jᵀ ∂C/∂v Δv``: this is the
-    tangent ``ds/dv Δv`` of the implicit function theorem (least squares where rows
-    are redundant), built from the LM solver's own normal equations."""
-    if banded.serves(mech):
-        return banded.predict(mech, kind, geom, values, state)
-    _, hessian, gradient = jacobian.normal_equations(mech, geom, kind, values, state)
-    return state - dense.damped_solve(hessian, 1e-12, gradient)
-
-
-def predict_from(state, known, change):
-    """:func:`predict` (dense) from ``known = (C, (JᵀJ, JᵀC, J_tail))`` at ``state``,
-    the last corrector's linearisation (:func:`.jacobian.normal_equations_tail`), for
-    values moved by ``change`` (homogenised): only the motor or output rows change
-    with the values, each by ``-change`` (unit slope; a state solved at the old values
-    leaves a wrapped angle row far from ``±π``), so ``Jᵀ C(values, s)`` is ``JᵀC -
-    J_tailᵀ change``. No linearisation per step; equal to :func:`predict` to
-    rounding."""
-    _, (hessian, gradient, tail) = known
-    gradient = gradient - jnp.sum(tail * change[:, None], axis=0)
-    return state - dense.damped_solve(hessian, 1e-12, gradient)
-
-
-@jax.tree_util.register_dataclass
-@dataclass(frozen=True)
-class _Walk:
-    """Continuation carry: ``fraction`` of the way done at ``state``, next ``step``."""
-
-    fraction: Float[Array, ""]
-    step: Float[Array, ""]
-    state: Float[Array, " S"]
-    iterations: Int[Array, ""]
-    steps: Int[Array, ""]
-    stuck: Bool[Array, ""]
-    #: the dense solves' ``(C, (JᵀJ, JᵀC, J_tail))`` at ``state`` and the values
-    #: reached (:func:`predict_from`); None on the band
-    known: object = None
-
-
-def _advance(mech, kind, geom, v_from, delta, bounds, walk: _Walk) -> _Walk:
-    """One predictor-corrector step; the step doubles after a success, halves after a
-    failure, and the walk is stuck when it would fall below ``bounds[0]``."""
-    smallest, largest = bounds
-    target = jnp.minimum(walk.fraction + walk.step, 1.0)
-    values = v_from + target * delta
-    if walk.known is None:
-        predicted = predict(mech, kind, geom, values, walk.state)
-    else:
-        change = values - (v_from + walk.fraction * delta)
-        predicted = predict_from(walk.state, walk.known, change)
-    result = corrector(
-        mech, kind, geom, values, predicted, with_tail=walk.known is not None
-    )
-    correction = jnp.max(jnp.abs(result.x - predicted))
-    move = jnp.max(jnp.abs(predicted - walk.state))
-    limit = PREDICTION_RATIO * move + PREDICTION_SLACK
-    ok = result.converged & (correction <= limit)
-    step = jnp.where(ok, jnp.minimum(2.0 * walk.step, largest), 0.5 * walk.step)
-    return _Walk(
-        fraction=jnp.where(ok, target, walk.fraction),
-        step=step,
-        state=jnp.where(ok, result.x, walk.state),
-        iterations=walk.iterations + result.iterations,
-        steps=walk.steps + 1,
-        stuck=(~ok) & (step < smallest),
-        known=None
-        if walk.known is None
-        else jax.tree.map(
-            lambda new, old: jnp.where(ok, new, old), result.linearisation, walk.known
-        ),
-    )
-
-
-def start_linearisation(mech: Mechanism, kind: str, geom: Geometry, values, state):
-    """:class:`_Walk`'s ``known`` at the walk's start (None on the band)."""
-    if banded.serves(mech):
-        return None
-    residual, *model = jacobian.normal_equations_tail(mech, geom, kind, values, state)
-    return residual, tuple(model)
-
-
 def continue_to(
     mech: Mechanism, kind: str, geom: Geometry, v_from, state, v_to
 ) -> Solution:
     """Continuation from ``state`` (solved at values ``v_from``) to values ``v_to``, all
-    homogenised, along the straight line between them (module docstring).
+    homogenised, along the straight line between them (:mod:`.continuation`).
 
     Not converged when the branch has no assembly past some value, or passes a
     singularity, on the way: ``progress`` says how far it got, and ``state`` is the
     last state reached on the branch."""
+    return _continued(mech, kind, geom, v_from, state, v_to)[0]
+
+
+def _continued(
+    mech: Mechanism, kind: str, geom: Geometry, v_from, state, v_to, known=None
+):
+    """:func:`continue_to`, and the normal equations at the state reached
+    (:func:`.continuation.walk`'s ``known``, taken as given here)."""
     fixed_geom = jax.lax.stop_gradient(geom)
-    v_from = jax.lax.stop_gradient(jnp.asarray(v_from, dtype=jnp.float64))
     fixed_to = jax.lax.stop_gradient(v_to)
-    delta = fixed_to - v_from
-    span = jnp.maximum(jnp.max(jnp.abs(delta)), MIN_STEP)
-    largest = jnp.minimum(1.0, MAX_STEP / span)
-    bounds = (MIN_STEP / span, largest)
-    walk = _Walk(
-        fraction=jnp.where(jnp.max(jnp.abs(delta)) > 0, 0.0, 1.0),
-        step=largest,
-        state=jax.lax.stop_gradient(state),
-        iterations=jnp.zeros((), dtype=jnp.int32),
-        steps=jnp.zeros((), dtype=jnp.int32),
-        stuck=jnp.zeros((), dtype=bool),
-        known=start_linearisation(
-            mech, kind, fixed_geom, v_from, jax.lax.stop_gradient(state)
-        ),
+    reached, fraction, iterations, known = continuation.walk(
+        mech,
+        kind,
+        fixed_geom,
+        jax.lax.stop_gradient(jnp.asarray(v_from, dtype=jnp.float64)),
+        jax.lax.stop_gradient(state),
+        fixed_to,
+        known,
     )
-    walk = jax.lax.while_loop(
-        lambda w: (w.fraction < 1.0) & ~w.stuck & (w.steps < MAX_STEPS),
-        lambda w: _advance(mech, kind, fixed_geom, v_from, delta, bounds, w),
-        walk,
-    )
-    residual = jnp.max(
-        jnp.abs(_RESIDUALS[kind](mech, fixed_geom, fixed_to, walk.state))
-    )
-    converged = (walk.fraction >= 1.0) & (residual <= mech.solver.tolerance)
-    final = implicit_state(kind, mech, geom, v_to, walk.state)
-    return Solution(final, converged, residual, walk.iterations, walk.fraction)
+    residual = jnp.max(jnp.abs(_RESIDUALS[kind](mech, fixed_geom, fixed_to, reached)))
+    converged = (fraction >= 1.0) & (residual <= mech.solver.tolerance)
+    final = implicit_state(kind, mech, geom, v_to, reached)
+    return Solution(final, converged, residual, iterations, fraction), known
 
 
 def _prepare(mech: Mechanism, kind: str, values, start, design):
@@ -333,13 +196,19 @@ def _solve_path(mech: Mechanism, kind: str, values, start, design) -> Solution:
     values, start, geom = _prepare(mech, kind, values, start, design)
 
     def advance(carry, v):
-        v_from, state = carry
-        solution = continue_to(mech, kind, geom, v_from, state, v)
+        v_from, state, known = carry
+        solution, known = _continued(mech, kind, geom, v_from, state, v, known)
         reached = v_from + solution.progress * (v - v_from)
-        return (reached, jax.lax.stop_gradient(solution.state)), solution
+        return (reached, jax.lax.stop_gradient(solution.state), known), solution
 
+    # each row's walk starts from the normal equations the last one ended with: they
+    # are those at its state and values (the first row's, of the start, made here)
     v_start = _VALUES[kind](mech, geom, start)
-    _, solutions = jax.lax.scan(advance, (v_start, start), values)
+    fixed = jax.lax.stop_gradient
+    known = continuation.start_linearisation(
+        mech, kind, fixed(geom), fixed(v_start), fixed(start)
+    )
+    _, solutions = jax.lax.scan(advance, (v_start, start, known), values)
     return solutions
 
 

@@ -12,9 +12,10 @@ import numpy as np
 
 from .._engine import dense
 from .._engine.constraints import fk_residual, homogenised_motor_values
+from .._engine.continuation import PREDICTION_RATIO, PREDICTION_SLACK
 from .._engine.geometry import rest_state
 from .._engine.jacobian import normal_equations
-from .._engine.kinematics import PREDICTION_RATIO, PREDICTION_SLACK, continue_to
+from .._engine.kinematics import continue_to
 from .._engine.model import Mechanism
 
 #: Gauss–Newton corrections after each row's prediction (:func:`step_to`): from a
@@ -29,7 +30,7 @@ FIRST_ITERATIONS = 8
 
 def _newton(mech: Mechanism, geom, values, state):
     """One Gauss–Newton step on ``C_FK(values, s) = 0`` from ``state`` (the engine's
-    first-order prediction, :func:`linkopt._engine.kinematics.predict`), the largest
+    first-order prediction, :func:`linkopt._engine.continuation.predict`), the largest
     residual before it and ``JᵀJ`` there."""
     residual, hessian, gradient = normal_equations(mech, geom, "fk", values, state)
     new = state - dense.damped_solve(hessian, 1e-12, gradient)

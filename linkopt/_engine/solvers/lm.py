@@ -79,7 +79,7 @@ class LMResult:
     residual: Float[Array, ""]  # max |C| at x
     iterations: Int[Array, ""]
     #: ``(C(x), model)``: the method's linearisation at ``x``, for a caller that goes
-    #: on from ``x`` (:func:`linkopt._engine.kinematics.continue_to`'s next
+    #: on from ``x`` (:func:`linkopt._engine.continuation.walk`'s next
     #: prediction); unused, it costs nothing (the loop carries it anyway)
     linearisation: Any = None
 
@@ -113,9 +113,14 @@ class NormalEquations:
         return residual, (hessian, gradient, *extra)
 
     def direction(self, model, residual, damping):
-        hessian, gradient = model[:2]
-        delta = -dense.damped_solve(hessian, damping, gradient)  # (JᵀJ + λI)⁻¹ Jᵀr
-        return delta, -(2.0 * delta @ gradient + delta @ hessian @ delta)
+        return normal_step(*model[:2], damping)
+
+
+def normal_step(hessian, gradient, damping) -> tuple[Float[Array, " n"], Any]:
+    """:class:`NormalEquations`' damped step ``δ = -(JᵀJ + λI)⁻¹ Jᵀr`` and the
+    decrease of ``|C|²`` its linear model predicts."""
+    delta = -dense.damped_solve(hessian, damping, gradient)
+    return delta, -(2.0 * delta @ gradient + delta @ hessian @ delta)
 
 
 @dataclass(frozen=True)
@@ -169,43 +174,66 @@ class LevenbergMarquardt:
 
     def init(self, x0) -> LMState:
         residual, model = self.method.linearise(x0)
-        return LMState(
-            x0,
-            residual,
-            model,
-            jnp.asarray(self.initial_damping),
-            jnp.asarray(2.0),
-            jnp.asarray(0),
-            jnp.asarray(False),
-        )
+        return initial_state(x0, residual, model, self.initial_damping)
 
     def step(self, state: LMState) -> LMState:
         """One damped step with Nielsen's damping update."""
-        r, lam = state.residual, state.damping
-        delta, predicted = self.method.direction(state.model, r, lam)
-        new_residual, new_model = self.method.linearise(state.x + delta)
-        actual = r @ r - new_residual @ new_residual
-        rho = actual / jnp.where(predicted > 0, predicted, 1.0)
-        accept = (actual > 0) & (predicted > 0) & jnp.all(jnp.isfinite(new_residual))
-        shrink = jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-        size = jnp.sqrt(delta @ delta)
-        tiny = size < MIN_STEP * (1.0 + jnp.sqrt(state.x @ state.x))
-        return LMState(
-            x=jnp.where(accept, state.x + delta, state.x),
-            residual=jnp.where(accept, new_residual, r),
-            model=jax.tree.map(
-                lambda new, old: jnp.where(accept, new, old), new_model, state.model
-            ),
-            damping=jnp.where(accept, lam * shrink, lam * state.growth),
-            growth=jnp.where(accept, 2.0, 2.0 * state.growth),
-            iteration=state.iteration + 1,
-            stalled=(~accept & (lam * state.growth > MAX_DAMPING)) | (tiny & ~accept),
+        delta, predicted = self.method.direction(
+            state.model, state.residual, state.damping
         )
+        trial = state.x + delta
+        return update(state, trial, delta, predicted, *self.method.linearise(trial))
 
     def terminate(self, state: LMState):
         converged = jnp.max(jnp.abs(state.residual)) <= self.tolerance
         result = jnp.where(converged, Result.SUCCESSFUL, Result.STALLED)
         return converged | state.stalled, result
+
+
+def initial_state(x0, residual, model, initial_damping) -> LMState:
+    """The loop's carry at ``x0``, linearised there as ``(residual, model)``."""
+    return LMState(
+        x0,
+        residual,
+        model,
+        jnp.asarray(initial_damping),
+        jnp.asarray(2.0),
+        jnp.asarray(0),
+        jnp.asarray(False),
+    )
+
+
+def update(state: LMState, trial, delta, predicted, new_residual, new_model) -> LMState:
+    """The carry after the step ``delta`` to ``trial = x + δ`` (linearised there as
+    ``(new_residual, new_model)``, its decrease of ``|C|²`` predicted as
+    ``predicted``): accepted or rejected, with Nielsen's damping update (module
+    docstring)."""
+    r, lam = state.residual, state.damping
+    actual = r @ r - new_residual @ new_residual
+    rho = actual / jnp.where(predicted > 0, predicted, 1.0)
+    accept = (actual > 0) & (predicted > 0) & jnp.all(jnp.isfinite(new_residual))
+    shrink = jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+    size = jnp.sqrt(delta @ delta)
+    tiny = size < MIN_STEP * (1.0 + jnp.sqrt(state.x @ state.x))
+    return LMState(
+        x=jnp.where(accept, trial, state.x),
+        residual=jnp.where(accept, new_residual, r),
+        model=jax.tree.map(
+            lambda new, old: jnp.where(accept, new, old), new_model, state.model
+        ),
+        damping=jnp.where(accept, lam * shrink, lam * state.growth),
+        growth=jnp.where(accept, 2.0, 2.0 * state.growth),
+        iteration=state.iteration + 1,
+        stalled=(~accept & (lam * state.growth > MAX_DAMPING)) | (tiny & ~accept),
+    )
+
+
+def finished(state: LMState, tolerance: float, max_iterations) -> Bool[Array, ""]:
+    """Whether the loop stops at ``state`` (:func:`.driver.stopped` of
+    :class:`LevenbergMarquardt`, for a caller that runs its steps in a loop of its
+    own)."""
+    converged = jnp.max(jnp.abs(state.residual)) <= tolerance
+    return converged | state.stalled | (state.iteration >= max_iterations)
 
 
 def solve(
