@@ -159,6 +159,21 @@ def test_fk_and_bk_on_the_banded_path_equal_the_dense_path(index):
     np.testing.assert_allclose(back.state, again.state, atol=1e-10)
 
 
+def test_a_path_on_the_band_equals_the_dense_path():
+    """A path solve walks each row from the last one: the band's walk (nested loops,
+    a fresh prediction per step) and the dense one (one loop, each row starting from
+    the normal equations the last row ended with) reach the same states."""
+    mech = _small_mechanisms()[0]
+    dense, band = _with_factor(mech, "dense"), _with_factor(mech, "banded")
+    motors = np.asarray(linkopt.motor_values(mech, rest_state(mech)))
+    rows = motors + np.linspace(0.0, 1.0, 6)[:, None] * np.array([0.5, -0.3])
+    expected = linkopt.solve_fk_path(dense, rows)
+    got = linkopt.solve_fk_path(band, rows)
+    assert np.all(np.asarray(expected.converged))
+    np.testing.assert_array_equal(np.asarray(got.converged), expected.converged)
+    np.testing.assert_allclose(got.state, expected.state, atol=1e-10)
+
+
 def test_banded_sensitivities_match_finite_differences_and_the_dense_path():
     mech = _with_factor(linkopt.load(MECHANISMS / "five_bar.toml"), "banded")
     dense = _with_factor(mech, "dense")
