@@ -23,20 +23,7 @@ VALUES = {"fk": homogenised_motor_values, "bk": homogenised_output_values}
 def _nested(mech, kind, geom, v_from, state, v_to):
     """The walk as nested loops: each step's prediction from fresh normal equations
     at the walk's state, then a whole LM solve."""
-    delta = v_to - v_from
-    span = jnp.maximum(jnp.max(jnp.abs(delta)), continuation.MIN_STEP)
-    largest = jnp.minimum(1.0, continuation.MAX_STEP / span)
-    line = continuation._Line(
-        mech, kind, geom, v_from, delta, continuation.MIN_STEP / span, largest
-    )
-    start = continuation._Walk(
-        fraction=jnp.where(jnp.max(jnp.abs(delta)) > 0, 0.0, 1.0),
-        step=largest,
-        state=state,
-        iterations=jnp.zeros((), dtype=jnp.int32),
-        steps=jnp.zeros((), dtype=jnp.int32),
-        stuck=jnp.zeros((), dtype=bool),
-    )
+    line, start = continuation._line(mech, kind, geom, v_from, state, v_to)
     end = jax.lax.while_loop(
         continuation._going, lambda w: continuation._advance(line, w), start
     )

@@ -269,16 +269,8 @@ def _dense_walk(line: _Line, walk: _Walk, known) -> tuple[_Walk, tuple]:
     return end.walk, end.known
 
 
-def walk(
-    mech: Mechanism, kind: str, geom: Geometry, v_from, state, v_to, known=None
-) -> tuple[Float[Array, " S"], Float[Array, ""], Int[Array, ""], tuple | None]:
-    """From ``state`` (solved at values ``v_from``) towards values ``v_to``, all
-    homogenised and held constant (no derivative flows through the walk): the last
-    state reached on the start's branch, the fraction of the way reached there (1 when
-    the whole way was), the LM iterations taken, and the normal equations at the state
-    reached (``known``, None on the band), which a walk that goes on from there takes
-    as its own ``known`` instead of linearising its start again (a path's next row:
-    :func:`linkopt._engine.kinematics.continue_to`)."""
+def _line(mech: Mechanism, kind: str, geom: Geometry, v_from, state, v_to):
+    """The walk's fixed :class:`_Line` and its first :class:`_Walk`."""
     v_from = jnp.asarray(v_from, dtype=jnp.float64)
     delta = v_to - v_from
     span = jnp.maximum(jnp.max(jnp.abs(delta)), MIN_STEP)
@@ -292,6 +284,20 @@ def walk(
         steps=jnp.zeros((), dtype=jnp.int32),
         stuck=jnp.zeros((), dtype=bool),
     )
+    return line, start
+
+
+def walk(
+    mech: Mechanism, kind: str, geom: Geometry, v_from, state, v_to, known=None
+) -> tuple[Float[Array, " S"], Float[Array, ""], Int[Array, ""], tuple | None]:
+    """From ``state`` (solved at values ``v_from``) towards values ``v_to``, all
+    homogenised and held constant (no derivative flows through the walk): the last
+    state reached on the start's branch, the fraction of the way reached there (1 when
+    the whole way was), the LM iterations taken, and the normal equations at the state
+    reached (``known``, None on the band), which a walk that goes on from there takes
+    as its own ``known`` instead of linearising its start again (a path's next row:
+    :func:`linkopt._engine.kinematics.continue_to`)."""
+    line, start = _line(mech, kind, geom, v_from, state, v_to)
     if banded.serves(mech):
         end = jax.lax.while_loop(_going, lambda w: _advance(line, w), start)
     else:
