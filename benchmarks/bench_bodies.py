@@ -126,7 +126,8 @@ def measure(kind: str, bodies: int, rows: int, repeats: int, dense: bool) -> dic
         "banded_cpu_s": statistics.median(cpu),
         "banded_first_call_s": compile_s["banded"],
     }
-    record["banded_per_iteration_s"] = record["banded_s"] / record["iterations"]
+    if record["iterations"]:  # none where the chord steps leave LM nothing to do
+        record["banded_per_iteration_s"] = record["banded_s"] / record["iterations"]
     if dense:
         record["dense_s"] = statistics.median(times["dense"])
         record["dense_first_call_s"] = compile_s["dense"]
@@ -249,9 +250,9 @@ def keep_last(records: list[dict], key: str) -> list[dict]:
 
 def slope(records: list[dict], key: str, smallest: int = 30) -> float | None:
     """Least-squares slope of ``log(time)`` against ``log(bodies)``, bodies >=
-    ``smallest``."""
+    ``smallest`` (records where ``key`` is missing or zero left out)."""
     pts = [
-        (r["bodies"], r[key]) for r in records if key in r and r["bodies"] >= smallest
+        (r["bodies"], r[key]) for r in records if r.get(key) and r["bodies"] >= smallest
     ]
     if len(pts) < 2:
         return None

@@ -24,6 +24,10 @@ corner) instead.
   (:mod:`linkopt._engine.band_factor`: ``O(B w² 7³)`` work, ``O(B w)`` memory;
   :mod:`linkopt._engine.arrowhead`: plus the Schur complement of the hubs).
 
+:func:`predict`: the continuation's first-order prediction on the band and its chord
+steps (:mod:`linkopt._engine.solvers.chord`), which reuse the prediction's rows and
+factor.
+
 :class:`Banded` is the :mod:`linkopt._engine.solvers.lm` method on this storage; the
 FK/BK solves (:mod:`linkopt._engine.kinematics`) take it where :func:`serves` says so: a
 mechanism of at least :data:`MIN_BODIES` bodies whose band is narrow
@@ -49,6 +53,7 @@ from .body_order import Layout, body_order
 from .constraints import fk_residual, motor_residual
 from .jacobian import row_groups
 from .model import Mechanism
+from .solvers import chord as chord_steps
 
 #: Fewest bodies for which the FK/BK solves take the banded factor by default. Timed
 #: by ``benchmarks/bench_bodies.py`` on lazy tongs and ladders, the two break even
@@ -270,11 +275,53 @@ class Banded:
         return unpermute(where, step), predicted
 
 
-def predict(mech: Mechanism, kind: str, geom, values, state):
-    """:func:`linkopt._engine.continuation.predict` on the band."""
-    _, band, grad = normal_equations(mech, geom, kind, values, state)
-    where = layout(mech, geom, kind)
-    return state - unpermute(where, damped_solve(band, 1e-12, grad))
+def _gradient(groups, residuals, layout: Layout, nb: int) -> Float[Array, "B 7"]:
+    """``Jᵀ r`` in the layout's order for the Jacobian blocks of ``groups`` and a
+    residual ``residuals`` given group by group (each like its group's values)."""
+    grad = jnp.zeros((nb, 7))
+    for group, r in zip(groups, residuals, strict=True):
+        for bodies, jac in group.blocks:
+            grad = grad.at[layout.position[bodies]].add(
+                jnp.einsum("gmi,gm->gi", jac, r)
+            )
+    return grad
+
+
+@partial(jit, static_argnums=(1, 5))
+def predict(mech: Mechanism, kind: str, geom, values, state, chords: int = 0):
+    """``(first, corrected)``: :func:`linkopt._engine.continuation.predict` on the band,
+    and that prediction after at most ``chords`` chord steps
+    (:func:`.solvers.chord.solve`) with the rows and the factor it was made with:
+    ``p ← p - (JᵀJ)⁻¹ Jᵀ C(values, p)``, ``J`` the old state's, each step a residual
+    at the new point (the values of :func:`row_groups` alone; the compiler drops their
+    derivative blocks) and the factor's two scans, where a LM iteration assembles and
+    factors the band anew.
+
+    ``C(values, s + ṡ)`` is ``½ D²C[ṡ, ṡ]`` to third order in the step (``C`` is
+    affine in the values, and the tangent cancels the first-order terms), so the
+    first chord step lands on ``s + ṡ + ½ s̈``, the second-order prediction, and
+    each further one removes another order of the step."""
+    passive, tail, _ = row_groups(mech, geom, kind, values, state)
+    groups = passive + tail
+    where = body_order(mech.num_bodies, _pairs(groups))
+    blocks = _arrow_blocks if where.hubs else _band_blocks
+    band, grad = blocks(groups, where, mech.num_bodies)
+    lower = factor(band, 1e-12)
+    first = state - unpermute(where, cho_solve(lower, grad))
+    if not chords:
+        return first, first
+
+    def residual(p):
+        passive, tail, _ = row_groups(mech, geom, kind, values, p)
+        return [g.values for g in passive + tail]
+
+    def step(r):
+        grad = _gradient(groups, r, where, mech.num_bodies)
+        return unpermute(where, cho_solve(lower, grad))
+
+    return first, chord_steps.solve(
+        residual, step, first, tolerance=mech.solver.tolerance, limit=chords
+    )
 
 
 def tangent(mech: Mechanism, kind: str, geom, values, state, residual, rhs):
