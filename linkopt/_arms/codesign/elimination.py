@@ -29,8 +29,11 @@ Choices where the paper is terse (stated here as the careful-engineer reading):
   Jacobian columns cut. An arm per structure as a static argument compiled the pose
   program again for every candidate and every merged arm (12 programs for the square
   task's 4 → 1 joints). Measured on ``linkopt arm simplify
-  tasks/elimination_square.toml``, cold cache, shared 2-core machine: 12 pose programs,
-  352 s of compilation (load 5-8) → 1 program, 40 s (load 3-6).
+  tasks/elimination_square.toml``, shared 2-core machine, per-arm programs then this,
+  one after the other (load 3.5-4.8): cold cache 101 → 85 XLA programs, 5:55 → 3:09
+  wall, 298 → 218 s CPU; warm cache 1:52 → 1:33 wall, 108 → 90 s CPU (the pose
+  program on the root's larger Jacobians costs no visible time per step). The pose
+  programs' compilation alone, from ``JAX_LOG_COMPILES``: 12 programs, 130 s → 1, 27 s.
 * Algorithm 1 on that task is sensitive to rounding: a 10⁻¹³ change of the start
   configurations moves candidate 3's δ from 0.49 to 4·10⁻⁵ (500 pseudo-inverse steps
   with ``rcond = 10⁻⁸`` on a rank-deficient stack), so the padded program, equal to the
