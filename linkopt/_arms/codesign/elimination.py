@@ -22,11 +22,27 @@ Choices where the paper is terse (stated here as the careful-engineer reading):
 * Step clamps (Sec. V-B): ``|V|`` 0.5 (linear) / 0.05 (angular), ``|Δd'|`` 0.1 / 0.01,
   ``|Δθ|`` 0.05 rad; ``α = 10⁻²``, 500 iterations; the loop also stops when
   ``|d_j| < 10⁻⁴``.
+* One compiled pose program for every step (:func:`pad`): each candidate's segment
+  arm and each merged arm is written over the *root* arm (the task's) as traced data, a
+  :class:`~linkopt._arms.codesign.model.Layout` (which non-joint modules are kept,
+  which joint the free segment follows); dropped joints are held at θ = 0 and their
+  Jacobian columns cut. An arm per structure as a static argument compiled the pose
+  program again for every candidate and every merged arm (12 programs for the square
+  task's 4 → 1 joints). Measured on ``linkopt arm simplify
+  tasks/elimination_square.toml``, shared 2-core machine, per-arm programs then this,
+  one after the other (load 3.5-4.8): cold cache 101 → 85 XLA programs, 5:55 → 3:09
+  wall, 298 → 218 s CPU; warm cache 1:52 → 1:33 wall, 108 → 90 s CPU (the pose
+  program on the root's larger Jacobians costs no visible time per step). The pose
+  programs' compilation alone, from ``JAX_LOG_COMPILES``: 12 programs, 130 s → 1, 27 s.
+* Algorithm 1 on that task is sensitive to rounding: a 10⁻¹³ change of the start
+  configurations moves candidate 3's δ from 0.49 to 4·10⁻⁵ (500 pseudo-inverse steps
+  with ``rcond = 10⁻⁸`` on a rank-deficient stack), so the padded program, equal to the
+  per-arm one to rounding (tested), may pick another candidate there.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 
 import jax
@@ -38,6 +54,8 @@ from ..._engine import rotations as rot
 from . import multistart, nlp
 from .model import (
     Arm,
+    Layout,
+    Lineage,
     Module,
     compose,
     make_arm,
@@ -121,10 +139,15 @@ def _rebuild(
     )
 
 
-def segment_arm(arm: Arm, k: int, d: np.ndarray) -> tuple[Arm, np.ndarray, np.ndarray]:
-    """The arm with the modules between joints ``k`` and ``k+1`` replaced by a free
-    segment; returns it, the indices ``keep`` of ``d'`` in ``d``, and
-    ``d_j = SE3toXYZRPY(T_j)``."""
+def _kept(arm: Arm, inside: range) -> np.ndarray:
+    """Indices of the design variables no module in ``inside`` reads."""
+    used = {i for m in (arm.modules[i] for i in inside) for i, _ in m.slots if i >= 0}
+    return np.array([i for i in range(arm.num_design) if i not in used], dtype=int)
+
+
+def _segment_design(arm: Arm, k: int, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``keep`` (the indices of ``d'`` in ``d``) and ``d_j = SE3toXYZRPY(T_j)`` of
+    candidate ``k``."""
     inside = _between(arm, k)
     frame = (jnp.array([1.0, 0.0, 0.0, 0.0]), jnp.zeros(3))
     for i in inside:
@@ -132,8 +155,16 @@ def segment_arm(arm: Arm, k: int, d: np.ndarray) -> tuple[Arm, np.ndarray, np.nd
     d_j = np.concatenate(
         [np.asarray(frame[1]), rot.np_rpy(np.asarray(rot.matrix(frame[0])))]
     )
-    used = {i for m in (arm.modules[i] for i in inside) for i, _ in m.slots if i >= 0}
-    keep = np.array([i for i in range(arm.num_design) if i not in used], dtype=int)
+    return _kept(arm, inside), d_j
+
+
+def segment_arm(arm: Arm, k: int, d: np.ndarray) -> tuple[Arm, np.ndarray, np.ndarray]:
+    """The arm with the modules between joints ``k`` and ``k+1`` replaced by a free
+    segment; returns it, the indices ``keep`` of ``d'`` in ``d``, and
+    ``d_j = SE3toXYZRPY(T_j)``. (:func:`eliminate` works on :func:`pad`'s form of the
+    same arm, which needs no new program.)"""
+    inside = _between(arm, k)
+    keep, d_j = _segment_design(arm, k, d)
     m_prime = keep.size
     slots = tuple((m_prime + s, 0.0) for s in range(6))
     modules = (
@@ -153,18 +184,84 @@ def merged_arm(arm: Arm, k: int, keep: np.ndarray) -> Arm:
     removed."""
     inside = _between(arm, k)
     modules = list(arm.modules[: inside.start]) + list(arm.modules[inside.stop + 1 :])
-    return _rebuild(
+    merged = _rebuild(
         arm, modules, keep, [], f"{arm.name.split(',')[0]}, {arm.num_joints - 1} joints"
     )
+    line = lineage(arm)
+    places = np.concatenate(
+        [line.modules[: inside.start], line.modules[inside.stop + 1 :]]
+    )
+    return replace(merged, lineage=Lineage(line.root, places, line.design[keep]))
+
+
+def lineage(arm: Arm) -> Lineage:
+    """``arm``'s place in the arm it was reduced from (itself for a task's arm)."""
+    if arm.lineage is not None:
+        return arm.lineage
+    return Lineage(arm, np.arange(len(arm.modules)), np.arange(arm.num_design))
+
+
+@dataclass(frozen=True)
+class Padded:
+    """A reduced arm (``candidate``: with that segment free) written over its root
+    arm's modules (:class:`~linkopt._arms.codesign.model.Layout`): the root's
+    ``θ`` columns of its joints ``(n,)`` and the ``[d_root, segment]`` columns of its
+    design variables (``(m,)``, then the segment's six)."""
+
+    root: Arm
+    layout: Layout
+    joints: np.ndarray  # (n,)
+    design: np.ndarray  # (m,) or (m' + 6,)
+    base: np.ndarray = field(repr=False)  # (m_root + 6,) values of unused columns
+
+    def theta(self, theta: np.ndarray) -> np.ndarray:
+        """``θ`` rows ``(..., n)`` as the root's ``(..., n_root)``, dropped joints 0."""
+        full = np.zeros(theta.shape[:-1] + (self.root.num_joints,))
+        full[..., self.joints] = theta
+        return full
+
+    def d(self, d: np.ndarray) -> np.ndarray:
+        """The arm's design ``(len(design),)`` as ``[d_root, segment]``."""
+        full = self.base.copy()
+        full[self.design] = d
+        return full
+
+
+def pad(arm: Arm, d: np.ndarray, candidate: int | None = None) -> Padded:
+    """``arm`` over its root's modules; with a ``candidate`` ``k`` the modules between
+    joints ``k`` and ``k+1`` are dropped and the free segment follows joint ``k``.
+
+    ``d`` (the arm's design) fills the root columns the result does not expose: the
+    variables of the dropped modules, whose transforms are masked out. (A task file
+    gives every slot its own variable, so no kept module reads them.)
+    """
+    line = lineage(arm)
+    root = line.root
+    present = np.zeros(len(root.modules), dtype=bool)
+    present[line.modules] = True
+    segment = np.zeros(len(root.modules), dtype=bool)
+    design = line.design
+    if candidate is not None:
+        inside = _between(arm, candidate)
+        present[line.modules[inside.start : inside.stop]] = False
+        segment[line.modules[arm.joint_modules[candidate]]] = True
+        keep = _kept(arm, inside)
+        m = root.num_design
+        design = np.concatenate([line.design[keep], np.arange(m, m + 6)])
+    base = np.concatenate([root.d0, np.zeros(6)])
+    base[line.design] = np.asarray(d, float)
+    joints = np.searchsorted(root.joint_modules, line.modules[arm.joint_modules])
+    return Padded(root, Layout(present, segment), joints, design, base)
 
 
 @partial(jit, static_argnums=0)
-def _poses(arm: Arm, theta, d):
+def _root_poses(root: Arm, layout: Layout, theta, d):
     """Tool positions ``(n_T, 3)``, rotations ``(n_T, 3, 3)`` and the eq. 12 blocks
-    ``[ṗ; ω]`` per target: ``(n_T, 6, n)`` in θ and ``(n_T, 6, m)`` in d."""
+    ``[ṗ; ω]`` per target: ``(n_T, 6, n)`` in θ and ``(n_T, 6, m)`` in d, of the arm
+    ``layout`` describes on ``root`` (compiled once per root arm and target count)."""
 
     def pose(th, dd):
-        tip, rot, _, _ = tool_pose(arm, th, dd)
+        tip, rot, _, _ = tool_pose(root, th, dd, layout)
         return tip, rot
 
     def blocks(th, dd):
@@ -179,6 +276,21 @@ def _poses(arm: Arm, theta, d):
         return tip, rot, twist(dp[0], dr[0]), twist(dp[1], dr[1])
 
     return jax.vmap(blocks, in_axes=(0, None))(theta, d)
+
+
+def _poses(padded: Padded, theta: np.ndarray, d: np.ndarray):
+    """:func:`_root_poses` of the padded arm, Jacobians cut to its ``(θ, d)`` columns
+    (numpy)."""
+    tip, rot, j_theta, j_d = (
+        np.asarray(a)
+        for a in _root_poses(
+            padded.root,
+            Layout(*(jnp.asarray(a) for a in padded.layout)),
+            jnp.asarray(padded.theta(np.asarray(theta, float))),
+            jnp.asarray(padded.d(np.asarray(d, float))),
+        )
+    )
+    return tip, rot, j_theta[..., padded.joints], j_d[..., padded.design]
 
 
 def _target_velocity(problem: nlp.Problem, tip, rot, settings: EliminationSettings):
@@ -216,9 +328,7 @@ def delta_error(
 ) -> float:
     """``δ = Σ |p_T - p_fk|² + (1 - n̂_fk · n̂_T)`` over the targets (line 22; the tip
     term only where a tip axis is given)."""
-    tip, rot, _, _ = (
-        np.asarray(a) for a in _poses(arm, jnp.asarray(theta), jnp.asarray(d))
-    )
+    tip, rot, _, _ = _poses(pad(arm, d), theta, d)
     position = np.sum((problem.target_position - tip) ** 2)
     axis = np.sum(
         problem.rows[:, 1] * (1.0 - np.sum(rot[:, :, 2] * problem.target_axis, axis=1))
@@ -236,21 +346,17 @@ def eliminate(
     """Algorithm 1 for candidate ``k`` from the configurations at the targets
     ``(n_T, n)``."""
     arm = problem.arm
-    seg, keep, d_j = segment_arm(arm, k, d)
+    keep, d_j = _segment_design(arm, k, d)
+    padded = pad(arm, d, k)
     d_prime = np.asarray(d, float)[keep].copy()
     theta = np.asarray(theta_targets, float).copy()
     n_t, n = theta.shape
     lin_d = np.where(
-        seg.is_length[: keep.size], settings.clamp_design[0], settings.clamp_design[1]
+        arm.is_length[keep], settings.clamp_design[0], settings.clamp_design[1]
     )
     iteration = 0
     while iteration < settings.iterations and np.linalg.norm(d_j) > settings.threshold:
-        tip, rot, j_theta, j_d = (
-            np.asarray(a)
-            for a in _poses(
-                seg, jnp.asarray(theta), jnp.asarray(np.concatenate([d_prime, d_j]))
-            )
-        )
+        tip, rot, j_theta, j_d = _poses(padded, theta, np.concatenate([d_prime, d_j]))
         v, proj = _target_velocity(problem, tip, rot, settings)
         stack = np.zeros((n_t, 6, n_t * n + keep.size))
         for i in range(n_t):

@@ -28,11 +28,18 @@ maximal-coordinate state of joint angles ``θ`` directly (a serial chain needs n
 attached to ``θ`` and ``d`` by the engine's implicit-function tangent, so every
 derivative of a state quantity comes from the engine's constraint Jacobian
 (:mod:`linkopt._engine.jacobian`).
+
+Joint elimination's reduced arms keep a :class:`Lineage` (where their modules and
+design variables sit in the task's arm) and can be written over that root arm as a
+traced :class:`Layout`: :func:`chain` masks the dropped modules to the identity and
+inserts the free segment, so one compiled program of the root's engine model serves
+every reduced arm (:mod:`linkopt._arms.codesign.elimination`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import jax.numpy as jnp
 import numpy as np
@@ -68,6 +75,29 @@ class Module:
 
 
 @dataclass(frozen=True, eq=False)
+class Lineage:
+    """Where a reduced arm's parts sit in the arm it was reduced from (joint
+    elimination, :mod:`~linkopt._arms.codesign.elimination`): ``root`` the first arm,
+    ``modules`` the root index of every module ``(K,)``, ``design`` the root index of
+    every design variable ``(m,)``."""
+
+    root: Arm
+    modules: np.ndarray  # (K,)
+    design: np.ndarray  # (m,)
+
+
+class Layout(NamedTuple):
+    """A reduced arm written over its root's modules, as traced data (so one compiled
+    program serves every reduction): ``present`` ``(K,)`` whether each non-joint module
+    is kept (a dropped one is the identity; a dropped joint is held at θ = 0 by the
+    caller), ``segment`` ``(K,)`` where a free ``segment`` transform follows (at most
+    one ``True``), its six parameters the last six entries of ``d``."""
+
+    present: Array  # (K,) bool
+    segment: Array  # (K,) bool
+
+
+@dataclass(frozen=True, eq=False)
 class Arm:
     """A serial arm: modules, design space ``d`` (``m`` entries) and actuator data.
 
@@ -86,6 +116,7 @@ class Arm:
     torque_limit: float
     radius: float
     mechanism: Mechanism
+    lineage: Lineage | None = None  # set on the arms joint elimination makes
 
     @property
     def num_joints(self) -> int:
@@ -147,21 +178,48 @@ def module_transform(module: Module, d, theta=None) -> Frame:
     )
 
 
+def _identity() -> Frame:
+    return jnp.array([1.0, 0.0, 0.0, 0.0]), jnp.zeros(3)
+
+
+def _select(flag, frame: Frame) -> Frame:
+    """``frame`` where ``flag``, else the identity."""
+    identity = _identity()
+    return jnp.where(flag, frame[0], identity[0]), jnp.where(
+        flag, frame[1], identity[1]
+    )
+
+
 def chain(
-    arm_modules: tuple[Module, ...], theta: Float[Array, " n"], d: Float[Array, " m"]
+    arm_modules: tuple[Module, ...],
+    theta: Float[Array, " n"],
+    d: Float[Array, " m"],
+    layout: Layout | None = None,
 ) -> tuple[list[Frame], list[Frame]]:
     """World frames after every module ``(K,)`` and at every joint *before* its rotation
-    ``(n,)``."""
-    frame: Frame = (jnp.array([1.0, 0.0, 0.0, 0.0]), jnp.zeros(3))
+    ``(n,)``; with a ``layout`` (:class:`Layout`), those of the reduced arm it
+    describes, ``d`` ending in the segment's six parameters."""
+    frame: Frame = _identity()
     ends, joints = [], []
     k = 0
-    for module in arm_modules:
+    if layout is not None:
+        m = d.shape[0] - 6
+        free = module_transform(
+            Module("segment", tuple((m + s, 0.0) for s in range(6)), 0.0), d
+        )
+    for i, module in enumerate(arm_modules):
         if module.kind == "joint":
             joints.append(frame)
             frame = compose(frame, module_transform(module, d, theta[k]))
             k += 1
-        else:
+        elif layout is None:
             frame = compose(frame, module_transform(module, d))
+        else:
+            frame = compose(
+                frame, _select(layout.present[i], module_transform(module, d))
+            )
+        if layout is not None:
+            frame = compose(frame, _select(layout.segment[i], free))
         ends.append(frame)
     return ends, joints
 
@@ -171,9 +229,11 @@ def module_bodies(arm_modules: tuple[Module, ...]) -> np.ndarray:
     return np.cumsum([m.kind == "joint" for m in arm_modules]).astype(int)
 
 
-def tool_rotation(arm: Arm, theta, d) -> Float[Array, "3 3"]:
+def tool_rotation(
+    arm: Arm, theta, d, layout: Layout | None = None
+) -> Float[Array, "3 3"]:
     """End-effector orientation ``R_fk`` (columns: tool x, y, z = tip axis)."""
-    ends, _ = chain(arm.modules, theta, d)
+    ends, _ = chain(arm.modules, theta, d, layout)
     return rot.matrix(ends[-1][0])
 
 
@@ -282,13 +342,15 @@ def make_arm(
     )
 
 
-def arm_geometry(arm: Arm, d: Float[Array, " m"]) -> Geometry:
+def arm_geometry(
+    arm: Arm, d: Float[Array, " m"], layout: Layout | None = None
+) -> Geometry:
     """Engine geometry of design ``d`` (homogenised): joint anchors/axes at θ = 0,
     helper axes along each joint frame's x (⟂ to the axis and smooth in ``d``),
     module-end points."""
     mech = arm.mechanism
     n = arm.num_joints
-    ends, joints = chain(arm.modules, jnp.zeros(n), d)
+    ends, joints = chain(arm.modules, jnp.zeros(n), d, layout)
     rotations = jnp.stack([rot.matrix(q) for q, _ in joints])
     points = jnp.stack([p for _, p in ends] + [ends[-1][1]])
     scale = mech.length_scale
@@ -303,7 +365,10 @@ def arm_geometry(arm: Arm, d: Float[Array, " m"]) -> Geometry:
 
 
 def direct_state(
-    arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]
+    arm: Arm,
+    theta: Float[Array, " n"],
+    d: Float[Array, " m"],
+    layout: Layout | None = None,
 ) -> Float[Array, " S"]:
     """Maximal-coordinate state of joint angles ``θ`` (homogenised), by the chain
     product.
@@ -314,8 +379,8 @@ def direct_state(
     """
     mech = arm.mechanism
     scale = mech.length_scale
-    _, moved = chain(arm.modules, theta, d)
-    _, rest = chain(arm.modules, jnp.zeros_like(theta), d)
+    _, moved = chain(arm.modules, theta, d, layout)
+    _, rest = chain(arm.modules, jnp.zeros_like(theta), d, layout)
     origins = jnp.asarray(mech.body_origins)
     z = jnp.array([0.0, 0.0, 1.0])
     rotations = [
@@ -331,12 +396,15 @@ def direct_state(
 
 
 def arm_state(
-    arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]
+    arm: Arm,
+    theta: Float[Array, " n"],
+    d: Float[Array, " m"],
+    layout: Layout | None = None,
 ) -> tuple[Geometry, Float[Array, " S"]]:
     """``(geometry, state)`` of ``(θ, d)``; the state's derivatives are the engine's
     implicit-function tangents ``ṡ = -(JᵀJ)⁻¹Jᵀ(∂C/∂a ȧ + ∂C/∂p ṗ)`` of ``C_FK``."""
-    geom = arm_geometry(arm, d)
-    state = direct_state(arm, theta, d)
+    geom = arm_geometry(arm, d, layout)
+    state = direct_state(arm, theta, d, layout)
     return geom, implicit_state("fk", arm.mechanism, geom, theta, state)
 
 
@@ -359,18 +427,22 @@ def arm_loads(
 
 
 def tool_pose(
-    arm: Arm, theta: Float[Array, " n"], d: Float[Array, " m"]
+    arm: Arm,
+    theta: Float[Array, " n"],
+    d: Float[Array, " m"],
+    layout: Layout | None = None,
 ) -> tuple[Float[Array, 3], Float[Array, "3 3"], Geometry, Float[Array, " S"]]:
     """``FK(θ, d) = (p_fk, R_fk)`` read off the engine state (Sec. III-B), plus geometry
     and state.
 
     ``p_fk`` is the ``tip`` point; ``R_fk = R(q_last) R_fk(0, d)``, the last body's
     rotation applied to the tool's rest orientation (bodies are at identity orientation
-    at rest).
+    at rest). With a ``layout``, the reduced arm it describes on ``arm``'s engine model
+    (:class:`Layout`).
     """
-    geom, state = arm_state(arm, theta, d)
+    geom, state = arm_state(arm, theta, d, layout)
     mech = arm.mechanism
     tip = homogenised_point_positions(mech, geom, state)[-1] * mech.length_scale
     q_last = state.reshape(-1, 7)[-1, 3:]
-    rest = tool_rotation(arm, jnp.zeros_like(theta), d)
+    rest = tool_rotation(arm, jnp.zeros_like(theta), d, layout)
     return tip, rot.matrix(q_last) @ rest, geom, state
