@@ -119,7 +119,7 @@ def test_padded_poses_match_the_reduced_arms(case):
         tip, rot, dp_t, dp_d, dr_t, dr_d = _reference_poses(
             arm, jnp.asarray(theta[: arm.num_joints]), jnp.asarray(d)
         )
-        got_tip, got_rot, j_theta, j_d = elim._poses(
+        got_tip, got_rot, j_theta, j_d = elim.poses(
             padded, theta[None, : arm.num_joints], d
         )
         np.testing.assert_allclose(got_tip[0], tip, atol=1e-12)
@@ -143,10 +143,10 @@ def test_elimination_steps_share_one_program(case):
     problem, d0 = case
     settings = elim.EliminationSettings(iterations=3)
     first = elim.eliminate(problem, POSES, d0, 0, settings)
-    programs = elim._root_poses._tuned._cache_size()
+    programs = elim.root_poses._tuned._cache_size()
     second = elim.eliminate(problem, POSES, d0, 1, settings)
     reduced = replace(problem, arm=second.arm)
     third = elim.eliminate(reduced, second.theta, second.design, 0, settings)
     assert third.arm.num_joints == 1 and third.theta.shape == (2, 1)
     assert first.arm is not second.arm  # distinct structures, one program
-    assert elim._root_poses._tuned._cache_size() == programs
+    assert elim.root_poses._tuned._cache_size() == programs

@@ -1,7 +1,7 @@
 """The dense continuation's one loop of linearisations
 (:func:`linkopt._engine.continuation.walk`) against the nested walk it replaced (a
 step loop around each corrector's own LM loop,
-:func:`~linkopt._engine.continuation._advance`, which the band keeps), and the number
+:func:`~linkopt._engine.continuation.nested_walk`, which the band keeps), and the number
 of linearisations its programs hold."""
 
 import jax
@@ -18,16 +18,6 @@ from linkopt._engine.constraints import (
 from linkopt._engine.geometry import design_vector, geometry, rest_state
 
 VALUES = {"fk": homogenised_motor_values, "bk": homogenised_output_values}
-
-
-def _nested(mech, kind, geom, v_from, state, v_to):
-    """The walk as nested loops: each step's prediction from fresh normal equations
-    at the walk's state, then a whole LM solve."""
-    line, start = continuation._line(mech, kind, geom, v_from, state, v_to)
-    end = jax.lax.while_loop(
-        continuation._going, lambda w: continuation._advance(line, w), start
-    )
-    return end.state, end.fraction, end.iterations
 
 
 @pytest.mark.parametrize(
@@ -50,7 +40,7 @@ def test_the_one_loop_walk_takes_the_nested_walks_steps(name, kind, span):
 
     def both(geom, v0, state, v):  # all traced: the engine's programs nest in it
         fused = continuation.walk(mech, kind, geom, v0, state, v)[:3]
-        return fused, _nested(mech, kind, geom, v0, state, v)
+        return fused, continuation.nested_walk(mech, kind, geom, v0, state, v)
 
     batch = jax.vmap(both, in_axes=(None, None, None, 0))
     (state, fraction, iterations), nested = jax.jit(batch)(geom, v0, state, rows)
@@ -82,12 +72,6 @@ def test_a_walk_program_holds_the_linearisation_twice(five_bar, path):
     the start, each corrector's first point and its steps); a path's rows take their
     start from the row before, so its loop holds one too."""
     rows = np.zeros((4, five_bar.num_motors)) + 0.1
-    if path:
-        program = lambda v: kinematics._solve_path(  # noqa: E731
-            five_bar, "fk", v, rest_state(five_bar), None
-        )
-    else:
-        program = lambda v: kinematics.solve_batch_from_rest(  # noqa: E731
-            five_bar, "fk", v, None
-        )
+    solve = kinematics.solve_fk_path if path else kinematics.solve_fk
+    program = lambda v: solve(five_bar, v)  # noqa: E731  (traced: one program)
     assert _linearisations(jax.make_jaxpr(program)(rows).jaxpr) == 2

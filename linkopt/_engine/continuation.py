@@ -206,7 +206,7 @@ def _advance(line: _Line, walk: _Walk) -> _Walk:
         predicted, start = banded.predict(
             line.mech, line.kind, line.geom, values, walk.state, chord.LIMIT
         )
-    else:  # the nested walk on the dense path, for tests (the dense walk is one loop)
+    else:  # the nested walk on the dense path: nested_walk's, a test's reference
         predicted = start = predict(line.mech, line.kind, line.geom, values, walk.state)
     result = corrector(line.mech, line.kind, line.geom, values, start)
     residual = result.linearisation[0]
@@ -317,9 +317,19 @@ def walk(
     reached (``known``, None on the band), which a walk that goes on from there takes
     as its own ``known`` instead of linearising its start again (a path's next row:
     :func:`linkopt._engine.kinematics.continue_to`)."""
-    line, start = _line(mech, kind, geom, v_from, state, v_to)
     if banded.serves(mech):
-        end = jax.lax.while_loop(_going, lambda w: _advance(line, w), start)
-    else:
-        end, known = _dense_walk(line, start, known)
+        return (*nested_walk(mech, kind, geom, v_from, state, v_to), None)
+    line, start = _line(mech, kind, geom, v_from, state, v_to)
+    end, known = _dense_walk(line, start, known)
     return end.state, end.fraction, end.iterations, known
+
+
+def nested_walk(
+    mech: Mechanism, kind: str, geom: Geometry, v_from, state, v_to
+) -> tuple[Float[Array, " S"], Float[Array, ""], Int[Array, ""]]:
+    """:func:`walk` as a loop of steps around each corrector's own LM loop, each step
+    predicted afresh (:func:`_advance`): the band's walk, and on the dense path the
+    reference the one loop is tested against (``tests/test_continuation_walk.py``)."""
+    line, start = _line(mech, kind, geom, v_from, state, v_to)
+    end = jax.lax.while_loop(_going, lambda w: _advance(line, w), start)
+    return end.state, end.fraction, end.iterations

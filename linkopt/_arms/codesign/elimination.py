@@ -255,7 +255,7 @@ def pad(arm: Arm, d: np.ndarray, candidate: int | None = None) -> Padded:
 
 
 @partial(jit, static_argnums=0)
-def _root_poses(root: Arm, layout: Layout, theta, d):
+def root_poses(root: Arm, layout: Layout, theta, d):
     """Tool positions ``(n_T, 3)``, rotations ``(n_T, 3, 3)`` and the eq. 12 blocks
     ``[ṗ; ω]`` per target: ``(n_T, 6, n)`` in θ and ``(n_T, 6, m)`` in d, of the arm
     ``layout`` describes on ``root`` (compiled once per root arm and target count)."""
@@ -278,12 +278,12 @@ def _root_poses(root: Arm, layout: Layout, theta, d):
     return jax.vmap(blocks, in_axes=(0, None))(theta, d)
 
 
-def _poses(padded: Padded, theta: np.ndarray, d: np.ndarray):
-    """:func:`_root_poses` of the padded arm, Jacobians cut to its ``(θ, d)`` columns
+def poses(padded: Padded, theta: np.ndarray, d: np.ndarray):
+    """:func:`root_poses` of the padded arm, Jacobians cut to its ``(θ, d)`` columns
     (numpy)."""
     tip, rot, j_theta, j_d = (
         np.asarray(a)
-        for a in _root_poses(
+        for a in root_poses(
             padded.root,
             Layout(*(jnp.asarray(a) for a in padded.layout)),
             jnp.asarray(padded.theta(np.asarray(theta, float))),
@@ -328,7 +328,7 @@ def delta_error(
 ) -> float:
     """``δ = Σ |p_T - p_fk|² + (1 - n̂_fk · n̂_T)`` over the targets (line 22; the tip
     term only where a tip axis is given)."""
-    tip, rot, _, _ = _poses(pad(arm, d), theta, d)
+    tip, rot, _, _ = poses(pad(arm, d), theta, d)
     position = np.sum((problem.target_position - tip) ** 2)
     axis = np.sum(
         problem.rows[:, 1] * (1.0 - np.sum(rot[:, :, 2] * problem.target_axis, axis=1))
@@ -356,7 +356,7 @@ def eliminate(
     )
     iteration = 0
     while iteration < settings.iterations and np.linalg.norm(d_j) > settings.threshold:
-        tip, rot, j_theta, j_d = _poses(padded, theta, np.concatenate([d_prime, d_j]))
+        tip, rot, j_theta, j_d = poses(padded, theta, np.concatenate([d_prime, d_j]))
         v, proj = _target_velocity(problem, tip, rot, settings)
         stack = np.zeros((n_t, 6, n_t * n + keep.size))
         for i in range(n_t):

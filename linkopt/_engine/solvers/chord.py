@@ -29,6 +29,8 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
+from ... import _config  # noqa: F401  (float64 on before any array)
+
 #: Most chord steps per continuation step.
 LIMIT = 8
 #: A chord step must shrink ``max |C|`` at least this much for the next one to run.
