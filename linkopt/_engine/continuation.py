@@ -10,35 +10,37 @@ accepted when the corrector converges near the prediction (within
 from another one, and then doubles; it halves otherwise, and the walk is stuck below
 ``MIN_STEP``.
 
-On the dense path the walk is **one loop of linearisations** (:func:`_dense_walk`):
-every pass solves one damped system and linearises once at the point it gives, either
-a step's prediction (the last accepted linearisation's normal equations, with the
-motor or output rows moved by the values' change: :func:`predict_from`) or the
-corrector's next Levenberg–Marquardt trial (:func:`.solvers.lm.update`). Nested (a
-walk loop around the corrector's own loop, as on the band), the program held the
-linearisation three times (the walk's start, the corrector's first point, its steps)
-and a vmapped chunk ran each step's corrector until its slowest lane was done; here a
-lane that has finished its corrector starts its next step while others still correct,
-and the program holds the linearisation twice (the walk's start, the loop). Each lane
-does the same arithmetic as the nested loops, in the same order.
+On the dense path each step's prediction reuses the last accepted step's normal
+equations, with the motor or output rows moved by the values' change
+(:func:`predict_from`): no linearisation per prediction. A walk returns the normal
+equations at the state it reached, and a walk that goes on from there (a path's next
+row) starts from them instead of linearising its start again.
 
-On the band (:mod:`.banded`, long linkages) the walk keeps the nested loops
-(:func:`_advance`): its prediction linearises afresh (:func:`.banded.predict`), and is
-followed by chord steps with the rows and factor it was made with
-(:mod:`.solvers.chord`) before the LM corrector. A long linkage's lever arm grows the
-prediction's error, and with it the LM iterations, each a new band assembly and
-factor; a chord step costs a residual and two scans. ``benchmarks/bench_bodies.py``'s
-rows (SPAN 0.05 rad, 16 rows, CPU per solve, against the walk without them in one
-process, load 6-7): ladder of 300 bodies 27.9 -> 7.1 ms (LM iterations per solve 6.06
--> 0), lazy tongs of 100 bodies 5.3 -> 1.3 ms (8.06 -> 0). On the dense path (five-bar,
-Jansen leg, ±0.3 rad from rest) the same steps cut the LM iterations (4.1 -> 1.0 per
-solve) but not the time (a chord step there cost about what the LM iteration it saved
-did), so the dense walk has none. ``Solution.iterations`` counts LM iterations, not
-chord steps.
+One loop of linearisations instead of the nested loops (each pass a step's prediction
+or the corrector's next trial) was measured on 2026-12-07 and not kept: the program
+held the linearisation twice instead of three times (five-bar from rest 3,004 -> 2,402
+jaxpr equations), but every pass selected between the carried normal equations and the
+corrector's (``JᵀJ``-sized selects, several per pass where the nested loops make about
+one per iteration), and ``benchmarks/bench_kinematics.py --wide-only`` ran 0.86x
+(five-bar) and 0.75x (Jansen leg) as fast, idle, alternating.
+
+On the band (:mod:`.banded`, long linkages) the prediction linearises afresh
+(:func:`.banded.predict`), and is followed by chord steps with the rows and factor it
+was made with (:mod:`.solvers.chord`) before the LM corrector. A long linkage's lever
+arm grows the prediction's error, and with it the LM iterations, each a new band
+assembly and factor; a chord step costs a residual and two scans.
+``benchmarks/bench_bodies.py``'s rows (SPAN 0.05 rad, 16 rows, CPU per solve, against
+the walk without them in one process, load 6-7): ladder of 300 bodies 27.9 -> 7.1 ms (LM
+iterations per solve 6.06 -> 0), lazy tongs of 100 bodies 5.3 -> 1.3 ms (8.06 -> 0). On
+the dense path (five-bar, Jansen leg, ±0.3 rad from rest) the same steps cut the LM
+iterations (4.1 -> 1.0 per solve) but not the time (a chord step there cost about what
+the LM iteration it saved did), so the dense walk has none. ``Solution.iterations``
+counts LM iterations, not chord steps.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import jax
@@ -153,6 +155,9 @@ class _Walk:
     iterations: Int[Array, ""]
     steps: Int[Array, ""]
     stuck: Bool[Array, ""]
+    #: the dense solves' ``(C, (JᵀJ, JᵀC, J_tail))`` at ``state`` and the values
+    #: reached (:func:`predict_from`); None on the band and in :func:`nested_walk`
+    known: object = None
 
 
 @dataclass(frozen=True)
@@ -195,98 +200,41 @@ def _going(walk: _Walk) -> Bool[Array, ""]:
 
 
 def _advance(line: _Line, walk: _Walk) -> _Walk:
-    """One predictor-corrector step of the band's nested walk: the first-order
-    prediction, at most ``chord.LIMIT`` chord steps from it (:func:`.banded.predict`;
-    the limit read when the walk is traced), the
-    LM corrector from there; the acceptance test measures the corrector's move from
-    the first-order prediction (module docstring)."""
+    """One predictor-corrector step: on the band the first-order prediction and at
+    most ``chord.LIMIT`` chord steps from it (:func:`.banded.predict`; the limit read
+    when the walk is traced); on the dense path the prediction from the carried normal
+    equations (:func:`predict_from`), or made afresh (:func:`predict`) where the walk
+    carries none; then the LM corrector. The acceptance test measures the corrector's
+    move from the first-order prediction (module docstring)."""
     target = jnp.minimum(walk.fraction + walk.step, 1.0)
     values = line.values(target)
-    if banded.serves(line.mech):
+    mech, kind, geom = line.mech, line.kind, line.geom
+    if banded.serves(mech):
         predicted, start = banded.predict(
-            line.mech, line.kind, line.geom, values, walk.state, chord.LIMIT
+            mech, kind, geom, values, walk.state, chord.LIMIT
         )
-    else:  # the nested walk on the dense path: nested_walk's, a test's reference
-        predicted = start = predict(line.mech, line.kind, line.geom, values, walk.state)
-    result = corrector(line.mech, line.kind, line.geom, values, start)
-    residual = result.linearisation[0]
-    return _judged(
-        line, walk, target, predicted, result.x, residual, result.iterations
-    )[0]
-
-
-@jax.tree_util.register_dataclass
-@dataclass(frozen=True)
-class _Pass:
-    """The dense walk's carry: the walk, the normal equations ``known`` at its state
-    (``(C, (JᵀJ, JᵀC, J_tail))``), and the step in progress: its ``target`` fraction,
-    ``predicted`` state and corrector; ``fresh`` when the next pass starts a step."""
-
-    walk: _Walk
-    known: tuple
-    target: Float[Array, ""]
-    predicted: Float[Array, " S"]
-    corrector: lm.LMState
-    fresh: Bool[Array, ""]
-
-
-def _dense_pass(line: _Line, p: _Pass) -> _Pass:
-    """One damped solve and one linearisation: a new step's prediction where
-    ``fresh``, else the corrector's next trial; then, where the corrector has
-    finished, the walk's verdict on the step."""
-    settings = line.mech.solver
-    walk, fresh, c = p.walk, p.fresh, p.corrector
-    target = jnp.where(fresh, jnp.minimum(walk.fraction + walk.step, 1.0), p.target)
-    values = line.values(target)
-    hessian = jnp.where(fresh, p.known[1][0], c.model[0])
-    gradient = jnp.where(
-        fresh, _moved_gradient(p.known, values - line.values(walk.fraction)), c.model[1]
+    elif walk.known is None:
+        predicted = start = predict(mech, kind, geom, values, walk.state)
+    else:
+        change = values - line.values(walk.fraction)
+        predicted = start = predict_from(walk.state, walk.known, change)
+    carried = walk.known is not None
+    result = corrector(mech, kind, geom, values, start, with_tail=carried)
+    judged, ok = _judged(
+        line,
+        walk,
+        target,
+        predicted,
+        result.x,
+        result.linearisation[0],
+        result.iterations,
     )
-    damping = jnp.where(fresh, PREDICTION_DAMPING, c.damping)
-    delta, decrease = lm.normal_step(hessian, gradient, damping)
-    trial = jnp.where(fresh, walk.state, c.x) + delta
-    residual, *model = jacobian.normal_equations_tail(
-        line.mech, line.geom, line.kind, values, trial
+    if not carried:
+        return judged
+    known = jax.tree.map(
+        lambda new, old: jnp.where(ok, new, old), result.linearisation, walk.known
     )
-    model = tuple(model)
-    started = lm.initial_state(trial, residual, model, settings.initial_damping)
-    stepped = lm.update(c, trial, delta, decrease, residual, model)
-    c = jax.tree.map(lambda a, b: jnp.where(fresh, a, b), started, stepped)
-    predicted = jnp.where(fresh, trial, p.predicted)
-    done = lm.finished(c, settings.tolerance, settings.max_iterations)
-    judged, ok = _judged(line, walk, target, predicted, c.x, c.residual, c.iteration)
-    keep = ok & done
-    return _Pass(
-        walk=jax.tree.map(lambda a, b: jnp.where(done, a, b), judged, walk),
-        known=jax.tree.map(
-            lambda a, b: jnp.where(keep, a, b), (c.residual, c.model), p.known
-        ),
-        target=target,
-        predicted=predicted,
-        corrector=c,
-        fresh=done,
-    )
-
-
-def _dense_walk(line: _Line, walk: _Walk, known) -> tuple[_Walk, tuple]:
-    if known is None:
-        known = start_linearisation(
-            line.mech, line.kind, line.geom, line.v_from, walk.state
-        )
-    start = _Pass(
-        walk=walk,
-        known=known,
-        target=walk.fraction,
-        predicted=walk.state,
-        corrector=lm.initial_state(
-            walk.state, known[0], known[1], line.mech.solver.initial_damping
-        ),
-        fresh=jnp.asarray(True),
-    )
-    end = jax.lax.while_loop(
-        lambda p: ~p.fresh | _going(p.walk), lambda p: _dense_pass(line, p), start
-    )
-    return end.walk, end.known
+    return dataclasses.replace(judged, known=known)
 
 
 def _line(mech: Mechanism, kind: str, geom: Geometry, v_from, state, v_to):
@@ -317,19 +265,21 @@ def walk(
     reached (``known``, None on the band), which a walk that goes on from there takes
     as its own ``known`` instead of linearising its start again (a path's next row:
     :func:`linkopt._engine.kinematics.continue_to`)."""
-    if banded.serves(mech):
-        return (*nested_walk(mech, kind, geom, v_from, state, v_to), None)
     line, start = _line(mech, kind, geom, v_from, state, v_to)
-    end, known = _dense_walk(line, start, known)
-    return end.state, end.fraction, end.iterations, known
+    if not banded.serves(mech):
+        if known is None:
+            known = start_linearisation(mech, kind, geom, line.v_from, state)
+        start = dataclasses.replace(start, known=known)
+    end = jax.lax.while_loop(_going, lambda w: _advance(line, w), start)
+    return end.state, end.fraction, end.iterations, end.known
 
 
 def nested_walk(
     mech: Mechanism, kind: str, geom: Geometry, v_from, state, v_to
 ) -> tuple[Float[Array, " S"], Float[Array, ""], Int[Array, ""]]:
-    """:func:`walk` as a loop of steps around each corrector's own LM loop, each step
-    predicted afresh (:func:`_advance`): the band's walk, and on the dense path the
-    reference the one loop is tested against (``tests/test_continuation_walk.py``)."""
+    """:func:`walk` with every step predicted afresh (:func:`predict`, no normal
+    equations carried): on the dense path the reference the carried predictions are
+    tested against (``tests/test_continuation_walk.py``)."""
     line, start = _line(mech, kind, geom, v_from, state, v_to)
     end = jax.lax.while_loop(_going, lambda w: _advance(line, w), start)
     return end.state, end.fraction, end.iterations
