@@ -228,14 +228,6 @@ def update(state: LMState, trial, delta, predicted, new_residual, new_model) -> 
     )
 
 
-def finished(state: LMState, tolerance: float, max_iterations) -> Bool[Array, ""]:
-    """Whether the loop stops at ``state`` (:func:`.driver.stopped` of
-    :class:`LevenbergMarquardt`, for a caller that runs its steps in a loop of its
-    own)."""
-    converged = jnp.max(jnp.abs(state.residual)) <= tolerance
-    return converged | state.stalled | (state.iteration >= max_iterations)
-
-
 def solve(
     method: Method,
     x0,
