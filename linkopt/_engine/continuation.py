@@ -16,13 +16,15 @@ equations, with the motor or output rows moved by the values' change
 equations at the state it reached, and a walk that goes on from there (a path's next
 row) starts from them instead of linearising its start again.
 
-One loop of linearisations instead of the nested loops (each pass a step's prediction
-or the corrector's next trial) was measured on 2026-12-07 and not kept: the program
-held the linearisation twice instead of three times (five-bar from rest 3,004 -> 2,402
-jaxpr equations), but every pass selected between the carried normal equations and the
+One loop of linearisations instead of the nested loops (each pass a step's prediction or
+the corrector's next trial) was measured on 2026-12-07 and not kept: the program held
+the linearisation twice instead of three times (five-bar from rest 3,004 -> 2,402 jaxpr
+equations), but every pass selected between the carried normal equations and the
 corrector's (``JᵀJ``-sized selects, several per pass where the nested loops make about
-one per iteration), and ``benchmarks/bench_kinematics.py --wide-only`` ran 0.86x
-(five-bar) and 0.75x (Jansen leg) as fast, idle, alternating.
+one per iteration), and ``benchmarks/bench_kinematics.py --wide-only`` ran it 0.86x
+(five-bar) and 0.75x (Jansen leg) as fast, idle, alternating. That machine's noise was
+as large (one tree against itself: 1.78x and 0.70x), so the measurement does not decide;
+the nested loops stay, whose results are the earlier program's bit for bit.
 
 On the band (:mod:`.banded`, long linkages) the prediction linearises afresh
 (:func:`.banded.predict`), and is followed by chord steps with the rows and factor it
