@@ -14,7 +14,9 @@ dense factor runs up to ``--dense-max`` bodies (its assembly and factor grow wit
 square and the cube of the bodies: at 300 bodies a solve takes minutes). The two
 answers are compared where both run. Prints the log-log slope of time per solve, per
 LM iteration and of the iterations per solve against bodies from 30 bodies on (issue
-43's target: at most 1.2). Before that, the evaluation time per sample
+43's target: at most 1.2), and the extreme eigenvalues of ``JᵀJ`` at rest
+(``--conditioning-sizes``: :func:`measure_conditioning`), which explain the LM
+iterations a long soft linkage needs. Before that, the evaluation time per sample
 (``--eval-sizes``: :func:`measure_evaluation`, dense and banded alike up to
 ``--eval-dense-max``), per sample step, and the fixed work of one step without its
 solve (:func:`measure_point`: σ_min, its gradient and ``ds/da`` on the band), with
@@ -231,6 +233,39 @@ def measure_point(kind: str, bodies: int, repeats: int) -> dict:
     }
 
 
+def measure_conditioning(kind: str, bodies: int, sweeps: int = 40) -> dict:
+    """The smallest and largest eigenvalues of the FK's ``JᵀJ`` at the rest pose, on
+    the band: inverse iteration with its factor and power iteration with its
+    product, ``sweeps`` each from a vector of ones. A long linkage soft across its
+    length has a small smallest one, which slows the LM corrector's last digits
+    (``linkopt._engine.banded.Banded``'s docstring)."""
+    import jax.numpy as jnp
+
+    from linkopt._engine import banded
+    from linkopt._engine.geometry import geometry, rest_state
+
+    mech = _mechanism(kind, bodies, "banded")
+    geom, state = geometry(mech), rest_state(mech)
+    _, band, _ = banded.normal_equations(
+        mech, geom, "fk", jnp.zeros(mech.num_motors), state
+    )
+    lower = banded.factor(band, 0.0)
+    low = high = jnp.ones((mech.num_bodies, 7)) / np.sqrt(7.0 * mech.num_bodies)
+    for _ in range(sweeps):
+        low = banded.cho_solve(lower, low)
+        smallest = 1.0 / float(jnp.linalg.norm(low))
+        low = low * smallest
+        high = banded.matvec(band, high)
+        largest = float(jnp.linalg.norm(high))
+        high = high / largest
+    return {
+        "linkage": kind,
+        "bodies": mech.num_bodies,
+        "smallest_eigenvalue": smallest,
+        "largest_eigenvalue": largest,
+    }
+
+
 def keep_last(records: list[dict], key: str) -> list[dict]:
     """``records`` and the last results file's ``key`` records of the linkages and
     sizes not in them (each with the ``measured`` date of that file, or its own)."""
@@ -330,6 +365,20 @@ def _points(args, kinds: list[str]) -> list[dict]:
     return records
 
 
+def _conditioning(args, kinds: list[str]) -> list[dict]:
+    records = []
+    for kind in kinds:
+        for size in _sizes(args.conditioning_sizes):
+            rec = measure_conditioning(kind, size)
+            records.append(rec)
+            print(
+                f"{kind:6s} {rec['bodies']:5d} bodies: eigenvalues of JᵀJ at rest "
+                f"{rec['smallest_eigenvalue']:.2e} to {rec['largest_eigenvalue']:.3g}",
+                flush=True,
+            )
+    return records
+
+
 def _fk(args, kinds: list[str]) -> list[dict]:
     records = []
     for kind in kinds:
@@ -383,6 +432,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--eval-sizes", default="10,30,100,300,1000")
     parser.add_argument("--point-sizes", default="30,100,300,1000")
     parser.add_argument("--eval-dense-max", type=int, default=30)
+    parser.add_argument("--conditioning-sizes", default="30,100,300,1000")
     parser.add_argument("--eval-repeats", type=int, default=1)
     parser.add_argument("--skip-fk", action="store_true", help="time evaluation only")
     parser.add_argument(
@@ -398,6 +448,7 @@ def main() -> None:
     kinds = [k for k in args.kinds.split(",") if k]
     evaluations = _evaluations(args, kinds)
     points = _points(args, kinds)
+    conditioning = _conditioning(args, kinds)
     records = [] if args.skip_fk else _fk(args, kinds)
     fk_from = None  # the FK figures are this run's
     if args.skip_fk:  # the FK figures of the last full run stay
@@ -407,6 +458,7 @@ def main() -> None:
     if args.keep:
         evaluations = keep_last(evaluations, "evaluation_per_sample")
         points = keep_last(points, "evaluation_step_without_solve")
+        conditioning = keep_last(conditioning, "conditioning_at_rest")
         records = records if args.skip_fk else keep_last(records, "fk_per_solve")
     eval_slopes = _slopes(
         evaluations,
@@ -446,6 +498,7 @@ def main() -> None:
             "evaluation_per_sample": evaluations,
             "evaluation_step_without_solve": points,
             "evaluation_slope_from_30_bodies": eval_slopes,
+            "conditioning_at_rest": conditioning,
         },
     )
 

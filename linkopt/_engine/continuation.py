@@ -95,7 +95,7 @@ def corrector(
         lambda s: linearise(mech, geom, kind, values, s),
     )
     if banded.serves(mech):
-        method = banded.Banded(mech, geom, kind, values)
+        method = banded.Banded(mech, geom, kind, values, banded.geodesic(mech))
     return lm.solve(
         method,
         start,

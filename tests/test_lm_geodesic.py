@@ -1,0 +1,101 @@
+"""Geodesic acceleration of the LM step on the band
+(:class:`linkopt._engine.banded.Banded`): the acceleration solves the normal equations
+of the residual's second derivative along the velocity (checked against central
+differences and a dense solve), and on long lazy tongs, whose soft mode bends the
+constraint surface, it reaches the same answer in fewer iterations than the plain
+step."""
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from long_linkages import chain
+
+from linkopt._engine import banded
+from linkopt._engine.constraints import fk_residual
+from linkopt._engine.geometry import geometry, rest_state
+from linkopt._engine.solvers import lm
+from linkopt._files.fields import parse_toml
+from linkopt._files.loader import build
+
+
+def _tongs(bodies: int):
+    mech = build(parse_toml(chain(bodies), "tongs"), "tongs", check=False)
+    return dataclasses.replace(
+        mech, solver=dataclasses.replace(mech.solver, factor="banded")
+    )
+
+
+def _off_the_branch(mech, motor: float):
+    """Motor values turned by ``motor`` rad from rest and the first-order
+    prediction of the state there (no chord steps): a start LM must correct."""
+    geom = geometry(mech)
+    values = jnp.asarray([motor])
+    start = banded.predict(mech, "fk", geom, values, rest_state(mech))[0]
+    return geom, values, start
+
+
+def test_the_acceleration_solves_the_normal_equations_of_the_second_derivative():
+    """``a = 2 (δ - v)`` of the accelerated step against ``-(JᵀJ + λI)⁻¹ Jᵀ r_vv``
+    with the dense ``J`` and ``r_vv`` from central differences of the residual along
+    the velocity ``v`` (the plain step); the plain step is admissible everywhere."""
+    mech = _tongs(24)
+    geom, values, x = _off_the_branch(mech, 0.3)
+    damping = 1e-6
+    plain = banded.Banded(mech, geom, "fk", values, geodesic=False)
+    bent = banded.Banded(mech, geom, "fk", values)
+    residual, model = plain.linearise(x)
+    velocity, predicted, admissible = plain.direction(x, model, residual, damping)
+    assert admissible is True
+    delta, predicted_bent, admissible_bent = bent.direction(x, model, residual, damping)
+    assert float(predicted_bent) == float(predicted) > 0
+    acceleration = 2.0 * (np.asarray(delta) - np.asarray(velocity))
+
+    def res(s):
+        return np.asarray(fk_residual(mech, geom, values, s))
+
+    h = 1e-4 / float(jnp.max(jnp.abs(velocity)))
+    second = (res(x + h * velocity) - 2.0 * res(x) + res(x - h * velocity)) / h**2
+    jac = np.asarray(jax.jacfwd(lambda s: fk_residual(mech, geom, values, s))(x))
+    normal = jac.T @ jac + damping * np.eye(jac.shape[1])
+    expected = -np.linalg.solve(normal, jac.T @ second)
+    scale = np.max(np.abs(expected))
+    assert scale > 1e-6 * float(jnp.max(jnp.abs(velocity)))  # a bend to find
+    np.testing.assert_allclose(acceleration, expected, atol=1e-4 * scale)
+    size = lambda v: float(np.linalg.norm(v))  # noqa: E731
+    assert bool(admissible_bent) == (
+        size(acceleration) <= banded.ACCELERATION_RATIO * size(velocity)
+    )
+
+
+def test_long_tongs_converge_in_fewer_iterations_with_the_acceleration():
+    """Lazy tongs of 100 bodies (the smallest eigenvalue of ``JᵀJ`` 3e-8 at rest)
+    from the first-order prediction of a 0.3 rad turn: the plain and the accelerated
+    LM both close the loops to 1e-12, the accelerated one in fewer iterations
+    (measured 13 and 9), the answers within the soft mode's freedom at that
+    tolerance (measured 1.5e-9)."""
+    mech = _tongs(100)
+    geom, values, start = _off_the_branch(mech, 0.3)
+    results = {}
+    for accelerated in (False, True):
+        method = banded.Banded(mech, geom, "fk", values, accelerated)
+        solve = jax.jit(
+            lambda x, method=method: lm.solve(
+                method, x, tolerance=1e-12, max_iterations=60, initial_damping=1e-6
+            )
+        )
+        results[accelerated] = solve(start)
+    plain, bent = results[False], results[True]
+    assert bool(plain.converged) and bool(bent.converged)
+    assert int(bent.iterations) < int(plain.iterations)
+    closed = fk_residual(mech, geom, values, bent.x)
+    assert float(jnp.max(jnp.abs(closed))) <= 1e-12
+    assert float(jnp.max(jnp.abs(bent.x - plain.x))) < 1e-7
+
+
+def test_only_long_linkages_take_the_acceleration():
+    """The walk's corrector takes it from ``GEODESIC_BODIES`` bodies on, so every
+    smaller mechanism on the band keeps the plain step's program and answers."""
+    assert not banded.geodesic(_tongs(banded.GEODESIC_BODIES - 2))
+    assert banded.geodesic(_tongs(banded.GEODESIC_BODIES))
