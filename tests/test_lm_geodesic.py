@@ -10,10 +10,16 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from long_linkages import chain
 
 from linkopt._engine import banded
-from linkopt._engine.constraints import fk_residual
+from linkopt._engine.constraints import (
+    bk_residual,
+    fk_residual,
+    homogenised_motor_values,
+    homogenised_output_values,
+)
 from linkopt._engine.geometry import geometry, rest_state
 from linkopt._engine.solvers import lm
 from linkopt._files.fields import parse_toml
@@ -27,24 +33,30 @@ def _tongs(bodies: int):
     )
 
 
-def _off_the_branch(mech, motor: float):
-    """Motor values turned by ``motor`` rad from rest and the first-order
-    prediction of the state there (no chord steps): a start LM must correct."""
+_RESIDUALS = {"fk": fk_residual, "bk": bk_residual}
+_VALUES = {"fk": homogenised_motor_values, "bk": homogenised_output_values}
+
+
+def _off_the_branch(mech, turn: float, kind: str = "fk"):
+    """The motor (``kind`` "fk") or output ("bk") values moved by ``turn`` from rest
+    and the first-order prediction of the state there (no chord steps): a start LM
+    must correct."""
     geom = geometry(mech)
-    values = jnp.asarray([motor])
-    start = banded.predict(mech, "fk", geom, values, rest_state(mech))[0]
+    values = _VALUES[kind](mech, geom, rest_state(mech)) + turn
+    start = banded.predict(mech, kind, geom, values, rest_state(mech))[0]
     return geom, values, start
 
 
-def test_the_acceleration_solves_the_normal_equations_of_the_second_derivative():
+@pytest.mark.parametrize("kind", ["fk", "bk"])
+def test_the_acceleration_solves_the_normal_equations_of_the_second_derivative(kind):
     """``a = 2 (δ - v)`` of the accelerated step against ``-(JᵀJ + λI)⁻¹ Jᵀ r_vv``
     with the dense ``J`` and ``r_vv`` from central differences of the residual along
     the velocity ``v`` (the plain step); the plain step is admissible everywhere."""
     mech = _tongs(24)
-    geom, values, x = _off_the_branch(mech, 0.3)
+    geom, values, x = _off_the_branch(mech, 0.3, kind)
     damping = 1e-6
-    plain = banded.Banded(mech, geom, "fk", values, geodesic=False)
-    bent = banded.Banded(mech, geom, "fk", values)
+    plain = banded.Banded(mech, geom, kind, values, geodesic=False)
+    bent = banded.Banded(mech, geom, kind, values)
     residual, model = plain.linearise(x)
     velocity, predicted, admissible = plain.direction(x, model, residual, damping)
     assert admissible is True
@@ -53,11 +65,11 @@ def test_the_acceleration_solves_the_normal_equations_of_the_second_derivative()
     acceleration = 2.0 * (np.asarray(delta) - np.asarray(velocity))
 
     def res(s):
-        return np.asarray(fk_residual(mech, geom, values, s))
+        return np.asarray(_RESIDUALS[kind](mech, geom, values, s))
 
     h = 1e-4 / float(jnp.max(jnp.abs(velocity)))
     second = (res(x + h * velocity) - 2.0 * res(x) + res(x - h * velocity)) / h**2
-    jac = np.asarray(jax.jacfwd(lambda s: fk_residual(mech, geom, values, s))(x))
+    jac = np.asarray(jax.jacfwd(lambda s: _RESIDUALS[kind](mech, geom, values, s))(x))
     normal = jac.T @ jac + damping * np.eye(jac.shape[1])
     expected = -np.linalg.solve(normal, jac.T @ second)
     scale = np.max(np.abs(expected))
