@@ -21,12 +21,11 @@ linearisation.
   :mod:`~linkopt._engine.solvers.projection`): the least weighted-norm step
   ``δ = -S Jₛᵀ (Jₛ Jₛᵀ + λI)⁻¹ r`` with ``Jₛ = J S``, ``S = diag(scale)``.
 
-A method may also bend its step along the residual's curvature
-(:class:`linkopt._engine.banded.Banded`'s geodesic acceleration) and call a step
-inadmissible when that bend is too large for its own second-order model.
+A method may also bend its step along the residual's curvature at ``x``
+(:class:`linkopt._engine.banded.Banded`'s geodesic acceleration).
 
-Shared by all: a step is taken iff it is admissible, lowers ``|C|²`` and its linear
-model predicted a decrease; damping follows Nielsen's rule: on acceptance
+Shared by all: a step is taken iff it lowers ``|C|²`` and its linear model predicted
+a decrease; damping follows Nielsen's rule: on acceptance
 ``λ *= max(1/3, 1 - (2ρ - 1)³)``, on rejection ``λ *= ν, ν *= 2``. Failure is a value:
 a stall at a non-zero local minimum (damping beyond ``1e12`` or a step below
 ``1e-15``) or the iteration cap ends the loop with ``converged = False``.
@@ -92,12 +91,9 @@ class Method(Protocol):
     def linearise(self, x) -> tuple[Float[Array, " m"], Any]:
         """``(C(x), model)``."""
 
-    def direction(
-        self, x, model, residual, damping
-    ) -> tuple[Float[Array, " n"], Any, Any]:
-        """The damped step ``δ`` from ``x``, the decrease of ``|C|²`` its linear model
-        predicts, and whether the step is admissible (a Python ``True`` where every
-        step is)."""
+    def direction(self, x, model, residual, damping) -> tuple[Float[Array, " n"], Any]:
+        """The damped step ``δ`` from ``x`` and the decrease of ``|C|²`` its linear
+        model predicts."""
 
 
 @dataclass(frozen=True)
@@ -120,7 +116,7 @@ class NormalEquations:
         return residual, (hessian, gradient, *extra)
 
     def direction(self, x, model, residual, damping):
-        return *normal_step(*model[:2], damping), True
+        return normal_step(*model[:2], damping)
 
 
 def normal_step(hessian, gradient, damping) -> tuple[Float[Array, " n"], Any]:
@@ -148,7 +144,7 @@ class MinimumNorm:
     def direction(self, x, model, residual, damping):
         gram, u = gram_solve(model, jnp.maximum(damping, self.floor), residual)
         after = residual - gram @ u  # C + J δ, the linear model after the step
-        return -self.scale * (model.T @ u), residual @ residual - after @ after, True
+        return -self.scale * (model.T @ u), residual @ residual - after @ after
 
 
 def value_and_jacobian(fn: Residual, x) -> tuple[Float[Array, "m n"], Any]:
@@ -185,12 +181,11 @@ class LevenbergMarquardt:
 
     def step(self, state: LMState) -> LMState:
         """One damped step with Nielsen's damping update."""
-        delta, predicted, admissible = self.method.direction(
+        delta, predicted = self.method.direction(
             state.x, state.model, state.residual, state.damping
         )
         trial = state.x + delta
-        linearised = self.method.linearise(trial)
-        return update(state, trial, delta, predicted, *linearised, admissible)
+        return update(state, trial, delta, predicted, *self.method.linearise(trial))
 
     def terminate(self, state: LMState):
         converged = jnp.max(jnp.abs(state.residual)) <= self.tolerance
@@ -211,25 +206,15 @@ def initial_state(x0, residual, model, initial_damping) -> LMState:
     )
 
 
-def update(
-    state: LMState,
-    trial,
-    delta,
-    predicted,
-    new_residual,
-    new_model,
-    admissible=True,
-) -> LMState:
+def update(state: LMState, trial, delta, predicted, new_residual, new_model) -> LMState:
     """The carry after the step ``delta`` to ``trial = x + δ`` (linearised there as
     ``(new_residual, new_model)``, its decrease of ``|C|²`` predicted as
-    ``predicted``): accepted or rejected (always rejected where not ``admissible``),
-    with Nielsen's damping update (module docstring)."""
+    ``predicted``): accepted or rejected, with Nielsen's damping update (module
+    docstring)."""
     r, lam = state.residual, state.damping
     actual = r @ r - new_residual @ new_residual
     rho = actual / jnp.where(predicted > 0, predicted, 1.0)
     accept = (actual > 0) & (predicted > 0) & jnp.all(jnp.isfinite(new_residual))
-    if admissible is not True:  # the plain methods' programs are unchanged
-        accept = accept & admissible
     shrink = jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
     size = jnp.sqrt(delta @ delta)
     tiny = size < MIN_STEP * (1.0 + jnp.sqrt(state.x @ state.x))
