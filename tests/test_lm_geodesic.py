@@ -16,7 +16,7 @@ from long_linkages import chain
 
 from linkopt._engine import banded
 from linkopt._engine.constraints import (
-    bk_residual,
+    RESIDUALS,
     fk_residual,
     homogenised_motor_values,
     homogenised_output_values,
@@ -34,7 +34,6 @@ def _tongs(bodies: int):
     )
 
 
-_RESIDUALS = {"fk": fk_residual, "bk": bk_residual}
 _VALUES = {"fk": homogenised_motor_values, "bk": homogenised_output_values}
 
 
@@ -70,7 +69,7 @@ def test_the_acceleration_solves_the_normal_equations_of_the_second_derivative(k
         assert float(predicted_bent) == float(predicted) > 0
         velocity = np.asarray(velocity)
 
-        closure = partial(_RESIDUALS[kind], mech, geom, values)
+        closure = partial(RESIDUALS[kind], mech, geom, values)
         h = 1e-4 / np.max(np.abs(velocity))
         ahead, here, behind = (
             np.asarray(closure(x + k * h * velocity)) for k in (1.0, 0.0, -1.0)

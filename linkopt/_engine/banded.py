@@ -51,7 +51,7 @@ from jaxtyping import Array, Float
 from .._config import jit
 from . import arrowhead, band_factor
 from .body_order import Layout, body_order
-from .constraints import bk_residual, fk_residual, motor_residual
+from .constraints import RESIDUALS, fk_residual, motor_residual
 from .jacobian import row_groups
 from .model import Mechanism
 from .solvers import chord as chord_steps
@@ -69,8 +69,6 @@ MIN_BODIES = 20
 MAX_WIDTH = 1 / 8
 
 Band = band_factor.Band
-
-_RESIDUALS = {"fk": fk_residual, "bk": bk_residual}
 
 
 def serves(mech: Mechanism) -> bool:
@@ -315,7 +313,7 @@ class Banded:
         return residual, (band, grad)
 
     def _residual(self, x):
-        return _RESIDUALS[self.kind](self.mech, self.geom, self.values, x)
+        return RESIDUALS[self.kind](self.mech, self.geom, self.values, x)
 
     def direction(self, x, model, residual, damping):
         band, grad = model

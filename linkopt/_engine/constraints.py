@@ -290,6 +290,10 @@ def bk_residual(mech: Mechanism, geom: Geometry, outputs, state) -> Float[Array,
     )
 
 
+#: The residual of each solve kind, ``(mech, geom, values, state) -> C``.
+RESIDUALS = {"fk": fk_residual, "bk": bk_residual}
+
+
 def constraint_rows(mech: Mechanism) -> dict[str, int]:
     """Row counts of the passive part and of ``C_FK`` / ``C_BK``."""
     passive = mech.num_bodies + 6 + sum(JOINT_ROWS.get(t, 0) for t in mech.joint_types)

@@ -50,12 +50,10 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from . import banded, dense, jacobian
-from .constraints import bk_residual, fk_residual
+from .constraints import RESIDUALS
 from .geometry import Geometry
 from .model import Mechanism
 from .solvers import chord, lm
-
-_RESIDUALS = {"fk": fk_residual, "bk": bk_residual}
 
 #: Largest change of any motor or output in one continuation step (homogenised: rad, or
 #: reference lengths). Small enough that the first-order prediction tells the rest
@@ -91,7 +89,7 @@ def corrector(
         jacobian.normal_equations_tail if with_tail else jacobian.normal_equations
     )
     method = lm.NormalEquations(
-        lambda s: _RESIDUALS[kind](mech, geom, values, s),
+        lambda s: RESIDUALS[kind](mech, geom, values, s),
         lambda s: linearise(mech, geom, kind, values, s),
     )
     if banded.serves(mech):

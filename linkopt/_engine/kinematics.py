@@ -40,15 +40,13 @@ from . import banded, continuation, dense, jacobian, programs
 from .arguments import check_arguments, check_design, check_state, value_scale
 from .blocks import first_rows, in_blocks, path_rows
 from .constraints import (
-    bk_residual,
-    fk_residual,
+    RESIDUALS,
     homogenised_motor_values,
     homogenised_output_values,
 )
 from .geometry import Geometry, design_array, design_vector, geometry, rest_state
 from .model import Mechanism
 
-_RESIDUALS = {"fk": fk_residual, "bk": bk_residual}
 _VALUES = {"fk": homogenised_motor_values, "bk": homogenised_output_values}
 
 
@@ -81,7 +79,7 @@ def implicit_state(kind: str, mech: Mechanism, geom: Geometry, values, state):
 def _implicit_state_jvp(kind, primals, tangents):
     mech, geom, values, state = primals
     _, d_geom, d_values, _ = tangents
-    residual = _RESIDUALS[kind]
+    residual = RESIDUALS[kind]
     _, rhs = jax.jvp(
         lambda g, v: residual(mech, g, v, state), (geom, values), (d_geom, d_values)
     )
@@ -145,7 +143,7 @@ def _continued(
         fixed_to,
         known,
     )
-    residual = jnp.max(jnp.abs(_RESIDUALS[kind](mech, fixed_geom, fixed_to, reached)))
+    residual = jnp.max(jnp.abs(RESIDUALS[kind](mech, fixed_geom, fixed_to, reached)))
     converged = (fraction >= 1.0) & (residual <= mech.solver.tolerance)
     final = implicit_state(kind, mech, geom, v_to, reached)
     return Solution(final, converged, residual, iterations, fraction), known
