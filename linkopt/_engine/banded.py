@@ -254,17 +254,22 @@ def damped_solve(band, damping, gradient: Float[Array, "B 7"]):
 #: Geodesic acceleration's largest bend (:class:`Banded`): the step is ``v + ½ a`` where
 #: ``2 |a| <= ACCELERATION_RATIO |v|`` (Transtrum & Sethna's α), ``v`` elsewhere.
 ACCELERATION_RATIO = 0.75
-#: Fewest bodies whose FK/BK solves on the band take the geodesic acceleration
-#: (:func:`geodesic`). Below it the soft modes are stiff enough for plain LM (lazy
-#: tongs of 100 bodies: 9-13 plain iterations from a first-order prediction, 8-9
-#: accelerated), and the acceleration's second derivative and reverse pass would
-#: lengthen every banded solve's compile (a 100-body tongs' LM program: 3.5 -> 7 s).
+#: Fewest bodies whose FK/BK solves on the band take the geodesic acceleration and
+#: the damping scaled with ``|C|²`` (:func:`geodesic`). Below it the soft modes are
+#: stiff enough for plain LM (lazy tongs of 100 bodies: 9-13 plain iterations from a
+#: first-order prediction, 8-9 accelerated), and the acceleration's second
+#: derivative and reverse pass would lengthen every banded solve's compile (a
+#: 100-body tongs' LM program: 3.5 -> 7 s).
 GEODESIC_BODIES = 200
 
 
 def geodesic(mech: Mechanism) -> bool:
     """Whether the FK/BK solves of ``mech`` on the band take :class:`Banded`'s
-    geodesic acceleration: at least :data:`GEODESIC_BODIES` bodies."""
+    geodesic acceleration and LM's damping scaled with ``|C|²``
+    (:mod:`linkopt._engine.solvers.lm`'s ``residual_scaled``; the accelerated step
+    is what lets the damping fall that fast: measured on lazy tongs of 1000 bodies,
+    the plain step with it took 54 iterations where the accelerated one took 3): at
+    least :data:`GEODESIC_BODIES` bodies."""
     return mech.num_bodies >= GEODESIC_BODIES
 
 
@@ -295,9 +300,10 @@ class Banded:
     lowers it at ``ρ ≈ 0.6``) and the soft mode converges a percent or two per
     iteration. Measured on lazy tongs of 1000 bodies, one continuation step of 0.04
     rad from rest after its chord steps: 59 LM iterations to ``max |C| <= 1e-12``
-    plainly, 16 with the acceleration, the answers 1.4e-8 apart (the soft mode's
-    freedom at the tolerance); smaller continuation steps did not help the plain
-    solve (0.005 rad steps: 22-24 iterations each)."""
+    plainly, 16 with the acceleration, 3 with the acceleration and the damping the
+    walk's corrector scales with ``|C|²`` (:func:`geodesic`), the answers 1.4e-8
+    apart (the soft mode's freedom at the tolerance); smaller continuation steps did
+    not help the plain solve (0.005 rad steps: 22-24 iterations each)."""
 
     mech: Mechanism
     geom: object

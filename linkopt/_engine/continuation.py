@@ -81,7 +81,9 @@ def corrector(
     max_iterations: int | None = None,
     with_tail: bool = False,
 ) -> lm.LMResult:
-    """LM on ``C(values, s)`` from ``start`` with the file's ``[solver]`` settings
+    """LM on ``C(values, s)`` from ``start`` with the file's ``[solver]`` settings, on
+    the band where :func:`.banded.serves` says so, with the geodesic acceleration and
+    the damping scaled with ``|C|²`` where :func:`.banded.geodesic` does
     (``with_tail``: the result's linearisation holds the motor or output rows'
     Jacobian too, for :func:`predict_from`)."""
     settings = mech.solver
@@ -92,14 +94,17 @@ def corrector(
         lambda s: RESIDUALS[kind](mech, geom, values, s),
         lambda s: linearise(mech, geom, kind, values, s),
     )
+    long = False
     if banded.serves(mech):
-        method = banded.Banded(mech, geom, kind, values, banded.geodesic(mech))
+        long = banded.geodesic(mech)
+        method = banded.Banded(mech, geom, kind, values, long)
     return lm.solve(
         method,
         start,
         tolerance=settings.tolerance,
         max_iterations=max_iterations or settings.max_iterations,
         initial_damping=settings.initial_damping,
+        residual_scaled=long,
     )
 
 
