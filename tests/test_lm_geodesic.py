@@ -14,7 +14,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from long_linkages import chain
+from strandbeest import strandbeest
 
+import linkopt
 from linkopt._engine import banded, continuation
 from linkopt._engine.constraints import (
     RESIDUALS,
@@ -48,47 +50,68 @@ def _off_the_branch(mech, turn: float, kind: str = "fk"):
     return geom, values, start
 
 
+def _bend_against_differences(mech, kind, geom, values, x, damping=1e-6) -> bool:
+    """Whether the accelerated step from ``x`` bends (``2 |a| <= ACCELERATION_RATIO
+    |v|``), having checked it: its ``a = 2 (δ - v)`` against ``-(JᵀJ + λI)⁻¹ Jᵀ
+    r_vv`` with the dense ``J`` and ``r_vv`` from central differences of the residual
+    along the velocity ``v`` (the plain step), or ``δ = v`` where it does not bend."""
+    size = lambda v: float(np.linalg.norm(v))  # noqa: E731
+    plain = banded.Banded(mech, geom, kind, values, geodesic=False)
+    bent = banded.Banded(mech, geom, kind, values)
+    residual, model = plain.linearise(x)
+    velocity, predicted = plain.direction(x, model, residual, damping)
+    delta, predicted_bent = bent.direction(x, model, residual, damping)
+    assert float(predicted_bent) == float(predicted) > 0
+    velocity = np.asarray(velocity)
+
+    closure = partial(RESIDUALS[kind], mech, geom, values)
+    h = 1e-4 / np.max(np.abs(velocity))
+    ahead, here, behind = (
+        np.asarray(closure(x + k * h * velocity)) for k in (1.0, 0.0, -1.0)
+    )
+    second = (ahead - 2.0 * here + behind) / h**2
+    jac = np.asarray(jax.jacfwd(closure)(x))
+    normal = jac.T @ jac + damping * np.eye(jac.shape[1])
+    expected = -np.linalg.solve(normal, jac.T @ second)
+    bounded = 2.0 * size(expected) <= banded.ACCELERATION_RATIO * size(velocity)
+    if bounded:
+        scale = np.max(np.abs(expected))
+        assert scale > 1e-6 * np.max(np.abs(velocity))  # a bend to find
+        acceleration = 2.0 * (np.asarray(delta) - velocity)
+        np.testing.assert_allclose(acceleration, expected, atol=1e-4 * scale)
+    else:
+        np.testing.assert_array_equal(np.asarray(delta), velocity)
+    return bounded
+
+
 @pytest.mark.parametrize("kind", ["fk", "bk"])
 def test_the_acceleration_solves_the_normal_equations_of_the_second_derivative(kind):
-    """``a = 2 (δ - v)`` of the accelerated step against ``-(JᵀJ + λI)⁻¹ Jᵀ r_vv``
-    with the dense ``J`` and ``r_vv`` from central differences of the residual along
-    the velocity ``v`` (the plain step), from the first-order prediction of a 0.3
-    rad move; from the rest pose itself with the values 1 rad away the bend is beyond
-    ``ACCELERATION_RATIO`` of the velocity, and the step is ``v``."""
+    """:func:`_bend_against_differences` on 24-body tongs from the first-order
+    prediction of a 0.3 rad move (it bends); from the rest pose itself with the
+    values 1 rad away the bend is beyond ``ACCELERATION_RATIO`` of the velocity, and
+    the step is ``v``."""
     mech = _tongs(24)
-    damping = 1e-6
-    size = lambda v: float(np.linalg.norm(v))  # noqa: E731
     bounds = []
     for turn, from_rest in ((0.3, False), (1.0, True)):
         geom, values, x = _off_the_branch(mech, turn, kind)
         x = rest_state(mech) if from_rest else x
-        plain = banded.Banded(mech, geom, kind, values, geodesic=False)
-        bent = banded.Banded(mech, geom, kind, values)
-        residual, model = plain.linearise(x)
-        velocity, predicted = plain.direction(x, model, residual, damping)
-        delta, predicted_bent = bent.direction(x, model, residual, damping)
-        assert float(predicted_bent) == float(predicted) > 0
-        velocity = np.asarray(velocity)
-
-        closure = partial(RESIDUALS[kind], mech, geom, values)
-        h = 1e-4 / np.max(np.abs(velocity))
-        ahead, here, behind = (
-            np.asarray(closure(x + k * h * velocity)) for k in (1.0, 0.0, -1.0)
-        )
-        second = (ahead - 2.0 * here + behind) / h**2
-        jac = np.asarray(jax.jacfwd(closure)(x))
-        normal = jac.T @ jac + damping * np.eye(jac.shape[1])
-        expected = -np.linalg.solve(normal, jac.T @ second)
-        bounded = 2.0 * size(expected) <= banded.ACCELERATION_RATIO * size(velocity)
-        bounds.append(bounded)
-        if bounded:
-            scale = np.max(np.abs(expected))
-            assert scale > 1e-6 * np.max(np.abs(velocity))  # a bend to find
-            acceleration = 2.0 * (np.asarray(delta) - velocity)
-            np.testing.assert_allclose(acceleration, expected, atol=1e-4 * scale)
-        else:
-            np.testing.assert_array_equal(np.asarray(delta), velocity)
+        bounds.append(_bend_against_differences(mech, kind, geom, values, x))
     assert bounds == [True, False]
+
+
+def test_the_acceleration_on_the_arrowhead_solves_the_same_normal_equations():
+    """The same check on the arrowhead storage (a walker of four Jansen legs, its
+    ground and crank numbered last), from the first-order prediction of a 0.1 rad
+    crank turn (at 0.3 rad its bend is beyond ``ACCELERATION_RATIO``): the
+    acceleration's two solves and its reverse pass go through the hubs' Schur
+    complement and the arrowhead's permutation."""
+    walker = linkopt.loads(strandbeest(4), "strandbeest.toml")
+    walker = dataclasses.replace(
+        walker, solver=dataclasses.replace(walker.solver, factor="banded")
+    )
+    geom, values, x = _off_the_branch(walker, 0.1)
+    assert banded.layout(walker, geom, "fk").hubs
+    assert _bend_against_differences(walker, "fk", geom, values, x)
 
 
 def test_long_tongs_converge_in_fewer_iterations_with_the_acceleration():
