@@ -255,12 +255,17 @@ def damped_solve(band, damping, gradient: Float[Array, "B 7"]):
 #: ``2 |a| <= ACCELERATION_RATIO |v|`` (Transtrum & Sethna's α), ``v`` elsewhere.
 ACCELERATION_RATIO = 0.75
 #: Fewest bodies whose FK/BK solves on the band take the geodesic acceleration and
-#: the damping scaled with ``|C|²`` (:func:`geodesic`). Below it the soft modes are
-#: stiff enough for plain LM (lazy tongs of 100 bodies: 9-13 plain iterations from a
-#: first-order prediction, 8-9 accelerated), and the acceleration's second
-#: derivative and reverse pass would lengthen every banded solve's compile (a
-#: 100-body tongs' LM program: 3.5 -> 7 s).
-GEODESIC_BODIES = 200
+#: the damping scaled with ``|C|²`` (:func:`geodesic`). From 100 bodies on, plain LM
+#: fails the design evaluation of long soft linkages: measured on lazy tongs of 100
+#: bodies (``benchmarks/bench_bodies.py``'s), its IK and adversarial samples crept
+#: 0.008 rad from rest in 40 iterations each (at 300 and 1000 bodies every trial step
+#: was refused), where with both they reach 0.64 rad, the evaluation 2.6x faster (3.27
+#: -> 1.26 s, its first call 18.0 -> 18.7 s); FK from the first-order prediction of
+#: a 0.2 rad turn took 9 iterations, 3 with both. Below it plain LM does as well (30
+#: and 60 bodies: the same samples) and the acceleration's second derivative and
+#: reverse pass would lengthen the compile of every smaller banded solve, the shipped
+#: 74-body ``strandbeest_12.toml`` included, whose programs stay as they were.
+GEODESIC_BODIES = 100
 
 
 def geodesic(mech: Mechanism) -> bool:
