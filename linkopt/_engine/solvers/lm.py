@@ -72,9 +72,10 @@ Linearisation = Callable[
 
 MAX_DAMPING = 1e12
 MIN_STEP = 1e-15
-#: Least damping the ``residual_scaled`` rule sets: below the rounding of a ``JᵀJ``
-#: whose entries are of order one, so no step changes by it, but a factor of a
-#: singular ``JᵀJ`` still meets a positive shift.
+#: Least damping the ``residual_scaled`` rule sets, below the rounding of a ``JᵀJ``
+#: whose entries are of order one (so no step changes by it): without it the damping
+#: would follow ``|C|²`` to 1e-30 and below, and a rejected step near a singular
+#: ``JᵀJ`` would take that many more doublings to raise it again.
 MIN_DAMPING = 1e-15
 
 
