@@ -361,6 +361,21 @@ def _gradient(groups, residuals, layout: Layout, nb: int) -> Float[Array, "B 7"]
     return grad
 
 
+#: The prediction's factor is of ``JᵀJ + PREDICTION_SHIFT · max_i tr(H_ii) · I``: a
+#: shift at the factor's own rounding (the band Cholesky perturbs ``H`` by about
+#: ``7(w + 1) · u · max H_ii``, u the unit round-off: 3e-14 for lazy tongs, whose
+#: largest block trace is 37), so that the factor of a ``JᵀJ`` singular to
+#: round-off stays finite, and no larger: the chord steps converge along an eigenvector
+#: of ``JᵀJ`` at the rate ``shift / (eigenvalue + shift)`` at best, and a soft mode
+#: under about three times the shift stops them. The dense path's fixed
+#: :data:`linkopt._engine.continuation.PREDICTION_DAMPING` (1e-12) did that to lazy
+#: tongs of 1000 bodies (smallest eigenvalue 3.2e-12): the chords stopped at ``max
+#: |C|`` 1e-4 and 3 LM iterations followed; with this shift (3.7e-14) the chords close
+#: every row (``benchmarks/bench_bodies.py``: 31.3 -> 22.4 ms per solve). Soft modes
+#: under it (tongs of several thousand bodies) are left to the LM corrector, as before.
+PREDICTION_SHIFT = 1e-15
+
+
 @partial(jit, static_argnums=(1, 5))
 def predict(mech: Mechanism, kind: str, geom, values, state, chords: int = 0):
     """``(first, corrected)``: :func:`linkopt._engine.continuation.predict` on the band,
@@ -380,7 +395,7 @@ def predict(mech: Mechanism, kind: str, geom, values, state, chords: int = 0):
     where = body_order(mech.num_bodies, _pairs(groups))
     blocks = _arrow_blocks if where.hubs else _band_blocks
     band, grad = blocks(groups, where, mech.num_bodies)
-    lower = factor(band, 1e-12)
+    lower = factor(band, PREDICTION_SHIFT * largest_block_trace(band))
     first = state - unpermute(where, cho_solve(lower, grad))
     if not chords:
         return first, first
