@@ -5,8 +5,9 @@
 // batches 0-9, random positive definite, singular, indefinite, NaN, Inf, huge and tiny
 // matrices, operands at an address off the usual 16/32/64-byte alignment, empty
 // operands with null data, results written over an operand, refused shapes, six
-// threads at once, and normal_equations on random two-body rows for every order that
-// is a multiple of 7. tests/test_kernel_sanitizers.py builds it under AddressSanitizer and
+// threads at once, normal_equations on random two-body rows for every order that is a
+// multiple of 7, and band_factor / band_solve on random block bands (0-40 block rows,
+// 1-6 blocks a row, batches 0-3, a factor shared by a batch of right-hand sides). tests/test_kernel_sanitizers.py builds it under AddressSanitizer and
 // UndefinedBehaviorSanitizer (-fno-sanitize-recover: any report ends it with a failure).
 // Besides the sanitizers' reports it checks that a handler refuses what it must, and
 // that every matrix of a batch gets bitwise the result it gets alone (the handlers'
@@ -145,6 +146,59 @@ void normal_case(int64_t n, int64_t batch, bool batched, bool misaligned,
     fail("normal_equations with bad pairs", n, batch);
 }
 
+// band_factor and band_solve on nb block rows of w1 blocks (random blocks, the diagonal
+// ones dominant: positive definite, or one indefinite when `indefinite`): each matrix of
+// a batch bitwise as alone, one factor (batch dimension 1) for a batch of right-hand
+// sides bitwise as each alone, and refused operands refused.
+void band_case(int64_t nb, int64_t w1, int64_t batch, bool indefinite, bool misaligned,
+               std::mt19937_64& rng) {
+  const int64_t size = nb * w1 * 49;
+  Operand band({batch, nb, w1, 7, 7}, misaligned), d({batch}, misaligned);
+  fill(band, rng);
+  for (int64_t b = 0; b < batch; ++b) {
+    d.data[b] = 1e-3 * static_cast<double>(b);
+    for (int64_t i = 0; i < nb; ++i)
+      for (int64_t q = 0; q < 7; ++q)
+        band.data[b * size + i * w1 * 49 + q * 8] = 10.0 * static_cast<double>(w1);
+    if (indefinite && nb > 0) band.data[b * size + (nb / 2) * w1 * 49] = -1.0;
+  }
+  Operand l({batch, nb, w1, 7, 7}, misaligned);
+  if (BandFactorImpl(band.arg(), d.arg(), l.ret()).failure()) fail("band_factor", nb, batch);
+  Operand rhs({batch, nb, 7}, misaligned), x({batch, nb, 7}, misaligned);
+  fill(rhs, rng);
+  for (int32_t mode = 0; mode <= 2; ++mode)
+    if (BandSolveImpl(l.arg(), rhs.arg(), x.ret(), mode).failure())
+      fail("band_solve", nb, batch);
+  for (int64_t b = 0; b < batch; ++b) {
+    Operand band1({1, nb, w1, 7, 7}, false), d1({1}, false), l1({1, nb, w1, 7, 7}, false);
+    copy(band1.data, band.data + b * size, size);
+    d1.data[0] = d.data[b];
+    if (BandFactorImpl(band1.arg(), d1.arg(), l1.ret()).failure() ||
+        !same_bits(l1.data, l.data + b * size, size))
+      fail("band_factor of a batch is each matrix's", nb, batch);
+    // one factor for every right-hand side of the batch: as each alone
+    Operand many({batch, nb, 7}, misaligned), one({1, nb, 7}, false), x1({1, nb, 7}, false);
+    if (BandSolveImpl(l1.arg(), rhs.arg(), many.ret(), 2).failure())
+      fail("band_solve of one factor for a batch", nb, batch);
+    for (int64_t c = 0; c < batch; ++c) {
+      copy(one.data, rhs.data + c * nb * 7, nb * 7);
+      if (BandSolveImpl(l1.arg(), one.arg(), x1.ret(), 2).failure() ||
+          !same_bits(x1.data, many.data + c * nb * 7, nb * 7))
+        fail("band_solve of a batch is each right-hand side's", nb, batch);
+    }
+  }
+  if (BandSolveImpl(l.arg(), rhs.arg(), x.ret(), 3).success()) fail("band_solve mode 3", nb, batch);
+  Operand short_rhs({batch, nb + 1, 7}, false), short_x({batch, nb + 1, 7}, false);
+  if (BandSolveImpl(l.arg(), short_rhs.arg(), short_x.ret(), 0).success())
+    fail("band_solve with b of another block count", nb, batch);
+  Operand six({batch, nb, w1, 7, 6}, false), six_out({batch, nb, w1, 7, 6}, false);
+  if (BandFactorImpl(six.arg(), d.arg(), six_out.ret()).success())
+    fail("band_factor of 7 x 6 blocks", nb, batch);
+  Operand d2({batch + 1}, false);
+  if (BandFactorImpl(band.arg(), d2.arg(), l.ret()).success())
+    fail("band_factor with d of another batch", nb, batch);
+}
+
 // Every handler on one (n, batch, kind); `batched`: a leading batch dimension (else a
 // single matrix, batch 1).
 void run_case(int64_t n, int64_t batch, Kind kind, bool batched, bool misaligned,
@@ -273,6 +327,12 @@ int main() {
     run_case(n, 1, kSpd, false, false, rng);
     ++cases;
   }
+  for (int64_t nb : {0, 1, 2, 5, 40})
+    for (int64_t w1 : {1, 2, 3, 6})
+      for (int64_t batch : {0, 1, 3}) {
+        band_case(nb, w1, batch, (nb + w1) % 2 == 1, (w1 + batch) % 2 == 1, rng);
+        ++cases;
+      }
   // six threads at once, each on its own operands
   std::vector<std::thread> threads;
   for (int t = 0; t < 6; ++t)

@@ -270,26 +270,39 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def _use_kernel(*arrays) -> bool:
-    """Whether the kernels serve these arrays (module docstring)."""
+def kernels_serve(*arrays) -> bool:
+    """Whether the compiled kernels serve these arrays, whatever their shapes: the
+    extension is registered, the program runs on the CPU and every array is float64
+    (module docstring)."""
     return (
         _kernel_state()["TARGETS"] is not None
-        and arrays[0].shape[-1] <= _kernel_state()["KERNEL_MAX_N"]
         and all(a.dtype == jnp.float64 for a in arrays)
         and jax.default_backend() == "cpu"
     )
 
 
-def _call(key: str, result, *args, aliases=None, **attributes):
+def _use_kernel(*arrays) -> bool:
+    """Whether the kernels serve these arrays (module docstring)."""
+    return (
+        kernels_serve(*arrays)
+        and arrays[0].shape[-1] <= _kernel_state()["KERNEL_MAX_N"]
+    )
+
+
+def call_kernel(
+    key: str, result, *args, aliases=None, vmap_method="broadcast_all", **attributes
+):
+    """The compiled handler ``key`` (:data:`linkopt._kernels.NAMES`) on ``args``, its
+    result shaped as ``result``; where :func:`kernels_serve` says so."""
     return jax.ffi.ffi_call(
         _kernel_state()["TARGETS"][key],
         jax.ShapeDtypeStruct(result.shape, result.dtype),
-        vmap_method="broadcast_all",
+        vmap_method=vmap_method,
         input_output_aliases=aliases,
     )(*args, **attributes)
 
 
-def _with_plain_derivative(kernel, plain):
+def with_plain_derivative(kernel, plain):
     """``kernel`` whose derivative is ``plain``'s (the same function in plain JAX)."""
     fn = jax.custom_jvp(kernel)
     fn.defjvp(lambda primals, tangents: jax.jvp(plain, primals, tangents))
@@ -297,7 +310,7 @@ def _with_plain_derivative(kernel, plain):
 
 
 def _kernel_cholesky(a):
-    return _call("cholesky", a, a)
+    return call_kernel("cholesky", a, a)
 
 
 def _tri_solve(mode: int, plain):
@@ -306,10 +319,12 @@ def _tri_solve(mode: int, plain):
 
     def kernel(lower, b):
         rhs, vector = _as_matrix(b)
-        x = _call("tri_solve", rhs, lower, rhs, aliases={1: 0}, mode=np.int32(mode))
+        x = call_kernel(
+            "tri_solve", rhs, lower, rhs, aliases={1: 0}, mode=np.int32(mode)
+        )
         return x[:, 0] if vector else x
 
-    return _with_plain_derivative(kernel, plain)
+    return with_plain_derivative(kernel, plain)
 
 
 def _plain_damped_solve(a, damping, b):
@@ -321,16 +336,16 @@ def _damped(a, damping):
 
 
 _KERNELS = {
-    "cholesky": _with_plain_derivative(_kernel_cholesky, _plain_cholesky),
-    "damped_solve": _with_plain_derivative(
-        lambda a, damping, b: _call("damped_solve", b, a, damping, b),
+    "cholesky": with_plain_derivative(_kernel_cholesky, _plain_cholesky),
+    "damped_solve": with_plain_derivative(
+        lambda a, damping, b: call_kernel("damped_solve", b, a, damping, b),
         _plain_damped_solve,
     ),
     "solve_lower": _tri_solve(0, _plain_solve_lower),
     "solve_lower_transpose": _tri_solve(1, _plain_solve_lower_transpose),
     "cho_solve": _tri_solve(2, _plain_cho_solve),
-    "lower_inverse": _with_plain_derivative(
-        lambda lower: _call("lower_inverse", lower, lower), _plain_lower_inverse
+    "lower_inverse": with_plain_derivative(
+        lambda lower: call_kernel("lower_inverse", lower, lower), _plain_lower_inverse
     ),
 }
 
@@ -407,7 +422,7 @@ def smallest_right(
     its Gram matrices ``a`` (where :func:`serves_smallest_right`): the same steps in
     one call (``dense.cc``, ``LkSmallestRight``). Not differentiable: its caller
     defines the derivative."""
-    return _call(
+    return call_kernel(
         "smallest_right",
         jax.ShapeDtypeStruct(a.shape[:-1], a.dtype),
         a,

@@ -39,7 +39,13 @@ order ``n`` at most ``_dense.max_n()``, 512, else an error):
   is ``rows[r, :7]`` in body ``pairs[2r]``'s 7 columns and ``rows[r, 7:]`` in body
   ``pairs[2r + 1]``'s (``-1``: no body), ``n`` 7 per body: the constraint solves'
   normal equations from their two-body row blocks
-  (:func:`linkopt._engine.dense.block_normal`).
+  (:func:`linkopt._engine.dense.block_normal`);
+* ``band_factor``: ``band (..., B, w + 1, 7, 7)``, ``d (...)`` -> the lower block
+  Cholesky factor of ``band + d I`` in the same block-band storage
+  (``band[i, k] = H[i, i - k]``; :mod:`linkopt._engine.band_factor`);
+* ``band_solve``: that factor ``L (..., B, w + 1, 7, 7)``, ``b (..., B, 7)``,
+  attribute ``mode`` as ``tri_solve``'s -> ``x (..., B, 7)``; each batch dimension of
+  ``L`` and ``b`` is 1 or the result's (one factor serves many right-hand sides).
 
 JAX-free: importing this module imports neither JAX nor the extension.
 """
@@ -57,7 +63,7 @@ from types import ModuleType
 
 #: The ABI version of the handlers this code expects (``kVersion`` in ``dense.cc``); an
 #: extension of another version (a stale build) is not used.
-VERSION = 4
+VERSION = 5
 #: The environment variable that turns the kernels off when set to ``0``.
 ENVIRONMENT = "LINKOPT_KERNELS"
 #: The handlers' names, the keys of :func:`handlers`.
@@ -68,6 +74,8 @@ NAMES = (
     "damped_solve",
     "smallest_right",
     "normal_equations",
+    "band_factor",
+    "band_solve",
 )
 SOURCE = Path(__file__).with_name("dense.cc")
 #: How to rebuild the extension against the running jaxlib (in every refusal's warning).

@@ -18,6 +18,13 @@
 //                   -> JᵀJ (..., n, n), Jᵀc (..., n) of the J whose row r holds
 //                   rows[r, :7] in the 7 columns of body pairs[2r] and rows[r, 7:]
 //                   in those of body pairs[2r + 1] (-1: none), n = 7 x bodies
+//   LkBandFactor    band (..., B, w + 1, 7, 7), d (...) -> the lower block Cholesky
+//                   factor of band + d I in the same block-band storage (band[i][k] =
+//                   H[i, i - k]; linkopt/_engine/band_factor.py; NaN from a failing
+//                   pivot on)
+//   LkBandSolve     L (..., B, w + 1, 7, 7) of LkBandFactor, b (..., B, 7), attribute
+//                   `mode` (int32) as LkTriSolve's -> x (..., B, 7); each batch
+//                   dimension of L and b is 1 or the result's (one factor, many b)
 // Every handler refuses n > kMaxN (LkDampedSolve n > kLanesMaxN, LkSmallestRight
 // k > kSmallestMaxK), mismatched shapes and an unknown mode with an ffi::Error; none
 // allocates but for the scratch of large orders (with_scratch); an empty operand (n or
@@ -62,7 +69,7 @@ namespace ffi = xla::ffi;
 
 namespace {
 
-constexpr long kVersion = 4;
+constexpr long kVersion = 5;
 constexpr int64_t kMaxN = 512;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -1141,6 +1148,201 @@ ffi::Error NormalEquationsImpl(ffi::Buffer<ffi::F64> rows, ffi::Buffer<ffi::F64>
     normal_one(rp + b * m * 14, cp + b * m, pp, m, n, hp + b * n * n, gp + b * n);
   return ffi::Error::Success();
 }
+
+// ---- block-band Cholesky (linkopt._engine.band_factor) ------------------------------
+//
+// A symmetric matrix of B x B blocks of 7 x 7 in block-band storage: band[i][k] is
+// H[i, i - k] (k = 0..w, row-major 7 x 7; blocks with i - k < 0 are not read). Its lower
+// block Cholesky factor is stored the same way, L[i][0] lower triangular.
+
+constexpr int64_t kB = 7;
+constexpr int64_t kBB = 49;
+
+// x (7 x 7) <- x L^{-T}, L lower triangular 7 x 7: row r solves L y = x[r]^T.
+inline void right_solve_lt(const double* __restrict l, double* __restrict x) {
+  for (int64_t r = 0; r < kB; ++r) {
+    double* __restrict row = x + r * kB;
+    for (int64_t c = 0; c < kB; ++c) {
+      double s = row[c];
+      for (int64_t q = 0; q < c; ++q) s -= l[c * kB + q] * row[q];
+      row[c] = s / l[c * kB + c];
+    }
+  }
+}
+
+// s (7 x 7) -= a b^T for 7 x 7 blocks a, b.
+inline void sub_abt(const double* __restrict a, const double* __restrict b,
+                    double* __restrict s) {
+  for (int64_t r = 0; r < kB; ++r)
+    for (int64_t c = 0; c < kB; ++c) {
+      double t = 0.0;
+      for (int64_t q = 0; q < kB; ++q) t += a[r * kB + q] * b[c * kB + q];
+      s[r * kB + c] -= t;
+    }
+}
+
+// l (nb x w1 blocks) <- the lower block Cholesky factor of band + d I (nb x w1 blocks).
+// A failing pivot leaves NaN in its block row's diagonal block from its column on, and
+// every later block that depends on it NaN through the arithmetic.
+void band_factor_one(const double* __restrict a, double d, double* __restrict l,
+                     int64_t nb, int64_t w1) {
+  const int64_t w = w1 - 1;
+  const int64_t row = w1 * kBB;
+  double col[kB];
+  for (int64_t i = 0; i < nb; ++i) {
+    const double* ai = a + i * row;
+    double* li = l + i * row;
+    for (int64_t k = w; k >= 1; --k) {  // L[i, j], j = i - k ascending
+      double* s = li + k * kBB;
+      const int64_t j = i - k;
+      if (j < 0) {
+        std::memset(s, 0, sizeof(double) * kBB);
+        continue;
+      }
+      std::memcpy(s, ai + k * kBB, sizeof(double) * kBB);
+      const double* lj = l + j * row;
+      for (int64_t m = w; m > k; --m)  // L[i, i - m] L[j, i - m]^T, i - m < j
+        if (i - m >= 0) sub_abt(li + m * kBB, lj + (m - k) * kBB, s);
+      right_solve_lt(lj, s);
+    }
+    double* diag = li;
+    std::memcpy(diag, ai, sizeof(double) * kBB);
+    for (int64_t q = 0; q < kB; ++q) diag[q * kB + q] += d;
+    for (int64_t k = 1; k <= w; ++k)
+      if (i - k >= 0) sub_abt(li + k * kBB, li + k * kBB, diag);
+    chol_in_place(diag, kB, col);
+  }
+}
+
+// In place: x (nb x 7) <- L^{-1} x for the band factor l (nb x w1 blocks).
+void band_forward(const double* __restrict l, double* __restrict x, int64_t nb,
+                  int64_t w1) {
+  const int64_t row = w1 * kBB;
+  for (int64_t i = 0; i < nb; ++i) {
+    const double* li = l + i * row;
+    double* __restrict xi = x + i * kB;
+    for (int64_t k = 1; k < w1 && k <= i; ++k) {
+      const double* blk = li + k * kBB;
+      const double* xj = x + (i - k) * kB;
+      for (int64_t r = 0; r < kB; ++r) {
+        double t = 0.0;
+        for (int64_t q = 0; q < kB; ++q) t += blk[r * kB + q] * xj[q];
+        xi[r] -= t;
+      }
+    }
+    for (int64_t r = 0; r < kB; ++r) {
+      double s = xi[r];
+      for (int64_t q = 0; q < r; ++q) s -= li[r * kB + q] * xi[q];
+      xi[r] = s / li[r * kB + r];
+    }
+  }
+}
+
+// In place: x (nb x 7) <- L^{-T} x for the band factor l (nb x w1 blocks).
+void band_backward(const double* __restrict l, double* __restrict x, int64_t nb,
+                   int64_t w1) {
+  const int64_t row = w1 * kBB;
+  for (int64_t i = nb - 1; i >= 0; --i) {
+    double* __restrict xi = x + i * kB;
+    for (int64_t k = 1; k < w1 && i + k < nb; ++k) {  // L[i + k, i]^T x[i + k]
+      const double* blk = l + (i + k) * row + k * kBB;
+      const double* xj = x + (i + k) * kB;
+      for (int64_t q = 0; q < kB; ++q) {
+        const double c = xj[q];
+        for (int64_t r = 0; r < kB; ++r) xi[r] -= blk[q * kB + r] * c;
+      }
+    }
+    const double* li = l + i * row;
+    for (int64_t r = kB - 1; r >= 0; --r) {
+      double s = xi[r];
+      for (int64_t q = r + 1; q < kB; ++q) s -= li[q * kB + r] * xi[q];
+      xi[r] = s / li[r * kB + r];
+    }
+  }
+}
+
+// The block count nb, blocks per row w1 and batch of a (..., nb, w1, 7, 7) operand.
+ffi::Error band_dims(ffi::Span<const int64_t> dims, int64_t* nb, int64_t* w1,
+                     int64_t* batch) {
+  const size_t r = dims.size();
+  if (r < 4 || dims[r - 1] != kB || dims[r - 2] != kB || dims[r - 3] < 1)
+    return ffi::Error::InvalidArgument(
+        "expected a band operand of shape (..., B, w + 1, 7, 7)");
+  *nb = dims[r - 4];
+  *w1 = dims[r - 3];
+  *batch = 1;
+  for (size_t i = 0; i + 4 < r; ++i) *batch *= dims[i];
+  return ffi::Error::Success();
+}
+
+ffi::Error BandFactorImpl(ffi::Buffer<ffi::F64> band, ffi::Buffer<ffi::F64> d,
+                          ffi::ResultBuffer<ffi::F64> out) {
+  int64_t nb, w1, batch;
+  if (auto e = band_dims(band.dimensions(), &nb, &w1, &batch); e.failure()) return e;
+  if (auto e = same_dims(band.dimensions(), out->dimensions()); e.failure()) return e;
+  auto dd = d.dimensions();
+  auto bd = band.dimensions();
+  if (dd.size() + 4 != bd.size())
+    return ffi::Error::InvalidArgument("expected d of shape (...), the band's batch");
+  for (size_t i = 0; i < dd.size(); ++i)
+    if (dd[i] != bd[i])
+      return ffi::Error::InvalidArgument("batch dimensions of the band and d differ");
+  if (nb == 0 || batch == 0) return ffi::Error::Success();
+  const int64_t size = nb * w1 * kBB;
+  for (int64_t b = 0; b < batch; ++b)
+    band_factor_one(band.typed_data() + b * size, d.typed_data()[b],
+                    out->typed_data() + b * size, nb, w1);
+  return ffi::Error::Success();
+}
+
+// LkBandSolve: the batch dimensions of L and b each 1 or the result's (vmap's
+// expand_dims: one factor serves many right-hand sides without copies).
+ffi::Error BandSolveImpl(ffi::Buffer<ffi::F64> l, ffi::Buffer<ffi::F64> b,
+                         ffi::ResultBuffer<ffi::F64> out, int32_t mode) {
+  if (mode < 0 || mode > 2)
+    return ffi::Error::InvalidArgument("mode must be 0 (L x = b), 1 (L^T x = b) or "
+                                       "2 (L L^T x = b), not " + std::to_string(mode));
+  int64_t nb, w1, lbatch;
+  if (auto e = band_dims(l.dimensions(), &nb, &w1, &lbatch); e.failure()) return e;
+  auto ld = l.dimensions();
+  auto bd = b.dimensions();
+  auto od = out->dimensions();
+  const size_t rank = bd.size();
+  if (rank < 2 || rank + 2 != ld.size() || bd[rank - 1] != kB || bd[rank - 2] != nb)
+    return ffi::Error::InvalidArgument(
+        "expected b of shape (..., B, 7) for L of shape (..., B, w + 1, 7, 7), with as "
+        "many batch dimensions");
+  if (od.size() != rank || od[rank - 1] != kB || od[rank - 2] != nb)
+    return ffi::Error::InvalidArgument("result shape differs from b's");
+  int64_t batch = 1;
+  for (size_t i = 0; i + 2 < rank; ++i) {
+    if ((ld[i] != od[i] && ld[i] != 1) || (bd[i] != od[i] && bd[i] != 1))
+      return ffi::Error::InvalidArgument(
+          "a batch dimension of L or b is neither 1 nor the result's");
+    batch *= od[i];
+  }
+  if (nb == 0 || batch == 0) return ffi::Error::Success();
+  const int64_t lsize = nb * w1 * kBB;
+  const int64_t xsize = nb * kB;
+  for (int64_t flat = 0; flat < batch; ++flat) {
+    int64_t rest = flat, lofs = 0, bofs = 0, lstride = 1, bstride = 1;
+    for (size_t i = rank - 2; i-- > 0;) {
+      const int64_t digit = rest % od[i];
+      rest /= od[i];
+      if (ld[i] != 1) lofs += digit * lstride;
+      if (bd[i] != 1) bofs += digit * bstride;
+      lstride *= ld[i];
+      bstride *= bd[i];
+    }
+    const double* li = l.typed_data() + lofs * lsize;
+    double* xi = out->typed_data() + flat * xsize;
+    const double* bi = b.typed_data() + bofs * xsize;
+    if (xi != bi) std::memmove(xi, bi, sizeof(double) * xsize);
+    if (mode == 0 || mode == 2) band_forward(li, xi, nb, w1);
+    if (mode == 1 || mode == 2) band_backward(li, xi, nb, w1);
+  }
+  return ffi::Error::Success();
+}
 }  // namespace
 
 XLA_FFI_DEFINE_HANDLER_SYMBOL(LkCholesky, CholeskyImpl,
@@ -1184,6 +1386,19 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(LkNormalEquations, NormalEquationsImpl,
                                   .Ret<ffi::Buffer<ffi::F64>>()
                                   .Attr<ffi::Span<const int32_t>>("pairs"));
 
+XLA_FFI_DEFINE_HANDLER_SYMBOL(LkBandFactor, BandFactorImpl,
+                              ffi::Ffi::Bind()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>());
+
+XLA_FFI_DEFINE_HANDLER_SYMBOL(LkBandSolve, BandSolveImpl,
+                              ffi::Ffi::Bind()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Attr<int32_t>("mode"));
+
 // ---- the Python extension module linkopt._kernels._dense ---------------------------
 
 #ifndef LK_NO_PYTHON
@@ -1215,7 +1430,9 @@ PyObject* capsules(PyObject*, PyObject*) {
       !add_capsule(dict, "lower_inverse", LkLowerInverse) ||
       !add_capsule(dict, "damped_solve", LkDampedSolve) ||
       !add_capsule(dict, "smallest_right", LkSmallestRight) ||
-      !add_capsule(dict, "normal_equations", LkNormalEquations)) {
+      !add_capsule(dict, "normal_equations", LkNormalEquations) ||
+      !add_capsule(dict, "band_factor", LkBandFactor) ||
+      !add_capsule(dict, "band_solve", LkBandSolve)) {
     Py_DECREF(dict);
     return nullptr;
   }
