@@ -6,8 +6,9 @@
 // matrices, operands at an address off the usual 16/32/64-byte alignment, empty
 // operands with null data, results written over an operand, refused shapes, six
 // threads at once, normal_equations on random two-body rows for every order that is a
-// multiple of 7, and band_factor / band_solve on random block bands (0-40 block rows,
-// 1-6 blocks a row, batches 0-3, a factor shared by a batch of right-hand sides). tests/test_kernel_sanitizers.py builds it under AddressSanitizer and
+// multiple of 7, and band_factor, band_solve and band_normal on random block bands (0-40
+// block rows, 1-6 blocks a row, batches 0-3, one factor for a batch of right-hand
+// sides). tests/test_kernel_sanitizers.py builds it under AddressSanitizer and
 // UndefinedBehaviorSanitizer (-fno-sanitize-recover: any report ends it with a failure).
 // Besides the sanitizers' reports it checks that a handler refuses what it must, and
 // that every matrix of a batch gets bitwise the result it gets alone (the handlers'
@@ -149,7 +150,8 @@ void normal_case(int64_t n, int64_t batch, bool batched, bool misaligned,
 // band_factor and band_solve on nb block rows of w1 blocks (random blocks, the diagonal
 // ones dominant: positive definite, or one indefinite when `indefinite`): each matrix of
 // a batch bitwise as alone, one factor (batch dimension 1) for a batch of right-hand
-// sides bitwise as each alone, and refused operands refused.
+// sides bitwise as each alone, band_normal's assembly of random rows, and refused
+// operands refused.
 void band_case(int64_t nb, int64_t w1, int64_t batch, bool indefinite, bool misaligned,
                std::mt19937_64& rng) {
   const int64_t size = nb * w1 * 49;
@@ -197,6 +199,49 @@ void band_case(int64_t nb, int64_t w1, int64_t batch, bool indefinite, bool misa
   Operand d2({batch + 1}, false);
   if (BandFactorImpl(band.arg(), d2.arg(), l.ret()).success())
     fail("band_factor with d of another batch", nb, batch);
+
+  // band_normal: random rows on block rows at most w1 - 1 apart, each of a batch as alone
+  if (nb == 0) return;
+  const int64_t m = 3 * nb + 1;
+  std::vector<int32_t> pairs(2 * m);
+  std::uniform_int_distribution<int32_t> place(-1, static_cast<int32_t>(nb) - 1);
+  for (int64_t r = 0; r < m; ++r) {
+    pairs[2 * r] = place(rng);
+    pairs[2 * r + 1] = place(rng);
+    if (pairs[2 * r] >= 0 && pairs[2 * r + 1] >= 0 &&
+        std::abs(pairs[2 * r] - pairs[2 * r + 1]) >= w1)
+      pairs[2 * r + 1] = pairs[2 * r];
+  }
+  const ffi::Span<const int32_t> span(pairs.data(), pairs.size());
+  Operand rows({batch, m, 14}, misaligned), c({batch, m}, misaligned);
+  Operand h({batch, nb, w1, 7, 7}, misaligned), g({batch, nb, 7}, misaligned);
+  fill(rows, rng);
+  fill(c, rng);
+  if (BandNormalImpl(rows.arg(), c.arg(), h.ret(), g.ret(), span).failure())
+    fail("band_normal", nb, batch);
+  for (int64_t b = 0; b < batch; ++b) {
+    Operand r1({1, m, 14}, false), c1({1, m}, false), h1({1, nb, w1, 7, 7}, false),
+        g1({1, nb, 7}, false);
+    copy(r1.data, rows.data + b * m * 14, m * 14);
+    copy(c1.data, c.data + b * m, m);
+    if (BandNormalImpl(r1.arg(), c1.arg(), h1.ret(), g1.ret(), span).failure() ||
+        !same_bits(h1.data, h.data + b * size, size) ||
+        !same_bits(g1.data, g.data + b * nb * 7, nb * 7))
+      fail("band_normal of a batch is each one's", nb, batch);
+  }
+  std::vector<int32_t> bad(pairs);
+  bad[0] = static_cast<int32_t>(nb);
+  if (BandNormalImpl(rows.arg(), c.arg(), h.ret(), g.ret(),
+                     ffi::Span<const int32_t>(bad.data(), bad.size())).success())
+    fail("band_normal with a block row out of range", nb, batch);
+  if (nb > w1) {
+    bad = pairs;
+    bad[0] = 0;
+    bad[1] = static_cast<int32_t>(w1);
+    if (BandNormalImpl(rows.arg(), c.arg(), h.ret(), g.ret(),
+                       ffi::Span<const int32_t>(bad.data(), bad.size())).success())
+      fail("band_normal with a pair outside the band", nb, batch);
+  }
 }
 
 // Every handler on one (n, batch, kind); `batched`: a leading batch dimension (else a

@@ -2,15 +2,23 @@
 (``band_factor``, ``band_solve``) against its plain-JAX scans (the kernels turned off
 by making :func:`linkopt._engine.dense.kernels_serve` say no while a program is
 traced) and against numpy's dense solve: values, batches, one factor for many
-right-hand sides under ``vmap``, a failing pivot, derivatives and refused operands."""
+right-hand sides under ``vmap``, a failing pivot, derivatives and refused operands;
+and the band's assembly from the rows' blocks (``band_normal``) against the plain
+scatter adds of :func:`linkopt._engine.banded.normal_equations`."""
+
+import dataclasses
+import tomllib
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from long_linkages import chain, ladder, ladder_cells
 
 import linkopt  # noqa: F401  (float64)
-from linkopt._engine import band_factor, dense
+from linkopt._engine import band_factor, banded, dense
+from linkopt._engine.geometry import geometry, rest_state
+from linkopt._files.loader import build
 
 pytestmark = pytest.mark.skipif(
     dense.TARGETS is None,
@@ -163,3 +171,64 @@ def test_refused_operands_give_errors_not_crashes():
         dense.call_kernel(
             "band_factor", blocks, blocks, jnp.zeros(())
         ).block_until_ready()
+
+
+def _long(kind: str, bodies: int):
+    mech = build(
+        tomllib.loads(
+            chain(bodies) if kind == "chain" else ladder(ladder_cells(bodies))
+        ),
+        kind,
+        check=False,
+    )
+    return dataclasses.replace(
+        mech, solver=dataclasses.replace(mech.solver, factor="banded")
+    )
+
+
+@pytest.mark.parametrize("kind", ["chain", "ladder"])
+def test_the_band_assembly_kernel_is_the_scatter_adds(kind, monkeypatch):
+    """``JᵀJ`` and ``JᵀC`` of a long linkage's rows assembled by ``band_normal`` equal
+    the plain scatter adds, and so do their derivatives in the state."""
+    mech = _long(kind, 24)
+    geom = geometry(mech)
+    rng = np.random.default_rng(4)
+    state = jnp.asarray(rest_state(mech) + 0.01 * rng.normal(size=mech.state_size))
+    tangent = jnp.asarray(rng.normal(size=mech.state_size))
+    values = jnp.full(mech.num_motors, 0.1)
+
+    def assembled():  # traced afresh: on the path kernels_serve now picks
+        def f(s):
+            return banded.normal_equations.__wrapped__(mech, geom, "fk", values, s)
+
+        return jax.jit(lambda s, t: jax.jvp(f, (s,), (t,)))(state, tangent)
+
+    kernel = assembled()
+    monkeypatch.setattr(dense, "kernels_serve", lambda *arrays: False)
+    plain = assembled()
+    for got, want in zip(jax.tree.leaves(kernel), jax.tree.leaves(plain), strict=True):
+        scale = 1.0 + float(jnp.max(jnp.abs(want)))
+        assert float(jnp.max(jnp.abs(got - want))) <= 1e-13 * scale
+    assert float(jnp.max(jnp.abs(kernel[0][1]))) > 0  # a band, not zeros
+
+
+def test_the_band_assembly_refuses_pairs_outside_the_band():
+    rows, residual = jnp.ones((2, 14)), jnp.ones(2)
+    shapes = (
+        jax.ShapeDtypeStruct((4, 2, 7, 7), rows.dtype),
+        jax.ShapeDtypeStruct((4, 7), rows.dtype),
+    )
+    for pairs, message in (
+        ([0, 1, 0, 2], "outside the band"),
+        ([0, 4, 1, 1], "out of range"),
+    ):
+        with pytest.raises(Exception, match=message):
+            jax.block_until_ready(
+                dense.call_kernel(
+                    "band_normal",
+                    shapes,
+                    rows,
+                    residual,
+                    pairs=np.asarray(pairs, np.int32),
+                )
+            )

@@ -293,10 +293,11 @@ def call_kernel(
     key: str, result, *args, aliases=None, vmap_method="broadcast_all", **attributes
 ):
     """The compiled handler ``key`` (:data:`linkopt._kernels.NAMES`) on ``args``, its
-    result shaped as ``result``; where :func:`kernels_serve` says so."""
+    result shaped as ``result`` (an array or a tuple of them, or of
+    ``jax.ShapeDtypeStruct``); where :func:`kernels_serve` says so."""
     return jax.ffi.ffi_call(
         _kernel_state()["TARGETS"][key],
-        jax.ShapeDtypeStruct(result.shape, result.dtype),
+        jax.tree.map(lambda r: jax.ShapeDtypeStruct(r.shape, r.dtype), result),
         vmap_method=vmap_method,
         input_output_aliases=aliases,
     )(*args, **attributes)

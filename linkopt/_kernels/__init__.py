@@ -45,7 +45,11 @@ order ``n`` at most ``_dense.max_n()``, 512, else an error):
   (``band[i, k] = H[i, i - k]``; :mod:`linkopt._engine.band_factor`);
 * ``band_solve``: that factor ``L (..., B, w + 1, 7, 7)``, ``b (..., B, 7)``,
   attribute ``mode`` as ``tri_solve``'s -> ``x (..., B, 7)``; each batch dimension of
-  ``L`` and ``b`` is 1 or the result's (one factor serves many right-hand sides).
+  ``L`` and ``b`` is 1 or the result's (one factor serves many right-hand sides);
+* ``band_normal``: ``rows (..., m, 14)``, ``c (..., m)``, attribute ``pairs`` as
+  ``normal_equations``' but naming block rows of the band (``|pairs[2r] -
+  pairs[2r + 1]| <= w``) -> ``(JᵀJ (..., B, w + 1, 7, 7), Jᵀc (..., B, 7))`` in
+  ``band_factor``'s storage (:func:`linkopt._engine.banded.normal_equations`).
 
 JAX-free: importing this module imports neither JAX nor the extension.
 """
@@ -76,6 +80,7 @@ NAMES = (
     "normal_equations",
     "band_factor",
     "band_solve",
+    "band_normal",
 )
 SOURCE = Path(__file__).with_name("dense.cc")
 #: How to rebuild the extension against the running jaxlib (in every refusal's warning).

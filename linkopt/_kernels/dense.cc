@@ -25,6 +25,10 @@
 //   LkBandSolve     L (..., B, w + 1, 7, 7) of LkBandFactor, b (..., B, 7), attribute
 //                   `mode` (int32) as LkTriSolve's -> x (..., B, 7); each batch
 //                   dimension of L and b is 1 or the result's (one factor, many b)
+//   LkBandNormal    rows (..., m, 14), c (..., m), attribute `pairs` (int32, 2 m)
+//                   -> JᵀJ (..., B, w + 1, 7, 7) in LkBandFactor's storage, Jᵀc
+//                   (..., B, 7): LkNormalEquations with pairs naming block rows (their
+//                   distance under w + 1)
 // Every handler refuses n > kMaxN (LkDampedSolve n > kLanesMaxN, LkSmallestRight
 // k > kSmallestMaxK), mismatched shapes and an unknown mode with an ffi::Error; none
 // allocates but for the scratch of large orders (with_scratch); an empty operand (n or
@@ -1158,27 +1162,35 @@ ffi::Error NormalEquationsImpl(ffi::Buffer<ffi::F64> rows, ffi::Buffer<ffi::F64>
 constexpr int64_t kB = 7;
 constexpr int64_t kBB = 49;
 
-// x (7 x 7) <- x L^{-T}, L lower triangular 7 x 7: row r solves L y = x[r]^T.
+// x (7 x 7) <- x L^{-T}, L lower triangular 7 x 7 (row r of the result solves
+// L y = x[r]^T). Column by column, each column's seven rows independent of each other,
+// so the loop over rows pipelines instead of waiting on one sum.
 inline void right_solve_lt(const double* __restrict l, double* __restrict x) {
-  for (int64_t r = 0; r < kB; ++r) {
-    double* __restrict row = x + r * kB;
-    for (int64_t c = 0; c < kB; ++c) {
-      double s = row[c];
-      for (int64_t q = 0; q < c; ++q) s -= l[c * kB + q] * row[q];
-      row[c] = s / l[c * kB + c];
+  for (int64_t c = 0; c < kB; ++c) {
+    const double d = l[c * kB + c];
+    for (int64_t r = 0; r < kB; ++r) x[r * kB + c] /= d;
+    for (int64_t c2 = c + 1; c2 < kB; ++c2) {
+      const double f = l[c2 * kB + c];
+      for (int64_t r = 0; r < kB; ++r) x[r * kB + c2] -= f * x[r * kB + c];
     }
   }
 }
 
-// s (7 x 7) -= a b^T for 7 x 7 blocks a, b.
+// s (7 x 7) -= a b^T for 7 x 7 blocks a, b: as axpys over the rows of b^T, which the
+// compiler vectorises (a dot product per entry would wait on each of its sums).
 inline void sub_abt(const double* __restrict a, const double* __restrict b,
                     double* __restrict s) {
-  for (int64_t r = 0; r < kB; ++r)
-    for (int64_t c = 0; c < kB; ++c) {
-      double t = 0.0;
-      for (int64_t q = 0; q < kB; ++q) t += a[r * kB + q] * b[c * kB + q];
-      s[r * kB + c] -= t;
+  double bt[kBB];
+  for (int64_t c = 0; c < kB; ++c)
+    for (int64_t q = 0; q < kB; ++q) bt[q * kB + c] = b[c * kB + q];
+  for (int64_t r = 0; r < kB; ++r) {
+    double* __restrict sr = s + r * kB;
+    for (int64_t q = 0; q < kB; ++q) {
+      const double f = a[r * kB + q];
+      const double* __restrict bq = bt + q * kB;
+      for (int64_t c = 0; c < kB; ++c) sr[c] -= f * bq[c];
     }
+  }
 }
 
 // l (nb x w1 blocks) <- the lower block Cholesky factor of band + d I (nb x w1 blocks).
@@ -1343,6 +1355,81 @@ ffi::Error BandSolveImpl(ffi::Buffer<ffi::F64> l, ffi::Buffer<ffi::F64> b,
   }
   return ffi::Error::Success();
 }
+
+// band (nb x w1 blocks), g (nb x 7) <- JᵀJ and Jᵀc in block-band storage of the J whose
+// row r holds rows[r, :7] in block row pairs[2r]'s 7 columns and rows[r, 7:] in those
+// of pairs[2r + 1] (-1: none; |pairs[2r] - pairs[2r + 1]| < w1, checked by the caller).
+void band_normal_one(const double* __restrict rows, const double* __restrict c,
+                     const int32_t* pairs, int64_t m, int64_t nb, int64_t w1,
+                     double* __restrict band, double* __restrict g) {
+  std::memset(band, 0, sizeof(double) * nb * w1 * kBB);
+  std::memset(g, 0, sizeof(double) * nb * kB);
+  auto add_outer = [&](double* __restrict blk, const double* x, const double* y) {
+    for (int64_t i = 0; i < kB; ++i) {
+      const double xi = x[i];
+      for (int64_t j = 0; j < kB; ++j) blk[i * kB + j] += xi * y[j];
+    }
+  };
+  for (int64_t r = 0; r < m; ++r) {
+    const double* a = rows + r * 14;
+    const double* b = a + kB;
+    const double cr = c[r];
+    const int64_t pa = pairs[2 * r], pb = pairs[2 * r + 1];
+    if (pa >= 0) {
+      for (int64_t i = 0; i < kB; ++i) g[pa * kB + i] += a[i] * cr;
+      add_outer(band + pa * w1 * kBB, a, a);
+    }
+    if (pb >= 0) {
+      for (int64_t i = 0; i < kB; ++i) g[pb * kB + i] += b[i] * cr;
+      add_outer(band + pb * w1 * kBB, b, b);
+    }
+    if (pa < 0 || pb < 0) continue;
+    if (pa == pb) {
+      add_outer(band + pa * w1 * kBB, a, b);
+      add_outer(band + pa * w1 * kBB, b, a);
+    } else if (pa > pb) {
+      add_outer(band + (pa * w1 + (pa - pb)) * kBB, a, b);
+    } else {
+      add_outer(band + (pb * w1 + (pb - pa)) * kBB, b, a);
+    }
+  }
+}
+
+ffi::Error BandNormalImpl(ffi::Buffer<ffi::F64> rows, ffi::Buffer<ffi::F64> c,
+                          ffi::ResultBuffer<ffi::F64> band, ffi::ResultBuffer<ffi::F64> g,
+                          ffi::Span<const int32_t> pairs) {
+  auto rd = rows.dimensions();
+  auto cd = c.dimensions();
+  auto gd = g->dimensions();
+  int64_t nb, w1, batch;
+  if (auto e = band_dims(band->dimensions(), &nb, &w1, &batch); e.failure()) return e;
+  const size_t r = rd.size();
+  if (r < 2 || rd[r - 1] != 14 || cd.size() + 1 != r || band->dimensions().size() != r + 2 ||
+      gd.size() != r || gd[r - 1] != kB || gd[r - 2] != nb)
+    return ffi::Error::InvalidArgument(
+        "expected rows (..., m, 14), c (..., m) and results (..., B, w + 1, 7, 7), "
+        "(..., B, 7)");
+  const int64_t m = rd[r - 2];
+  if (cd[r - 2] != m) return ffi::Error::InvalidArgument("row count mismatch");
+  if (static_cast<int64_t>(pairs.size()) != 2 * m)
+    return ffi::Error::InvalidArgument("attribute pairs must hold 2 m block rows");
+  for (int64_t i = 0; i < m; ++i) {
+    const int64_t pa = pairs[2 * i], pb = pairs[2 * i + 1];
+    if (pa < -1 || pa >= nb || pb < -1 || pb >= nb)
+      return ffi::Error::InvalidArgument("a block row in pairs is out of range");
+    if (pa >= 0 && pb >= 0 && (pa > pb ? pa - pb : pb - pa) >= w1)
+      return ffi::Error::InvalidArgument("a pair in pairs lies outside the band");
+  }
+  for (size_t i = 0; i + 2 < r; ++i)
+    if (cd[i] != rd[i] || gd[i] != rd[i] || band->dimensions()[i] != rd[i])
+      return ffi::Error::InvalidArgument("batch dimensions differ");
+  if (batch == 0) return ffi::Error::Success();
+  for (int64_t b = 0; b < batch; ++b)
+    band_normal_one(rows.typed_data() + b * m * 14, c.typed_data() + b * m, pairs.begin(),
+                    m, nb, w1, band->typed_data() + b * nb * w1 * kBB,
+                    g->typed_data() + b * nb * kB);
+  return ffi::Error::Success();
+}
 }  // namespace
 
 XLA_FFI_DEFINE_HANDLER_SYMBOL(LkCholesky, CholeskyImpl,
@@ -1399,6 +1486,14 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(LkBandSolve, BandSolveImpl,
                                   .Ret<ffi::Buffer<ffi::F64>>()
                                   .Attr<int32_t>("mode"));
 
+XLA_FFI_DEFINE_HANDLER_SYMBOL(LkBandNormal, BandNormalImpl,
+                              ffi::Ffi::Bind()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Attr<ffi::Span<const int32_t>>("pairs"));
+
 // ---- the Python extension module linkopt._kernels._dense ---------------------------
 
 #ifndef LK_NO_PYTHON
@@ -1432,7 +1527,8 @@ PyObject* capsules(PyObject*, PyObject*) {
       !add_capsule(dict, "smallest_right", LkSmallestRight) ||
       !add_capsule(dict, "normal_equations", LkNormalEquations) ||
       !add_capsule(dict, "band_factor", LkBandFactor) ||
-      !add_capsule(dict, "band_solve", LkBandSolve)) {
+      !add_capsule(dict, "band_solve", LkBandSolve) ||
+      !add_capsule(dict, "band_normal", LkBandNormal)) {
     Py_DECREF(dict);
     return nullptr;
   }
