@@ -9,16 +9,16 @@ before), :func:`forward` and :func:`backward` substitution (one scan each),
 Where linkopt's compiled kernels serve (:func:`linkopt._engine.dense.kernels_serve`:
 float64 on the CPU, the extension built), :func:`factor`, :func:`forward`,
 :func:`backward` and :func:`cho_solve` are one call of its ``band_factor`` or
-``band_solve`` handler each (``dense.cc``: the same block algorithm as plain loops):
-a scan step of XLA costs about a microsecond whatever it computes, and these take one
-per block row (measured on lazy tongs of 1000 bodies, ``w = 2``: the factor 2.8 ms as
-a scan, 0.9 ms in the kernel; its two triangular solves 2.6 and 0.2-0.3 ms). They agree with the scans here to round-off
-(``tests/test_band_kernels.py``); their derivatives are the scans' (``jax.custom_jvp``),
-and ``LINKOPT_KERNELS=0`` (or no extension, another platform or precision) runs the
-scans. The solve's handler takes a factor without the right-hand sides' batch
-dimensions (``vmap_method="expand_dims"``), so that solving for many columns of one
-factor (σ_min's inverse iteration, :mod:`linkopt._engine.banded_sigma`) does not copy
-the factor once per column."""
+``band_solve`` handler each (``dense.cc``: the same block algorithm as plain loops).
+A scan step of XLA costs about a microsecond whatever it computes, and the scans take
+one per block row: measured on lazy tongs of 1000 bodies (``w = 2``), the factor took
+2.8 ms as a scan and 0.9 ms in the kernel, its two triangular solves 2.6 and 0.2-0.3
+ms. The kernels agree with the scans here to round-off (``tests/test_band_kernels.py``);
+their derivatives are the scans' (``jax.custom_jvp``), and ``LINKOPT_KERNELS=0`` (or no
+extension, another platform or precision) runs the scans. The solve's handler takes a
+factor without the right-hand sides' batch dimensions (``vmap_method="expand_dims"``),
+so that solving for many columns of one factor (σ_min's inverse iteration,
+:mod:`linkopt._engine.banded_sigma`) does not copy the factor once per column."""
 
 from __future__ import annotations
 

@@ -432,8 +432,9 @@ def _gradient(groups, residuals, layout: Layout, nb: int) -> Float[Array, "B 7"]
 #: :data:`linkopt._engine.continuation.PREDICTION_DAMPING` (1e-12) did that to lazy
 #: tongs of 1000 bodies (smallest eigenvalue 3.2e-12): the chords stopped at ``max
 #: |C|`` 1e-4 and 3 LM iterations followed; with this shift (3.7e-14) the chords close
-#: every row (``benchmarks/bench_bodies.py``: 31.3 -> 22.4 ms per solve). Soft modes
-#: under it (tongs of several thousand bodies) are left to the LM corrector, as before.
+#: every row (FK from rest, ``bench_bodies.py``'s rows, alternating with the fixed
+#: shift: 38-48 -> 18-24 ms per solve). Soft modes under it (tongs of several thousand
+#: bodies) are left to the LM corrector, as before.
 PREDICTION_SHIFT = 1e-15
 
 
