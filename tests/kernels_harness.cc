@@ -6,9 +6,9 @@
 // matrices, operands at an address off the usual 16/32/64-byte alignment, empty
 // operands with null data, results written over an operand, refused shapes, six
 // threads at once, normal_equations on random two-body rows for every order that is a
-// multiple of 7, and band_factor, band_solve and band_normal on random block bands (0-40
-// block rows, 1-6 blocks a row, batches 0-3, one factor for a batch of right-hand
-// sides). tests/test_kernel_sanitizers.py builds it under AddressSanitizer and
+// multiple of 7, and band_factor, band_solve, band_normal and arrow_normal on random
+// block bands (0-40 block rows, 1-6 blocks a row, batches 0-3, one factor for a batch
+// of right-hand sides). tests/test_kernel_sanitizers.py builds it under AddressSanitizer and
 // UndefinedBehaviorSanitizer (-fno-sanitize-recover: any report ends it with a failure).
 // Besides the sanitizers' reports it checks that a handler refuses what it must, and
 // that every matrix of a batch gets bitwise the result it gets alone (the handlers'
@@ -241,6 +241,47 @@ void band_case(int64_t nb, int64_t w1, int64_t batch, bool indefinite, bool misa
     if (BandNormalImpl(rows.arg(), c.arg(), h.ret(), g.ret(),
                        ffi::Span<const int32_t>(bad.data(), bad.size())).success())
       fail("band_normal with a pair outside the band", nb, batch);
+  }
+
+  // arrow_normal with 1 or 2 of the nb bodies as hubs (last): any body pairs with a
+  // hub; each of a batch as alone, the corner's two triangles each other's transpose
+  for (int64_t hubs = 1; hubs <= 2 && hubs < nb; ++hubs) {
+    const int64_t n = nb - hubs;
+    for (int64_t r = 0; r < m; ++r)
+      if (pairs[2 * r] >= 0 && pairs[2 * r + 1] >= 0 && pairs[2 * r] < n &&
+          pairs[2 * r + 1] < n && std::abs(pairs[2 * r] - pairs[2 * r + 1]) >= w1)
+        pairs[2 * r + 1] = pairs[2 * r];
+    const ffi::Span<const int32_t> places(pairs.data(), pairs.size());
+    const int64_t bsize = n * w1 * 49, csize = n * hubs * 49, dsize = hubs * hubs * 49;
+    Operand band2({batch, n, w1, 7, 7}, misaligned), border({batch, n, hubs, 7, 7}, false),
+        corner({batch, hubs, hubs, 7, 7}, misaligned), g2({batch, nb, 7}, false);
+    if (ArrowNormalImpl(rows.arg(), c.arg(), band2.ret(), border.ret(), corner.ret(),
+                        g2.ret(), places).failure())
+      fail("arrow_normal", nb, batch);
+    for (int64_t b = 0; b < batch; ++b) {
+      Operand r1({1, m, 14}, false), c1({1, m}, false), a1({1, n, w1, 7, 7}, false),
+          e1({1, n, hubs, 7, 7}, false), d1({1, hubs, hubs, 7, 7}, false),
+          g1({1, nb, 7}, false);
+      copy(r1.data, rows.data + b * m * 14, m * 14);
+      copy(c1.data, c.data + b * m, m);
+      if (ArrowNormalImpl(r1.arg(), c1.arg(), a1.ret(), e1.ret(), d1.ret(), g1.ret(),
+                          places).failure() ||
+          !same_bits(a1.data, band2.data + b * bsize, bsize) ||
+          !same_bits(e1.data, border.data + b * csize, csize) ||
+          !same_bits(d1.data, corner.data + b * dsize, dsize) ||
+          !same_bits(g1.data, g2.data + b * nb * 7, nb * 7))
+        fail("arrow_normal of a batch is each one's", nb, batch);
+      for (int64_t i = 0; i < hubs; ++i)
+        for (int64_t j = 0; j < hubs; ++j)
+          for (int64_t k = 0; k < 49; ++k)
+            if (d1.data[(i * hubs + j) * 49 + k] !=
+                d1.data[(j * hubs + i) * 49 + (k % 7) * 7 + k / 7])
+              fail("arrow_normal's corner symmetric", nb, batch);
+    }
+    Operand small({batch, n, hubs, 7, 6}, false);
+    if (ArrowNormalImpl(rows.arg(), c.arg(), band2.ret(), small.ret(), corner.ret(),
+                        g2.ret(), places).success())
+      fail("arrow_normal with a border of 7 x 6 blocks", nb, batch);
   }
 }
 

@@ -3,8 +3,9 @@
 by making :func:`linkopt._engine.dense.kernels_serve` say no while a program is
 traced) and against numpy's dense solve: values, batches, one factor for many
 right-hand sides under ``vmap``, a failing pivot, derivatives and refused operands;
-and the band's assembly from the rows' blocks (``band_normal``) against the plain
-scatter adds of :func:`linkopt._engine.banded.normal_equations`."""
+and the band's assembly from the rows' blocks (``band_normal``, and ``arrow_normal``
+with hub bodies last) against the plain scatter adds of
+:func:`linkopt._engine.banded.normal_equations`."""
 
 import dataclasses
 import tomllib
@@ -14,6 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from long_linkages import chain, ladder, ladder_cells
+from strandbeest import strandbeest
 
 import linkopt  # noqa: F401  (float64)
 from linkopt._engine import band_factor, banded, dense
@@ -174,24 +176,24 @@ def test_refused_operands_give_errors_not_crashes():
 
 
 def _long(kind: str, bodies: int):
-    mech = build(
-        tomllib.loads(
-            chain(bodies) if kind == "chain" else ladder(ladder_cells(bodies))
-        ),
-        kind,
-        check=False,
-    )
+    if kind == "walker":  # 4 legs on one crank: its ground and crank are hubs
+        text = strandbeest(4)
+    else:
+        text = chain(bodies) if kind == "chain" else ladder(ladder_cells(bodies))
+    mech = build(tomllib.loads(text), kind, check=False)
     return dataclasses.replace(
         mech, solver=dataclasses.replace(mech.solver, factor="banded")
     )
 
 
-@pytest.mark.parametrize("kind", ["chain", "ladder"])
+@pytest.mark.parametrize("kind", ["chain", "ladder", "walker"])
 def test_the_band_assembly_kernel_is_the_scatter_adds(kind, monkeypatch):
-    """``JᵀJ`` and ``JᵀC`` of a long linkage's rows assembled by ``band_normal`` equal
-    the plain scatter adds, and so do their derivatives in the state."""
+    """``JᵀJ`` and ``JᵀC`` of a long linkage's rows assembled by ``band_normal`` (a
+    walker's, whose hubs go last: ``arrow_normal``) equal the plain scatter adds, and
+    so do their derivatives in the state."""
     mech = _long(kind, 24)
     geom = geometry(mech)
+    assert banded.layout(mech, geom, "fk").hubs == (2 if kind == "walker" else 0)
     rng = np.random.default_rng(4)
     state = jnp.asarray(rest_state(mech) + 0.01 * rng.normal(size=mech.state_size))
     tangent = jnp.asarray(rng.normal(size=mech.state_size))
@@ -209,7 +211,8 @@ def test_the_band_assembly_kernel_is_the_scatter_adds(kind, monkeypatch):
     for got, want in zip(jax.tree.leaves(kernel), jax.tree.leaves(plain), strict=True):
         scale = 1.0 + float(jnp.max(jnp.abs(want)))
         assert float(jnp.max(jnp.abs(got - want))) <= 1e-13 * scale
-    assert float(jnp.max(jnp.abs(kernel[0][1]))) > 0  # a band, not zeros
+    for part in jax.tree.leaves(kernel[0][1]):  # a band (border, corner), not zeros
+        assert float(jnp.max(jnp.abs(part))) > 0
 
 
 def test_the_band_assembly_refuses_pairs_outside_the_band():

@@ -153,49 +153,66 @@ def _arrow_blocks(groups, layout: Layout, nb: int):
     return arrow, grad
 
 
-def _kernel_band_blocks(groups, layout: Layout, nb: int):
-    """:func:`_band_blocks` in one call of the compiled ``band_normal`` handler (the
-    rows two bodies wide, :func:`.row_algebra.two_body_layout`, their bodies' places in
-    the band as its attribute); its derivative that of the same sums in plain JAX
-    (:func:`_rows_band`). Measured on lazy tongs of 1000 bodies: the assembly's scatter
-    adds took 3.1 of :func:`normal_equations`' 3.7 ms."""
+def _kernel_blocks(groups, layout: Layout, nb: int):
+    """:func:`_band_blocks` (or :func:`_arrow_blocks`, where the layout has hubs) in
+    one call of the compiled ``band_normal`` (``arrow_normal``) handler: the rows two
+    bodies wide (:func:`.row_algebra.two_body_layout`), their bodies' places in the
+    layout as its attribute; its derivative that of the same sums in plain JAX
+    (:func:`_row_blocks`). Measured on lazy tongs of 1000 bodies: the scatter adds
+    took 3.1 of :func:`normal_equations`' 3.7 ms."""
     residual, rows, pairs = two_body_layout(groups)
     places = np.where(pairs >= 0, layout.position[np.maximum(pairs, 0)], -1)
-    places = np.ascontiguousarray(places, dtype=np.int32)
-    return _band_normal(rows, residual, places.tobytes(), nb, layout.width + 1)
+    places = np.ascontiguousarray(places, dtype=np.int32).tobytes()
+    return _kernel_normal(rows, residual, places, nb, layout.width + 1, layout.hubs)
 
 
-@partial(jax.custom_jvp, nondiff_argnums=(2, 3, 4))
-def _band_normal(rows, residual, places: bytes, nb: int, w1: int):
+def _storage_shapes(nb: int, w1: int, hubs: int) -> tuple:
+    n = nb - hubs
+    band = [(n, w1, 7, 7)]
+    return tuple(band + [(n, hubs, 7, 7), (hubs, hubs, 7, 7)] if hubs else band)
+
+
+@partial(jax.custom_jvp, nondiff_argnums=(2, 3, 4, 5))
+def _kernel_normal(rows, residual, places: bytes, nb: int, w1: int, hubs: int):
     batch = rows.shape[:-2]
-    shapes = (
-        jax.ShapeDtypeStruct((*batch, nb, w1, 7, 7), rows.dtype),
-        jax.ShapeDtypeStruct((*batch, nb, 7), rows.dtype),
-    )
+    shapes = _storage_shapes(nb, w1, hubs) + ((nb, 7),)
+    results = tuple(jax.ShapeDtypeStruct((*batch, *s), rows.dtype) for s in shapes)
     pairs = np.frombuffer(places, dtype=np.int32)
-    return dense.call_kernel("band_normal", shapes, rows, residual, pairs=pairs)
+    key = "arrow_normal" if hubs else "band_normal"
+    *storage, grad = dense.call_kernel(key, results, rows, residual, pairs=pairs)
+    return (arrowhead.Arrow(*storage) if hubs else storage[0]), grad
 
 
-@_band_normal.defjvp
-def _band_normal_jvp(places, nb, w1, primals, tangents):
+@_kernel_normal.defjvp
+def _kernel_normal_jvp(places, nb, w1, hubs, primals, tangents):
     def plain(rows, residual):
-        return _rows_band(rows, residual, places, nb, w1)
+        return _row_blocks(rows, residual, places, nb, w1, hubs)
 
-    return _band_normal(*primals, places, nb, w1), jax.jvp(plain, primals, tangents)[1]
+    out = _kernel_normal(*primals, places, nb, w1, hubs)
+    return out, jax.jvp(plain, primals, tangents)[1]
 
 
-def _rows_band(rows, residual, places: bytes, nb: int, w1: int):
-    """``(JᵀJ, Jᵀr)`` in band storage of rows two bodies wide whose bodies are in the
-    band's places ``places`` (``(m, 2)`` int32 bytes, ``-1`` none), in plain JAX."""
+def _row_blocks(rows, residual, places: bytes, nb: int, w1: int, hubs: int):
+    """``(JᵀJ, Jᵀr)`` in band (``hubs`` 0) or arrowhead storage of rows two bodies
+    wide whose bodies are in the layout's places ``places`` (``(m, 2)`` int32 bytes,
+    ``-1`` none), in plain JAX."""
     where = np.frombuffer(places, dtype=np.int32).reshape(-1, 2)
-    band = jnp.zeros((nb, w1, 7, 7), dtype=rows.dtype)
+    if hubs:
+        storage = arrowhead.zeros(nb - hubs, w1 - 1, hubs)
+        add = arrowhead.add
+    else:
+        storage = jnp.zeros((nb, w1, 7, 7), dtype=rows.dtype)
+
+        def add(band, row, col, values):
+            return band.at[row, row - col].add(values)
+
     grad = jnp.zeros((nb, 7), dtype=rows.dtype)
     sides = (rows[:, :7], rows[:, 7:])
     for side, block in enumerate(sides):
         used = np.flatnonzero(where[:, side] >= 0)
         at = where[used, side]
         grad = grad.at[at].add(block[used] * residual[used, None])
-        band = band.at[at, 0].add(block[used, :, None] * block[used, None, :])
+        storage = add(storage, at, at, block[used, :, None] * block[used, None, :])
     both = np.flatnonzero(np.all(where >= 0, axis=1))
     pa, pb = where[both, 0], where[both, 1]
     prod = sides[0][both, :, None] * sides[1][both, None, :]
@@ -204,17 +221,16 @@ def _rows_band(rows, residual, places: bytes, nb: int, w1: int):
     values = jnp.where(
         same, prod + flipped, jnp.where((pa > pb)[:, None, None], prod, flipped)
     )
-    return band.at[np.maximum(pa, pb), np.abs(pa - pb)].add(values), grad
+    return add(storage, np.maximum(pa, pb), np.minimum(pa, pb), values), grad
 
 
 def _assembled(groups, layout: Layout, nb: int):
-    """``(JᵀJ, Jᵀr)`` of ``groups`` in the layout's storage: the arrowhead where it
-    has hubs, else the band, assembled by the compiled kernel where it serves."""
+    """``(JᵀJ, Jᵀr)`` of ``groups`` in the layout's storage (the arrowhead where it
+    has hubs, else the band), assembled by the compiled kernel where it serves."""
+    if dense.kernels_serve(*[g.values for g in groups]):
+        return _kernel_blocks(groups, layout, nb)
     if layout.hubs:
         return _arrow_blocks(groups, layout, nb)
-    values = [g.values for g in groups]
-    if dense.kernels_serve(*values):
-        return _kernel_band_blocks(groups, layout, nb)
     return _band_blocks(groups, layout, nb)
 
 

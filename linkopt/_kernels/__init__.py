@@ -49,7 +49,11 @@ order ``n`` at most ``_dense.max_n()``, 512, else an error):
 * ``band_normal``: ``rows (..., m, 14)``, ``c (..., m)``, attribute ``pairs`` as
   ``normal_equations``' but naming block rows of the band (``|pairs[2r] -
   pairs[2r + 1]| <= w``) -> ``(JᵀJ (..., B, w + 1, 7, 7), Jᵀc (..., B, 7))`` in
-  ``band_factor``'s storage (:func:`linkopt._engine.banded.normal_equations`).
+  ``band_factor``'s storage (:func:`linkopt._engine.banded.normal_equations`);
+* ``arrow_normal``: the same for a band with ``h`` hub bodies last
+  (:mod:`linkopt._engine.arrowhead`) -> the others' band ``(..., n, w + 1, 7, 7)``,
+  the border ``(..., n, h, 7, 7)`` (``H[hub j, body i]``), the corner ``(..., h, h,
+  7, 7)`` (both triangles) and ``Jᵀc (..., n + h, 7)``.
 
 JAX-free: importing this module imports neither JAX nor the extension.
 """
@@ -81,6 +85,7 @@ NAMES = (
     "band_factor",
     "band_solve",
     "band_normal",
+    "arrow_normal",
 )
 SOURCE = Path(__file__).with_name("dense.cc")
 #: How to rebuild the extension against the running jaxlib (in every refusal's warning).

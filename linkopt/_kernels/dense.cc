@@ -29,6 +29,9 @@
 //                   -> JᵀJ (..., B, w + 1, 7, 7) in LkBandFactor's storage, Jᵀc
 //                   (..., B, 7): LkNormalEquations with pairs naming block rows (their
 //                   distance under w + 1)
+//   LkArrowNormal   the same with h hub bodies last -> the others' band (..., n, w + 1,
+//                   7, 7), border (..., n, h, 7, 7) = H[hub j, body i], corner (..., h,
+//                   h, 7, 7) (both triangles), Jᵀc (..., n + h, 7)
 // Every handler refuses n > kMaxN (LkDampedSolve n > kLanesMaxN, LkSmallestRight
 // k > kSmallestMaxK), mismatched shapes and an unknown mode with an ffi::Error; none
 // allocates but for the scratch of large orders (with_scratch); an empty operand (n or
@@ -60,6 +63,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
+#include <initializer_list>
 #include <limits>
 #include <string>
 
@@ -1356,78 +1360,162 @@ ffi::Error BandSolveImpl(ffi::Buffer<ffi::F64> l, ffi::Buffer<ffi::F64> b,
   return ffi::Error::Success();
 }
 
-// band (nb x w1 blocks), g (nb x 7) <- JᵀJ and Jᵀc in block-band storage of the J whose
-// row r holds rows[r, :7] in block row pairs[2r]'s 7 columns and rows[r, 7:] in those
-// of pairs[2r + 1] (-1: none; |pairs[2r] - pairs[2r + 1]| < w1, checked by the caller).
-void band_normal_one(const double* __restrict rows, const double* __restrict c,
-                     const int32_t* pairs, int64_t m, int64_t nb, int64_t w1,
-                     double* __restrict band, double* __restrict g) {
-  std::memset(band, 0, sizeof(double) * nb * w1 * kBB);
-  std::memset(g, 0, sizeof(double) * nb * kB);
-  auto add_outer = [&](double* __restrict blk, const double* x, const double* y) {
-    for (int64_t i = 0; i < kB; ++i) {
-      const double xi = x[i];
-      for (int64_t j = 0; j < kB; ++j) blk[i * kB + j] += xi * y[j];
-    }
-  };
+// JᵀJ and Jᵀc of the J whose row r holds rows[r, :7] in the 7 columns of body place
+// pairs[2r] and rows[r, 7:] in those of pairs[2r + 1] (-1: none), the places numbered
+// as the band's order with h hubs last: the n = nb - h others' blocks in band storage
+// (band, n x w1 blocks; two of them |pairs[2r] - pairs[2r + 1]| < w1 apart, checked
+// by the caller), the hubs' in border (n x h blocks, border[i][j] = H[hub j, body i])
+// and corner (h x h blocks, both triangles); g (nb x 7). h = 0: no border or corner.
+struct ArrowOut {
+  double* band;
+  double* border;
+  double* corner;
+  double* g;
+};
+
+inline void add_outer(double* __restrict blk, const double* x, const double* y) {
+  for (int64_t i = 0; i < kB; ++i) {
+    const double xi = x[i];
+    for (int64_t j = 0; j < kB; ++j) blk[i * kB + j] += xi * y[j];
+  }
+}
+
+// H[p, q] += x y^T (and H[q, p] its transpose, where stored), p >= q.
+inline void add_lower(const ArrowOut& out, int64_t n, int64_t w1, int64_t h, int64_t p,
+                      int64_t q, const double* x, const double* y) {
+  if (p < n) {
+    add_outer(out.band + (p * w1 + (p - q)) * kBB, x, y);
+  } else if (q < n) {
+    add_outer(out.border + (q * h + (p - n)) * kBB, x, y);
+  } else {
+    add_outer(out.corner + ((p - n) * h + (q - n)) * kBB, x, y);
+    if (p != q) add_outer(out.corner + ((q - n) * h + (p - n)) * kBB, y, x);
+  }
+}
+
+void arrow_normal_one(const double* __restrict rows, const double* __restrict c,
+                      const int32_t* pairs, int64_t m, int64_t nb, int64_t w1,
+                      int64_t h, const ArrowOut& out) {
+  const int64_t n = nb - h;
+  std::memset(out.band, 0, sizeof(double) * n * w1 * kBB);
+  if (h > 0) {
+    std::memset(out.border, 0, sizeof(double) * n * h * kBB);
+    std::memset(out.corner, 0, sizeof(double) * h * h * kBB);
+  }
+  std::memset(out.g, 0, sizeof(double) * nb * kB);
   for (int64_t r = 0; r < m; ++r) {
     const double* a = rows + r * 14;
     const double* b = a + kB;
     const double cr = c[r];
     const int64_t pa = pairs[2 * r], pb = pairs[2 * r + 1];
     if (pa >= 0) {
-      for (int64_t i = 0; i < kB; ++i) g[pa * kB + i] += a[i] * cr;
-      add_outer(band + pa * w1 * kBB, a, a);
+      for (int64_t i = 0; i < kB; ++i) out.g[pa * kB + i] += a[i] * cr;
+      add_lower(out, n, w1, h, pa, pa, a, a);
     }
     if (pb >= 0) {
-      for (int64_t i = 0; i < kB; ++i) g[pb * kB + i] += b[i] * cr;
-      add_outer(band + pb * w1 * kBB, b, b);
+      for (int64_t i = 0; i < kB; ++i) out.g[pb * kB + i] += b[i] * cr;
+      add_lower(out, n, w1, h, pb, pb, b, b);
     }
     if (pa < 0 || pb < 0) continue;
-    if (pa == pb) {
-      add_outer(band + pa * w1 * kBB, a, b);
-      add_outer(band + pa * w1 * kBB, b, a);
+    if (pa == pb) {  // a b^T + b a^T, each entry one sum: the block stays symmetric
+      double sym[kBB];
+      for (int64_t i = 0; i < kB; ++i)
+        for (int64_t j = 0; j < kB; ++j) sym[i * kB + j] = a[i] * b[j] + b[i] * a[j];
+      double* blk = pa < n ? out.band + pa * w1 * kBB
+                           : out.corner + ((pa - n) * h + (pa - n)) * kBB;
+      for (int64_t k = 0; k < kBB; ++k) blk[k] += sym[k];
     } else if (pa > pb) {
-      add_outer(band + (pa * w1 + (pa - pb)) * kBB, a, b);
+      add_lower(out, n, w1, h, pa, pb, a, b);
     } else {
-      add_outer(band + (pb * w1 + (pb - pa)) * kBB, b, a);
+      add_lower(out, n, w1, h, pb, pa, b, a);
     }
   }
+}
+
+// The checks of LkBandNormal and LkArrowNormal: rows (..., m, 14), c (..., m), g
+// (..., nb, 7) and the storage's leading (batch) dimensions alike; the pairs' places
+// in range and, both outside the hubs, inside the band.
+ffi::Error normal_dims(ffi::Span<const int64_t> rd, ffi::Span<const int64_t> cd,
+                       ffi::Span<const int64_t> gd,
+                       std::initializer_list<ffi::Span<const int64_t>> storage,
+                       ffi::Span<const int32_t> pairs, int64_t nb, int64_t w1,
+                       int64_t h, int64_t* m, int64_t* batch) {
+  const size_t r = rd.size();
+  if (r < 2 || rd[r - 1] != 14 || cd.size() + 1 != r || gd.size() != r ||
+      gd[r - 1] != kB || gd[r - 2] != nb)
+    return ffi::Error::InvalidArgument(
+        "expected rows (..., m, 14), c (..., m) and Jᵀc (..., B, 7)");
+  *m = rd[r - 2];
+  if (cd[r - 2] != *m) return ffi::Error::InvalidArgument("row count mismatch");
+  if (static_cast<int64_t>(pairs.size()) != 2 * *m)
+    return ffi::Error::InvalidArgument("attribute pairs must hold 2 m block rows");
+  const int64_t n = nb - h;
+  for (int64_t i = 0; i < *m; ++i) {
+    const int64_t pa = pairs[2 * i], pb = pairs[2 * i + 1];
+    if (pa < -1 || pa >= nb || pb < -1 || pb >= nb)
+      return ffi::Error::InvalidArgument("a block row in pairs is out of range");
+    if (pa >= 0 && pb >= 0 && pa < n && pb < n && (pa > pb ? pa - pb : pb - pa) >= w1)
+      return ffi::Error::InvalidArgument("a pair in pairs lies outside the band");
+  }
+  *batch = 1;
+  for (size_t i = 0; i + 2 < r; ++i) {
+    bool same = cd[i] == rd[i] && gd[i] == rd[i];
+    for (auto dims : storage) same = same && dims.size() == r + 2 && dims[i] == rd[i];
+    if (!same) return ffi::Error::InvalidArgument("batch dimensions differ");
+    *batch *= rd[i];
+  }
+  return ffi::Error::Success();
 }
 
 ffi::Error BandNormalImpl(ffi::Buffer<ffi::F64> rows, ffi::Buffer<ffi::F64> c,
                           ffi::ResultBuffer<ffi::F64> band, ffi::ResultBuffer<ffi::F64> g,
                           ffi::Span<const int32_t> pairs) {
-  auto rd = rows.dimensions();
-  auto cd = c.dimensions();
-  auto gd = g->dimensions();
-  int64_t nb, w1, batch;
+  int64_t nb, w1, batch, m;
   if (auto e = band_dims(band->dimensions(), &nb, &w1, &batch); e.failure()) return e;
-  const size_t r = rd.size();
-  if (r < 2 || rd[r - 1] != 14 || cd.size() + 1 != r || band->dimensions().size() != r + 2 ||
-      gd.size() != r || gd[r - 1] != kB || gd[r - 2] != nb)
-    return ffi::Error::InvalidArgument(
-        "expected rows (..., m, 14), c (..., m) and results (..., B, w + 1, 7, 7), "
-        "(..., B, 7)");
-  const int64_t m = rd[r - 2];
-  if (cd[r - 2] != m) return ffi::Error::InvalidArgument("row count mismatch");
-  if (static_cast<int64_t>(pairs.size()) != 2 * m)
-    return ffi::Error::InvalidArgument("attribute pairs must hold 2 m block rows");
-  for (int64_t i = 0; i < m; ++i) {
-    const int64_t pa = pairs[2 * i], pb = pairs[2 * i + 1];
-    if (pa < -1 || pa >= nb || pb < -1 || pb >= nb)
-      return ffi::Error::InvalidArgument("a block row in pairs is out of range");
-    if (pa >= 0 && pb >= 0 && (pa > pb ? pa - pb : pb - pa) >= w1)
-      return ffi::Error::InvalidArgument("a pair in pairs lies outside the band");
+  if (auto e = normal_dims(rows.dimensions(), c.dimensions(), g->dimensions(),
+                           {band->dimensions()}, pairs, nb, w1, 0, &m, &batch);
+      e.failure())
+    return e;
+  for (int64_t b = 0; b < batch; ++b) {
+    const ArrowOut out{band->typed_data() + b * nb * w1 * kBB, nullptr, nullptr,
+                       g->typed_data() + b * nb * kB};
+    arrow_normal_one(rows.typed_data() + b * m * 14, c.typed_data() + b * m,
+                     pairs.begin(), m, nb, w1, 0, out);
   }
-  for (size_t i = 0; i + 2 < r; ++i)
-    if (cd[i] != rd[i] || gd[i] != rd[i] || band->dimensions()[i] != rd[i])
-      return ffi::Error::InvalidArgument("batch dimensions differ");
-  if (batch == 0) return ffi::Error::Success();
-  for (int64_t b = 0; b < batch; ++b)
-    band_normal_one(rows.typed_data() + b * m * 14, c.typed_data() + b * m, pairs.begin(),
-                    m, nb, w1, band->typed_data() + b * nb * w1 * kBB,
-                    g->typed_data() + b * nb * kB);
+  return ffi::Error::Success();
+}
+
+// LkArrowNormal: band (..., n, w1, 7, 7), border (..., n, h, 7, 7), corner (..., h, h,
+// 7, 7), g (..., n + h, 7).
+ffi::Error ArrowNormalImpl(ffi::Buffer<ffi::F64> rows, ffi::Buffer<ffi::F64> c,
+                           ffi::ResultBuffer<ffi::F64> band,
+                           ffi::ResultBuffer<ffi::F64> border,
+                           ffi::ResultBuffer<ffi::F64> corner,
+                           ffi::ResultBuffer<ffi::F64> g,
+                           ffi::Span<const int32_t> pairs) {
+  int64_t n, w1, batch, m;
+  if (auto e = band_dims(band->dimensions(), &n, &w1, &batch); e.failure()) return e;
+  auto bd = border->dimensions();
+  auto cd = corner->dimensions();
+  const size_t r = bd.size();
+  if (r < 4 || bd[r - 1] != kB || bd[r - 2] != kB || bd[r - 4] != n || cd.size() != r ||
+      cd[r - 1] != kB || cd[r - 2] != kB || cd[r - 3] != bd[r - 3] || cd[r - 4] != bd[r - 3])
+    return ffi::Error::InvalidArgument(
+        "expected border (..., n, h, 7, 7) and corner (..., h, h, 7, 7) for a band of "
+        "n block rows");
+  const int64_t h = bd[r - 3];
+  if (auto e = normal_dims(rows.dimensions(), c.dimensions(), g->dimensions(),
+                           {band->dimensions(), bd, cd}, pairs, n + h, w1, h, &m, &batch);
+      e.failure())
+    return e;
+  for (int64_t b = 0; b < batch; ++b) {
+    const ArrowOut out{band->typed_data() + b * n * w1 * kBB,
+                       border->typed_data() + b * n * h * kBB,
+                       corner->typed_data() + b * h * h * kBB,
+                       g->typed_data() + b * (n + h) * kB};
+    arrow_normal_one(rows.typed_data() + b * m * 14, c.typed_data() + b * m,
+                     pairs.begin(), m, n + h, w1, h, out);
+  }
   return ffi::Error::Success();
 }
 }  // namespace
@@ -1494,6 +1582,16 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(LkBandNormal, BandNormalImpl,
                                   .Ret<ffi::Buffer<ffi::F64>>()
                                   .Attr<ffi::Span<const int32_t>>("pairs"));
 
+XLA_FFI_DEFINE_HANDLER_SYMBOL(LkArrowNormal, ArrowNormalImpl,
+                              ffi::Ffi::Bind()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Attr<ffi::Span<const int32_t>>("pairs"));
+
 // ---- the Python extension module linkopt._kernels._dense ---------------------------
 
 #ifndef LK_NO_PYTHON
@@ -1528,7 +1626,8 @@ PyObject* capsules(PyObject*, PyObject*) {
       !add_capsule(dict, "normal_equations", LkNormalEquations) ||
       !add_capsule(dict, "band_factor", LkBandFactor) ||
       !add_capsule(dict, "band_solve", LkBandSolve) ||
-      !add_capsule(dict, "band_normal", LkBandNormal)) {
+      !add_capsule(dict, "band_normal", LkBandNormal) ||
+      !add_capsule(dict, "arrow_normal", LkArrowNormal)) {
     Py_DECREF(dict);
     return nullptr;
   }
