@@ -227,7 +227,7 @@ def _row_blocks(rows, residual, places: bytes, nb: int, w1: int, hubs: int):
 def _assembled(groups, layout: Layout, nb: int):
     """``(JᵀJ, Jᵀr)`` of ``groups`` in the layout's storage (the arrowhead where it
     has hubs, else the band), assembled by the compiled kernel where it serves."""
-    if dense.kernels_serve(*[g.values for g in groups]):
+    if groups and dense.kernels_serve(*[g.values for g in groups]):
         return _kernel_blocks(groups, layout, nb)
     if layout.hubs:
         return _arrow_blocks(groups, layout, nb)
