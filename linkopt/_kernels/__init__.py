@@ -18,8 +18,9 @@ rebuild. :mod:`linkopt._engine.dense` registers the handlers inside a guard too;
 registration XLA refuses all the same is reported by :func:`refuse`, with the same
 outcome. Either way linkopt computes with its plain-JAX code.
 
-The handlers (float64, row-major, every leading dimension a batch dimension; matrix
-order ``n`` at most ``_dense.max_n()``, 512, else an error):
+The handlers (float64, row-major, every leading dimension a batch dimension; the
+dense ones' matrix order ``n`` at most ``_dense.max_n()``, 512, else an error; the
+band's any number ``B`` of block rows):
 
 * ``cholesky``: ``a (..., n, n)`` -> the lower Cholesky factor (reads the lower
   triangle; NaN from the first non-positive pivot on);
