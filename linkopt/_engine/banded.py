@@ -101,14 +101,21 @@ def _gram(a, b):
     return jnp.einsum("gmi,gmj->gij", a, b)
 
 
+def _lower_values(pa: np.ndarray, pb: np.ndarray, prod):
+    """The blocks ``H[max(pa, pb), min(pa, pb)]`` that ``prod[g] = H[pa[g], pb[g]]``
+    and its transpose (the upper triangle's) add: ``prod`` or its transpose, their sum
+    where ``pa == pb``."""
+    lower = (pa >= pb)[:, None, None]
+    flipped = jnp.swapaxes(prod, 1, 2)
+    same = (pa == pb)[:, None, None]
+    return jnp.where(same, prod + flipped, jnp.where(lower, prod, flipped))
+
+
 def _add_block(band, layout: Layout, bodies_a, bodies_b, prod):
     """``band`` plus the blocks ``prod[g] = H[bodies_a[g], bodies_b[g]]`` (and their
     transposes, the upper triangle's, folded onto the lower band)."""
     pa, pb = layout.position[bodies_a], layout.position[bodies_b]
-    lower = (pa >= pb)[:, None, None]
-    flipped = jnp.swapaxes(prod, 1, 2)
-    same = (pa == pb)[:, None, None]
-    values = jnp.where(same, prod + flipped, jnp.where(lower, prod, flipped))
+    values = _lower_values(pa, pb, prod)
     return band.at[np.maximum(pa, pb), np.abs(pa - pb)].add(values)
 
 
@@ -140,13 +147,7 @@ def _arrow_blocks(groups, layout: Layout, nb: int):
             arrow = arrowhead.add(arrow, pa, pa, _gram(jac_a, jac_a))
             for bodies_b, jac_b in group.blocks[a + 1 :]:
                 pb = layout.position[bodies_b]
-                prod = _gram(jac_a, jac_b)
-                flipped = jnp.swapaxes(prod, 1, 2)
-                lower = (pa >= pb)[:, None, None]
-                same = (pa == pb)[:, None, None]
-                values = jnp.where(
-                    same, prod + flipped, jnp.where(lower, prod, flipped)
-                )
+                values = _lower_values(pa, pb, _gram(jac_a, jac_b))
                 arrow = arrowhead.add(
                     arrow, np.maximum(pa, pb), np.minimum(pa, pb), values
                 )
@@ -216,11 +217,7 @@ def _row_blocks(rows, residual, places: bytes, nb: int, w1: int, hubs: int):
     both = np.flatnonzero(np.all(where >= 0, axis=1))
     pa, pb = where[both, 0], where[both, 1]
     prod = sides[0][both, :, None] * sides[1][both, None, :]
-    flipped = jnp.swapaxes(prod, 1, 2)
-    same = (pa == pb)[:, None, None]
-    values = jnp.where(
-        same, prod + flipped, jnp.where((pa > pb)[:, None, None], prod, flipped)
-    )
+    values = _lower_values(pa, pb, prod)
     return add(storage, np.maximum(pa, pb), np.minimum(pa, pb), values), grad
 
 
