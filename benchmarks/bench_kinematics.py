@@ -2,9 +2,17 @@
 residual.
 
 Run: ``.venv/bin/python benchmarks/bench_kinematics.py [--quick] [--wide-only]
-[--before TREE]`` (the optimistix comparison needs ``pip install -e '.[bench]'``;
-``--before`` runs the sweep from rest, :data:`WIDE`, on another checkout's code too,
-alternating with this one's, and prints the ratios)
+[--beyond-only] [--before TREE]`` (the optimistix comparison needs
+``pip install -e '.[bench]'``; ``--before`` runs the sweeps from rest, :data:`WIDE` and
+:data:`BEYOND`, on another checkout's code too, alternating with this one's, and
+prints the ratios)
+
+:data:`BEYOND` is a sweep that reaches past the linkages' reach: rows within
+±``BEYOND_SPAN`` of rest, of which some have no assembly on the rest branch. Such a row
+fails only once its continuation has halved its step down to ``continuation.MIN_STEP``
+at the edge of the reach, so its cost is the LM iterations of the steps it rejects
+(``continuation.STEP_ITERATIONS`` caps each); it is printed as solves per second and
+the mean LM iterations of a failing row.
 
 Prints, for the five-bar and the Jansen leg: a single warm-started solve, solves per
 second in batches of 1, 1 000 and 100 000 configurations, compile time with a cold and
@@ -51,6 +59,16 @@ WIDE = {
     "jansen_2dof": (ROOT / "mechanisms/jansen_2dof.toml", 50_000.0),
 }
 WIDE_SPAN = 0.3
+#: A sweep past the reach (module docstring): 256 rows uniform within ±``BEYOND_SPAN``
+#: rad (or reference lengths) of rest. Before ``continuation.STEP_ITERATIONS``
+#: (2026-12-07, 2 cores, one run): five-bar 197-224 solves/s with 11 % of the rows
+#: failing after about 760 LM iterations each; Stewart platform 98 % failing after 876.
+BEYOND = {
+    "five-bar": ROOT / "mechanisms/five_bar.toml",
+    "neck_2dof": ROOT / "mechanisms/neck_2dof.toml",
+    "stewart": ROOT / "mechanisms/stewart.toml",
+}
+BEYOND_SPAN = 1.0
 
 
 def _timed(fn, repeats: int) -> float:
@@ -121,6 +139,25 @@ def bench_wide(mech, repeats: int = 7) -> tuple[float, float]:
     times = [_timed(solve, 3) for _ in range(repeats)]
     converged = float(np.mean(np.asarray(linkopt.solve_fk(mech, rows).converged)))
     return 1000 / float(np.median(times)), converged
+
+
+def bench_beyond(mech, repeats: int = 3) -> tuple[float, float, float]:
+    """:data:`BEYOND`'s sweep: best solves per second, the fraction converged, and the
+    mean LM iterations of the rows that failed (0 where none did)."""
+    import numpy as np
+
+    import linkopt
+
+    rest = np.asarray(linkopt.motor_values(mech, linkopt.rest_state(mech)))
+    span = BEYOND_SPAN * mech.motor_scale
+    rows = rest + np.random.default_rng(0).uniform(-span, span, (256, rest.size))
+    solve = lambda: linkopt.solve_fk(mech, rows).state  # noqa: E731
+    best = min(_timed(solve, 1) for _ in range(repeats))
+    solution = linkopt.solve_fk(mech, rows)
+    converged = np.asarray(solution.converged)
+    failed = np.asarray(solution.iterations)[~converged]
+    mean = float(failed.mean()) if failed.size else 0.0
+    return 256 / best, float(converged.mean()), mean
 
 
 def bench_optimistix(mech, n: int) -> dict:
@@ -199,6 +236,9 @@ def main() -> None:
         "--wide-only", action="store_true", help="only the sweep from rest (WIDE)"
     )
     parser.add_argument(
+        "--beyond-only", action="store_true", help="only the sweep past the reach"
+    )
+    parser.add_argument(
         "--before",
         type=Path,
         help="another checkout: the sweep from rest with its code too, alternating",
@@ -212,8 +252,12 @@ def main() -> None:
 
     print(f"jax {jax.__version__}, devices {jax.devices()}, {os.cpu_count()} CPU cores")
     figures = {"jax": jax.__version__, "solves": [], "batches": [], "baselines": []}
-    figures["wide"] = _wide() if args.before is None else _wide_against(args.before)
-    if args.wide_only:
+    if not args.beyond_only:
+        wide = _wide() if args.before is None else _wide_against(args.before)
+        figures["wide"] = wide
+    if not args.wide_only:
+        figures["beyond"] = _beyond(args.before)
+    if args.wide_only or args.beyond_only:
         _results.write(__file__, figures, args.out)
         return
     for name, path in MECHANISMS.items():
@@ -254,13 +298,45 @@ def _wide() -> list[dict]:
     return rows
 
 
-def _wide_run(tree: Path, path: Path, cache: str) -> dict:
-    """:func:`bench_wide` of ``path`` in a fresh process on ``tree``'s code (this
-    file's functions, ``tree``'s package), with the load average before it."""
+def _beyond(before: Path | None, rounds: int = 2) -> list[dict]:
+    """:func:`bench_beyond` of every :data:`BEYOND` mechanism in fresh processes,
+    alternating with ``before``'s code where given, printed and as rows."""
+    rows = []
+    print(f"\nsolve_fk from rest, 256 rows within ±{BEYOND_SPAN} (past the reach):")
+    trees = {"after": ROOT} if before is None else {"before": before, "after": ROOT}
+    with tempfile.TemporaryDirectory() as scratch:
+        for name, path in BEYOND.items():
+            runs = {side: [] for side in trees}
+            for _ in range(rounds):
+                for side, tree in trees.items():
+                    cache = str(Path(scratch) / side)
+                    runs[side].append(_wide_run(tree.resolve(), path, cache, "beyond"))
+            best = {k: max(v, key=lambda r: r["solves_per_s"]) for k, v in runs.items()}
+            line = (
+                f"  {name:<12} {best['after']['solves_per_s']:8.0f} solves/s,"
+                f" {100 * best['after']['converged']:.0f} % converged, failing rows"
+                f" {best['after']['failed_iterations']:.0f} LM iterations"
+            )
+            if before is not None:
+                ratio = best["after"]["solves_per_s"] / best["before"]["solves_per_s"]
+                line += (
+                    f"; before {best['before']['solves_per_s']:.0f} solves/s,"
+                    f" {best['before']['failed_iterations']:.0f} iterations,"
+                    f" ratio {ratio:.2f}"
+                )
+            print(line)
+            rows.append({"mechanism": name, **best["after"], "runs": runs})
+    return rows
+
+
+def _wide_run(tree: Path, path: Path, cache: str, which: str = "wide") -> dict:
+    """:func:`bench_wide` (``which`` "beyond": :func:`bench_beyond`) of ``path`` in a
+    fresh process on ``tree``'s code (this file's functions, ``tree``'s package), with
+    the load average before it."""
     code = (
         f"import sys, json; sys.path.insert(0, {str(Path(__file__).parent)!r});"
         "import linkopt, bench_kinematics as b; linkopt.use_cache();"
-        f"print(json.dumps(b.bench_wide(linkopt.load({str(path)!r}))))"
+        f"print(json.dumps(b.bench_{which}(linkopt.load({str(path)!r}))))"
     )
     env = dict(os.environ, PYTHONPATH=str(tree), LINKOPT_CACHE_DIR=cache)
     load = os.getloadavg()[0]
@@ -268,8 +344,9 @@ def _wide_run(tree: Path, path: Path, cache: str) -> dict:
         [sys.executable, "-c", code], env=env, cwd=tree, capture_output=True,
         text=True, check=True,
     )  # fmt: skip
-    rate, converged = json.loads(out.stdout.strip().splitlines()[-1])
-    return {"solves_per_s": rate, "converged": converged, "load": load}
+    figures = json.loads(out.stdout.strip().splitlines()[-1])
+    names = ["solves_per_s", "converged", "failed_iterations"]
+    return {**dict(zip(names, figures)), "load": load}
 
 
 def _wide_against(before: Path, rounds: int = 3) -> list[dict]:

@@ -10,6 +10,24 @@ accepted when the corrector converges near the prediction (within
 from another one, and then doubles; it halves otherwise, and the walk is stuck below
 ``MIN_STEP``.
 
+**Failing fast.** A step's corrector gets at most ``STEP_ITERATIONS`` (8) LM
+iterations, not the file's ``max_iterations`` (60 by default); one that has not
+converged by then rejects the step, which halves. From a first-order prediction an
+accepted step converges in about three (the shipped files from rest, rows within ±0.8
+rad or reference lengths: 6.8-15 iterations a row, over 2-4 steps). A row with no
+assembly on its branch (past the linkage's reach) ends only once its step has halved
+to ``MIN_STEP`` at the edge of the reach, about 40 steps, and the steps past the edge
+never converge: each took all 60 iterations, so on the five-bar such a row cost about
+760 iterations where a reached one costs 4-11, and every lane of its vmapped chunk
+waited for it. With the cap it costs about 270. Measured on 2026-12-07 (64 rows within
+±0.8 of rest for each of the 21 shipped files, one process, against the cap of 60):
+the same rows converge, to bitwise the same states in the same iterations; a failing
+row's last state moves by at most 2e-3 (a step near the edge that converged in more
+than 8 iterations is now halved instead); the sweeps took 6.8 s instead of 25.8 s (the
+Stewart platform, 98 % of its rows past the reach, 9.0 -> 2.2 s); and the ``f_design``
+of 8 files' evaluations and the main job's are bitwise the same.
+``benchmarks/bench_kinematics.py --beyond-only`` measures it.
+
 On the dense path each step's prediction reuses the last accepted step's normal
 equations, with the motor or output rows moved by the values' change
 (:func:`predict_from`): no linearisation per prediction. A walk returns the normal
@@ -68,6 +86,10 @@ PREDICTION_RATIO = 0.5
 PREDICTION_SLACK = 1e-7
 #: Cap on continuation steps (accepted and rejected) per solve.
 MAX_STEPS = 400
+#: Most LM iterations of one step's corrector (the file's ``[solver] max_iterations``
+#: where that is lower): a step whose corrector has not converged by then is rejected
+#: and halved (module docstring, "Failing fast").
+STEP_ITERATIONS = 8
 #: Damping of the prediction's solve (``JᵀJ`` is singular only at a singularity).
 PREDICTION_DAMPING = 1e-12
 
@@ -85,7 +107,8 @@ def corrector(
     the band where :func:`.banded.serves` says so, with the geodesic acceleration and
     the damping scaled with ``|C|²`` where :func:`.banded.geodesic` does
     (``with_tail``: the result's linearisation holds the motor or output rows'
-    Jacobian too, for :func:`predict_from`)."""
+    Jacobian too, for :func:`predict_from`); ``max_iterations`` replaces the file's
+    iteration cap where given."""
     settings = mech.solver
     linearise = (
         jacobian.normal_equations_tail if with_tail else jacobian.normal_equations
@@ -102,7 +125,9 @@ def corrector(
         method,
         start,
         tolerance=settings.tolerance,
-        max_iterations=max_iterations or settings.max_iterations,
+        max_iterations=(
+            settings.max_iterations if max_iterations is None else max_iterations
+        ),
         initial_damping=settings.initial_damping,
         residual_scaled=long,
     )
@@ -224,7 +249,8 @@ def _advance(line: _Line, walk: _Walk) -> _Walk:
         change = values - line.values(walk.fraction)
         predicted = start = predict_from(walk.state, walk.known, change)
     carried = walk.known is not None
-    result = corrector(mech, kind, geom, values, start, with_tail=carried)
+    cap = jnp.minimum(STEP_ITERATIONS, mech.solver.max_iterations)
+    result = corrector(mech, kind, geom, values, start, cap, with_tail=carried)
     judged, ok = _judged(
         line,
         walk,
