@@ -12,7 +12,8 @@ prints the ratios)
 fails only once its continuation has halved its step down to ``continuation.MIN_STEP``
 at the edge of the reach, so its cost is the LM iterations of the steps it rejects
 (``continuation.STEP_ITERATIONS`` caps each); it is printed as solves per second and
-the mean LM iterations of a failing row.
+the mean LM iterations of a failing row; ``--beyond-only`` keeps it in
+``benchmarks/results/bench_kinematics_beyond.json``.
 
 Prints, for the five-bar and the Jansen leg: a single warm-started solve, solves per
 second in batches of 1, 1 000 and 100 000 configurations, compile time with a cold and
@@ -257,7 +258,11 @@ def main() -> None:
         figures["wide"] = wide
     if not args.wide_only:
         figures["beyond"] = _beyond(args.before)
-    if args.wide_only or args.beyond_only:
+    if args.beyond_only:  # its own record, beside the whole run's
+        beyond = {"jax": jax.__version__, "beyond": figures["beyond"]}
+        _results.write(__file__.replace(".py", "_beyond.py"), beyond, args.out)
+        return
+    if args.wide_only:
         _results.write(__file__, figures, args.out)
         return
     for name, path in MECHANISMS.items():
