@@ -7,9 +7,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from long_linkages import chain
 
 import linkopt
-from linkopt._engine import continuation
+from linkopt._engine import banded, continuation
 from linkopt._engine.constraints import (
     homogenised_motor_values,
     homogenised_output_values,
@@ -87,3 +88,25 @@ def test_rows_past_the_reach_fail_in_fewer_iterations_and_reached_rows_are_uncha
     np.testing.assert_allclose(capped[1][~whole], full[1][~whole], rtol=0, atol=1e-6)
     np.testing.assert_allclose(capped[0][~whole], full[0][~whole], rtol=0, atol=1e-6)
     assert np.all(2 * capped[2][~whole] <= full[2][~whole])
+
+
+def _walk_program(mech) -> str:
+    """The jaxpr of one FK walk of ``mech`` from rest, as text."""
+    geom = geometry(mech, design_vector(mech, None))
+    state = rest_state(mech)
+    v0 = homogenised_motor_values(mech, geom, state)
+    walk = lambda g, v: continuation.walk(mech, "fk", g, v0, state, v)[:3]  # noqa: E731
+    return str(jax.make_jaxpr(walk)(geom, v0 + 0.5))
+
+
+@pytest.mark.parametrize("on_the_band", [False, True])
+def test_the_cap_is_the_dense_paths_only(on_the_band, monkeypatch):
+    """On the band (long, soft chains: lazy tongs of 300 bodies failed to reach -1 and
+    -1.5 rad with the cap) every step keeps the file's iteration cap, so the walk's
+    program does not depend on ``STEP_ITERATIONS``; on the dense path it does."""
+    bodies = banded.MIN_BODIES + 4 if on_the_band else 6
+    mech = linkopt.loads(chain(bodies), "tongs.toml")
+    assert banded.serves(mech) == on_the_band
+    capped = _walk_program(mech)
+    monkeypatch.setattr(continuation, "STEP_ITERATIONS", 1)
+    assert (_walk_program(mech) == capped) == on_the_band

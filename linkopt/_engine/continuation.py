@@ -31,6 +31,15 @@ Stewart platform, 98 % of its rows past the reach, 9.0 -> 2.2 s); and the ``f_de
 of 8 files' evaluations and the main job's are bitwise the same.
 ``benchmarks/bench_kinematics.py --beyond-only`` measures it.
 
+The cap is the dense path's only. On the band (:func:`.banded.serves`: 20 bodies and
+more) the soft modes of long chains make a step's corrector converge slowly, and with
+the cap lazy tongs of 300 bodies failed to reach -1.0 and -1.5 rad (progress 0.85 and
+0.57), which they reach with the file's cap in 419 and 104 iterations; there every step
+keeps the file's cap. Soft chains on the dense path still reach their rows with the
+cap, in more iterations where a step is halved: lazy tongs of 16 bodies, rows at ±1,
+±1.5 and ±2 rad, took 17-59 iterations against 17-49, to states 7e-11 apart (19
+bodies: 9.9e-10; 10 bodies: the same 15-35 iterations).
+
 On the dense path each step's prediction reuses the last accepted step's normal
 equations, with the motor or output rows moved by the values' change
 (:func:`predict_from`): no linearisation per prediction. A walk returns the normal
@@ -89,9 +98,9 @@ PREDICTION_RATIO = 0.5
 PREDICTION_SLACK = 1e-7
 #: Cap on continuation steps (accepted and rejected) per solve.
 MAX_STEPS = 400
-#: Most LM iterations of one step's corrector (the file's ``[solver] max_iterations``
-#: where that is lower): a step whose corrector has not converged by then is rejected
-#: and halved (module docstring, "Failing fast").
+#: Most LM iterations of one step's corrector on the dense path (the file's ``[solver]
+#: max_iterations`` where that is lower): a step whose corrector has not converged by
+#: then is rejected and halved (module docstring, "Failing fast").
 STEP_ITERATIONS = 8
 #: Damping of the prediction's solve (``JᵀJ`` is singular only at a singularity).
 PREDICTION_DAMPING = 1e-12
@@ -252,7 +261,9 @@ def _advance(line: _Line, walk: _Walk) -> _Walk:
         change = values - line.values(walk.fraction)
         predicted = start = predict_from(walk.state, walk.known, change)
     carried = walk.known is not None
-    cap = jnp.minimum(STEP_ITERATIONS, mech.solver.max_iterations)
+    cap = None  # the band's long, soft linkages: the file's cap (module docstring)
+    if not banded.serves(mech):
+        cap = jnp.minimum(STEP_ITERATIONS, mech.solver.max_iterations)
     result = corrector(mech, kind, geom, values, start, cap, with_tail=carried)
     judged, ok = _judged(
         line,
