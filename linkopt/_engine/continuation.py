@@ -25,9 +25,10 @@ waited for it. With the cap it costs about 270. Measured on 2026-12-07 (64 rows 
 the same rows converge, to bitwise the same states, in the same LM iterations but for
 4 rows of the spherical five-bar, which took fewer (a step rejected on their way gave up
 sooner); a failing row's last state moves by at most 2e-3 (a step near the edge that
-converged in more than 8 iterations is now halved instead); the sweeps took 6.8 s instead of 25.8 s (the
-Stewart platform, 98 % of its rows past the reach, 9.0 -> 2.2 s); and the ``f_design``
-of 8 files' evaluations and the main job's are bitwise the same.
+converged in more than 8 iterations is now halved instead); the sweeps took 6.8 s
+instead of 25.8 s (the Stewart platform, 98 % of its rows past the reach, 9.0 -> 2.2
+s); and the ``f_design`` of 8 files' evaluations and the main job's are bitwise the
+same.
 ``benchmarks/bench_kinematics.py --beyond-only`` measures it.
 
 The cap is the dense path's only. On the band (:func:`.banded.serves`: 20 bodies and
