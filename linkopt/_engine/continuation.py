@@ -10,25 +10,24 @@ accepted when the corrector converges near the prediction (within
 from another one, and then doubles; it halves otherwise, and the walk is stuck below
 ``MIN_STEP``.
 
-**Failing fast.** A step's corrector gets at most ``STEP_ITERATIONS`` (8) LM
-iterations, not the file's ``max_iterations`` (60 by default); one that has not
+**Failing fast.** On the dense path a step's corrector gets at most ``STEP_ITERATIONS``
+(8) LM iterations, not the file's ``max_iterations`` (60 by default); one that has not
 converged by then rejects the step, which halves. From a first-order prediction an
 accepted step converges in about three (the shipped files from rest, rows within ±0.8
 rad or reference lengths, so at least four steps of ``MAX_STEP``: 6.8-15 iterations a
-row on average; the cap at 6 already changed none of them). A row with no
-assembly on its branch (past the linkage's reach) ends only once its step has halved
-to ``MIN_STEP`` at the edge of the reach, about 40 steps, and the steps past the edge
-never converge: each took all 60 iterations, so on the five-bar such a row cost about
-760 iterations where a reached one costs 4-11, and every lane of its vmapped chunk
-waited for it. With the cap it costs about 270. Measured on 2026-12-07 (64 rows within
-±0.8 of rest for each of the 21 shipped files, one process, against the cap of 60):
-the same rows converge, to bitwise the same states, in the same LM iterations but for
-4 rows of the spherical five-bar, which took fewer (a step rejected on their way gave up
-sooner); a failing row's last state moves by at most 2e-3 (a step near the edge that
-converged in more than 8 iterations is now halved instead); the sweeps took 6.8 s
-instead of 25.8 s (the Stewart platform, 98 % of its rows past the reach, 9.0 -> 2.2
-s); and the ``f_design`` of 8 files' evaluations and the main job's are bitwise the
-same.
+row on average; the cap at 6 already changed none of them). A row with no assembly on
+its branch (past the linkage's reach) ends only once its step has halved to ``MIN_STEP``
+at the edge of the reach, about 40 steps, and the steps past the edge never converge:
+each took all 60 iterations, so on the five-bar such a row cost about 760 iterations
+where a reached one costs 4-11, and every lane of its vmapped chunk waited for it. With
+the cap it costs about 270. Measured on 2026-12-07 (64 rows within ±0.8 of rest for each
+of the 21 shipped files, one process, against the cap of 60): the same rows converge, to
+bitwise the same states, in the same LM iterations but for 4 rows of the spherical
+five-bar, which took fewer (a step rejected on their way gave up sooner); a failing
+row's last state moves by at most 2e-3 (a step near the edge that converged in more than
+8 iterations is now halved instead); the sweeps took 6.8 s instead of 25.8 s (the
+Stewart platform, 98 % of its rows past the reach, 9.0 -> 2.2 s); and the ``f_design``
+of 8 files' evaluations and the main job's are bitwise the same.
 ``benchmarks/bench_kinematics.py --beyond-only`` measures it.
 
 The cap is the dense path's only. On the band (:func:`.banded.serves`: 20 bodies and
